@@ -1,0 +1,1 @@
+"""Semi-active control laws behind one interface (passive, skyhook, groundhook, clipped-optimal, ...)."""

@@ -1,0 +1,1 @@
+"""Command line and experiment scripts of mrd-env (``mrd-env --help``)."""

@@ -1,0 +1,198 @@
+"""The damper interface shared by every model.
+
+A damper model is four things:
+
+* a frozen parameter dataclass (SI units, validated on construction),
+* internal states ``s`` advanced by ``rhs(p, s, x, xd, u, ds)`` (``ds`` = ds/dt),
+* a force law ``force(p, s, x, xd, xdd, u) -> F`` (N, positive when resisting extension ``x``),
+* the command dynamics: the first-order lag u̇ = −η (u − v) from the commanded current/voltage ``v``
+  to the effective one ``u``, which is common to all models and integrated exactly by the stepping
+  routine (``mrd_env.integrator``).
+
+``rhs``, ``force`` and ``project`` are numba ``@njit`` functions taking the parameter vector ``p``
+(``Params.as_array()``, fields in declaration order); ``project`` keeps the states in their invariant
+set (e.g. a Bouc–Wen z inside its saturation bound). Adding a model is one new module in this package
+that defines a ``DamperModel`` subclass decorated with ``@register``.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field, fields
+from typing import Any, Callable, ClassVar
+
+import numba as nb
+import numpy as np
+
+from ..validation import check_scalar, describe_range
+
+
+def param(default: float = dataclasses.MISSING, *, unit: str, lo: float = -math.inf, hi: float = math.inf,
+          lo_open: bool = False, doc: str = "") -> Any:
+    """Declare a model parameter: its SI ``unit``, valid range and meaning."""
+    meta = {"unit": unit, "lo": lo, "hi": hi, "lo_open": lo_open, "doc": doc}
+    if default is dataclasses.MISSING:
+        return field(metadata=meta)
+    return field(default=default, metadata=meta)
+
+
+@dataclass(frozen=True)
+class DamperParams:
+    """Base of every model's parameters: checks each field against its declared range."""
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            m = f.metadata
+            v = getattr(self, f.name)
+            try:
+                fv = float(v)
+            except (TypeError, ValueError):
+                raise ValueError(f"{type(self).__name__}.{f.name} must be a real number, got {v!r}") from None
+            lo_ok = fv > m["lo"] if m["lo_open"] else fv >= m["lo"]
+            if not (math.isfinite(fv) and lo_ok and fv <= m["hi"]):
+                raise ValueError(
+                    f"{type(self).__name__}.{f.name} = {v!r} is invalid: must be "
+                    f"{describe_range(m['lo'], m['hi'], m['lo_open'], False, m['unit'])}")
+            object.__setattr__(self, f.name, fv)
+        self.check()
+
+    def check(self) -> None:
+        """Cross-field constraints (override); raise ``ValueError`` naming the fields."""
+
+    def as_array(self) -> np.ndarray:
+        return np.array([getattr(self, f.name) for f in fields(self)], dtype=np.float64)
+
+    def to_dict(self) -> dict[str, float]:
+        return {f.name: getattr(self, f.name) for f in fields(self)}
+
+    @classmethod
+    def names(cls) -> tuple[str, ...]:
+        return tuple(f.name for f in fields(cls))
+
+    @classmethod
+    def units(cls) -> dict[str, str]:
+        return {f.name: f.metadata["unit"] for f in fields(cls)}
+
+    @classmethod
+    def bounds(cls) -> dict[str, tuple[float, float]]:
+        return {f.name: (f.metadata["lo"], f.metadata["hi"]) for f in fields(cls)}
+
+    def replace(self, **changes: float) -> "DamperParams":
+        unknown = set(changes) - set(self.names())
+        if unknown:
+            raise ValueError(f"unknown parameter(s) {sorted(unknown)} for {type(self).__name__}; "
+                             f"valid: {list(self.names())}")
+        return dataclasses.replace(self, **changes)
+
+
+@dataclass(frozen=True)
+class CommandSpec:
+    """The command channel: unit ('V' or 'A'), admissible range and the first-order lag rate η (1/s).
+
+    u̇ = −η (u − v): ``u`` reaches 63.2 % of a step in v after 1/η seconds.
+    """
+
+    unit: str = "V"
+    v_min: float = 0.0
+    v_max: float = 1.0
+    eta: float = 190.0
+
+    def __post_init__(self) -> None:
+        if self.unit not in ("V", "A"):
+            raise ValueError(f"CommandSpec.unit must be 'V' or 'A', got {self.unit!r}")
+        object.__setattr__(self, "v_min", check_scalar("CommandSpec.v_min", self.v_min, unit=self.unit))
+        object.__setattr__(self, "v_max", check_scalar("CommandSpec.v_max", self.v_max, self.v_min,
+                                                       lo_open=True, unit=self.unit))
+        object.__setattr__(self, "eta", check_scalar("CommandSpec.eta", self.eta, 0.0, lo_open=True, unit="1/s"))
+
+    def check_command(self, v: np.ndarray | float, name: str = "command") -> np.ndarray:
+        """Raise ``ValueError`` if any command is non-finite or outside [v_min, v_max]."""
+        a = np.asarray(v, dtype=np.float64)
+        if not np.all(np.isfinite(a)):
+            raise ValueError(f"{name} contains a non-finite value")
+        tol = 1e-12 * max(1.0, abs(self.v_max))
+        if a.size and (a.min() < self.v_min - tol or a.max() > self.v_max + tol):
+            raise ValueError(f"{name} must stay within [{self.v_min:g}, {self.v_max:g}] {self.unit} "
+                             f"(the preset's range), got values in [{a.min():g}, {a.max():g}]")
+        return a
+
+
+@dataclass(frozen=True)
+class Preset:
+    """Published (or derived) parameters with their command channel and source."""
+
+    params: DamperParams
+    command: CommandSpec
+    source: str
+    verified: bool = True
+
+
+class DamperModel:
+    """A configured damper: a model class with its parameters and command channel.
+
+    Subclasses set ``name``, ``Params``, ``state_names``, ``presets``, ``default_preset`` and the numba
+    functions ``rhs``, ``force`` and ``project``.
+    """
+
+    name: ClassVar[str]
+    Params: ClassVar[type[DamperParams]]
+    state_names: ClassVar[tuple[str, ...]] = ()
+    presets: ClassVar[dict[str, Preset]] = {}
+    default_preset: ClassVar[str]
+    rhs: ClassVar[Callable]
+    force: ClassVar[Callable]
+    project: ClassVar[Callable]
+
+    def __init__(self, params: DamperParams | None = None, command: CommandSpec | None = None,
+                 preset: str | None = None):
+        base = self.preset(preset)
+        if params is not None and not isinstance(params, self.Params):
+            raise ValueError(f"params for {self.name!r} must be a {self.Params.__name__}, "
+                             f"got {type(params).__name__}")
+        self.params = params if params is not None else base.params
+        self.command = command if command is not None else base.command
+
+    @classmethod
+    def preset(cls, name: str | None = None) -> Preset:
+        key = cls.default_preset if name is None else name
+        if key not in cls.presets:
+            raise ValueError(f"unknown preset {key!r} for damper model {cls.name!r}; "
+                             f"available: {sorted(cls.presets)}")
+        return cls.presets[key]
+
+    @property
+    def n_states(self) -> int:
+        return len(self.state_names)
+
+    def initial_state(self) -> np.ndarray:
+        """Internal states at rest (override when rest is not all zeros)."""
+        return np.zeros(self.n_states)
+
+    def inertance(self) -> float:
+        """Mass-like coefficient m of a force term m·ẍ (kg); plants add it to their mass matrix."""
+        return 0.0
+
+    def with_params(self, **changes: float) -> "DamperModel":
+        return type(self)(self.params.replace(**changes), self.command)
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}({self.params!r}, {self.command!r})"
+
+
+@nb.njit(cache=True)
+def no_states_rhs(p, s, x, xd, u, ds):  # pragma: no cover - compiled
+    """For memoryless force laws: there are no internal states to advance."""
+    return
+
+
+@nb.njit(cache=True)
+def no_projection(p, s, u):  # pragma: no cover - compiled
+    return
+
+
+@nb.njit(cache=True)
+def smooth_sign(v, v_s):
+    """sgn(v) smoothed over the velocity scale v_s (m/s): tanh(v / v_s); exact sign when v_s = 0."""
+    if v_s <= 0.0:
+        return 1.0 if v > 0.0 else (-1.0 if v < 0.0 else 0.0)
+    return math.tanh(v / v_s)

@@ -1,0 +1,50 @@
+"""Bingham model, review eq. (2): F = f_c sgn(ẋ) + c0 ẋ + f0.
+
+sgn is smoothed as tanh(ẋ / v_s) with the smoothing velocity v_s (m/s; v_s = 0 gives the exact, discontinuous
+sign, whose jump at zero velocity is 2 f_c). Command dependence (common literature form):
+f_c = f_ca + f_cb u, c0 = c0a + c0b u. No internal states.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba as nb
+
+from .base import CommandSpec, DamperModel, DamperParams, Preset, no_projection, no_states_rhs, param, smooth_sign
+from .registry import register
+
+
+@dataclass(frozen=True)
+class BinghamParams(DamperParams):
+    fc_a: float = param(unit="N", lo=0.0, doc="friction (yield) force f_c, command-independent part")
+    fc_b: float = param(unit="N/cmd", lo=0.0, doc="f_c per unit command")
+    c0a: float = param(unit="N·s/m", lo=0.0, doc="post-yield damping c0, command-independent part")
+    c0b: float = param(unit="N·s/(m·cmd)", lo=0.0, doc="c0 per unit command")
+    f0: float = param(unit="N", doc="force offset (accumulator)")
+    v_s: float = param(0.01, unit="m/s", lo=0.0, doc="velocity over which sgn(ẋ) is smoothed (0 = exact sign)")
+
+
+@nb.njit(cache=True)
+def _force(p, s, x, xd, xdd, u):
+    return (p[0] + p[1] * u) * smooth_sign(xd, p[5]) + (p[2] + p[3] * u) * xd + p[4]
+
+
+# Large-velocity asymptote of the Spencer–Dyke prototype: f_c = α(u) z_s with z_s = (A/(β+γ))^(1/2) =
+# 6.439 mm, c0 = c0 c1/(c0 + c1) at 0 and 2.25 V, f0 = −k1 x0 (derived, not published).
+PROTOTYPE = BinghamParams(fc_a=90.15, fc_b=447.5, c0a=1955.0, c0b=298.2, f0=-71.5, v_s=0.01)
+
+
+@register
+class Bingham(DamperModel):
+    name = "bingham"
+    Params = BinghamParams
+    state_names = ()
+    presets = {
+        "spencer1997": Preset(PROTOTYPE, CommandSpec("V", 0.0, 2.25, 190.0),
+                              "large-velocity asymptote of the Spencer–Dyke prototype set (derived)",
+                              verified=False),
+    }
+    default_preset = "spencer1997"
+    rhs = no_states_rhs
+    force = _force
+    project = no_projection

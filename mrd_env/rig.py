@@ -1,0 +1,187 @@
+"""Virtual damper test rig: drive any damper model with a prescribed stroke and command.
+
+Sinusoidal tests (the review's section 4 sinusoidal tester), band-limited random tests, and a user's own
+displacement/command record. Several records (e.g. one per command level) run as one vectorised batch
+through the shared stepping routine :func:`mrd_env.integrator.run`.
+"""
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .dampers import DamperModel, make_damper
+from .integrator import SystemMatrices, run
+from .validation import check_array, check_scalar
+
+
+@dataclass(frozen=True)
+class RigResult:
+    """One rig record on the fixed grid t_k = k·dt (SI units)."""
+
+    model: str
+    t: np.ndarray        # s
+    x: np.ndarray        # stroke, m (extension positive)
+    v: np.ndarray        # stroke velocity, m/s
+    command: np.ndarray  # commanded v (V or A), held over each step
+    u: np.ndarray        # effective command after the driver/coil lag
+    force: np.ndarray    # N, positive when resisting extension
+    command_unit: str
+    label: str = ""
+
+    @property
+    def dt(self) -> float:
+        return float(self.t[1] - self.t[0])
+
+    def steady_cycles(self, frequency: float, n_cycles: int = 1) -> slice:
+        """Index slice covering the last ``n_cycles`` periods (for loops and energy)."""
+        n = int(round(n_cycles / (frequency * self.dt)))
+        return slice(len(self.t) - n - 1, len(self.t))
+
+    def dissipated_energy(self, sl: slice | None = None) -> float:
+        """∮ F dx over the samples in ``sl`` (J), trapezoidal in time: ∫ F ẋ dt."""
+        sl = sl or slice(None)
+        return float(np.trapezoid(self.force[sl] * self.v[sl], self.t[sl]))
+
+    def to_csv(self, path: str | Path) -> Path:
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with path.open("w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["t_s", "x_m", "v_m_per_s", f"command_{self.command_unit}", f"u_{self.command_unit}",
+                        "force_N"])
+            for row in zip(self.t, self.x, self.v, self.command, self.u, self.force):
+                w.writerow([f"{val:.9g}" for val in row])
+        return path
+
+
+def _as_damper(damper: DamperModel | str) -> DamperModel:
+    return make_damper(damper) if isinstance(damper, str) else damper
+
+
+def simulate(damper: DamperModel | str, x: np.ndarray, command: np.ndarray, dt: float = 1e-3,
+             v: np.ndarray | None = None, a: np.ndarray | None = None, *, labels=None,
+             **integrator_options) -> list[RigResult]:
+    """Drive ``damper`` with strokes ``x`` (m) and commands ``command`` sampled every ``dt`` seconds.
+
+    ``x`` and ``command`` are 1-D (one record) or 2-D (records × samples, run as one batch). Velocity ``v``
+    and acceleration ``a`` default to second-order finite differences of ``x`` (``numpy.gradient``); give
+    them when known exactly. The command at sample k is held until sample k+1; all states start at rest.
+    """
+    damper = _as_damper(damper)
+    dt = check_scalar("dt", dt, 0.0, lo_open=True, unit="s")
+    x2 = np.atleast_2d(check_array("x", x))
+    n_rec, n = x2.shape
+    if n < 2:
+        raise ValueError(f"x must have at least 2 samples, got {n}")
+    c2 = np.atleast_2d(check_array("command", command))
+    if c2.shape[1] == 1 and n > 1:
+        c2 = np.repeat(c2, n, axis=1)
+    c2 = np.broadcast_to(c2, (n_rec, n)) if c2.shape[0] == 1 else c2
+    if c2.shape != (n_rec, n):
+        raise ValueError(f"command must have shape {(n_rec, n)} (or be one value per record), got {c2.shape}")
+    damper.command.check_command(c2)
+    v2 = np.gradient(x2, dt, axis=1) if v is None else np.atleast_2d(check_array("v", v, shape=None))
+    a2 = np.gradient(v2, dt, axis=1) if a is None else np.atleast_2d(check_array("a", a))
+    for name, arr in (("v", v2), ("a", a2)):
+        if arr.shape != (n_rec, n):
+            raise ValueError(f"{name} must have the shape of x {(n_rec, n)}, got {arr.shape}")
+    W = np.ascontiguousarray(np.stack([x2, v2, a2], axis=2))
+    Y = np.tile(damper.initial_state(), (n_rec, 1))
+    U = c2[:, :1].copy()  # the effective command starts at the first command (the rig was settled)
+    V = np.ascontiguousarray(c2[:, :-1, None])
+    F, _, _ = run(damper, SystemMatrices.displacement_driven(), Y, U, V, W, dt, **integrator_options)
+    # force at t0 from the initial state, then the integrator's end-of-step forces
+    F0 = np.array([type(damper).force(damper.params.as_array(), np.tile(damper.initial_state(), 1), x2[i, 0],
+                                      v2[i, 0], a2[i, 0], c2[i, 0]) for i in range(n_rec)])
+    force = np.concatenate([F0[:, None], F[:, :, 0]], axis=1)
+    eta = damper.command.eta
+    u = np.empty_like(c2)
+    u[:, 0] = c2[:, 0]
+    decay = np.exp(-eta * dt)
+    for k in range(1, n):
+        u[:, k] = c2[:, k - 1] + (u[:, k - 1] - c2[:, k - 1]) * decay
+    t = np.arange(n) * dt
+    labels = labels or [""] * n_rec
+    return [RigResult(damper.name, t, x2[i], v2[i], c2[i], u[i], force[i], damper.command.unit, labels[i])
+            for i in range(n_rec)]
+
+
+def sinusoidal_test(damper: DamperModel | str, amplitude: float, frequency: float, commands=(0.0,), *,
+                    cycles: float = 3.0, dt: float = 1e-3, **integrator_options) -> list[RigResult]:
+    """x = X sin(2π f t) at constant command levels, one record per level (review section 4)."""
+    damper = _as_damper(damper)
+    X = check_scalar("amplitude", amplitude, 0.0, lo_open=True, unit="m")
+    f = check_scalar("frequency", frequency, 0.0, lo_open=True, unit="Hz")
+    cycles = check_scalar("cycles", cycles, 0.0, lo_open=True)
+    if f * dt > 0.1:
+        raise ValueError(f"frequency = {f:g} Hz is too high for dt = {dt:g} s: need at least 10 samples per "
+                         f"cycle (frequency <= {0.1 / dt:g} Hz)")
+    cmds = np.atleast_1d(check_array("commands", commands, ndim=None))
+    n = int(round(cycles / (f * dt))) + 1
+    t = np.arange(n) * dt
+    w = 2.0 * np.pi * f
+    x = np.tile(X * np.sin(w * t), (len(cmds), 1))
+    v = np.tile(X * w * np.cos(w * t), (len(cmds), 1))
+    a = np.tile(-X * w * w * np.sin(w * t), (len(cmds), 1))
+    labels = [f"{c:g} {damper.command.unit}" for c in cmds]
+    return simulate(damper, x, cmds[:, None] * np.ones((1, n)), dt, v, a, labels=labels, **integrator_options)
+
+
+def random_test(damper: DamperModel | str, rms: float, bandwidth: float, duration: float, *, command=None,
+                switch_rate: float = 0.0, dt: float = 1e-3, rng=None, **integrator_options) -> RigResult:
+    """Band-limited random stroke (Gaussian, flat spectrum up to ``bandwidth`` Hz, scaled to ``rms`` m).
+
+    ``command``: a constant level, or None with ``switch_rate`` > 0 for a command switched at random
+    between the preset's minimum and maximum (Poisson switching, mean rate in Hz) — the random tests of
+    the Spencer/Dyke characterisation. ``rng``: a ``numpy.random.Generator`` or a seed.
+    """
+    damper = _as_damper(damper)
+    rng = np.random.default_rng(rng)
+    rms = check_scalar("rms", rms, 0.0, lo_open=True, unit="m")
+    bw = check_scalar("bandwidth", bandwidth, 0.0, 0.5 / dt, lo_open=True, hi_open=True, unit="Hz")
+    duration = check_scalar("duration", duration, 0.0, lo_open=True, unit="s")
+    n = int(round(duration / dt)) + 1
+    spec = np.fft.rfft(rng.standard_normal(n))
+    freqs = np.fft.rfftfreq(n, dt)
+    spec[(freqs > bw) | (freqs == 0.0)] = 0.0
+    spec *= rms / np.sqrt(np.mean(np.fft.irfft(spec, n) ** 2))
+    x = np.fft.irfft(spec, n)
+    v = np.fft.irfft(spec * 2j * np.pi * freqs, n)  # exact derivative of the band-limited signal
+    a = np.fft.irfft(spec * (2j * np.pi * freqs) ** 2, n)
+    c = damper.command
+    if command is not None:
+        cmd = np.full(n, check_scalar("command", command, c.v_min, c.v_max, unit=c.unit))
+    else:
+        rate = check_scalar("switch_rate", switch_rate, 0.0, lo_open=True, unit="Hz")
+        flips = rng.random(n) < rate * dt
+        cmd = np.where(np.cumsum(flips) % 2 == 0, c.v_min, c.v_max)
+    return simulate(damper, x, cmd, dt, v, a, labels=["random"], **integrator_options)[0]
+
+
+def plot_loops(results: list[RigResult], path: str | Path, *, last_cycles: slice | None = None,
+               title: str = "") -> Path:
+    """Force–displacement and force–velocity loops of several records on one figure (review Figs. 2, 5)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 4.2), constrained_layout=True)
+    for r in results:
+        sl = last_cycles or slice(None)
+        ax1.plot(r.x[sl] * 1e3, r.force[sl] / 1e3, label=r.label or r.model)
+        ax2.plot(r.v[sl], r.force[sl] / 1e3, label=r.label or r.model)
+    ax1.set_xlabel("displacement x (mm)")
+    ax2.set_xlabel("velocity ẋ (m/s)")
+    for ax in (ax1, ax2):
+        ax.set_ylabel("force F (kN)")
+        ax.grid(True, alpha=0.3)
+    ax2.legend(title="command", fontsize=8)
+    fig.suptitle(title or f"{results[0].model}: force–displacement and force–velocity loops")
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+    return path
