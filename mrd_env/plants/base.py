@@ -1,0 +1,137 @@
+"""Linear mechanical plants coupled to MR dampers.
+
+A plant with n degrees of freedom q, n_d dampers and exogenous inputs w (road or ground motion)::
+
+    M q̈ + C q̇ + K q = −Sᵀ F + E w + Sᵀ F_static          (F: damper forces, positive resisting extension)
+    x_d = S q,  ẋ_d = S q̇                                  (damper strokes)
+
+``S`` (n_d × n) maps the coordinates to the damper strokes, so −Sᵀ F is the damper's generalised force
+(virtual work). Coordinates are measured from static equilibrium with the dampers at rest at their
+minimum command: the damper's static force at rest F_static (an accumulator preload such as k1·x0) is
+balanced by a constant term, so a plant at rest stays at rest. A damper's inertance m_d (a force term
+m_d·ẍ_d) is added to the mass matrix as m_d Sᵀ S. The coupled first-order system is handed to the shared
+stepping routine (:mod:`mrd_env.integrator`), which advances plant and damper states together.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..dampers import DamperModel
+from ..integrator import Stepper, SystemMatrices
+from ..validation import check_array
+
+
+@dataclass(frozen=True)
+class LinearPlant:
+    """Second-order plant matrices (SI). ``input_names`` label the columns of E (the channels of w)."""
+
+    M: np.ndarray
+    C: np.ndarray
+    K: np.ndarray
+    S: np.ndarray
+    E: np.ndarray
+    input_names: tuple[str, ...]
+    dof_names: tuple[str, ...]
+
+    def __post_init__(self) -> None:
+        n = len(self.dof_names)
+        for name, shape in (("M", (n, n)), ("C", (n, n)), ("K", (n, n)), ("E", (n, len(self.input_names)))):
+            object.__setattr__(self, name, check_array(name, getattr(self, name), shape=shape))
+        S = check_array("S", self.S, ndim=2)
+        if S.shape[1] != n:
+            raise ValueError(f"S must have {n} columns (one per degree of freedom), got shape {S.shape}")
+        object.__setattr__(self, "S", S)
+        if np.any(np.linalg.eigvalsh(0.5 * (self.M + self.M.T)) <= 0):
+            raise ValueError("M must be symmetric positive definite (all masses > 0)")
+
+    @property
+    def n_dof(self) -> int:
+        return self.M.shape[0]
+
+    @property
+    def n_dampers(self) -> int:
+        return self.S.shape[0]
+
+    def state_space(self, inertance: float = 0.0, extra_damping: np.ndarray | float = 0.0):
+        """(A, B_F, B_w) of q' = [q, q̇] with damper forces F and inputs w as inputs.
+
+        ``extra_damping``: viscous coefficient(s) added across the dampers (a linear dashpot c·ẋ_d in
+        place of, or besides, the MR damper), used for the linear checks against python-control.
+        """
+        n = self.n_dof
+        c_d = np.broadcast_to(np.asarray(extra_damping, dtype=float), (self.n_dampers,))
+        M = self.M + inertance * self.S.T @ self.S
+        C = self.C + self.S.T @ np.diag(c_d) @ self.S
+        Minv = np.linalg.inv(M)
+        A = np.zeros((2 * n, 2 * n))
+        A[:n, n:] = np.eye(n)
+        A[n:, :n] = -Minv @ self.K
+        A[n:, n:] = -Minv @ C
+        BF = np.vstack([np.zeros((n, self.n_dampers)), -Minv @ self.S.T])
+        Bw = np.vstack([np.zeros((n, self.E.shape[1])), Minv @ self.E])
+        return A, BF, Bw
+
+
+class CoupledPlant:
+    """A :class:`LinearPlant` with one damper model at every damper location, stepped in batches.
+
+    ``N`` independent copies (vectorised environments) share matrices; each copy has its own states.
+    The inputs are w = (plant inputs..., 1) — the last channel carries the static preload balance.
+    """
+
+    def __init__(self, plant: LinearPlant, damper: DamperModel, *, N: int = 1, n_steps: int = 1,
+                 dt: float = 1e-3, **integrator_options):
+        self.plant = plant
+        self.damper = damper
+        nd = plant.n_dampers
+        m_d = damper.inertance()
+        A, BF, Bw = plant.state_space(inertance=m_d)
+        rest = damper.initial_state()
+        F_static = float(type(damper).force(damper.params.as_array(), rest, 0.0, 0.0, 0.0, damper.command.v_min))
+        Minv = np.linalg.inv(plant.M + m_d * plant.S.T @ plant.S)
+        bias = np.concatenate([np.zeros(plant.n_dof), Minv @ plant.S.T @ np.full(nd, F_static)])
+        n = plant.n_dof
+        Cx = np.hstack([plant.S, np.zeros_like(plant.S)])
+        Cv = np.hstack([np.zeros_like(plant.S), plant.S])
+        self.nw = plant.E.shape[1] + 1
+        self.system = SystemMatrices(nd=nd, nw=self.nw, A=A, BF=BF, Bw=np.hstack([Bw, bias[:, None]]),
+                                     Cx=Cx, Cv=Cv)
+        self.F_static = F_static
+        self.n = 2 * n + nd * damper.n_states
+        self.stepper = Stepper(damper, self.system, N, n_steps, dt, **integrator_options)
+        self.reset()
+
+    @property
+    def N(self) -> int:
+        return self.stepper.Y.shape[0]
+
+    def reset(self, q0: np.ndarray | None = None) -> None:
+        """All copies at rest (or at plant state ``q0`` = [q, q̇]), effective command at its minimum."""
+        st = self.stepper
+        st.Y[:] = 0.0
+        n2 = 2 * self.plant.n_dof
+        if q0 is not None:
+            st.Y[:, :n2] = q0
+        st.Y[:, n2:] = np.tile(self.damper.initial_state(), self.plant.n_dampers)
+        st.U[:] = self.damper.command.v_min
+        st.t = 0.0
+
+    def inputs(self, w: np.ndarray) -> np.ndarray:
+        """Append the constant channel to plant inputs of shape (N, n_steps + 1, n_inputs)."""
+        return np.concatenate([w, np.ones(w.shape[:2] + (1,))], axis=2)
+
+    def step(self, V: np.ndarray, w: np.ndarray):
+        """Advance with commands V (N, n_steps, nd) and plant inputs w (N, n_steps + 1, n_inputs).
+
+        Returns (F (N, n_steps, nd), Y (N, n_steps, n)) at the end of every step (views; copy to keep).
+        """
+        return self.stepper.step(V, self.inputs(w))
+
+    def accelerations(self, Y: np.ndarray, F: np.ndarray, W: np.ndarray) -> np.ndarray:
+        """q̈ from states, forces and full inputs W (with the constant channel): (..., n_dof)."""
+        s = self.system
+        n = self.plant.n_dof
+        qdot = Y[..., : 2 * n] @ s.A.T + F @ s.BF.T + W @ s.Bw.T
+        return qdot[..., n:]

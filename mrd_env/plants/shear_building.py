@@ -1,0 +1,110 @@
+"""N-storey shear building with MR dampers between chosen floors, under ground acceleration ẍ_g.
+
+    M ẍ + C ẋ + K x = −Sᵀ F − M 1 ẍ_g
+
+x: floor displacements relative to the ground (m). A damper between floors i−1 and i (floor 0 = ground)
+has stroke x_i − x_{i−1}: its row of S is +1 at floor i and −1 at floor i−1 (the reference's damper
+location vector Γ = −Sᵀ, [−1, 0, 0] for a ground–first-floor damper).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..validation import check_array
+from .base import LinearPlant
+
+
+@dataclass(frozen=True)
+class ShearBuildingParams:
+    masses: tuple[float, ...]                     # floor masses, kg (floor 1 first)
+    K: np.ndarray                                 # stiffness matrix, N/m
+    C: np.ndarray                                 # damping matrix, N·s/m
+    damper_floors: tuple[int, ...] = (1,)         # damper j sits between floor f−1 and floor f
+    storey_heights: tuple[float, ...] | None = None  # m (for drift ratios)
+    source: str = ""
+
+    def __post_init__(self) -> None:
+        m = check_array("ShearBuildingParams.masses", self.masses, ndim=1)
+        if m.size == 0 or np.any(m <= 0):
+            raise ValueError(f"ShearBuildingParams.masses must all be > 0 kg, got {m.tolist()}")
+        n = m.size
+        object.__setattr__(self, "masses", tuple(m.tolist()))
+        object.__setattr__(self, "K", check_array("ShearBuildingParams.K", self.K, shape=(n, n)))
+        object.__setattr__(self, "C", check_array("ShearBuildingParams.C", self.C, shape=(n, n)))
+        floors = tuple(int(f) for f in self.damper_floors)
+        if not floors or any(f < 1 or f > n for f in floors):
+            raise ValueError(f"ShearBuildingParams.damper_floors must be floor numbers in 1..{n}, got {floors}")
+        object.__setattr__(self, "damper_floors", floors)
+        if self.storey_heights is not None:
+            h = check_array("ShearBuildingParams.storey_heights", self.storey_heights, shape=(n,), lo=1e-9)
+            object.__setattr__(self, "storey_heights", tuple(h.tolist()))
+        if np.any(np.linalg.eigvalsh(0.5 * (self.K + self.K.T)) <= 0):
+            raise ValueError("ShearBuildingParams.K must be positive definite")
+
+    @property
+    def n_floors(self) -> int:
+        return len(self.masses)
+
+    @property
+    def weight(self) -> float:
+        return float(sum(self.masses)) * 9.80665
+
+    @classmethod
+    def uniform(cls, n: int, mass: float, storey_stiffness: float, damping_ratio: float = 0.02,
+                damper_floors=(1,), storey_height: float = 3.0) -> "ShearBuildingParams":
+        """An n-storey building with equal floors and Rayleigh damping (given ratio in modes 1 and 2)."""
+        K = storey_stiffness * (2 * np.eye(n) - np.eye(n, k=1) - np.eye(n, k=-1))
+        K[-1, -1] = storey_stiffness
+        M = mass * np.eye(n)
+        w = np.sqrt(np.sort(np.linalg.eigvals(np.linalg.solve(M, K)).real))
+        w1, w2 = w[0], w[min(1, n - 1)]
+        a0, a1 = (2 * damping_ratio * w1 * w2 / (w1 + w2), 2 * damping_ratio / (w1 + w2)) if n > 1 \
+            else (0.0, 2 * damping_ratio / w1)
+        return cls(tuple([mass] * n), K, a0 * M + a1 * K, tuple(damper_floors), tuple([storey_height] * n),
+                   source=f"uniform {n}-storey, Rayleigh {damping_ratio:g}")
+
+    def plant(self) -> LinearPlant:
+        n = self.n_floors
+        S = np.zeros((len(self.damper_floors), n))
+        for j, f in enumerate(self.damper_floors):
+            S[j, f - 1] = 1.0
+            if f > 1:
+                S[j, f - 2] = -1.0
+        M = np.diag(self.masses)
+        return LinearPlant(M=M, C=self.C, K=self.K, S=S, E=-M @ np.ones((n, 1)), input_names=("xg_ddot",),
+                           dof_names=tuple(f"x{i + 1}" for i in range(n)))
+
+    def drift_matrix(self) -> np.ndarray:
+        """D with interstorey drifts d = D x (d_1 = x_1, d_i = x_i − x_{i−1})."""
+        n = self.n_floors
+        return np.eye(n) - np.eye(n, k=-1)
+
+
+#: Notre Dame three-storey lab model used with the prototype damper (reference page, section 4).
+THREE_STOREY = ShearBuildingParams(
+    masses=(98.3, 98.3, 98.3),
+    K=1e5 * np.array([[12.0, -6.84, 0.0], [-6.84, 13.7, -6.84], [0.0, -6.84, 6.84]]),
+    C=np.array([[175.0, -50.0, 0.0], [-50.0, 100.0, -50.0], [0.0, -50.0, 50.0]]),
+    damper_floors=(1,),
+    storey_heights=(0.3, 0.3, 0.3),
+    source="Dyke et al. (1996) three-storey lab model (Notre Dame), reference page section 4; "
+           "storey heights 0.3 m assumed",
+)
+
+BUILDING_PRESETS = {"three_storey": THREE_STOREY}
+
+
+def shear_building(preset: str = "three_storey", **overrides) -> ShearBuildingParams:
+    """A building by preset name (``three_storey``) with optional field overrides (e.g. damper_floors)."""
+    if preset not in BUILDING_PRESETS:
+        raise ValueError(f"unknown building preset {preset!r}; available: {sorted(BUILDING_PRESETS)}")
+    base = BUILDING_PRESETS[preset]
+    if not overrides:
+        return base
+    fields = {k: getattr(base, k) for k in base.__dataclass_fields__}
+    unknown = set(overrides) - set(fields)
+    if unknown:
+        raise ValueError(f"unknown building parameter(s) {sorted(unknown)}; valid: {sorted(fields)}")
+    return ShearBuildingParams(**{**fields, **overrides})
