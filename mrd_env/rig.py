@@ -79,7 +79,7 @@ def simulate(damper: DamperModel | str, x: np.ndarray, command: np.ndarray, dt: 
     c2 = np.atleast_2d(check_array("command", command))
     if c2.shape[1] == 1 and n > 1:
         c2 = np.repeat(c2, n, axis=1)
-    c2 = np.broadcast_to(c2, (n_rec, n)) if c2.shape[0] == 1 else c2
+    c2 = np.array(np.broadcast_to(c2, (n_rec, n)) if c2.shape[0] == 1 else c2)
     if c2.shape != (n_rec, n):
         raise ValueError(f"command must have shape {(n_rec, n)} (or be one value per record), got {c2.shape}")
     damper.command.check_command(c2)
