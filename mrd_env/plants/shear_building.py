@@ -8,7 +8,7 @@ location vector Γ = −Sᵀ, [−1, 0, 0] for a ground–first-floor damper).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
