@@ -34,7 +34,7 @@ class BoucWenParams(DamperParams):
 
     def check(self) -> None:
         if self.beta + self.gamma <= 0.0:
-            raise ValueError(f"BoucWenParams: beta + gamma = {self.beta + self.gamma:g} must be > 0 "
+            raise ValueError(f"{type(self).__name__}: beta + gamma = {self.beta + self.gamma:g} must be > 0 "
                              "(otherwise z has no saturation)")
 
 
