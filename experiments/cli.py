@@ -11,6 +11,7 @@ import sys
 
 COMMANDS = {
     "rig": ("experiments.rig_report", "virtual damper test rig: loops (PNG), records (CSV), peak/energy table"),
+    "benchmark": ("experiments.benchmark", "controller × scenario benchmark: Markdown/CSV tables and figures"),
 }
 
 

@@ -14,7 +14,7 @@ def write_table(rows: list[dict], path_stem: str | Path, *, title: str = "", flo
     keys = list(rows[0])
     csv_path = stem.with_suffix(".csv")
     with csv_path.open("w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=keys)
+        w = csv.DictWriter(fh, fieldnames=keys, restval="")
         w.writeheader()
         w.writerows(rows)
     md_path = stem.with_suffix(".md")
@@ -31,5 +31,5 @@ def markdown_table(rows: list[dict], *, title: str = "", floatfmt: str = ".4g") 
     lines = [f"### {title}", ""] if title else []
     lines.append("| " + " | ".join(keys) + " |")
     lines.append("|" + "|".join("---" for _ in keys) + "|")
-    lines += ["| " + " | ".join(fmt(r[k]) for k in keys) + " |" for r in rows]
+    lines += ["| " + " | ".join(fmt(r.get(k, "")) for k in keys) + " |" for r in rows]
     return "\n".join(lines) + "\n"

@@ -1,0 +1,285 @@
+"""``mrd-env benchmark``: a controller × scenario matrix on the same environments, one evaluation loop.
+
+Writes ``<out>/<plant>_benchmark.md`` and ``.csv`` (per scenario and controller, and the worst case over
+the scenarios), time histories of the key responses for every controller on one plot per scenario, bar
+charts of the normalised metrics, and damper force–velocity loops.
+
+Quarter car: Wk-weighted RMS sprung acceleration, RMS and peak suspension travel, RMS dynamic tyre load,
+each also normalised by the passive-off damper. Building: peak and RMS interstorey drift, peak absolute
+acceleration, peak base shear, peak damper force; J1–J6 normalised by the uncontrolled building.
+"""
+from __future__ import annotations
+
+import argparse
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+
+from .report import markdown_table, write_table
+
+QC_SENSORS = ("sprung_acc", "unsprung_acc", "travel", "travel_rate", "sprung_vel", "unsprung_vel",
+              "damper_force", "command")
+BUILDING_SENSORS = ("abs_acc", "drift", "floor_vel", "damper_force", "damper_stroke", "damper_velocity",
+                    "ground_acc", "command")
+
+QC_CONTROLLERS = ("passive_off", "passive_on", "skyhook_on_off", "skyhook_continuous", "groundhook", "hybrid",
+                  "clipped_optimal")
+# (skyhook is left out for the building: with the damper at the ground floor, the floor velocity relative to
+# the ground and the damper velocity are the same signal, so the law degenerates to passive-on)
+BUILDING_CONTROLLERS = ("passive_off", "passive_on", "clipped_optimal", "lyapunov", "max_energy_dissipation",
+                        "modulated_friction")
+#: The quarter-car scenarios record the peak travel instead of stopping at the environment's default 0.1 m
+#: rattle-space limit, so that every controller is scored over the whole road.
+QC_STROKE_LIMIT = 0.25
+
+QC_METRICS = ("acc_weighted_rms", "travel_rms", "travel_peak", "tyre_load_rms")
+BUILDING_METRICS = ("J1", "J2", "J3", "J4", "J5", "J6", "drift_peak", "acc_peak", "damper_force_peak")
+
+
+@dataclass(frozen=True)
+class Scenario:
+    name: str
+    env_id: str
+    options: dict = field(default_factory=dict)
+    seed: int = 0
+
+
+def default_scenarios(plant: str, quick: bool = False, seeds: int = 2) -> list[Scenario]:
+    """The embedded scenarios: ISO 8608 roads C and D at 20 m/s and a bump (quarter car); El Centro
+    replayed 5× faster, Kanai–Tajimi motions and another PEER record (building)."""
+    if plant == "quarter_car":
+        dur = 3.0 if quick else 10.0
+        out = [Scenario(f"ISO-{c} 20 m/s s{s}", "mrd_env/QuarterCar-v0",
+                        dict(road="iso8608", road_params={"road_class": c, "speed": 20.0}, episode_seconds=dur,
+                             stroke_limit=QC_STROKE_LIMIT), seed=s)
+               for c in ("C", "D") for s in range(1 if quick else seeds)]
+        if not quick:
+            out.append(Scenario("bump 5 cm", "mrd_env/QuarterCar-v0",
+                                dict(road="bump", road_params={"height": 0.05, "length": 0.5, "speed": 10.0},
+                                     episode_seconds=3.0, stroke_limit=QC_STROKE_LIMIT)))
+        return out
+    if plant == "building":
+        out = [Scenario("El Centro NS (×0.2 time)", "mrd_env/ShearBuilding-v0",
+                        dict(ground_motion="el_centro", ground_motion_params={"time_scale": 0.2},
+                             **({"episode_seconds": 4.0} if quick else {})))]
+        if not quick:
+            out.append(Scenario("El Centro EW (×0.2 time)", "mrd_env/ShearBuilding-v0",
+                                dict(ground_motion="el_centro",
+                                     ground_motion_params={"component": "EW", "time_scale": 0.2})))
+            out += [Scenario(f"Kanai–Tajimi s{s}", "mrd_env/ShearBuilding-v0",
+                             dict(ground_motion="kanai_tajimi", episode_seconds=10.0), seed=s) for s in range(seeds)]
+        return out
+    raise ValueError(f"plant must be 'quarter_car' or 'building', got {plant!r}")
+
+
+@dataclass
+class Episode:
+    controller: str
+    scenario: str
+    metrics: dict
+    t: np.ndarray
+    response: np.ndarray   # key response history (sprung acceleration or top... first-storey drift)
+    force: np.ndarray
+    velocity: np.ndarray   # damper velocity
+    wall_time: float
+
+
+def evaluate(controller, env, seed: int, response: str) -> Episode:
+    """Run one episode with ``controller`` (the same loop for classical laws and trained agents)."""
+    base = env.unwrapped
+    layout = {n: sl for n, sl, *_ in base.sensor_layout}
+    rate = "travel_rate" if "travel_rate" in layout else "damper_velocity"
+    obs, _ = env.reset(seed=seed)
+    controller.reset()
+    t, resp, force, vel = [], [], [], []
+    t0 = time.perf_counter()
+    while True:
+        action, _ = controller.predict(obs, deterministic=True)
+        obs, _, terminated, truncated, info = env.step(action)
+        t.append(info["t"])
+        resp.append(obs[layout[response]][0])
+        force.append(obs[layout["damper_force"]][0])
+        vel.append(obs[layout[rate]][0])
+        if terminated or truncated:
+            break
+    wall = time.perf_counter() - t0
+    metrics = dict(info.get("episode_metrics", {}))
+    if terminated:
+        metrics["terminated"] = info.get("termination_reason", "terminated")
+    return Episode(getattr(controller, "name", type(controller).__name__), "", metrics, np.array(t),
+                   np.array(resp), np.array(force), np.array(vel), wall)
+
+
+def run_benchmark(plant: str, controllers=None, scenarios=None, *, damper: str = "spencer_dyke",
+                  out: Path | None = None, progress: bool = True, quick: bool = False,
+                  reference_passive: bool = True) -> list[Episode]:
+    """Every controller on every scenario; for the quarter car also the conventional passive car (the
+    MR damper replaced by the preset's reference dashpot, e.g. 1500 N·s/m for set A) as a baseline."""
+    import mrd_env  # noqa: F401  (registers the environments)
+    from controllers import make_controller
+
+    controllers = list(controllers or (QC_CONTROLLERS if plant == "quarter_car" else BUILDING_CONTROLLERS))
+    scenarios = scenarios or default_scenarios(plant, quick=quick)
+    sensors = QC_SENSORS if plant == "quarter_car" else BUILDING_SENSORS
+    response = "sprung_acc" if plant == "quarter_car" else "drift"
+    jobs = [(s, c) for s in scenarios for c in controllers]
+    try:
+        from tqdm.auto import tqdm
+        bar = tqdm(total=len(jobs), desc=f"benchmark {plant}", disable=not progress)
+    except ImportError:  # pragma: no cover
+        bar = None
+    episodes = []
+    for sc in scenarios:
+        env = gym.make(sc.env_id, damper=damper, sensors=sensors, **sc.options)
+        for name in controllers:
+            ctrl = make_controller(name, env)
+            ep = evaluate(ctrl, env, sc.seed, response)
+            ep.scenario = sc.name
+            episodes.append(ep)
+            if bar is not None:
+                bar.set_postfix_str(f"{sc.name} / {name}")
+                bar.update()
+        env.close()
+        if plant == "quarter_car" and reference_passive:
+            episodes.append(_reference_passive(sc, sensors, response))
+    if bar is not None:
+        bar.close()
+    if out is not None:
+        write_reports(plant, episodes, Path(out))
+    return episodes
+
+
+def _reference_passive(sc: Scenario, sensors, response) -> Episode:
+    from controllers import PassiveOff
+    from mrd_env.plants import quarter_car
+
+    c = quarter_car(sc.options.get("plant_preset", "set_a")).passive_c
+    env = gym.make(sc.env_id, damper="bingham", damper_params=dict(fc_a=0.0, fc_b=0.0, c0a=c, c0b=0.0, f0=0.0),
+                   sensors=sensors, **sc.options)
+    ep = evaluate(PassiveOff(env), env, sc.seed, response)
+    env.close()
+    ep.controller = f"passive_ref (c={c:g})"
+    ep.scenario = sc.name
+    return ep
+
+
+def _rows(plant: str, episodes: list[Episode]) -> list[dict]:
+    keys = QC_METRICS if plant == "quarter_car" else BUILDING_METRICS
+    rows = []
+    for ep in episodes:
+        row = {"scenario": ep.scenario, "controller": ep.controller}
+        for k in keys:
+            row[k] = float(ep.metrics.get(k, float("nan")))
+        if plant == "quarter_car":  # normalise by passive-off on the same scenario
+            ref = next((e for e in episodes if e.scenario == ep.scenario and e.controller == "passive_off"), None)
+            for k in ("acc_weighted_rms", "tyre_load_rms"):
+                if ref is not None and ref.metrics.get(k):
+                    row[f"{k}/off"] = row[k] / ref.metrics[k]
+        row["terminated"] = ep.metrics.get("terminated", "")
+        rows.append(row)
+    return rows
+
+
+def worst_case(rows: list[dict]) -> list[dict]:
+    """Per controller, the maximum of every numeric column over the scenarios (benchmark convention)."""
+    out = []
+    for ctrl in dict.fromkeys(r["controller"] for r in rows):
+        mine = [r for r in rows if r["controller"] == ctrl]
+        row = {"scenario": "max over scenarios", "controller": ctrl}
+        for k, v in mine[0].items():
+            if isinstance(v, float):
+                row[k] = float(np.nanmax([m[k] for m in mine]))
+        out.append(row)
+    return out
+
+
+def write_reports(plant: str, episodes: list[Episode], out: Path) -> dict:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out.mkdir(parents=True, exist_ok=True)
+    rows = _rows(plant, episodes)
+    worst = worst_case(rows)
+    md, csv_path = write_table(rows + worst, out / f"{plant}_benchmark", floatfmt=".4g",
+                               title=f"{plant}: controller × scenario")
+    (out / f"{plant}_benchmark_worst.md").write_text(markdown_table(worst, floatfmt=".4g",
+                                                                    title=f"{plant}: worst case over scenarios"))
+    figs = []
+    ylabel = "sprung acceleration (m/s²)" if plant == "quarter_car" else "first-storey drift (m)"
+    for sc in dict.fromkeys(e.scenario for e in episodes):
+        eps = [e for e in episodes if e.scenario == sc]
+        fig, (a1, a2) = plt.subplots(2, 1, figsize=(10, 6), sharex=True, constrained_layout=True)
+        for e in eps:
+            a1.plot(e.t, e.response, lw=0.8, label=e.controller)
+            a2.plot(e.t, e.force / 1e3, lw=0.8, label=e.controller)
+        a1.set_ylabel(ylabel)
+        a2.set_ylabel("damper force (kN)")
+        a2.set_xlabel("time (s)")
+        a1.legend(fontsize=7, ncol=4)
+        a1.set_title(sc)
+        for a in (a1, a2):
+            a.grid(alpha=0.3)
+        p = out / f"{plant}_history_{_slug(sc)}.png"
+        fig.savefig(p, dpi=110)
+        plt.close(fig)
+        figs.append(p)
+        fig, ax = plt.subplots(figsize=(6, 4.5), constrained_layout=True)
+        for e in eps:
+            ax.plot(e.velocity, e.force / 1e3, lw=0.6, label=e.controller)
+        ax.set_xlabel("damper velocity (m/s)")
+        ax.set_ylabel("damper force (kN)")
+        ax.set_title(f"force–velocity: {sc}")
+        ax.legend(fontsize=7)
+        ax.grid(alpha=0.3)
+        p = out / f"{plant}_loops_{_slug(sc)}.png"
+        fig.savefig(p, dpi=110)
+        plt.close(fig)
+        figs.append(p)
+    keys = ([k for k in rows[0] if k.endswith("/off")] + ["travel_peak"]) if plant == "quarter_car" \
+        else ["J1", "J2", "J3", "J4", "J5"]
+    fig, ax = plt.subplots(figsize=(10, 4.5), constrained_layout=True)
+    ctrls = [r["controller"] for r in worst]
+    width = 0.8 / max(len(keys), 1)
+    for i, k in enumerate(keys):
+        ax.bar(np.arange(len(ctrls)) + i * width, [r.get(k, np.nan) for r in worst], width, label=k)
+    ax.set_xticks(np.arange(len(ctrls)) + 0.4 - width / 2, ctrls, rotation=20, fontsize=8)
+    ax.axhline(1.0, color="k", lw=0.8)
+    ax.set_ylabel("normalised (worst case over scenarios)")
+    ax.legend(fontsize=8)
+    p = out / f"{plant}_bars.png"
+    fig.savefig(p, dpi=110)
+    plt.close(fig)
+    figs.append(p)
+    return {"markdown": md, "csv": csv_path, "figures": figs}
+
+
+def _slug(s: str) -> str:
+    return "".join(ch if ch.isalnum() else "_" for ch in s).strip("_").lower()
+
+
+# ---------------------------------------------------------------------------- CLI
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--plant", choices=["building", "quarter_car", "both"], default="both")
+    p.add_argument("--controllers", nargs="+", default=None, help="controller names (default: all that apply)")
+    p.add_argument("--damper", default="spencer_dyke", help="damper model name")
+    p.add_argument("--quick", action="store_true", help="short scenarios (a smoke run)")
+    p.add_argument("--seeds", type=int, default=2, help="random scenarios per kind (roads, Kanai–Tajimi)")
+    p.add_argument("--out", type=Path, default=Path("results/benchmark"))
+    p.add_argument("--no-progress", action="store_true")
+
+
+def run(args: argparse.Namespace) -> int:
+    plants = ["building", "quarter_car"] if args.plant == "both" else [args.plant]
+    for plant in plants:
+        scen = default_scenarios(plant, quick=args.quick, seeds=args.seeds)
+        eps = run_benchmark(plant, args.controllers, scen, damper=args.damper, out=args.out,
+                            progress=not args.no_progress)
+        print((args.out / f"{plant}_benchmark_worst.md").read_text())
+        print(f"wrote {args.out}/{plant}_benchmark.md/.csv and figures ({len(eps)} episodes)")
+    return 0

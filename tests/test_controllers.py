@@ -1,0 +1,170 @@
+"""Controllers: each law's command on hand-made observations (sign conventions), the designs against
+python-control/scipy, and clear errors for missing sensors."""
+import types
+
+import control
+import gymnasium as gym
+import numpy as np
+import pytest
+from scipy.linalg import solve_continuous_are
+
+from controllers import (CONTROLLERS, ClippedOptimal, Groundhook, Hybrid, KalmanEstimator, LinearDesign, Lyapunov,
+                         MaximumEnergyDissipation, ModulatedHomogeneousFriction, PassiveOff, PassiveOn,
+                         SkyhookContinuous, SkyhookOnOff, make_controller)
+from mrd_env import make_damper
+from mrd_env.dampers import CommandSpec
+from mrd_env.plants import quarter_car, shear_building
+
+QC_SENSORS = ("sprung_acc", "travel", "travel_rate", "sprung_vel", "unsprung_vel", "damper_force")
+B_SENSORS = ("abs_acc", "damper_force", "ground_acc", "damper_stroke", "damper_velocity", "floor_vel")
+SIZES = {"abs_acc": 3, "floor_vel": 3, "drift": 3}
+
+
+def fake_env(sensors, building=False, normalized=False):
+    """A stand-in exposing what controllers read from ``env.unwrapped`` (layout, command, plant)."""
+    layout, i = [], 0
+    for s in sensors:
+        k = SIZES.get(s, 1) if building else 1
+        layout.append((s, slice(i, i + k), ""))
+        i += k
+    d = make_damper("spencer_dyke", "spencer1997" if building else "automotive")
+    plant = (shear_building("three_storey") if building else quarter_car("set_a")).plant()
+    low, high = (-1.0, 1.0) if normalized else (d.command.v_min, d.command.v_max)
+    return types.SimpleNamespace(
+        sensor_layout=layout, command_spec=d.command, damper=d, linear_plant=plant, control_dt=1e-3,
+        action_space=gym.spaces.Box(low, high, (1,), np.float32), action_mode="normalized" if normalized else "physical",
+        plant_params=shear_building("three_storey") if building else quarter_car("set_a"), n_obs=i)
+
+
+def obs(env, **values):
+    o = np.zeros(env.n_obs)
+    layout = {n: sl for n, sl, _ in env.sensor_layout}
+    for k, v in values.items():
+        o[layout[k]] = v
+    return o
+
+
+def test_passive_laws_and_action_modes():
+    env = fake_env(QC_SENSORS)
+    assert PassiveOff(env).predict(obs(env))[0] == pytest.approx([0.0])
+    assert PassiveOn(env).predict(obs(env))[0] == pytest.approx([2.0])
+    envn = fake_env(QC_SENSORS, normalized=True)
+    assert PassiveOff(envn).predict(obs(envn))[0] == pytest.approx([-1.0])
+    assert PassiveOn(envn).predict(obs(envn))[0] == pytest.approx([1.0])
+    a, state = PassiveOn(env).predict(obs(env))
+    assert a.dtype == np.float32 and a.shape == (1,) and state is None
+
+
+@pytest.mark.parametrize("zs,vrel,on", [(0.3, 0.1, True), (0.3, -0.1, False), (-0.3, -0.1, True), (-0.3, 0.1, False)])
+def test_skyhook_sign_convention(zs, vrel, on):
+    """Skyhook: damper force −F on the body; F resists extension v_rel. Full command iff ż_s·v_rel ≥ 0."""
+    env = fake_env(QC_SENSORS)
+    u = SkyhookOnOff(env).predict(obs(env, sprung_vel=zs, travel_rate=vrel))[0][0]
+    assert u == pytest.approx(2.0 if on else 0.0)
+    uc = SkyhookContinuous(env, c_sky=2500.0, force_per_command=1000.0).command(obs(env, sprung_vel=zs, travel_rate=vrel))
+    assert uc[0] == pytest.approx(min(2.0, 2500 * abs(zs) / 1000.0) if on else 0.0)
+
+
+@pytest.mark.parametrize("zu,vrel,on", [(0.3, -0.1, True), (0.3, 0.1, False), (-0.3, 0.1, True)])
+def test_groundhook_sign_convention(zu, vrel, on):
+    env = fake_env(QC_SENSORS)
+    u = Groundhook(env).command(obs(env, unsprung_vel=zu, travel_rate=vrel))[0]
+    assert u == pytest.approx(2.0 if on else 0.0)
+
+
+def test_hybrid_reduces_to_skyhook_and_groundhook():
+    env = fake_env(QC_SENSORS)
+    for zs, zu, v in [(0.2, -0.5, 0.1), (-0.2, 0.4, 0.3), (0.1, 0.1, -0.2)]:
+        o = obs(env, sprung_vel=zs, unsprung_vel=zu, travel_rate=v)
+        assert Hybrid(env, alpha=1.0).command(o) == pytest.approx(SkyhookOnOff(env).command(o))
+        assert Hybrid(env, alpha=0.0).command(o) == pytest.approx(Groundhook(env).command(o))
+
+
+def test_energy_and_friction_laws():
+    env = fake_env(B_SENSORS, building=True)
+    med = MaximumEnergyDissipation(env)
+    assert med.command(obs(env, damper_force=500.0, damper_velocity=0.1))[0] == 2.25  # dissipating
+    assert med.command(obs(env, damper_force=500.0, damper_velocity=-0.1))[0] == 0.0
+    mhf = ModulatedHomogeneousFriction(env, gain=1e5)
+    mhf.command(obs(env, damper_stroke=0.004, damper_velocity=0.01))
+    # velocity reverses at 5 mm: the extremum is 5 mm, so g|P| = 500 N
+    assert mhf.command(obs(env, damper_stroke=0.005, damper_velocity=-0.01, damper_force=400.0))[0] == 2.25
+    assert mhf.command(obs(env, damper_stroke=0.0045, damper_velocity=-0.01, damper_force=600.0))[0] == 0.0
+
+
+def test_missing_sensors_raise_clear_error():
+    env = fake_env(("sprung_acc", "travel", "damper_force"))
+    with pytest.raises(ValueError, match=r"SkyhookOnOff needs the sensor\(s\) \['sprung_vel', 'travel_rate'\]"):
+        SkyhookOnOff(env)
+    with pytest.raises(ValueError, match="unsprung_vel"):
+        Groundhook(env)
+    with pytest.raises(ValueError, match="damper_force"):
+        ClippedOptimal(fake_env(("sprung_acc", "travel")))
+    with pytest.raises(ValueError, match="unknown controller"):
+        make_controller("nope", env)
+
+
+def test_clipped_optimal_lqr_gain_equals_python_control_and_riccati():
+    env = fake_env(B_SENSORS, building=True)
+    co = ClippedOptimal(env)
+    d = LinearDesign(env)
+    Cz, Dz = d.regulated(env, co.weights)
+    Q, R, N = Cz.T @ Cz, Dz.T @ Dz + np.eye(1) / 3000.0 ** 2, Cz.T @ Dz
+    K_ref, _, _ = control.lqr(d.A, d.Bf, Q, R, N)
+    assert np.allclose(co.K, K_ref, rtol=1e-9)
+    # and python-control agrees with the algebraic Riccati equation solved by scipy
+    P = solve_continuous_are(d.A, d.Bf, Q, R, s=N)
+    assert np.allclose(co.K, np.linalg.solve(R, d.Bf.T @ P + N.T), rtol=1e-6)
+    assert np.all(np.real(np.linalg.eigvals(d.A - d.Bf @ co.K)) < 0)
+
+
+def test_clipped_on_off_law():
+    env = fake_env(B_SENSORS, building=True)
+    co = ClippedOptimal(env)
+    co.desired_force = lambda x: np.array([800.0])
+    assert co.command(obs(env, damper_force=500.0))[0] == 2.25      # (f_c − f) f > 0: more force wanted
+    assert co.command(obs(env, damper_force=900.0))[0] == 0.0       # |f| already above f_c
+    assert co.command(obs(env, damper_force=-500.0))[0] == 0.0      # wrong direction
+
+
+def test_kalman_estimate_converges_on_the_linear_plant():
+    """Simulate the discretised linear building with process and measurement noise from a wrong initial
+    state: the filter's error settles far below the state's spread and far below the error of the same
+    model run open loop (no measurement correction)."""
+    env = fake_env(B_SENSORS, building=True)
+    d = LinearDesign(env)
+    C, D = d.output("abs_acc")
+    kf = KalmanEstimator(d, C, D, 1e-3, process_noise=1.0, measurement_noise=np.full(3, 0.05 ** 2))
+    rng = np.random.default_rng(0)
+    x = rng.normal(0, 1e-3, d.n)  # the filter starts at 0, the plant elsewhere
+    x_open = np.zeros(d.n)
+    errs, errs_open, xs = [], [], []
+    for k in range(4000):
+        f = np.array([200.0 * np.sin(2 * np.pi * 3 * k * 1e-3)])
+        w = rng.normal(0, 1.0, 1)
+        y = C @ x + D @ f + rng.normal(0, 0.05, 3)
+        xh = kf.update(y, f)
+        errs.append(np.linalg.norm(xh - x))
+        errs_open.append(np.linalg.norm(x_open - x))
+        xs.append(np.linalg.norm(x))
+        x_open = kf.Phi @ x_open + kf.Gf @ f
+        x = kf.Phi @ x + kf.Gf @ f + kf.Gw @ w
+    assert np.mean(errs[-1000:]) < 0.1 * np.mean(xs[-1000:])
+    assert np.mean(errs[-1000:]) < 0.1 * np.mean(errs_open[-1000:])
+    assert np.all(np.abs(kf.poles) < 1)
+
+
+def test_lyapunov_law_sign():
+    env = fake_env(B_SENSORS, building=True)
+    ly = Lyapunov(env)
+    d = ly.design
+    x = np.zeros(d.n)
+    x[3] = 0.1  # floor 1 moving up (relative): V decreases if the damper pushes against it
+    ly.estimate = lambda o: (x, np.array([300.0]))
+    # −xᵀ P B_f f = −(P B_f)[3]·0.1·300; B_f = −M⁻¹Sᵀ pushes floor 1 down for f > 0 → V decreases → on
+    assert ly.command(obs(env))[0] == 2.25
+
+
+def test_registry_lists_every_law():
+    assert {"passive_off", "passive_on", "skyhook_on_off", "skyhook_continuous", "groundhook", "hybrid",
+            "clipped_optimal", "lyapunov", "max_energy_dissipation", "modulated_friction"} <= set(CONTROLLERS)
