@@ -99,9 +99,11 @@ def _solve_stage(nq, nd, A, BF, Bw, Cx, Dx, Cv, Dv, Da, P, R, u, w, hg,
 @nb.njit(cache=True)
 def _sdirk_step(nq, nd, A, BF, Bw, Cx, Dx, Cv, Dv, Da, P, Y, u0, v, eta,
                 w0, w1, tau0, h, H, atol, rtol, max_iter, ws, F, f1, fz, ftmp, G, M, piv, R, Z1, Z2, est,
-                u1, u2):
+                u1, u2, Mh):
     """One SDIRK2 step of length h starting at τ0 (relative to the macro step of length H).
 
+    ``Mh[0]`` is the step length M was last factorised for: a matrix from an earlier step of the same
+    length starts the Newton iterations (refreshed as soon as convergence slows).
     Returns (converged, error estimate in units of the tolerance). Y is updated only on success.
     """
     n = Y.shape[0]
@@ -115,8 +117,11 @@ def _sdirk_step(nq, nd, A, BF, Bw, Cx, Dx, Cv, Dv, Da, P, Y, u0, v, eta,
     for i in range(n):
         R[i] = Y[i]
         Z1[i] = Y[i]
+    reuse = Mh[0] == h
+    Mh[0] = h
     if not _solve_stage(nq, nd, A, BF, Bw, Cx, Dx, Cv, Dv, Da, P, R, u1, ws, hg,
-                        Z1, F, fz, ftmp, G, M, piv, 1e-3 * atol, 1e-3 * rtol, max_iter, False):
+                        Z1, F, fz, ftmp, G, M, piv, 1e-3 * atol, 1e-3 * rtol, max_iter, reuse):
+        Mh[0] = 0.0
         return False, math.inf
     for i in range(n):
         f1[i] = (Z1[i] - Y[i]) / hg  # stage derivative without re-evaluating f (exact for stiff parts)
@@ -131,6 +136,7 @@ def _sdirk_step(nq, nd, A, BF, Bw, Cx, Dx, Cv, Dv, Da, P, Y, u0, v, eta,
         Z2[i] = Z1[i]
     if not _solve_stage(nq, nd, A, BF, Bw, Cx, Dx, Cv, Dv, Da, P, R, u2, ws, hg,
                         Z2, F, fz, ftmp, G, M, piv, 1e-3 * atol, 1e-3 * rtol, max_iter, True):
+        Mh[0] = 0.0
         return False, math.inf
     # local error: SDIRK2 minus the embedded backward-Euler-like solution Y + h f(Z1),
     # filtered by (I − hγJ)^-1 so that it stays bounded for the stiff components
@@ -187,8 +193,10 @@ def advance(A, BF, Bw, Cx, Dx, Cv, Dv, Da, P, eta, Y, U, V, W, dt,
     Ysave = np.zeros(n)
     u0 = np.zeros(nd)
     max_iter = 12
+    Mh = np.zeros(1)
     for b in range(N):
         nsub = 1
+        Mh[0] = 0.0
         for k in range(n_steps):
             for i in range(n):
                 Ysave[i] = Y[b, i]
@@ -212,7 +220,7 @@ def advance(A, BF, Bw, Cx, Dx, Cv, Dv, Da, P, eta, Y, U, V, W, dt,
                     # sub-steps restart the command lag from its exact value at their start
                     good, err = _sdirk_step(nq, nd, A, BF, Bw, Cx, Dx, Cv, Dv, Da,
                                             P[b], Y[b], u0, vk, etab, w0, w1, sidx * h, h, dt, atol, rtol,
-                                            max_iter, ws, F, f1, fz, ftmp, G, M, piv, R, Z1, Z2, est, u1, u2)
+                                            max_iter, ws, F, f1, fz, ftmp, G, M, piv, R, Z1, Z2, est, u1, u2, Mh)
                     if not good:
                         ok = False
                         break
