@@ -92,6 +92,12 @@ def evaluate(controller, env, seed: int, response: str) -> Episode:
     base = env.unwrapped
     layout = {n: sl for n, sl, *_ in base.sensor_layout}
     rate = "travel_rate" if "travel_rate" in layout else "damper_velocity"
+    nan = slice(0, 0)  # a signal the env does not measure (e.g. an agent trained on fewer sensors)
+
+    def first(o, name):
+        v = o[layout.get(name, nan)]
+        return float(v[0]) if v.size else float("nan")
+
     obs, _ = env.reset(seed=seed)
     controller.reset()
     t, resp, force, vel = [], [], [], []
@@ -100,9 +106,9 @@ def evaluate(controller, env, seed: int, response: str) -> Episode:
         action, _ = controller.predict(obs, deterministic=True)
         obs, _, terminated, truncated, info = env.step(action)
         t.append(info["t"])
-        resp.append(obs[layout[response]][0])
-        force.append(obs[layout["damper_force"]][0])
-        vel.append(obs[layout[rate]][0])
+        resp.append(first(obs, response))
+        force.append(float(np.ravel(info["damper_force"])[0]))
+        vel.append(first(obs, rate))
         if terminated or truncated:
             break
     wall = time.perf_counter() - t0
@@ -115,7 +121,7 @@ def evaluate(controller, env, seed: int, response: str) -> Episode:
 
 def run_benchmark(plant: str, controllers=None, scenarios=None, *, damper: str = "spencer_dyke",
                   out: Path | None = None, progress: bool = True, quick: bool = False,
-                  reference_passive: bool = True) -> list[Episode]:
+                  reference_passive: bool = True, agents=()) -> list[Episode]:
     """Every controller on every scenario; for the quarter car also the conventional passive car (the
     MR damper replaced by the preset's reference dashpot, e.g. 1500 N·s/m for set A) as a baseline."""
     import mrd_env  # noqa: F401  (registers the environments)
@@ -125,7 +131,8 @@ def run_benchmark(plant: str, controllers=None, scenarios=None, *, damper: str =
     scenarios = scenarios or default_scenarios(plant, quick=quick)
     sensors = QC_SENSORS if plant == "quarter_car" else BUILDING_SENSORS
     response = "sprung_acc" if plant == "quarter_car" else "drift"
-    jobs = [(s, c) for s in scenarios for c in controllers]
+    agents = [Path(a) for a in agents]
+    jobs = [(s, c) for s in scenarios for c in list(controllers) + agents]
     try:
         from tqdm.auto import tqdm
         bar = tqdm(total=len(jobs), desc=f"benchmark {plant}", disable=not progress)
@@ -143,6 +150,10 @@ def run_benchmark(plant: str, controllers=None, scenarios=None, *, damper: str =
                 bar.set_postfix_str(f"{sc.name} / {name}")
                 bar.update()
         env.close()
+        for path in agents:
+            episodes.append(_agent_episode(path, sc, damper, response))
+            if bar is not None:
+                bar.update()
         if plant == "quarter_car" and reference_passive:
             episodes.append(_reference_passive(sc, sensors, response))
     if bar is not None:
@@ -150,6 +161,22 @@ def run_benchmark(plant: str, controllers=None, scenarios=None, *, damper: str =
     if out is not None:
         write_reports(plant, episodes, Path(out))
     return episodes
+
+
+def _agent_episode(path: Path, sc: Scenario, damper: str, response: str) -> Episode:
+    """A saved agent (``mrd-env train``) on the scenario, in the environment set-up it was trained in."""
+    from controllers import AgentController
+
+    from .train import NormalizedAgent
+
+    agent = NormalizedAgent(path)
+    options = {k: v for k, v in sc.options.items() if k not in agent.meta["env_kwargs"]}
+    env = gym.make(sc.env_id, damper=damper, **agent.meta["env_kwargs"], **options)
+    ep = evaluate(AgentController(env, agent, name=f"agent:{path.stem}"), env, sc.seed, response)
+    env.close()
+    ep.controller = f"agent:{path.stem}"
+    ep.scenario = sc.name
+    return ep
 
 
 def _reference_passive(sc: Scenario, sensors, response) -> Episode:
@@ -271,6 +298,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--quick", action="store_true", help="short scenarios (a smoke run)")
     p.add_argument("--seeds", type=int, default=2, help="random scenarios per kind (roads, Kanai–Tajimi)")
     p.add_argument("--out", type=Path, default=Path("results/benchmark"))
+    p.add_argument("--agent", type=Path, nargs="*", default=[], help="saved agents (mrd-env train) to score too")
     p.add_argument("--no-progress", action="store_true")
 
 
@@ -278,8 +306,9 @@ def run(args: argparse.Namespace) -> int:
     plants = ["building", "quarter_car"] if args.plant == "both" else [args.plant]
     for plant in plants:
         scen = default_scenarios(plant, quick=args.quick, seeds=args.seeds)
+        agents = [a for a in args.agent if a.stem.startswith(plant)]
         eps = run_benchmark(plant, args.controllers, scen, damper=args.damper, out=args.out,
-                            progress=not args.no_progress)
+                            progress=not args.no_progress, agents=agents)
         print((args.out / f"{plant}_benchmark_worst.md").read_text())
         print(f"wrote {args.out}/{plant}_benchmark.md/.csv and figures ({len(eps)} episodes)")
     return 0

@@ -12,6 +12,7 @@ import sys
 COMMANDS = {
     "rig": ("experiments.rig_report", "virtual damper test rig: loops (PNG), records (CSV), peak/energy table"),
     "benchmark": ("experiments.benchmark", "controller × scenario benchmark: Markdown/CSV tables and figures"),
+    "train": ("experiments.train", "train a Stable-Baselines3 agent on an environment and save it"),
 }
 
 

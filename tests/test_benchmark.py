@@ -78,3 +78,16 @@ def test_cli_benchmark_quick(tmp_path):
     assert main(["benchmark", "--plant", "building", "--quick", "--controllers", "passive_off", "passive_on",
                  "--out", str(tmp_path), "--no-progress"]) == 0
     assert (tmp_path / "building_benchmark_worst.md").exists()
+
+
+def test_train_a_tiny_agent_and_score_it_in_the_benchmark(tmp_path):
+    """The RL path end to end on a tiny budget: train (SB3), save, reload, benchmark next to the laws."""
+    assert main(["train", "--plant", "building", "--algo", "PPO", "--timesteps", "64", "--episode-seconds", "0.3",
+                 "--out", str(tmp_path)]) == 0
+    agent = tmp_path / "building_PPO.zip"
+    assert agent.exists() and (tmp_path / "building_PPO_vecnormalize.pkl").exists()
+    sc = [Scenario("El Centro 0.5 s", "mrd_env/ShearBuilding-v0",
+                   dict(ground_motion="el_centro", ground_motion_params={"time_scale": 0.2}, episode_seconds=0.5))]
+    eps = run_benchmark("building", ["passive_off"], sc, out=tmp_path / "b", progress=False, agents=[agent])
+    assert [e.controller for e in eps] == ["passive_off", "agent:building_PPO"]
+    assert 0 < eps[1].metrics["J1"] < 2
