@@ -13,6 +13,10 @@ COMMANDS = {
     "rig": ("experiments.rig_report", "virtual damper test rig: loops (PNG), records (CSV), peak/energy table"),
     "benchmark": ("experiments.benchmark", "controller × scenario benchmark: Markdown/CSV tables and figures"),
     "train": ("experiments.train", "train a Stable-Baselines3 agent on an environment and save it"),
+    "identify": ("experiments.identify_cmd",
+                 "fit a damper model to a measured record: errors table, figure, JSON preset"),
+    "compare-models": ("experiments.compare_models_cmd",
+                       "fit several damper models to a record and compare them on the held-back part"),
 }
 
 

@@ -12,7 +12,6 @@ import argparse
 import json
 from pathlib import Path
 
-import gymnasium as gym
 import numpy as np
 
 ALGOS = ("SAC", "PPO", "TD3")

@@ -1,0 +1,26 @@
+"""Identification support: measured records, model-error measures and the test-rig uncertainty budget.
+
+- :mod:`.measures` — E_t, E_x, E_v (review eq. 3), J1, J2 (eqs. 25-26).
+- :mod:`.data` — :class:`DamperRecord` and :func:`load_record_csv` (declared units, SI inside).
+- :mod:`.uncertainty` — sensors of Table 7, the RSS budget of Table 8, Monte-Carlo propagation.
+- :mod:`.fit` — least squares, differential evolution and particle swarm fits; JSON presets.
+- :mod:`.compare` — several models fitted on one part of the records, scored on the rest.
+- :mod:`.propagate` — sensor errors propagated to identified parameters and error measures.
+"""
+from .data import UNITS, DamperRecord, load_record_csv
+from .compare import compare_models
+from .fit import FitResult, fit_model, load_preset, save_preset
+from .measures import error_displacement, error_measures, error_time, error_velocity, j1, j2
+from .propagate import propagate_sensor_errors
+from .uncertainty import (TABLE8_DEFAULTS, Contribution, DisplacementSensor, LoadCell, MonteCarloResult,
+                          SensorReadout, SensorSet, UncertaintyBudget, apply_sensors, as_generator, monte_carlo,
+                          rss_budget, table8_contributions)
+
+__all__ = [
+    "DamperRecord", "load_record_csv", "UNITS",
+    "error_time", "error_displacement", "error_velocity", "j1", "j2", "error_measures",
+    "LoadCell", "DisplacementSensor", "SensorSet", "SensorReadout", "apply_sensors",
+    "Contribution", "UncertaintyBudget", "rss_budget", "table8_contributions", "TABLE8_DEFAULTS",
+    "MonteCarloResult", "monte_carlo", "as_generator",
+    "FitResult", "fit_model", "save_preset", "load_preset", "compare_models", "propagate_sensor_errors",
+]

@@ -1,0 +1,235 @@
+"""Compare damper models on the same measured records: fit on the first part, validate on the held-back rest.
+
+For every model, :func:`~mrd_env.identification.fit.fit_model` fits the parameters on the first
+``fit_fraction`` of each record; the fitted model is then simulated over the *whole* record (its states carry
+over from the fitted part, so no start-up transient lands in the validation part — and no measured force of
+the held-back part is used) and E_t, E_x, E_v (review eq. 3) and J2 (eq. 26) are evaluated on the held-back
+samples only. Output: a Markdown + CSV table (``experiments.report.write_table``), one JSON preset per fitted
+model, and PNG figures: measured vs fitted force over a window of the held-back part, and force–velocity
+loops of the held-back part (matplotlib, Agg backend).
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from ..dampers import DamperModel, available_dampers
+from ..errors import SimulationDivergedError
+from .data import DamperRecord
+from .fit import (FitResult, PreparedRecord, _as_record, _measures, fit_model, pooled_measures, predict,
+                  save_preset, uniform_record)
+
+__all__ = ["ModelComparison", "ComparisonResult", "compare_models", "split_records", "validate", "plot_fit",
+           "COLUMNS"]
+
+COLUMNS = ("model", "free params", "fit E_t %", "E_t %", "E_x %", "E_v %", "J2 N", "fit J2 N", "wall time s",
+           "evaluations", "converged")
+
+
+@dataclass(frozen=True, eq=False)
+class ModelComparison:
+    """One model's fit and its validation on the held-back parts (``validation``: one dict of measures per
+    record, ``validation_overall``: pooled as in :class:`FitResult`). ``error`` is set when the fit failed."""
+
+    model: str
+    fit: FitResult | None
+    validation: list[dict] = field(default_factory=list)
+    validation_overall: dict = field(default_factory=dict)
+    forces: list[np.ndarray] = field(default_factory=list)
+    error: str = ""
+
+    def row(self) -> dict:
+        nan = float("nan")
+        if self.fit is None:
+            return {"model": self.model, "free params": 0, "fit E_t %": nan, "E_t %": nan, "E_x %": nan,
+                    "E_v %": nan, "J2 N": nan, "fit J2 N": nan, "wall time s": nan, "evaluations": 0,
+                    "converged": f"failed: {self.error}"}
+        v, f = self.validation_overall, self.fit.overall
+        return {"model": self.model, "free params": len(self.fit.free), "fit E_t %": 100 * f["E_t"],
+                "E_t %": 100 * v["E_t"], "E_x %": 100 * v["E_x"], "E_v %": 100 * v["E_v"], "J2 N": v["J2"],
+                "fit J2 N": f["J2"], "wall time s": self.fit.wall_time, "evaluations": self.fit.n_evaluations,
+                "converged": "yes" if self.fit.converged else "no"}
+
+
+@dataclass(frozen=True, eq=False)
+class ComparisonResult:
+    """All models' results; ``rows`` is the table (one row per model, :data:`COLUMNS`), ``files`` the outputs."""
+
+    models: list[ModelComparison]
+    records: list[DamperRecord]          # the uniform records (whole)
+    split_index: list[int]               # first held-back sample of each record
+    method: str
+    fit_fraction: float
+    files: dict[str, Path] = field(default_factory=dict)
+
+    @property
+    def rows(self) -> list[dict]:
+        return [m.row() for m in self.models]
+
+    def by_model(self, name: str) -> ModelComparison:
+        for m in self.models:
+            if m.model == name:
+                return m
+        raise KeyError(name)
+
+
+def split_records(records, fit_fraction: float, dt: float | None = None
+                  ) -> tuple[list[DamperRecord], list[DamperRecord], list[int]]:
+    """(uniform whole records, their fit parts, index of the first held-back sample of each)."""
+    if isinstance(records, DamperRecord) or not isinstance(records, (list, tuple)):
+        records = [records]
+    if not records:
+        raise ValueError("records must not be empty")
+    whole = [uniform_record(_as_record(r, i), dt) for i, r in enumerate(records)]
+    f = float(fit_fraction)
+    if not (0.0 < f < 1.0):
+        raise ValueError(f"fit_fraction = {fit_fraction!r} is invalid: must be in (0, 1)")
+    fits, idx = [], []
+    for r in whole:
+        part, _ = r.split(f)
+        fits.append(part)
+        idx.append(part.n)
+    return whole, fits, idx
+
+
+def validate(damper, whole: Sequence[DamperRecord], split_index: Sequence[int], *, dt: float | None = None,
+             command_range: str = "clip", **integrator_options) -> tuple[list[dict], dict, list[np.ndarray],
+                                                                           list[PreparedRecord]]:
+    """Measures of ``damper`` on the held-back part of each record (simulated over the whole record)."""
+    rows, forces, preps = [], [], []
+    for r, k in zip(whole, split_index):
+        prep, F = predict(damper, r, dt=dt, command_range=command_range, **integrator_options)
+        sl = np.zeros(prep.n, dtype=bool)
+        sl[k:] = True
+        rows.append(_measures(prep, F, sl))
+        forces.append(F)
+        preps.append(prep)
+    return rows, pooled_measures(rows), forces, preps
+
+
+def compare_models(records, models: Sequence[str | DamperModel] | None = None, *, method: str = "least_squares",
+                   fit_fraction: float = 0.6, out: str | Path | None = None, seed: int = 0,
+                   dt: float | None = None, presets: Mapping[str, str] | None = None, progress: bool = True,
+                   title: str = "", plot_window: float = 1.0, fit_options: Mapping | None = None,
+                   model_options: Mapping[str, Mapping] | None = None,
+                   stop_on_error: bool = False) -> ComparisonResult:
+    """Fit each model (default: all registered) on the first ``fit_fraction`` of ``records`` and validate it on
+    the rest; see the module docstring. ``models`` holds model names (initial guess: their preset) or
+    configured ``DamperModel`` instances (initial guess and command channel: theirs).
+
+    ``presets``: {model: preset name} for the initial guesses (default: each model's default preset).
+    ``fit_options``: extra keyword arguments of :func:`fit_model` for every model (maxiter, command_range,
+    warmup, ...); ``model_options``: {model: {keyword: value}} for one model (free, bounds, initial, ...).
+    ``out``: folder for the table (``comparison.md``/``.csv``), the presets (``<model>_fitted.json``) and the
+    figures; None writes nothing.
+    A model whose fit fails (bad input for that model, a diverging initial guess) gets a row marked failed
+    unless ``stop_on_error``.
+    """
+    models = list(models) if models is not None else available_dampers()
+    if not models:
+        raise ValueError("models must not be empty")
+    names = [m.name if isinstance(m, DamperModel) else str(m) for m in models]
+    if len(set(names)) != len(names):
+        raise ValueError(f"models contains a model twice: {names}")
+    presets = dict(presets or {})
+    opts = dict(fit_options or {})
+    whole, fits, idx = split_records(records, fit_fraction, dt)
+    integ = opts.get("integrator_options") or {}
+    results = []
+    for name, model in zip(names, models):
+        o = {**opts, **dict((model_options or {}).get(name, {}))}
+        try:
+            fr = fit_model(model, fits, preset=None if isinstance(model, DamperModel) else presets.get(name),
+                           method=method, seed=seed, dt=dt, progress=progress, **o)
+            v_rows, v_all, forces, _ = validate(fr.damper, whole, idx, dt=dt,
+                                                command_range=fr.settings["command_range"], **integ)
+            results.append(ModelComparison(name, fr, v_rows, v_all, forces))
+        except (ValueError, SimulationDivergedError, ImportError) as exc:
+            if stop_on_error:
+                raise
+            results.append(ModelComparison(name, None, error=str(exc)))
+    res = ComparisonResult(results, whole, idx, method, float(fit_fraction))
+    if out is not None:
+        res.files.update(write_comparison(res, out, title=title, plot_window=plot_window))
+    return res
+
+
+def _slug(s: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", s).strip("_") or "record"
+
+
+def write_comparison(res: ComparisonResult, out: str | Path, *, title: str = "",
+                     plot_window: float = 1.0) -> dict[str, Path]:
+    """Table (Markdown + CSV), presets and figures of a comparison into folder ``out``."""
+    from experiments.report import write_table
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    files: dict[str, Path] = {}
+    labels = ", ".join(r.label or f"record {i}" for i, r in enumerate(res.records))
+    title = title or (f"Model comparison ({res.method}): fit on the first {100 * res.fit_fraction:g} % of "
+                      f"{labels}, errors on the held-back rest")
+    md, csv_path = write_table(res.rows, out / "comparison", title=title, floatfmt=".4g")
+    files["table_md"], files["table_csv"] = md, csv_path
+    for m in res.models:
+        if m.fit is not None:
+            files[f"preset_{m.model}"] = save_preset(m.fit, out / f"{m.model}_fitted.json")
+    ok = [m for m in res.models if m.fit is not None]
+    for i, (r, k) in enumerate(zip(res.records, res.split_index)):
+        slug = _slug(r.label or f"record{i}")
+        if not ok:
+            break
+        curves = {m.model: m.forces[i] for m in ok}
+        files[f"overlay_{slug}"] = plot_fit(r, curves, out / f"{slug}_overlay.png", split_index=k,
+                                            window=plot_window, title=f"{r.label}: held-back part")
+        for m in ok:
+            files[f"fig_{slug}_{m.model}"] = plot_fit(
+                r, {m.model: m.forces[i]}, out / f"{slug}_{m.model}.png", split_index=k, window=plot_window,
+                title=(f"{m.model} on {r.label}, held-back part: E_t = {100 * m.validation[i]['E_t']:.1f} %, "
+                       f"J2 = {m.validation[i]['J2']:.3g} N"))
+    return files
+
+
+def plot_fit(record: DamperRecord, forces: Mapping[str, np.ndarray], path: str | Path, *, split_index: int = 0,
+             window: float | None = 1.0, title: str = "") -> Path:
+    """Measured vs model force(s): over time (a ``window`` of s at the start of the held-back part, the whole
+    held-back part if None) and force–velocity loops of the held-back part. Writes a PNG and returns its path."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    t = record.t
+    v = record.velocity()
+    k0 = int(split_index)
+    if k0 >= record.n - 2:
+        k0 = 0
+    k1 = record.n if window is None else min(record.n, k0 + max(3, int(round(window / record.dt)) + 1))
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(13, 4.6), constrained_layout=True,
+                                   gridspec_kw={"width_ratios": [1.6, 1.0]})
+    stride = max(1, (record.n - k0) // 20000)
+    for name, F in forces.items():
+        ax1.plot(t[k0:k1], F[k0:k1] / 1e3, lw=1.0, label=name)
+        ax2.plot(v[k0::stride], F[k0::stride] / 1e3, ".", ms=1.0, alpha=0.4, label=name)
+    # measured on top, thin, so that the models' departures from it stay visible
+    ax1.plot(t[k0:k1], record.force[k0:k1] / 1e3, color="k", lw=0.8, label="measured", zorder=5)
+    ax2.plot(v[k0::stride], record.force[k0::stride] / 1e3, ".", color="k", ms=0.6, alpha=0.6,
+             label="measured", zorder=5)
+    ax1.set_xlabel("time t (s)")
+    ax2.set_xlabel("velocity ẋ (m/s)")
+    for ax in (ax1, ax2):
+        ax.set_ylabel("force F (kN)")
+        ax.grid(True, alpha=0.3)
+    ax1.legend(fontsize=8, loc="upper right")
+    leg = ax2.legend(fontsize=8, markerscale=8, loc="upper left")
+    for h in leg.legend_handles:
+        h.set_alpha(1.0)
+    fig.suptitle(title or "measured vs model force")
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

@@ -1,0 +1,306 @@
+"""Measured damper records: a validated SI container and a CSV loader with declared units.
+
+A :class:`DamperRecord` holds one test (time, stroke, optional measured velocity, command, force) in SI units.
+:func:`load_record_csv` reads a user's file with a header line; every selected column needs a declared unit
+(nothing is guessed) and is converted to SI exactly once, on loading.
+"""
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .measures import _check_signal, _check_time
+
+__all__ = ["DamperRecord", "load_record_csv", "UNITS"]
+
+# Accepted input units per role, as factors to SI. Commands keep V or A (the damper models' command units).
+UNITS: dict[str, dict[str, float]] = {
+    "t": {"s": 1.0, "ms": 1e-3},
+    "x": {"m": 1.0, "cm": 1e-2, "mm": 1e-3},
+    "v": {"m/s": 1.0, "cm/s": 1e-2, "mm/s": 1e-3},
+    "force": {"N": 1.0, "kN": 1e3},
+    "command": {"V": 1.0, "mV": 1e-3, "A": 1.0, "mA": 1e-3},
+}
+_COMMAND_SI = {"V": "V", "mV": "V", "A": "A", "mA": "A"}
+_REQUIRED = ("t", "x", "command", "force")
+_OPTIONAL = ("v",)
+# Header of files written by DamperRecord.to_csv; read back by DamperRecord.read_csv.
+_OWN_HEADER = {"t": "t_s", "x": "x_m", "v": "v_m_per_s", "force": "force_N"}
+
+
+def lowpass_zero_phase(signal: np.ndarray, cutoff_Hz: float, fs_Hz: float) -> np.ndarray:
+    """4th-order Butterworth low-pass run forward and backward (zero phase, -6 dB at ``cutoff_Hz``).
+
+    The ends are padded by odd reflection over about six periods of the cut-off, long enough for the filter's
+    start-up transient to die out before the real samples; shorter records are padded as far as they go.
+    """
+    from scipy.signal import butter, sosfiltfilt
+    sos = butter(4, cutoff_Hz, fs=fs_Hz, output="sos")
+    pad = min(int(math.ceil(6.0 * fs_Hz / cutoff_Hz)), signal.shape[0] - 1)
+    return sosfiltfilt(sos, signal, padlen=pad)
+
+
+def hold_previous(t: np.ndarray, values: np.ndarray, t_new: np.ndarray) -> np.ndarray:
+    """Zero-order hold: the value of the last sample at or before each new time."""
+    # a tolerance of 1e-9 interval keeps a new time that rounds just below a sample time on that sample
+    tol = 1e-9 * (t[-1] - t[0]) / (t.shape[0] - 1)
+    idx = np.searchsorted(t, t_new + tol, side="right") - 1
+    return values[np.clip(idx, 0, t.shape[0] - 1)]
+
+
+def _frozen(a: np.ndarray) -> np.ndarray:
+    # a frozen record must not be changeable through its arrays either
+    a = np.array(a, dtype=np.float64, copy=True)
+    a.flags.writeable = False
+    return a
+
+
+@dataclass(frozen=True, eq=False)
+class DamperRecord:
+    """One damper test in SI units: ``t`` (s), ``x`` stroke (m), ``command`` (V or A), ``force`` (N).
+
+    ``v`` is an optional measured velocity (m/s); :meth:`velocity` falls back to dx/dt. All columns have the
+    same length (>= 3), are finite, and ``t`` is strictly increasing; the arrays are read-only copies.
+    """
+
+    t: np.ndarray
+    x: np.ndarray
+    command: np.ndarray
+    force: np.ndarray
+    v: np.ndarray | None = None
+    command_unit: str = "V"
+    label: str = field(default="", compare=False)
+
+    def __post_init__(self):
+        t = _check_time("column 't'", self.t, item="row")
+        n = t.shape[0]
+        cols = {"t": t}
+        for name in ("x", "command", "force") + (("v",) if self.v is not None else ()):
+            cols[name] = _check_signal(f"column '{name}'", getattr(self, name), n=n, item="row")
+        if self.command_unit not in ("V", "A"):
+            raise ValueError(f"command_unit = {self.command_unit!r} is invalid: must be 'V' or 'A'")
+        for name, a in cols.items():
+            object.__setattr__(self, name, _frozen(a))
+
+    # --- derived quantities ---------------------------------------------------------------------------------
+
+    @property
+    def n(self) -> int:
+        return int(self.t.shape[0])
+
+    @property
+    def duration(self) -> float:
+        return float(self.t[-1] - self.t[0])
+
+    @property
+    def dt(self) -> float:
+        """Mean sampling interval (s)."""
+        return self.duration / (self.n - 1)
+
+    def velocity(self) -> np.ndarray:
+        """Measured velocity if present, else dx/dt by second-order differences on ``t`` (m/s)."""
+        if self.v is not None:
+            return self.v
+        return np.gradient(self.x, self.t, edge_order=2)
+
+    def _replace(self, idx_or_cols, label: str | None = None) -> DamperRecord:
+        if isinstance(idx_or_cols, dict):
+            cols = idx_or_cols
+        else:
+            cols = {k: getattr(self, k)[idx_or_cols] for k in ("t", "x", "command", "force")}
+            cols["v"] = None if self.v is None else self.v[idx_or_cols]
+        return DamperRecord(cols["t"], cols["x"], cols["command"], cols["force"], cols["v"], self.command_unit,
+                            self.label if label is None else label)
+
+    # --- selections -------------------------------------------------------------------------------------------
+
+    def slice(self, t0: float, t1: float) -> DamperRecord:
+        """Samples with t0 <= t <= t1 (s); times are kept, not shifted to zero."""
+        t0, t1 = float(t0), float(t1)
+        if not (math.isfinite(t0) and math.isfinite(t1) and t0 < t1):
+            raise ValueError(f"slice needs finite t0 < t1, got t0 = {t0!r}, t1 = {t1!r}")
+        idx = np.flatnonzero((self.t >= t0) & (self.t <= t1))
+        if idx.size < 3:
+            raise ValueError(f"slice [{t0:g}, {t1:g}] s holds {idx.size} samples (need >= 3); the record spans "
+                             f"[{self.t[0]:g}, {self.t[-1]:g}] s")
+        return self._replace(slice(int(idx[0]), int(idx[-1]) + 1))
+
+    def split(self, fraction: float) -> tuple[DamperRecord, DamperRecord]:
+        """(fit, validation): the first ``fraction`` of the samples and the rest, without overlap."""
+        f = float(fraction)
+        if not (0.0 < f < 1.0):
+            raise ValueError(f"fraction = {fraction!r} is invalid: must be in (0, 1)")
+        k = int(round(f * self.n))
+        if k < 3 or self.n - k < 3:
+            raise ValueError(f"fraction = {f:g} of {self.n} samples leaves a part with fewer than 3 samples")
+        return (self._replace(slice(0, k), self.label and f"{self.label} (fit)"),
+                self._replace(slice(k, None), self.label and f"{self.label} (validation)"))
+
+    def resample(self, dt: float, *, antialias: bool = True) -> DamperRecord:
+        """Record on the uniform grid t0 + k·dt (s), k = 0.. while <= t_end.
+
+        x, v and force are interpolated linearly; the command, a switched signal, is held from the last sample
+        at or before each new time (zero-order hold) so steps stay steps. When downsampling (dt larger than the
+        mean interval) with ``antialias``, x, v and force first pass a zero-phase 4th-order Butterworth
+        low-pass at 0.8 × the new Nyquist frequency — the original grid must then be uniform up to rounding of
+        the time stamps (within half an interval of t0 + k·dt).
+        """
+        dt = float(dt)
+        if not (math.isfinite(dt) and 0.0 < dt <= self.duration / 2):
+            raise ValueError(f"dt = {dt!r} is invalid: must be > 0 and <= half the duration "
+                             f"({self.duration / 2:g} s)")
+        n_new = int(math.floor(self.duration / dt * (1 + 1e-12))) + 1
+        t_new = self.t[0] + dt * np.arange(n_new)
+        signals = {"x": self.x, "force": self.force}
+        if self.v is not None:
+            signals["v"] = self.v
+        if antialias and dt > self.dt * (1 + 1e-9):
+            # time stamps rounded in the file are fine: only a real gap or rate change breaks the filter
+            drift = np.abs(self.t - (self.t[0] + self.dt * np.arange(self.n))).max()
+            if drift > 0.5 * self.dt:
+                raise ValueError("resample with antialias=True needs a uniformly sampled record (t deviates "
+                                 f"by {drift:g} s from a uniform grid of {self.dt:g} s); pass antialias=False")
+            signals = {k: lowpass_zero_phase(s, 0.8 * (0.5 / dt), 1.0 / self.dt) for k, s in signals.items()}
+        cols = {k: np.interp(t_new, self.t, s) for k, s in signals.items()}
+        cols.setdefault("v", None)
+        cols.update(t=t_new, command=hold_previous(self.t, self.command, t_new))
+        return self._replace(cols)
+
+    # --- files ------------------------------------------------------------------------------------------------
+
+    def to_csv(self, path: str | Path) -> Path:
+        """Write SI columns ``t_s, x_m[, v_m_per_s], command_<unit>, force_N`` (round-trip exact)."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        names = ["t", "x"] + (["v"] if self.v is not None else []) + ["command", "force"]
+        header = [_OWN_HEADER.get(k, f"command_{self.command_unit}") for k in names]
+        with path.open("w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(header)
+            # repr gives the shortest string that parses back to the same float
+            w.writerows([repr(float(val)) for val in row] for row in zip(*(getattr(self, k) for k in names)))
+        return path
+
+    @classmethod
+    def read_csv(cls, path: str | Path, label: str = "") -> DamperRecord:
+        """Read a file written by :meth:`to_csv` (its header declares the SI units)."""
+        with Path(path).open(newline="", encoding="utf-8-sig") as fh:
+            header = next(csv.reader(fh), [])
+        unit = next((h[len("command_"):] for h in header if h in ("command_V", "command_A")), None)
+        if unit is None:
+            raise ValueError(f"{path}: not a DamperRecord.to_csv file (no 'command_V' or 'command_A' column); "
+                             f"use load_record_csv with declared columns and units")
+        columns = {k: v for k, v in _OWN_HEADER.items() if k != "v" or v in header}
+        columns["command"] = f"command_{unit}"
+        units = {"t": "s", "x": "m", "v": "m/s", "force": "N", "command": unit}
+        return load_record_csv(path, columns, {k: units[k] for k in columns}, label=label)
+
+
+def load_record_csv(path: str | Path, columns: dict[str, str], units: dict[str, str], *,
+                    skip_trailing_empty: bool = True, label: str = "") -> DamperRecord:
+    """Load a damper test from a CSV file with a header line, converting the chosen columns to SI once.
+
+    ``columns`` maps the roles "t", "x", "command", "force" (and optionally "v") to header names; header names
+    may be quoted. ``units`` gives each chosen column's unit (accepted units: :data:`UNITS`); there are no
+    defaults. With ``skip_trailing_empty`` the empty cells left by a trailing comma at the end of each line and
+    blank lines are ignored, as in files exported with a comma after the last column. Columns not chosen are
+    never parsed (they may be partly empty). Raises ``ValueError`` naming the file, column and row for missing
+    columns, missing or unknown units, empty/non-numeric/non-finite cells and a non-increasing time column.
+    """
+    path = Path(path)
+    unknown = sorted(set(columns) - set(_REQUIRED) - set(_OPTIONAL))
+    if unknown:
+        raise ValueError(f"columns has unknown roles {unknown}; valid roles are {list(_REQUIRED + _OPTIONAL)}")
+    missing_roles = [r for r in _REQUIRED if r not in columns]
+    if missing_roles:
+        raise ValueError(f"columns must name the file columns for roles {missing_roles} "
+                         f"(required roles: {list(_REQUIRED)}, optional: {list(_OPTIONAL)})")
+    factors = {}
+    for role, col in columns.items():
+        accepted = list(UNITS[role])
+        if role not in units:
+            raise ValueError(f"units['{role}'] is not given for column '{col}': declare its unit, one of "
+                             f"{accepted}")
+        if units[role] not in UNITS[role]:
+            raise ValueError(f"units['{role}'] = {units[role]!r} for column '{col}' is not accepted; use one of "
+                             f"{accepted}")
+        factors[role] = UNITS[role][units[role]]
+    extra = sorted(set(units) - set(columns))
+    if extra:
+        raise ValueError(f"units given for roles {extra} that have no column in columns")
+
+    header, rows, lines = _read_table(path, skip_trailing_empty)
+    index = {}
+    for role, col in columns.items():
+        hits = [i for i, h in enumerate(header) if h == col]
+        if not hits:
+            raise ValueError(f"{path}: column '{col}' (for '{role}') not found; available columns: "
+                             f"{[h for h in header if h]}")
+        if len(hits) > 1:
+            raise ValueError(f"{path}: column '{col}' appears {len(hits)} times in the header")
+        index[role] = hits[0]
+    if len(rows) < 3:
+        raise ValueError(f"{path}: has {len(rows)} data rows, need at least 3")
+
+    data = {role: _parse_column(path, rows, lines, index[role], f"column '{columns[role]}' ({role})")
+            * factors[role] for role in columns}
+    for role in columns:
+        what = f"{path}: column '{columns[role]}' ({role})"
+        if role == "t":
+            _check_time(what, data[role], item="data row")
+        else:
+            _check_signal(what, data[role], item="data row")
+    return DamperRecord(data["t"], data["x"], data["command"], data["force"], data.get("v"),
+                        _COMMAND_SI[units["command"]], label or path.stem)
+
+
+def _read_table(path: Path, skip_trailing_empty: bool) -> tuple[list[str], list[list[str]], list[int]]:
+    """Header cells, data rows and their file line numbers."""
+    def trim(cells: list[str]) -> list[str]:
+        if skip_trailing_empty:
+            while cells and cells[-1].strip() == "":
+                cells = cells[:-1]
+        return cells
+
+    with path.open(newline="", encoding="utf-8-sig") as fh:
+        reader = csv.reader(fh, skipinitialspace=True)
+        header = None
+        rows, lines = [], []
+        for cells in reader:
+            if not any(c.strip() for c in cells):
+                if skip_trailing_empty or header is None:
+                    continue
+                raise ValueError(f"{path}: line {reader.line_num} is empty")
+            if header is None:
+                header = [c.strip() for c in trim(cells)]
+                continue
+            rows.append(cells if not skip_trailing_empty else trim(cells))
+            lines.append(reader.line_num)
+    if header is None:
+        raise ValueError(f"{path}: the file is empty (expected a header line)")
+    width = len(header)
+    for cells, line in zip(rows, lines):
+        # rows may be shorter only when trailing empty cells were trimmed
+        if len(cells) > width or (not skip_trailing_empty and len(cells) != width):
+            raise ValueError(f"{path}: line {line} has {len(cells)} cells but the header has {width}")
+    return header, rows, lines
+
+
+def _parse_column(path: Path, rows: list[list[str]], lines: list[int], j: int, what: str) -> np.ndarray:
+    cells = [r[j] if j < len(r) else "" for r in rows]
+    try:
+        return np.array(cells, dtype=np.float64)
+    except ValueError:
+        pass
+    # slow path only to say where the bad cell is
+    for i, (c, line) in enumerate(zip(cells, lines)):
+        try:
+            float(c)
+        except ValueError:
+            shown = "an empty cell" if c.strip() == "" else f"the non-numeric value {c!r}"
+            raise ValueError(f"{path}: {what} has {shown} at data row {i} (file line {line})") from None
+    raise AssertionError("unreachable")  # numpy rejected a cell that float() accepts

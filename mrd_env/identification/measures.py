@@ -1,0 +1,140 @@
+"""Normalised model-error measures of the review: E_t, E_x, E_v (eq. 3) and J1, J2 (eqs. 25-26).
+
+All inputs are SI (s, m, m/s, N). Time integrals use the trapezoidal rule on the sampled time grid, which may
+be non-uniform but must be strictly increasing. Derivatives use ``numpy.gradient`` with ``edge_order=2``:
+second-order central differences on the (possibly non-uniform) grid and second-order one-sided differences at
+the two ends.
+
+Eq. (3) weights the squared force error by |dx/dt| for E_x and by |d(dx/dt)/dt| (the acceleration) for E_v,
+so E_x stresses the fast part of a stroke and E_v the velocity reversals. F̄_exp, the "average along the T
+period", is the time average (1/T)∫F_exp dt, computed with the same trapezoidal rule so that F = F̄_exp gives
+E_t = 1 exactly on any grid.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.integrate import trapezoid
+
+__all__ = ["error_time", "error_displacement", "error_velocity", "j1", "j2", "error_measures"]
+
+_MIN_SAMPLES = 3  # second-order differences at both ends need three points
+
+
+# --- shared input checks (also used by the data module) -------------------------------------------------------
+
+def _check_signal(label: str, value, *, n: int | None = None, item: str = "index") -> np.ndarray:
+    """``value`` as a 1-D float64 array of finite numbers (of length ``n`` if given), else ``ValueError``."""
+    try:
+        a = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"{label} must be a 1-D array of real numbers") from None
+    if a.ndim != 1:
+        raise ValueError(f"{label} must be 1-D, got shape {a.shape}")
+    if n is not None and a.shape[0] != n:
+        raise ValueError(f"{label} has {a.shape[0]} samples, expected {n} (the length of the other columns)")
+    bad = np.flatnonzero(~np.isfinite(a))
+    if bad.size:
+        i = int(bad[0])
+        raise ValueError(f"{label} has a non-finite value ({a[i]}) at {item} {i}")
+    return a
+
+
+def _check_time(label: str, t, *, n: int | None = None, item: str = "index") -> np.ndarray:
+    """A finite, strictly increasing time grid with at least three samples."""
+    t = _check_signal(label, t, n=n, item=item)
+    if t.shape[0] < _MIN_SAMPLES:
+        raise ValueError(f"{label} must have at least {_MIN_SAMPLES} samples, got {t.shape[0]}")
+    bad = np.flatnonzero(np.diff(t) <= 0.0)
+    if bad.size:
+        i = int(bad[0]) + 1
+        raise ValueError(f"{label} is not strictly increasing at {item} {i} "
+                         f"({t[i - 1]!r} followed by {t[i]!r})")
+    return t
+
+
+def _forces_and_time(F_exp, F, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    F_exp = _check_signal("F_exp", F_exp)
+    F = _check_signal("F", F, n=F_exp.shape[0])
+    t = _check_time("t", t, n=F_exp.shape[0])
+    return F_exp, F, t
+
+
+def _velocity(t: np.ndarray, x, v) -> np.ndarray:
+    """Measured velocity if given, else dx/dt of the displacement on the time grid."""
+    if v is not None:
+        return _check_signal("v", v, n=t.shape[0])
+    if x is None:
+        raise ValueError("give the displacement x (m) or the velocity v (m/s)")
+    return np.gradient(_check_signal("x", x, n=t.shape[0]), t, edge_order=2)
+
+
+def _normalised_error(F_exp: np.ndarray, F: np.ndarray, t: np.ndarray, w: np.ndarray, name: str) -> float:
+    """sqrt(∫(F_exp-F)² w dt / ∫(F_exp-F̄_exp)² w dt), trapezoidal in time — the common form of eq. (3)."""
+    mean = trapezoid(F_exp, t) / (t[-1] - t[0])
+    den = trapezoid((F_exp - mean) ** 2 * w, t)
+    if not den > 0.0:
+        raise ValueError(f"{name} is undefined: the weighted variance of F_exp is zero (constant measured force "
+                         f"or zero weight everywhere)")
+    return math.sqrt(trapezoid((F_exp - F) ** 2 * w, t) / den)
+
+
+# --- public measures --------------------------------------------------------------------------------------------
+
+def error_time(F_exp, F, t) -> float:
+    """E_t of review eq. (3): RMS force error over the measured force's RMS deviation from its time mean."""
+    F_exp, F, t = _forces_and_time(F_exp, F, t)
+    return _normalised_error(F_exp, F, t, np.ones_like(t), "E_t")
+
+
+def error_displacement(F_exp, F, t, x=None, *, v=None) -> float:
+    """E_x of review eq. (3): as E_t, weighted by |dx/dt|.
+
+    ``x`` is the displacement (m), differentiated on ``t``; or give the measured velocity ``v`` (m/s).
+    """
+    F_exp, F, t = _forces_and_time(F_exp, F, t)
+    return _normalised_error(F_exp, F, t, np.abs(_velocity(t, x, v)), "E_x")
+
+
+def error_velocity(F_exp, F, t, x=None, *, v=None) -> float:
+    """E_v of review eq. (3): as E_t, weighted by |d(dx/dt)/dt| (the acceleration magnitude).
+
+    The acceleration is the derivative of ``v`` (m/s) if given, else the second derivative of ``x`` (m).
+    """
+    F_exp, F, t = _forces_and_time(F_exp, F, t)
+    a = np.gradient(_velocity(t, x, v), t, edge_order=2)
+    return _normalised_error(F_exp, F, t, np.abs(a), "E_v")
+
+
+def j1(F_exp, F) -> float:
+    """J1 of review eq. (25): sum of squared force errors over the samples (N²)."""
+    F_exp = _check_signal("F_exp", F_exp)
+    F = _check_signal("F", F, n=F_exp.shape[0])
+    if F_exp.shape[0] == 0:
+        raise ValueError("F_exp must have at least one sample")
+    return float(np.sum((F_exp - F) ** 2))
+
+
+def j2(F_exp, F) -> float:
+    """J2 of review eq. (26): root-mean-square force error over the samples (N)."""
+    F_exp = _check_signal("F_exp", F_exp)
+    return math.sqrt(j1(F_exp, F) / F_exp.shape[0])
+
+
+def error_measures(F_exp, F, t, x=None, *, v=None) -> dict[str, float]:
+    """All five measures {"E_t", "E_x", "E_v", "J1", "J2"} (review eqs. 3, 25, 26).
+
+    E_* are dimensionless ratios (multiply by 100 for the review's percentages), J1 is in N², J2 in N.
+    Needs the displacement ``x`` (m) or the measured velocity ``v`` (m/s) for E_x and E_v.
+    """
+    F_exp, F, t = _forces_and_time(F_exp, F, t)
+    vel = _velocity(t, x, v)
+    acc = np.gradient(vel, t, edge_order=2)
+    return {
+        "E_t": _normalised_error(F_exp, F, t, np.ones_like(t), "E_t"),
+        "E_x": _normalised_error(F_exp, F, t, np.abs(vel), "E_x"),
+        "E_v": _normalised_error(F_exp, F, t, np.abs(acc), "E_v"),
+        "J1": j1(F_exp, F),
+        "J2": j2(F_exp, F),
+    }
