@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numba as nb
 
 from .base import CommandSpec, DamperModel, DamperParams, Preset, param
-from .hysteresis import bouc_wen_saturation, bouc_wen_zdot, clip_to_saturation
+from .hysteresis import BoucWenSaturation, bouc_wen_zdot, clip_to_saturation
 from .registry import register
 
 
@@ -127,7 +127,7 @@ PROTOTYPE = AliRamaswamyParams(
 
 
 @register
-class AliRamaswamy(DamperModel):
+class AliRamaswamy(BoucWenSaturation, DamperModel):
     name = "ali_ramaswamy"
     Params = AliRamaswamyParams
     state_names = ("z",)
@@ -144,8 +144,3 @@ class AliRamaswamy(DamperModel):
     def coefficients(self, i_c: float = 0.0) -> tuple[float, float, float]:
         """(c, k, α) of eq. (21) at this damper's amplitude x_a and current i_c."""
         return self.params.coefficients(i_c)
-
-    def saturation(self) -> float:
-        """z_s = (A/(β+γ))^(1/n) in m."""
-        p = self.params
-        return bouc_wen_saturation(p.A, p.beta, p.gamma, p.n)

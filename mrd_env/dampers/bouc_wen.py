@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numba as nb
 
 from .base import CommandSpec, DamperModel, DamperParams, Preset, param
-from .hysteresis import bouc_wen_zdot, clip_to_saturation
+from .hysteresis import BoucWenSaturation, bouc_wen_zdot, clip_to_saturation
 from .registry import register
 
 
@@ -65,7 +65,7 @@ AUTOMOTIVE = BoucWenParams(c0a=744.1, c0b=1714.0, k0a=840.0, k0b=0.0, x0=0.0245,
 
 
 @register
-class BoucWen(DamperModel):
+class BoucWen(BoucWenSaturation, DamperModel):
     name = "bouc_wen"
     Params = BoucWenParams
     state_names = ("z",)
@@ -81,8 +81,3 @@ class BoucWen(DamperModel):
     rhs = _rhs
     force = _force
     project = _project
-
-    def saturation(self) -> float:
-        """z_s = (A/(β+γ))^(1/n) in m."""
-        p = self.params
-        return (p.A / (p.beta + p.gamma)) ** (1.0 / p.n)

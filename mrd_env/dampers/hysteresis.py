@@ -39,3 +39,12 @@ def clip_to_saturation(z, A, beta, gamma, n):
     if z < -zs:
         return -zs
     return z
+
+
+class BoucWenSaturation:
+    """Mixin for models whose state z follows eq. (8) with parameters ``A``, ``beta``, ``gamma``, ``n``."""
+
+    def saturation(self) -> float:
+        """z_s = (A/(β+γ))^(1/n) in m."""
+        p = self.params
+        return float(bouc_wen_saturation(p.A, p.beta, p.gamma, p.n))

@@ -42,7 +42,7 @@ from dataclasses import dataclass
 import numba as nb
 
 from .base import CommandSpec, DamperModel, DamperParams, Preset, param
-from .hysteresis import bouc_wen_saturation, bouc_wen_zdot, clip_to_saturation
+from .hysteresis import BoucWenSaturation, bouc_wen_zdot, clip_to_saturation
 from .registry import register
 
 
@@ -104,7 +104,7 @@ LARGE_SCALE = ModifiedBoucWenParams(
 
 
 @register
-class ModifiedBoucWen(DamperModel):
+class ModifiedBoucWen(BoucWenSaturation, DamperModel):
     name = "modified_bouc_wen"
     Params = ModifiedBoucWenParams
     state_names = ("z",)
@@ -126,8 +126,3 @@ class ModifiedBoucWen(DamperModel):
     def inertance(self) -> float:
         """m of the m ẍ term of eq. (10) (kg)."""
         return self.params.m
-
-    def saturation(self) -> float:
-        """z_s = (A/(β+γ))^(1/n) in m."""
-        p = self.params
-        return bouc_wen_saturation(p.A, p.beta, p.gamma, p.n)

@@ -36,7 +36,7 @@ from dataclasses import dataclass
 import numba as nb
 
 from .base import CommandSpec, DamperModel, Preset, param, smooth_sign
-from .hysteresis import bouc_wen_saturation, bouc_wen_zdot
+from .hysteresis import BoucWenSaturation, bouc_wen_zdot
 from .bouc_wen import BoucWenParams
 from .bouc_wen import _force as bouc_wen_force
 from .bouc_wen import _project as bouc_wen_project
@@ -69,7 +69,7 @@ PROTOTYPE = NonsymmetricBoucWenParams(
 
 
 @register
-class NonsymmetricBoucWen(DamperModel):
+class NonsymmetricBoucWen(BoucWenSaturation, DamperModel):
     name = "nonsymmetric_bouc_wen"
     Params = NonsymmetricBoucWenParams
     state_names = ("z",)
@@ -82,8 +82,3 @@ class NonsymmetricBoucWen(DamperModel):
     rhs = _rhs
     force = _force
     project = _project
-
-    def saturation(self) -> float:
-        """z_s = (A/(β+γ))^(1/n) in m."""
-        p = self.params
-        return bouc_wen_saturation(p.A, p.beta, p.gamma, p.n)

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numba as nb
 
 from .base import CommandSpec, DamperModel, DamperParams, Preset, param
-from .hysteresis import bouc_wen_zdot, clip_to_saturation
+from .hysteresis import BoucWenSaturation, bouc_wen_zdot, clip_to_saturation
 from .registry import register
 
 
@@ -78,7 +78,7 @@ AUTOMOTIVE = SpencerDykeParams(
 
 
 @register
-class SpencerDyke(DamperModel):
+class SpencerDyke(BoucWenSaturation, DamperModel):
     name = "spencer_dyke"
     Params = SpencerDykeParams
     state_names = ("y", "z")
@@ -94,8 +94,3 @@ class SpencerDyke(DamperModel):
     rhs = _rhs
     force = _force
     project = _project
-
-    def saturation(self) -> float:
-        """z_s = (A/(β+γ))^(1/n) in m."""
-        p = self.params
-        return (p.A / (p.beta + p.gamma)) ** (1.0 / p.n)

@@ -135,3 +135,17 @@ class CoupledPlant:
         n = self.plant.n_dof
         qdot = Y[..., : 2 * n] @ s.A.T + F @ s.BF.T + W @ s.Bw.T
         return qdot[..., n:]
+
+
+def preset_with_overrides(presets: dict, name: str, kind: str, overrides: dict):
+    """The preset ``name`` of a frozen-dataclass family, with field ``overrides`` (validated anew)."""
+    if name not in presets:
+        raise ValueError(f"unknown {kind} preset {name!r}; available: {sorted(presets)}")
+    base = presets[name]
+    if not overrides:
+        return base
+    fields = {k: getattr(base, k) for k in base.__dataclass_fields__}
+    unknown = set(overrides) - set(fields)
+    if unknown:
+        raise ValueError(f"unknown {kind} parameter(s) {sorted(unknown)}; valid: {sorted(fields)}")
+    return type(base)(**{**fields, **overrides})

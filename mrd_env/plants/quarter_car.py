@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..validation import check_scalar
-from .base import LinearPlant
+from .base import LinearPlant, preset_with_overrides
 
 
 @dataclass(frozen=True)
@@ -63,13 +63,4 @@ QUARTER_CAR_PRESETS = {
 
 def quarter_car(preset: str = "set_a", **overrides) -> QuarterCarParams:
     """A quarter-car parameter set by name, with optional overrides (SI)."""
-    if preset not in QUARTER_CAR_PRESETS:
-        raise ValueError(f"unknown quarter-car preset {preset!r}; available: {sorted(QUARTER_CAR_PRESETS)}")
-    base = QUARTER_CAR_PRESETS[preset]
-    if not overrides:
-        return base
-    fields = {k: getattr(base, k) for k in base.__dataclass_fields__}
-    unknown = set(overrides) - set(fields)
-    if unknown:
-        raise ValueError(f"unknown quarter-car parameter(s) {sorted(unknown)}; valid: {sorted(fields)}")
-    return QuarterCarParams(**{**fields, **overrides})
+    return preset_with_overrides(QUARTER_CAR_PRESETS, preset, "quarter-car", overrides)

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..validation import check_array
-from .base import LinearPlant
+from .base import LinearPlant, preset_with_overrides
 
 
 @dataclass(frozen=True)
@@ -98,13 +98,4 @@ BUILDING_PRESETS = {"three_storey": THREE_STOREY}
 
 def shear_building(preset: str = "three_storey", **overrides) -> ShearBuildingParams:
     """A building by preset name (``three_storey``) with optional field overrides (e.g. damper_floors)."""
-    if preset not in BUILDING_PRESETS:
-        raise ValueError(f"unknown building preset {preset!r}; available: {sorted(BUILDING_PRESETS)}")
-    base = BUILDING_PRESETS[preset]
-    if not overrides:
-        return base
-    fields = {k: getattr(base, k) for k in base.__dataclass_fields__}
-    unknown = set(overrides) - set(fields)
-    if unknown:
-        raise ValueError(f"unknown building parameter(s) {sorted(unknown)}; valid: {sorted(fields)}")
-    return ShearBuildingParams(**{**fields, **overrides})
+    return preset_with_overrides(BUILDING_PRESETS, preset, "building", overrides)
