@@ -43,14 +43,13 @@ class Controller(ABC):
         """Forget everything learnt from past observations (filter states, extrema)."""
 
     def predict(self, observation, state=None, episode_start=None, deterministic: bool = True):
-        obs = np.asarray(observation, dtype=np.float64)
+        obs = np.asarray(observation, dtype=np.float64)  # float32 observations: laws compute in float64
         if obs.ndim == 2:  # a batch (vectorised envs): one controller instance per row is the user's job
             if obs.shape[0] != 1:
                 raise ValueError("a classical controller drives one environment: pass one observation "
                                  "(make one controller per sub-environment)")
             return self.predict(obs[0], state, episode_start, deterministic)[0][None], state
-        u = np.broadcast_to(np.asarray(self.command(obs), dtype=np.float64), (self.n_dampers,))
-        return self._to_action(u), state
+        return self._to_action(self.command(obs)), state
 
     @abstractmethod
     def command(self, obs: np.ndarray) -> np.ndarray:
@@ -60,15 +59,20 @@ class Controller(ABC):
     def sensor(self, obs: np.ndarray, name: str) -> np.ndarray:
         return obs[self.layout[name]]
 
-    def _to_action(self, u: np.ndarray) -> np.ndarray:
-        u = np.clip(u, self.v_min, self.v_max)
+    def _to_action(self, u) -> np.ndarray:
+        """Physical command(s) → the env's action (float32, clipped; mapped to [-1, 1] if normalised)."""
+        a = np.empty(self.n_dampers, dtype=np.float32)
+        a[:] = u  # a scalar or one value per damper
+        np.minimum(np.maximum(a, self.v_min, out=a), self.v_max, out=a)
         if self.normalized:
-            u = 2.0 * (u - self.v_min) / (self.v_max - self.v_min) - 1.0
-        return u.astype(np.float32)
+            a -= self.v_min
+            a *= 2.0 / (self.v_max - self.v_min)
+            a -= 1.0
+        return a
 
     def on_off(self, condition) -> np.ndarray:
         """u_max where ``condition`` holds, else u_min (the on–off laws' common form)."""
-        return np.where(condition, self.v_max, self.v_min)
+        return self.v_min + (self.v_max - self.v_min) * np.asarray(condition, dtype=np.float64)
 
 
 class PassiveOff(Controller):
@@ -77,7 +81,7 @@ class PassiveOff(Controller):
     name = "passive_off"
 
     def command(self, obs):
-        return np.full(self.n_dampers, self.v_min)
+        return self.v_min
 
 
 class PassiveOn(Controller):
@@ -86,7 +90,7 @@ class PassiveOn(Controller):
     name = "passive_on"
 
     def command(self, obs):
-        return np.full(self.n_dampers, self.v_max)
+        return self.v_max
 
 
 class AgentController(Controller):
