@@ -34,6 +34,9 @@ class Controller(ABC):
         self.n_dampers = int(base.action_space.shape[0])
         self.normalized = getattr(base, "action_mode", "physical") == "normalized"
         self.control_dt = float(base.control_dt)
+        # the damper's static preload (e.g. the accumulator's k1·x0) is balanced by the plant's static
+        # deflection: the laws act on the force beyond it, the one the linear plant model sees
+        self.f_static = float(getattr(base, "F_static", 0.0))
 
     def required_sensors(self, env) -> Sequence[str]:
         return self.requires
@@ -58,6 +61,10 @@ class Controller(ABC):
     # -- helpers ------------------------------------------------------------------------------------
     def sensor(self, obs: np.ndarray, name: str) -> np.ndarray:
         return obs[self.layout[name]]
+
+    def dynamic_force(self, obs: np.ndarray) -> np.ndarray:
+        """Measured damper force minus its static preload (N, positive resisting extension)."""
+        return obs[self.layout["damper_force"]] - self.f_static
 
     def _to_action(self, u) -> np.ndarray:
         """Physical command(s) → the env's action (float32, clipped; mapped to [-1, 1] if normalised)."""

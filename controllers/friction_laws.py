@@ -16,7 +16,8 @@ def _stroke_sensors(env):
 class MaximumEnergyDissipation(Controller):
     """Maximum energy dissipation (Jansen & Dyke 2000, after McClamroch & Gavin 1995): full command when
     the damper force dissipates energy, u = u_max·H(f·ẋ_d) (f positive resisting extension, ẋ_d the damper
-    velocity), otherwise u_min — it switches off where the hysteresis would push energy back in."""
+    velocity), otherwise u_min — it switches off where the hysteresis would push energy back in. f is the
+    force beyond the damper's static preload."""
 
     name = "max_energy_dissipation"
 
@@ -25,7 +26,7 @@ class MaximumEnergyDissipation(Controller):
 
     def command(self, obs):
         v = self.sensor(obs, _stroke_sensors(self.env)[1])
-        return self.on_off(self.sensor(obs, "damper_force") * v > 0.0)
+        return self.on_off(self.dynamic_force(obs) * v > 0.0)
 
 
 class ModulatedHomogeneousFriction(Controller):
@@ -57,4 +58,4 @@ class ModulatedHomogeneousFriction(Controller):
         turned = (v * self._last_rate < 0.0) | (self._last_rate == 0.0)
         self._extremum = np.where(turned, x, self._extremum)
         self._last_rate = v
-        return self.on_off(self.gain * np.abs(self._extremum) - np.abs(self.sensor(obs, "damper_force")) > 0.0)
+        return self.on_off(self.gain * np.abs(self._extremum) - np.abs(self.dynamic_force(obs)) > 0.0)

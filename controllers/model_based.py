@@ -129,7 +129,7 @@ class _ObserverLaw(Controller):
 
     def estimate(self, obs):
         y = obs[self._y_index]
-        f = obs[self.layout["damper_force"]]
+        f = self.dynamic_force(obs)
         return self.kf.update(y, f), f
 
 
@@ -138,7 +138,8 @@ class ClippedOptimal(_ObserverLaw):
 
     An LQR (``control.lqr``) on the weighted responses z = C_z x + D_z f,
     J = ∫ zᵀz + fᵀ R f dt, gives f_c = −K x̂ from the Kalman estimate x̂; the damper command is the
-    clipped on–off law u = u_max·H((f_c − f)·f) with f the measured damper force.
+    clipped on–off law u = u_max·H((f_c − f)·f) with f the measured damper force beyond its static preload
+    (the force the linear model's input stands for).
 
     Default weights: building — interstorey drifts ``drift`` with 1/(5 mm)², absolute accelerations
     ``abs_acc`` with 0; quarter car — sprung acceleration with 1/(1 m/s²)² and suspension travel with

@@ -91,3 +91,19 @@ def test_train_a_tiny_agent_and_score_it_in_the_benchmark(tmp_path):
     eps = run_benchmark("building", ["passive_off"], sc, out=tmp_path / "b", progress=False, agents=[agent])
     assert [e.controller for e in eps] == ["passive_off", "agent:building_PPO"]
     assert 0 < eps[1].metrics["J1"] < 2
+
+
+def test_model_based_estimate_stays_at_rest_despite_the_damper_preload():
+    """The damper force sensor includes the static preload (k1·x0), which the plant balances: the Kalman
+    filter must not read it as a load (regression: a 0.14 mm phantom drift)."""
+    from mrd_env.disturbances import Record
+
+    quiet = Record(1e-3, np.zeros((1001, 1)), ("xg_ddot",), ("m/s^2",))
+    env = gym.make("mrd_env/ShearBuilding-v0", sensors=("abs_acc", "damper_force", "ground_acc"),
+                   ground_motion=quiet, episode_seconds=0.8)
+    co = ClippedOptimal(env)
+    obs, _ = env.reset(seed=0)
+    assert obs[env.unwrapped.sensor_layout[1][1]][0] == pytest.approx(env.unwrapped.F_static, abs=1e-6)
+    for _ in range(700):
+        obs, *_ = env.step(co.predict(obs)[0])
+    assert np.max(np.abs(co.kf.x)) < 1e-9
