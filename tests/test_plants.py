@@ -160,6 +160,10 @@ def test_plant_validation_errors():
         shear_building("three_storey", masses=(98.3, -1.0, 98.3))
     with pytest.raises(ValueError, match="damper_floors"):
         shear_building("three_storey", damper_floors=(4,))
+    with pytest.raises(ValueError, match="whole floor numbers"):
+        shear_building("three_storey", damper_floors=(1.5,))
+    with pytest.raises(ValueError, match="damper_floors"):
+        shear_building("three_storey", damper_floors=("ab",))
 
 
 def test_plant_at_rest_stays_at_rest_despite_damper_preload():

@@ -500,10 +500,10 @@ class MRDamperEnv(gym.Env):
         if type(action) is np.ndarray and action.shape == (nd,) and action.dtype.kind in "fiu":
             a = action
         else:
-            try:
-                a = np.asarray(action, dtype=np.float64)
-            except (TypeError, ValueError):
-                raise ValueError(f"action must be numeric with shape ({nd},), got {action!r}") from None
+            raw = np.asarray(action)
+            if raw.dtype.kind not in "fiu":  # complex, bool, strings, objects: not a command
+                raise ValueError(f"action must be numeric (real numbers) with shape ({nd},), got dtype {raw.dtype}")
+            a = raw.astype(np.float64)
             if nd == 1 and a.ndim == 0:
                 a = a.reshape(1)
             if a.shape != (nd,):

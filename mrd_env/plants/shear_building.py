@@ -33,7 +33,15 @@ class ShearBuildingParams:
         object.__setattr__(self, "masses", tuple(m.tolist()))
         object.__setattr__(self, "K", check_array("ShearBuildingParams.K", self.K, shape=(n, n)))
         object.__setattr__(self, "C", check_array("ShearBuildingParams.C", self.C, shape=(n, n)))
-        floors = tuple(int(f) for f in self.damper_floors)
+        try:
+            floats = [float(f) for f in self.damper_floors]
+        except (TypeError, ValueError):
+            raise ValueError(f"ShearBuildingParams.damper_floors must be floor numbers in 1..{n}, "
+                             f"got {self.damper_floors!r}") from None
+        if not all(f.is_integer() for f in floats):
+            raise ValueError(f"ShearBuildingParams.damper_floors must be whole floor numbers in 1..{n}, "
+                             f"got {self.damper_floors!r}")
+        floors = tuple(int(f) for f in floats)
         if not floors or any(f < 1 or f > n for f in floors):
             raise ValueError(f"ShearBuildingParams.damper_floors must be floor numbers in 1..{n}, got {floors}")
         object.__setattr__(self, "damper_floors", floors)
