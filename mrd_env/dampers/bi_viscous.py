@@ -27,6 +27,7 @@ also used by :mod:`.hysteretic_bi_viscous`), and :class:`CommandRangeChecked` wi
 """
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from dataclasses import dataclass
 
 import numba as nb
@@ -85,7 +86,7 @@ PROTOTYPE = BiViscousParams(fy_a=79.8, fy_b=407.6, c_ps_a=1994.0, c_ps_b=289.3, 
                             f0=-71.5)
 
 
-class CommandRangeChecked(DamperModel):
+class CommandRangeChecked(DamperModel, ABC):
     """A model whose parameter constraints depend on the command (e.g. c_pre(u) > c_ps(u)): they are checked
     over the whole command range once the damper is built (the parameter dataclass does not know the range).
     Subclasses implement :meth:`check_command_range`, raising ``ValueError`` that names the fields."""
@@ -94,8 +95,9 @@ class CommandRangeChecked(DamperModel):
         super().__init__(params, command, preset)
         self.check_command_range()
 
+    @abstractmethod
     def check_command_range(self) -> None:
-        raise NotImplementedError
+        """Implemented by each subclass."""
 
 
 @register

@@ -14,6 +14,7 @@ forces and the exogenous inputs), its disturbance and its reward terms; everythi
 """
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 import math
 from typing import Any, Mapping
 
@@ -150,7 +151,7 @@ def _check_options(name: str, given: Mapping | None, valid) -> dict:
     return dict(given)
 
 
-class MRDamperEnv(gym.Env):
+class MRDamperEnv(gym.Env, ABC):
     """Base of the MR-damper environments: a linear plant with MR dampers, stepped at ``dt``, controlled at
     ``control_dt``.
 
@@ -384,27 +385,33 @@ class MRDamperEnv(gym.Env):
         return std if np.any(std > 0) else None
 
     # --- subclass hooks --------------------------------------------------------------------------------------
+    @abstractmethod
     def _build_plant(self) -> tuple[Any, LinearPlant]:
-        raise NotImplementedError
+        """Implemented by each subclass."""
 
+    @abstractmethod
     def _signal_defs(self, sb: _SignalBuilder) -> dict[str, np.ndarray]:
-        raise NotImplementedError
+        """Implemented by each subclass."""
 
     def _filter_sos(self) -> np.ndarray:
-        raise NotImplementedError
+        """Second-order sections of the online comfort filter of ``FILTER_SIGNAL`` (none by default)."""
+        return _NO_SOS
 
+    @abstractmethod
     def _setup_reward(self) -> None:
-        raise NotImplementedError
+        """Implemented by each subclass."""
 
+    @abstractmethod
     def _setup_disturbance(self) -> None:
-        raise NotImplementedError
+        """Implemented by each subclass."""
 
+    @abstractmethod
     def _new_episode(self) -> tuple[Any, np.ndarray | None]:
         """(Record on the dt grid with the plant's input channels in order, initial plant state or None)."""
-        raise NotImplementedError
 
+    @abstractmethod
     def _episode_metrics(self, n_rows: int) -> dict[str, float]:
-        raise NotImplementedError
+        """Implemented by each subclass."""
 
     # --- helpers for subclasses -------------------------------------------------------------------------------
     def signal(self, name: str, n_rows: int | None = None) -> np.ndarray:
@@ -572,8 +579,9 @@ class MRDamperEnv(gym.Env):
         return self._last_obs.copy(), float(reward), True, False, info
 
     # --- rendering ---------------------------------------------------------------------------------------------
+    @abstractmethod
     def _make_renderer(self, human: bool):
-        raise NotImplementedError
+        """Implemented by each subclass."""
 
     def render(self):
         if self.render_mode is None:

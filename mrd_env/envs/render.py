@@ -8,6 +8,7 @@ of the damper force.
 """
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 import numpy as np
 
 WINDOW = 3.0          # s of history in the traces
@@ -38,7 +39,7 @@ def _interactive_backend() -> bool:
     return matplotlib.get_backend().lower() not in {b.lower() for b in non_interactive}
 
 
-class _Renderer:
+class _Renderer(ABC):
     """Figure with a schematic axis (left) and two trace axes (right); subclasses draw the schematic."""
 
     response_label = ""
@@ -83,11 +84,13 @@ class _Renderer:
         self._build_schematic()
 
     # subclass API
+    @abstractmethod
     def _build_schematic(self) -> None:
-        raise NotImplementedError
+        """Implemented by each subclass."""
 
+    @abstractmethod
     def _update_schematic(self, state: dict) -> None:
-        raise NotImplementedError
+        """Implemented by each subclass."""
 
     def _color(self, v: float):
         cs = self.env.command_spec

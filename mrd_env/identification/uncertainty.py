@@ -6,6 +6,7 @@ uncertainty contributions of a testing machine during use (Table 8). Every rando
 """
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 import csv
 import io
 import math
@@ -49,7 +50,7 @@ def _positive(owner: str, name: str, value: float, *, allow_zero: bool, unit: st
 # --- sensors (review Table 7) -------------------------------------------------------------------------------
 
 @dataclass(frozen=True)
-class _Sensor:
+class _Sensor(ABC):
     """Common error model of an analogue sensor read by an ADC.
 
     Output = value + static error + white noise, saturated at ±``full_scale``, then quantised to the
@@ -58,9 +59,9 @@ class _Sensor:
     data-sheet bound ±a·FS anywhere in the range, and its rectangular shape matches Table 8's convention.
     """
 
+    @abstractmethod
     def _params(self) -> tuple[float, float, float, float]:
         """(full_scale, accuracy_fs, noise_rms, resolution) in the sensor's SI unit."""
-        raise NotImplementedError
 
     def measure(self, value: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
         """(reading, saturated-sample mask). Draw order is fixed: gain, offset, noise."""
