@@ -149,10 +149,19 @@ def _sdirk_step(nq, nd, A, BF, Bw, Cx, Dx, Cv, Dv, Da, P, Y, u0, v, eta,
         if e > err:
             err = e
         Y[i] = Z2[i]
-    # stage values may leave the invariant set (z beyond ±z_s) but the step's result must not
+    # stage values may leave the invariant set (z beyond ±z_s) but the step's result must not; discrete
+    # modes (a branch chosen by the sign of the acceleration) switch here, between steps
     for j in range(nd):
+        x = 0.0
+        xd = 0.0
+        for i in range(nq):
+            x += Cx[j, i] * Y[i]
+            xd += Cv[j, i] * Y[i]
+        for m in range(ws.shape[0]):  # ws holds the input at the step's end (stage 2)
+            x += Dx[j, m] * ws[m]
+            xd += Dv[j, m] * ws[m]
         o = nq + j * ns
-        project(P[j], Y[o:o + ns], u2[j])
+        project(P[j], Y[o:o + ns], x, xd, u2[j])
     return True, err
 
 

@@ -113,7 +113,7 @@ def _kernel_dir() -> Path:
 
 
 def _kernel_source(model_cls) -> tuple[str, str]:
-    fns = {"rhs": model_cls.rhs, "force": model_cls.force, "project": model_cls.project}
+    fns = {"rhs": model_cls.rhs, "force": model_cls.force_law, "project": model_cls.project}
     header = "".join(f"from {f.py_func.__module__} import {f.py_func.__name__} as {name}\n" for name, f in fns.items())
     header += f"ns = {len(model_cls.state_names)}\n"
     template = Path(__file__).with_name("_kernel_template.py").read_text()

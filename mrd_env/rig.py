@@ -93,9 +93,8 @@ def simulate(damper: DamperModel | str, x: np.ndarray, command: np.ndarray, dt: 
     U = c2[:, :1].copy()  # the effective command starts at the first command (the rig was settled)
     V = np.ascontiguousarray(c2[:, :-1, None])
     F, _, _ = run(damper, SystemMatrices.displacement_driven(), Y, U, V, W, dt, **integrator_options)
-    # force at t0 from the initial state, then the integrator's end-of-step forces
-    F0 = np.array([type(damper).force(damper.params.as_array(), np.tile(damper.initial_state(), 1), x2[i, 0],
-                                      v2[i, 0], a2[i, 0], c2[i, 0]) for i in range(n_rec)])
+    # force at t0 from the rest state (switched to the initial motion), then the integrator's end-of-step forces
+    F0 = damper.force(x2[:, 0], v2[:, 0], c2[:, 0], a=a2[:, 0])
     force = np.concatenate([F0[:, None], F[:, :, 0]], axis=1)
     eta = damper.command.eta
     u = np.empty_like(c2)

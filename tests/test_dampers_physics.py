@@ -81,7 +81,7 @@ def test_command_lag_reaches_63_percent_after_one_over_eta():
 def test_bingham_jump_at_zero_velocity_is_two_fc():
     d = make_damper("bingham", v_s=0.0)
     p = d.params.as_array()
-    force = type(d).force
+    force = type(d).force_law
     u = 1.0
     jump = force(p, np.zeros(0), 0.0, 1e-9, 0.0, u) - force(p, np.zeros(0), 0.0, -1e-9, 0.0, u)
     assert jump == pytest.approx(2 * (d.params.fc_a + d.params.fc_b * u), rel=1e-6)
@@ -149,3 +149,23 @@ def test_params_round_trip_and_units_are_si():
     assert p.c0a == 2100.0 and p.x0 == 0.143 and p.gamma == 3.63e6  # 21.0 N·s/cm, 14.3 cm, 363 cm⁻²
     assert SpencerDykeParams(**p.to_dict()) == p
     assert BoucWenParams.units()["c0a"] == "N·s/m"
+
+
+# ---------------------------------------------------------------- the force of a configured damper
+
+
+def test_force_called_on_an_instance():
+    """``d.force(x, v, u)`` evaluates the force law with the damper's own parameters (issue: it raised TypeError)."""
+    d = make_damper("bingham")
+    p = d.params
+    u = 1.0
+    expected = (p.fc_a + p.fc_b * u) * np.tanh(0.1 / p.v_s) + (p.c0a + p.c0b * u) * 0.1 + p.f0
+    assert d.force(0.0, 0.1, u) == pytest.approx(expected, rel=1e-12)
+    F = d.force(np.zeros(3), np.array([-0.1, 0.0, 0.1]), u)
+    assert F.shape == (3,) and F[0] < p.f0 < F[2]
+    sd = make_damper("spencer_dyke")
+    assert sd.force(0.0, 0.0, 0.0) == pytest.approx(-sd.params.k1 * sd.params.x0)  # at rest: the preload
+    with pytest.raises(ValueError, match="u must stay within"):
+        sd.force(0.0, 0.1, 5.0)
+    with pytest.raises(ValueError, match="v contains a non-finite"):
+        sd.force(0.0, float("nan"), 1.0)

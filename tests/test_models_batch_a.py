@@ -90,7 +90,7 @@ def eq5(v, c_pre, c_ps, fy):
 
 def test_bi_viscous_continuous_at_yield_velocity_with_slopes_c_pre_and_c_ps():
     d = make_damper("bi_viscous")
-    force = type(d).force
+    force = type(d).force_law
     p, s0 = d.params.as_array(), np.zeros(0)
     F = lambda v, u: force(p, s0, 0.0, v, 0.0, u) - d.params.f0  # noqa: E731
     for u in (0.0, 1.0, 2.25):
@@ -309,7 +309,7 @@ def test_dominguez_frequency_and_amplitude_scaling_law():
 def test_dominguez_characteristic_forces_and_current_laws():
     d = make_damper("dominguez")
     p = d.params
-    force, s0 = type(d).force, np.zeros(0)
+    force, s0 = type(d).force_law, np.zeros(0)
     pa = p.as_array()
     for I in (0.0, 0.2, p.i_c, 0.6, 1.0):
         c0, k0, alpha, gamma, fz0 = (float(c[0]) for c in d.coefficients(I))

@@ -450,7 +450,8 @@ def test_force_against_independent_radau_solution(model, overrides, reference):
     zdot, force = reference(d.params, u)
     w = 2 * np.pi * f
     sol = solve_ivp(lambda tt, s: zdot(s, X * np.sin(w * tt), X * w * np.cos(w * tt)), (0.0, T),
-                    np.zeros(d.n_states), method="Radau", rtol=1e-8, atol=1e-12, t_eval=t[1:])
+                    np.zeros(len(zdot(np.zeros(d.n_states), 0.0, 0.0))), method="Radau", rtol=1e-8,
+                    atol=1e-12, t_eval=t[1:])
     assert sol.success
     F_ref = np.array([force(sol.y[:, k], x[k + 1], v[k + 1], a[k + 1]) for k in range(len(t) - 1)])
     err = nrmse(F[0], F_ref)

@@ -106,7 +106,7 @@ def _force(p, s, x, xd, xdd, u):
 
 
 @nb.njit(cache=True)
-def _project(p, s, u):
+def _project(p, s, x, xd, u):
     s[0] = clip_to_saturation(s[0], p[22], p[21], p[20], p[23])
 
 
@@ -138,7 +138,7 @@ class AliRamaswamy(BoucWenSaturation, DamperModel):
     }
     default_preset = "spencer1997"
     rhs = _rhs
-    force = _force
+    force_law = _force
     project = _project
 
     def coefficients(self, i_c: float = 0.0) -> tuple[float, float, float]:

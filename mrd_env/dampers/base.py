@@ -4,15 +4,17 @@ A damper model is four things:
 
 * a frozen parameter dataclass (SI units, validated on construction),
 * internal states ``s`` advanced by ``rhs(p, s, x, xd, u, ds)`` (``ds`` = ds/dt),
-* a force law ``force(p, s, x, xd, xdd, u) -> F`` (N, positive when resisting extension ``x``),
+* a force law ``force_law(p, s, x, xd, xdd, u) -> F`` (N, positive when resisting extension ``x``),
 * the command dynamics: the first-order lag u̇ = −η (u − v) from the commanded current/voltage ``v``
   to the effective one ``u``, which is common to all models and integrated exactly by the stepping
   routine (``mrd_env.integrator``).
 
-``rhs``, ``force`` and ``project`` are numba ``@njit`` functions taking the parameter vector ``p``
-(``Params.as_array()``, fields in declaration order); ``project`` keeps the states in their invariant
-set (e.g. a Bouc–Wen z inside its saturation bound). Adding a model is one new module in this package
-that defines a ``DamperModel`` subclass decorated with ``@register``.
+``rhs``, ``force_law`` and ``project(p, s, x, xd, u)`` are numba ``@njit`` functions taking the parameter
+vector ``p`` (``Params.as_array()``, fields in declaration order); ``project`` runs between integration
+steps: it keeps the states in their invariant set (e.g. a Bouc–Wen z inside its saturation bound) and
+switches discrete modes (:mod:`.acceleration_branch`). To evaluate a configured damper's force from Python,
+call ``damper.force(x, v, u)``. Adding a model is one new module in this package that defines a
+``DamperModel`` subclass decorated with ``@register``.
 """
 from __future__ import annotations
 
@@ -131,7 +133,7 @@ class DamperModel:
     """A configured damper: a model class with its parameters and command channel.
 
     Subclasses set ``name``, ``Params``, ``state_names``, ``presets``, ``default_preset`` and the numba
-    functions ``rhs``, ``force`` and ``project``.
+    functions ``rhs``, ``force_law`` and ``project`` (see the module docstring).
     """
 
     name: ClassVar[str]
@@ -140,8 +142,16 @@ class DamperModel:
     presets: ClassVar[dict[str, Preset]] = {}
     default_preset: ClassVar[str]
     rhs: ClassVar[Callable]
-    force: ClassVar[Callable]
+    force_law: ClassVar[Callable]
     project: ClassVar[Callable]
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        # the compiled functions are plain functions of (p, s, ...): reachable from instances too
+        for name in ("rhs", "force_law", "project"):
+            f = cls.__dict__.get(name)
+            if f is not None and not isinstance(f, staticmethod):
+                setattr(cls, name, staticmethod(f))
 
     def __init__(self, params: DamperParams | None = None, command: CommandSpec | None = None,
                  preset: str | None = None):
@@ -168,6 +178,29 @@ class DamperModel:
         """Internal states at rest (override when rest is not all zeros)."""
         return np.zeros(self.n_states)
 
+    def force(self, x, v, u, *, a=0.0, state=None):
+        """The damper force (N) at stroke ``x`` (m), velocity ``v`` (m/s) and effective command ``u`` (V or A).
+
+        ``state``: the internal states (``state_names``); by default the rest state, switched to the motion
+        given (``project``), i.e. the force at the first instant of that motion from rest. ``a`` (m/s²) is
+        the acceleration, used by the models with an inertance term. Scalars give a float; arrays broadcast
+        to an array of forces.
+        """
+        from ..validation import check_array
+
+        xb, vb, ab, ub = np.broadcast_arrays(*(check_array(name, val) for name, val in
+                                               (("x", x), ("v", v), ("a", a), ("u", u))))
+        self.command.check_command(ub, "u")
+        p = self.params.as_array()
+        given = None if state is None else check_array("state", state, shape=(self.n_states,))
+        out = np.empty(xb.shape)
+        for i in np.ndindex(xb.shape):
+            s = self.initial_state() if given is None else given.copy()
+            if given is None:
+                self.project(p, s, float(xb[i]), float(vb[i]), float(ub[i]))
+            out[i] = self.force_law(p, s, float(xb[i]), float(vb[i]), float(ab[i]), float(ub[i]))
+        return float(out) if out.ndim == 0 else out
+
     def inertance(self) -> float:
         """Mass-like coefficient m of a force term m·ẍ (kg); plants add it to their mass matrix."""
         return 0.0
@@ -186,7 +219,7 @@ def no_states_rhs(p, s, x, xd, u, ds):  # pragma: no cover - compiled
 
 
 @nb.njit(cache=True)
-def no_projection(p, s, u):  # pragma: no cover - compiled
+def no_projection(p, s, x, xd, u):  # pragma: no cover - compiled
     return
 
 

@@ -112,7 +112,7 @@ class BiViscous(CommandRangeChecked):
     }
     default_preset = "spencer1997"
     rhs = no_states_rhs
-    force = _force
+    force_law = _force
     project = no_projection
 
     def coefficients(self, u):

@@ -49,7 +49,7 @@ def _force(p, s, x, xd, xdd, u):
 
 
 @nb.njit(cache=True)
-def _project(p, s, u):
+def _project(p, s, x, xd, u):
     s[0] = clip_to_saturation(s[0], p[9], p[8], p[7], p[10])
 
 
@@ -79,5 +79,5 @@ class BoucWen(BoucWenSaturation, DamperModel):
     }
     default_preset = "spencer1997"
     rhs = _rhs
-    force = _force
+    force_law = _force
     project = _project

@@ -55,7 +55,7 @@ def _force(p, s, x, xd, xdd, u):
 
 
 @nb.njit(cache=True)
-def _project(p, s, u):
+def _project(p, s, x, xd, u):
     s[0] = clip_to_saturation(s[0], p[5], 0.0, p[5], 1.0)
 
 
@@ -74,7 +74,7 @@ class Dahl(DamperModel):
     }
     default_preset = "spencer1997"
     rhs = _rhs
-    force = _force
+    force_law = _force
     project = _project
 
     def saturation(self) -> float:

@@ -142,7 +142,7 @@ class Dominguez(CommandRangeChecked):
     }
     default_preset = "prototype_scale"
     rhs = no_states_rhs
-    force = _force
+    force_law = _force
     project = no_projection
 
     def coefficients(self, I):

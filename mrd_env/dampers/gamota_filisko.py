@@ -109,5 +109,5 @@ class GamotaFilisko(DamperModel):
     }
     default_preset = "spencer1997"
     rhs = _rhs
-    force = _force
+    force_law = _force
     project = no_projection

@@ -68,5 +68,5 @@ class HyperbolicTangent(DamperModel):
     }
     default_preset = "spencer1997"
     rhs = no_states_rhs
-    force = _force
+    force_law = _force
     project = no_projection

@@ -18,17 +18,19 @@ c_pre v0 > F_yield). Both branches are one clipped curve (shared with :mod:`.bi_
 
 v0 = 0 is the bi-viscous model, eq. (5).
 
-Branch from an internal state, not from the acceleration input: the force law receives ẍ only on the rig
+Branch from internal states, not from the acceleration input: the force law receives ẍ only on the rig
 (0 when the damper is coupled to a plant), so the acceleration is estimated from a first-order filtered
-velocity q (state, m/s)::
+velocity q (state, m/s), and the branch σ is a discrete mode held over each integration step and switched
+between steps (:mod:`.acceleration_branch`, which also explains why a continuous σ cannot work on a
+plant)::
 
-    q̇ = (ẋ − q)/τ,      ẍ ≈ (ẋ − q)/τ,      σ = tanh(((ẋ − q)/τ) / a_s)
+    q̇ = (ẋ − q)/τ,      ẍ ≈ â = (ẋ − q)/τ,      σ ← tanh(â / a_s) between steps (σ = 0 at rest)
 
 with τ = 1 ms by default (the phase lag of the estimate is ωτ: 0.9° at 2.5 Hz; the branches coincide at the
 sign changes of ẍ of a sinusoid, at the velocity extremes, when the peak velocity exceeds v2; below that,
 the model itself jumps between its branches there) and a_s the acceleration over which sgn(ẍ) is smoothed
-(default 0.02 m/s², against ~4 m/s² at 1.5 cm / 2.5 Hz). The model thus runs
-identically on the rig and in plants; the filter starts at rest (q = 0), a transient of a few τ.
+(default 0.02 m/s², against ~4 m/s² at 1.5 cm / 2.5 Hz). The model thus runs identically on the rig and in
+plants; the filter starts at rest (q = 0), a transient of a few τ.
 
 Command dependence (review: "second or fourth order polynomials" [80]): each of F_yield, c_ps, c_pre and v0
 is a polynomial in the effective command u of up to fourth order, P(u) = P_0 + P_1 u + P_2 u² + P_3 u³ + P_4 u⁴,
@@ -43,7 +45,8 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
-from .base import CommandSpec, DamperParams, Preset, no_projection, param, smooth_sign
+from .acceleration_branch import branch, filter_rhs
+from .base import CommandSpec, DamperParams, Preset, param
 from .bi_viscous import CommandRangeChecked, bi_viscous_curve, command_grid
 from .registry import register
 
@@ -98,13 +101,18 @@ def _poly(p, i, u):
 
 @nb.njit(cache=True)
 def _rhs(p, s, x, xd, u, ds):
-    ds[0] = (xd - s[0]) / p[21]
+    ds[0] = filter_rhs(xd, s[0], p[21])
+    ds[1] = 0.0  # the branch is held over the step
 
 
 @nb.njit(cache=True)
 def _force(p, s, x, xd, xdd, u):
-    sigma = smooth_sign((xd - s[0]) / p[21], p[22])
-    return bi_viscous_curve(xd, _poly(p, 10, u), _poly(p, 5, u), _poly(p, 0, u), _poly(p, 15, u) * sigma) + p[20]
+    return bi_viscous_curve(xd, _poly(p, 10, u), _poly(p, 5, u), _poly(p, 0, u), _poly(p, 15, u) * s[1]) + p[20]
+
+
+@nb.njit(cache=True)
+def _project(p, s, x, xd, u):
+    s[1] = branch(xd, s[0], p[21], p[22])
 
 
 # Derived preset (not published): least-squares fit of the model with quadratic command laws (exact sgn ẍ)
@@ -123,7 +131,7 @@ PROTOTYPE = HystereticBiViscousParams(fy_0=167.6, fy_1=302.1, fy_2=30.72,
 class HystereticBiViscous(CommandRangeChecked):
     name = "hysteretic_bi_viscous"
     Params = HystereticBiViscousParams
-    state_names = ("q",)
+    state_names = ("q", "sigma")
     presets = {
         "spencer1997": Preset(PROTOTYPE, CommandSpec("V", 0.0, 2.25, 190.0),
                               "fit to the Spencer–Dyke prototype's loops at 1.5 cm / 2.5 Hz "
@@ -131,8 +139,8 @@ class HystereticBiViscous(CommandRangeChecked):
     }
     default_preset = "spencer1997"
     rhs = _rhs
-    force = _force
-    project = no_projection
+    force_law = _force
+    project = _project
 
     def coefficients(self, u):
         """(F_yield, c_ps, c_pre, v0) at effective command(s) u."""

@@ -61,7 +61,7 @@ def _force(p, s, x, xd, xdd, u):
 
 
 @nb.njit(cache=True)
-def _project(p, s, u):
+def _project(p, s, x, xd, u):
     s[0] = clip_to_saturation(s[0], 1.0, 0.0, p[0] * p[2], 1.0)
 
 
@@ -81,7 +81,7 @@ class LuGre(DamperModel):
     }
     default_preset = "spencer1997"
     rhs = _rhs
-    force = _force
+    force_law = _force
     project = _project
 
     def saturation(self) -> float:

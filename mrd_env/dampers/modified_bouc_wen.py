@@ -87,7 +87,7 @@ def _force(p, s, x, xd, xdd, u):
 
 
 @nb.njit(cache=True)
-def _project(p, s, u):
+def _project(p, s, x, xd, u):
     s[0] = clip_to_saturation(s[0], p[12], p[11], p[10], p[13])
 
 
@@ -120,7 +120,7 @@ class ModifiedBoucWen(BoucWenSaturation, DamperModel):
     }
     default_preset = "spencer1997"
     rhs = _rhs
-    force = _force
+    force_law = _force
     project = _project
 
     def inertance(self) -> float:

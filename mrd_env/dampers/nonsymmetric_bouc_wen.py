@@ -80,5 +80,5 @@ class NonsymmetricBoucWen(BoucWenSaturation, DamperModel):
     }
     default_preset = "spencer1997"
     rhs = _rhs
-    force = _force
+    force_law = _force
     project = _project

@@ -13,15 +13,16 @@ one chosen.
 The sigmoid is evaluated as tanh(y/2), the same function without overflow for large |y|.
 
 sgn(ẍ) is not taken from the ẍ argument of ``force`` (the plants pass ẍ = 0 there): it comes from an
-internal filtered-velocity state v_f,
+internal filtered-velocity state v_f and is held, as the branch state σ, over each integration step
+(:mod:`.acceleration_branch`: a continuous σ makes the coupled plant's equations unstable at the switch),
 
-    v̇_f = (ẋ − v_f) / τ,    ẍ ≈ (ẋ − v_f) / τ,    sgn(ẍ) ≈ tanh(((ẋ − v_f)/τ) / a_s)
+    v̇_f = (ẋ − v_f) / τ,    ẍ ≈ (ẋ − v_f) / τ,    σ ← tanh(((ẋ − v_f)/τ) / a_s) between steps
 
 (a first-order lag of time constant τ; a_s = 0 gives the exact sign). The estimate lags ẍ by about τ and
 is smoothed over accelerations of order a_s; the switch of sgn(ẍ) happens at the velocity extremes,
 where the sigmoid is saturated, so both matter little. At constant velocity ẍ = 0 and the force settles
 to the closed form F_y S(β ẋ) + c ẋ + f0 (S the sigmoid); for |ẋ| → ∞, F → ±F_y + c ẋ + f0.
-State: v_f (m/s), zero at rest.
+States: v_f (m/s) and σ, zero at rest.
 
 Preset ``spencer1997`` (derived, ``verified=False``): a least-squares fit (scipy ``least_squares``) of
 F_ya, F_yb, c_a, c_b, β, v_h, f0 to the steady loops of the Spencer–Dyke prototype model at 1.5 cm,
@@ -35,7 +36,8 @@ from dataclasses import dataclass
 
 import numba as nb
 
-from .base import CommandSpec, DamperModel, DamperParams, Preset, no_projection, param, smooth_sign
+from .acceleration_branch import branch, filter_rhs
+from .base import CommandSpec, DamperModel, DamperParams, Preset, param
 from .registry import register
 
 
@@ -60,13 +62,18 @@ def sigmoid(y):
 
 @nb.njit(cache=True)
 def _rhs(p, s, x, xd, u, ds):
-    ds[0] = (xd - s[0]) / p[7]
+    ds[0] = filter_rhs(xd, s[0], p[7])
+    ds[1] = 0.0  # the branch is held over the step
 
 
 @nb.njit(cache=True)
 def _force(p, s, x, xd, xdd, u):
-    sa = smooth_sign((xd - s[0]) / p[7], p[8])
-    return (p[0] + p[1] * u) * sigmoid(p[4] * (xd - p[5] * sa)) + (p[2] + p[3] * u) * xd + p[6]
+    return (p[0] + p[1] * u) * sigmoid(p[4] * (xd - p[5] * s[1])) + (p[2] + p[3] * u) * xd + p[6]
+
+
+@nb.njit(cache=True)
+def _project(p, s, x, xd, u):
+    s[1] = branch(xd, s[0], p[7], p[8])
 
 
 PROTOTYPE = SigmoidParams(Fy_a=123.3, Fy_b=398.3, c_a=1766.0, c_b=340.6, beta=73.85, v_h=0.00464, f0=-71.94,
@@ -77,7 +84,7 @@ PROTOTYPE = SigmoidParams(Fy_a=123.3, Fy_b=398.3, c_a=1766.0, c_b=340.6, beta=73
 class Sigmoid(DamperModel):
     name = "sigmoid"
     Params = SigmoidParams
-    state_names = ("v_f",)
+    state_names = ("v_f", "sigma")
     presets = {
         "spencer1997": Preset(PROTOTYPE, CommandSpec("V", 0.0, 2.25, 190.0),
                               "least-squares fit to the Spencer-Dyke prototype loops at 1.5 cm / 2.5 Hz "
@@ -85,5 +92,5 @@ class Sigmoid(DamperModel):
     }
     default_preset = "spencer1997"
     rhs = _rhs
-    force = _force
-    project = no_projection
+    force_law = _force
+    project = _project

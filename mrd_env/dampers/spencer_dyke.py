@@ -64,7 +64,7 @@ def _force(p, s, x, xd, xdd, u):
 
 
 @nb.njit(cache=True)
-def _project(p, s, u):
+def _project(p, s, x, xd, u):
     s[1] = clip_to_saturation(s[1], p[11], p[10], p[9], p[12])
 
 
@@ -92,5 +92,5 @@ class SpencerDyke(BoucWenSaturation, DamperModel):
     }
     default_preset = "spencer1997"
     rhs = _rhs
-    force = _force
+    force_law = _force
     project = _project

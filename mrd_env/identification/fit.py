@@ -218,12 +218,13 @@ def _simulate_batch(cls, command: CommandSpec, prep: PreparedRecord, P: np.ndarr
                 ok[c0 + start + b] = False
                 F[c0 + start + b] = np.nan
                 start += b + 1
-    # force at t0 from the initial state (as the rig does), then the end-of-step forces
-    force = cls.force
+    # force at t0 from the initial state switched to the initial motion (as the rig does), then the
+    # end-of-step forces
     for i in range(S):
         if ok[i]:
-            F[i, 0] = force(P[i], np.array(Y0[i], dtype=np.float64), prep.x[0], prep.v[0], prep.a[0],
-                            prep.command[0])
+            s0 = np.array(Y0[i], dtype=np.float64)
+            cls.project(P[i], s0, prep.x[0], prep.v[0], prep.command[0])
+            F[i, 0] = cls.force_law(P[i], s0, prep.x[0], prep.v[0], prep.a[0], prep.command[0])
     ok &= np.all(np.isfinite(F), axis=1)
     return F, ok
 

@@ -88,8 +88,7 @@ class CoupledPlant:
         nd = plant.n_dampers
         m_d = damper.inertance()
         A, BF, Bw = plant.state_space(inertance=m_d)
-        rest = damper.initial_state()
-        F_static = float(type(damper).force(damper.params.as_array(), rest, 0.0, 0.0, 0.0, damper.command.v_min))
+        F_static = damper.force(0.0, 0.0, damper.command.v_min)
         Minv = np.linalg.inv(plant.M + m_d * plant.S.T @ plant.S)
         bias = np.concatenate([np.zeros(plant.n_dof), Minv @ plant.S.T @ np.full(nd, F_static)])
         n = plant.n_dof
