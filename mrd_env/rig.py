@@ -58,7 +58,24 @@ class RigResult:
 
 
 def _as_damper(damper: DamperModel | str) -> DamperModel:
-    return make_damper(damper) if isinstance(damper, str) else damper
+    if isinstance(damper, str):
+        return make_damper(damper)
+    if not isinstance(damper, DamperModel):
+        raise ValueError(f"damper must be a model name or a DamperModel, got {type(damper).__name__}")
+    return damper
+
+
+def check_test_step(dt, damper: DamperModel, f_max: float, what: str) -> float:
+    """``dt`` (s) if it resolves a test: finite, > 0, at least 10 samples per period of the highest excitation
+    frequency ``f_max`` (Hz) and no longer than the command lag's time constant 1/η."""
+    dt = check_scalar("dt", dt, 0.0, lo_open=True, unit="s")
+    if f_max * dt > 0.1:
+        raise ValueError(f"dt = {dt:g} s cannot resolve {what} ({f_max:g} Hz): need at least 10 samples per cycle, "
+                         f"dt <= {0.1 / f_max:g} s")
+    lag = 1.0 / damper.command.eta
+    if dt > lag:
+        raise ValueError(f"dt = {dt:g} s cannot resolve the damper's command lag: must be <= 1/eta = {lag:g} s")
+    return dt
 
 
 def simulate(damper: DamperModel | str, x: np.ndarray, command: np.ndarray, dt: float = 1e-3,
@@ -115,9 +132,7 @@ def sinusoidal_test(damper: DamperModel | str, amplitude: float, frequency: floa
     X = check_scalar("amplitude", amplitude, 0.0, lo_open=True, unit="m")
     f = check_scalar("frequency", frequency, 0.0, lo_open=True, unit="Hz")
     cycles = check_scalar("cycles", cycles, 0.0, lo_open=True)
-    if f * dt > 0.1:
-        raise ValueError(f"frequency = {f:g} Hz is too high for dt = {dt:g} s: need at least 10 samples per "
-                         f"cycle (frequency <= {0.1 / dt:g} Hz)")
+    dt = check_test_step(dt, damper, f, "the excitation frequency")
     cmds = np.atleast_1d(check_array("commands", commands, ndim=None))
     n = int(round(cycles / (f * dt))) + 1
     t = np.arange(n) * dt
@@ -140,8 +155,9 @@ def random_test(damper: DamperModel | str, rms: float, bandwidth: float, duratio
     damper = _as_damper(damper)
     rng = np.random.default_rng(rng)
     rms = check_scalar("rms", rms, 0.0, lo_open=True, unit="m")
-    bw = check_scalar("bandwidth", bandwidth, 0.0, 0.5 / dt, lo_open=True, hi_open=True, unit="Hz")
-    duration = check_scalar("duration", duration, 0.0, lo_open=True, unit="s")
+    bw = check_scalar("bandwidth", bandwidth, 0.0, lo_open=True, unit="Hz")
+    dt = check_test_step(dt, damper, bw, "the stroke's bandwidth")
+    duration = check_scalar("duration", duration, 2 * dt, unit="s")
     n = int(round(duration / dt)) + 1
     spec = np.fft.rfft(rng.standard_normal(n))
     freqs = np.fft.rfftfreq(n, dt)
@@ -154,7 +170,7 @@ def random_test(damper: DamperModel | str, rms: float, bandwidth: float, duratio
     if command is not None:
         cmd = np.full(n, check_scalar("command", command, c.v_min, c.v_max, unit=c.unit))
     else:
-        rate = check_scalar("switch_rate", switch_rate, 0.0, lo_open=True, unit="Hz")
+        rate = check_scalar("switch_rate", switch_rate, 0.0, 0.1 / dt, lo_open=True, unit="Hz")
         flips = rng.random(n) < rate * dt
         cmd = np.where(np.cumsum(flips) % 2 == 0, c.v_min, c.v_max)
     return simulate(damper, x, cmd, dt, v, a, labels=["random"], **integrator_options)[0]

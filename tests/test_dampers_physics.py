@@ -169,3 +169,16 @@ def test_force_called_on_an_instance():
         sd.force(0.0, 0.1, 5.0)
     with pytest.raises(ValueError, match="v contains a non-finite"):
         sd.force(0.0, float("nan"), 1.0)
+
+
+def test_command_channel_overrides_by_dict_or_spec():
+    d = make_damper("spencer_dyke", command={"v_max": 3.0})
+    assert d.command.v_max == 3.0 and d.command.eta == 190.0 and d.command.unit == "V"
+    from mrd_env.dampers import CommandSpec
+    assert make_damper("spencer_dyke", command=CommandSpec("A", 0.0, 1.0, 50.0)).command.unit == "A"
+    with pytest.raises(ValueError, match=r"command has unknown key\(s\) \['vmax'\]"):
+        make_damper("spencer_dyke", command={"vmax": 3.0})
+    with pytest.raises(ValueError, match="CommandSpec.v_max"):
+        make_damper("spencer_dyke", command={"v_max": -1.0})
+    with pytest.raises(ValueError, match="command must be a CommandSpec"):
+        make_damper("spencer_dyke", command=3.0)

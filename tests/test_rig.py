@@ -64,3 +64,16 @@ def test_cli_rig_replays_a_user_record(tmp_path):
 def test_cli_reports_bad_input_without_traceback(tmp_path, capsys):
     assert main(["rig", "--model", "nope", "--out", str(tmp_path)]) == 2
     assert "unknown damper model 'nope'" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("dt,match", [
+    (0.0, r"dt = 0.0 is invalid: must be finite and > 0 s"), (-1e-3, r"dt = -0.001 is invalid: must be finite and > 0 s"),
+    (float("nan"), r"dt = nan is invalid"), ("x", r"dt must be a real number"),
+    (1.0, r"dt = 1 s cannot resolve"), (10.0, r"dt = 10 s cannot resolve"),
+    (0.02, r"cannot resolve the damper's command lag")])
+def test_rig_tests_reject_a_step_that_cannot_resolve_the_test(dt, match):
+    """Regression: dt = 0 gave ZeroDivisionError, NaN a conversion error, 1 s or 10 s ran silently."""
+    with pytest.raises(ValueError, match=match):
+        sinusoidal_test("spencer_dyke", 0.01, 0.05 if dt == 0.02 else 2.5, [1.0], dt=dt)
+    with pytest.raises(ValueError, match=match):
+        random_test("spencer_dyke", 0.003, 0.05 if dt == 0.02 else 20.0, 30.0, command=1.0, dt=dt)

@@ -1,6 +1,11 @@
-"""MR-damper models behind one interface (see :mod:`mrd_env.dampers.base`)."""
-from .base import CommandSpec, DamperModel, DamperParams, Preset
+"""MR-damper models behind one interface (see :mod:`mrd_env.dampers.base`).
+
+"The review" in the docstrings of this package is "A Review on Parametric Dynamic Models of Magnetorheological
+Dampers and Their Characterization Methods" (the seed review of this project); equation, table and figure
+numbers are that paper's.
+"""
+from .base import CommandSpec, DamperModel, DamperParams, Preset, command_spec
 from .registry import available_dampers, damper_class, make_damper, register
 
-__all__ = ["CommandSpec", "DamperModel", "DamperParams", "Preset", "available_dampers", "damper_class",
+__all__ = ["CommandSpec", "DamperModel", "DamperParams", "Preset", "command_spec", "available_dampers", "damper_class",
            "make_damper", "register"]

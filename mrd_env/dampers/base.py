@@ -21,7 +21,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass, field, fields
-from typing import Any, Callable, ClassVar
+from typing import Any, Callable, ClassVar, Mapping
 
 import numba as nb
 import numpy as np
@@ -119,6 +119,23 @@ class CommandSpec:
         return a
 
 
+def command_spec(command, base: CommandSpec) -> CommandSpec:
+    """``command`` as a :class:`CommandSpec`: None → ``base``; a CommandSpec; or a dict of field overrides of
+    ``base`` (``unit``, ``v_min``, ``v_max``, ``eta``). Anything else raises ``ValueError``."""
+    if command is None:
+        return base
+    if isinstance(command, CommandSpec):
+        return command
+    if isinstance(command, Mapping):
+        valid = [f.name for f in fields(CommandSpec)]
+        unknown = sorted(set(command) - set(valid))
+        if unknown:
+            raise ValueError(f"command has unknown key(s) {unknown}; valid keys: {valid}")
+        return dataclasses.replace(base, **command)
+    raise ValueError(f"command must be a CommandSpec or a dict of its fields {[f.name for f in fields(CommandSpec)]}, "
+                     f"got {type(command).__name__}")
+
+
 @dataclass(frozen=True)
 class Preset:
     """Published (or derived) parameters with their command channel and source."""
@@ -160,7 +177,7 @@ class DamperModel:
             raise ValueError(f"params for {self.name!r} must be a {self.Params.__name__}, "
                              f"got {type(params).__name__}")
         self.params = params if params is not None else base.params
-        self.command = command if command is not None else base.command
+        self.command = command_spec(command, base.command)
 
     @classmethod
     def preset(cls, name: str | None = None) -> Preset:

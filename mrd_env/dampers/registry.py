@@ -38,9 +38,14 @@ def damper_class(name: str):
 def make_damper(name: str = "spencer_dyke", preset: str | None = None, *, command=None, **overrides):
     """A damper by model name and preset, with optional parameter overrides in SI units.
 
-    >>> d = make_damper("spencer_dyke", preset="spencer1997", c0a=2000.0)
+    ``command``: the command channel — a :class:`~mrd_env.dampers.CommandSpec`, or a dict of overrides of the
+    preset's channel (``{"v_max": 3.0}``, keys ``unit``, ``v_min``, ``v_max``, ``eta``).
+
+    >>> d = make_damper("spencer_dyke", preset="spencer1997", c0a=2000.0, command={"eta": 100.0})
     """
+    from .base import command_spec
+
     cls = damper_class(name)
     base = cls.preset(preset)
     params = base.params.replace(**overrides) if overrides else base.params
-    return cls(params, command if command is not None else base.command)
+    return cls(params, command_spec(command, base.command))
