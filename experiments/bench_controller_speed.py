@@ -14,7 +14,7 @@ import mrd_env  # noqa: F401  (registers the environments)
 from controllers import CONTROLLERS, make_controller
 
 from .benchmark import BUILDING_CONTROLLERS, BUILDING_SENSORS, QC_CONTROLLERS, QC_SENSORS
-from .report import markdown_table
+from mrd_env.report import markdown_table
 
 
 def bench(env_id: str, sensors, names, n: int = 3000) -> list[dict]:

@@ -16,7 +16,7 @@ import numpy as np
 from mrd_env.dampers import make_damper
 from mrd_env.integrator import Stepper, SystemMatrices, run
 
-from .report import write_table
+from mrd_env.report import write_table
 
 
 def _inputs(N, n, dt, rng):

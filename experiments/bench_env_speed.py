@@ -20,7 +20,7 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 
-from .report import write_table
+from mrd_env.report import write_table
 
 
 def _make(env_id: str, **kwargs):

@@ -32,7 +32,7 @@ from mrd_env.identification.compare import compare_models, split_records, valida
 from mrd_env.identification.fit import COMMAND_ETA, fit_model, fixed_by_default, save_preset, sensitivity
 from mrd_env.rig import random_test, sinusoidal_test
 
-from .report import write_table
+from mrd_env.report import write_table
 
 
 def synthetic_records(damper, noise: float = 0.01, seed: int = 5, duration: float = 8.0):

@@ -18,7 +18,7 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 
-from .report import markdown_table, write_table
+from mrd_env.report import markdown_table, write_table
 
 QC_SENSORS = ("sprung_acc", "unsprung_acc", "travel", "travel_rate", "sprung_vel", "unsprung_vel",
               "damper_force", "command")
@@ -224,9 +224,7 @@ def worst_case(rows: list[dict]) -> list[dict]:
 
 
 def write_reports(plant: str, episodes: list[Episode], out: Path) -> dict:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from mrd_env.report import figure, save_figure
 
     out.mkdir(parents=True, exist_ok=True)
     rows = _rows(plant, episodes)
@@ -239,7 +237,7 @@ def write_reports(plant: str, episodes: list[Episode], out: Path) -> dict:
     ylabel = "sprung acceleration (m/s²)" if plant == "quarter_car" else "first-storey drift (m)"
     for sc in dict.fromkeys(e.scenario for e in episodes):
         eps = [e for e in episodes if e.scenario == sc]
-        fig, (a1, a2) = plt.subplots(2, 1, figsize=(10, 6), sharex=True, constrained_layout=True)
+        fig, (a1, a2) = figure(2, 1, figsize=(10, 6), sharex=True)
         for e in eps:
             a1.plot(e.t, e.response, lw=0.8, label=e.controller)
             a2.plot(e.t, e.force / 1e3, lw=0.8, label=e.controller)
@@ -250,11 +248,8 @@ def write_reports(plant: str, episodes: list[Episode], out: Path) -> dict:
         a1.set_title(sc)
         for a in (a1, a2):
             a.grid(alpha=0.3)
-        p = out / f"{plant}_history_{_slug(sc)}.png"
-        fig.savefig(p, dpi=110)
-        plt.close(fig)
-        figs.append(p)
-        fig, ax = plt.subplots(figsize=(6, 4.5), constrained_layout=True)
+        figs.append(save_figure(fig, out / f"{plant}_history_{_slug(sc)}.png"))
+        fig, ax = figure(figsize=(6, 4.5))
         for e in eps:
             ax.plot(e.velocity, e.force / 1e3, lw=0.6, label=e.controller)
         ax.set_xlabel("damper velocity (m/s)")
@@ -262,13 +257,10 @@ def write_reports(plant: str, episodes: list[Episode], out: Path) -> dict:
         ax.set_title(f"force–velocity: {sc}")
         ax.legend(fontsize=7)
         ax.grid(alpha=0.3)
-        p = out / f"{plant}_loops_{_slug(sc)}.png"
-        fig.savefig(p, dpi=110)
-        plt.close(fig)
-        figs.append(p)
+        figs.append(save_figure(fig, out / f"{plant}_loops_{_slug(sc)}.png"))
     keys = ([k for k in rows[0] if k.endswith("/off")] + ["travel_peak"]) if plant == "quarter_car" \
         else ["J1", "J2", "J3", "J4", "J5"]
-    fig, ax = plt.subplots(figsize=(10, 4.5), constrained_layout=True)
+    fig, ax = figure(figsize=(10, 4.5))
     ctrls = [r["controller"] for r in worst]
     width = 0.8 / max(len(keys), 1)
     for i, k in enumerate(keys):
@@ -277,10 +269,7 @@ def write_reports(plant: str, episodes: list[Episode], out: Path) -> dict:
     ax.axhline(1.0, color="k", lw=0.8)
     ax.set_ylabel("normalised (worst case over scenarios)")
     ax.legend(fontsize=8)
-    p = out / f"{plant}_bars.png"
-    fig.savefig(p, dpi=110)
-    plt.close(fig)
-    figs.append(p)
+    figs.append(save_figure(fig, out / f"{plant}_bars.png"))
     return {"markdown": md, "csv": csv_path, "figures": figs}
 
 

@@ -16,7 +16,7 @@ from mrd_env.identification.compare import plot_fit, split_records, validate
 from mrd_env.identification.data import DamperRecord, load_record_csv
 from mrd_env.identification.fit import COMMAND_ETA, METHODS, fit_model, save_preset
 
-from .report import write_table
+from mrd_env.report import write_table
 
 
 def _pairs(text: str, what: str) -> dict[str, str]:

@@ -9,7 +9,7 @@ import numpy as np
 from mrd_env.dampers import available_dampers, make_damper
 from mrd_env.rig import plot_loops, simulate, sinusoidal_test
 
-from .report import write_table
+from mrd_env.report import write_table
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

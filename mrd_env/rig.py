@@ -179,13 +179,9 @@ def random_test(damper: DamperModel | str, rms: float, bandwidth: float, duratio
 def plot_loops(results: list[RigResult], path: str | Path, *, last_cycles: slice | None = None,
                title: str = "") -> Path:
     """Force–displacement and force–velocity loops of several records on one figure (review Figs. 2, 5)."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from .report import figure, save_figure
 
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 4.2), constrained_layout=True)
+    fig, (ax1, ax2) = figure(1, 2, figsize=(10, 4.2))
     for r in results:
         sl = last_cycles or slice(None)
         ax1.plot(r.x[sl] * 1e3, r.force[sl] / 1e3, label=r.label or r.model)
@@ -197,6 +193,4 @@ def plot_loops(results: list[RigResult], path: str | Path, *, last_cycles: slice
         ax.grid(True, alpha=0.3)
     ax2.legend(title="command", fontsize=8)
     fig.suptitle(title or f"{results[0].model}: force–displacement and force–velocity loops")
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, dpi=130)

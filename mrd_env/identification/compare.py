@@ -4,9 +4,9 @@ For every model, :func:`~mrd_env.identification.fit.fit_model` fits the paramete
 ``fit_fraction`` of each record; the fitted model is then simulated over the *whole* record (its states carry
 over from the fitted part, so no start-up transient lands in the validation part — and no measured force of
 the held-back part is used) and E_t, E_x, E_v (review eq. 3) and J2 (eq. 26) are evaluated on the held-back
-samples only. Output: a Markdown + CSV table (``experiments.report.write_table``), one JSON preset per fitted
+samples only. Output: a Markdown + CSV table (``mrd_env.report.write_table``), one JSON preset per fitted
 model, and PNG figures: measured vs fitted force over a window of the held-back part, and force–velocity
-loops of the held-back part (matplotlib, Agg backend).
+loops of the held-back part (PNG, :mod:`mrd_env.report`).
 """
 from __future__ import annotations
 
@@ -165,7 +165,7 @@ def _slug(s: str) -> str:
 def write_comparison(res: ComparisonResult, out: str | Path, *, title: str = "",
                      plot_window: float = 1.0) -> dict[str, Path]:
     """Table (Markdown + CSV), presets and figures of a comparison into folder ``out``."""
-    from experiments.report import write_table
+    from ..report import write_table
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -198,20 +198,15 @@ def plot_fit(record: DamperRecord, forces: Mapping[str, np.ndarray], path: str |
              window: float | None = 1.0, title: str = "") -> Path:
     """Measured vs model force(s): over time (a ``window`` of s at the start of the held-back part, the whole
     held-back part if None) and force–velocity loops of the held-back part. Writes a PNG and returns its path."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from ..report import figure, save_figure
 
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     t = record.t
     v = record.velocity()
     k0 = int(split_index)
     if k0 >= record.n - 2:
         k0 = 0
     k1 = record.n if window is None else min(record.n, k0 + max(3, int(round(window / record.dt)) + 1))
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(13, 4.6), constrained_layout=True,
-                                   gridspec_kw={"width_ratios": [1.6, 1.0]})
+    fig, (ax1, ax2) = figure(1, 2, figsize=(13, 4.6), gridspec_kw={"width_ratios": [1.6, 1.0]})
     stride = max(1, (record.n - k0) // 20000)
     for name, F in forces.items():
         ax1.plot(t[k0:k1], F[k0:k1] / 1e3, lw=1.0, label=name)
@@ -230,6 +225,4 @@ def plot_fit(record: DamperRecord, forces: Mapping[str, np.ndarray], path: str |
     for h in leg.legend_handles:
         h.set_alpha(1.0)
     fig.suptitle(title or "measured vs model force")
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)

@@ -72,7 +72,7 @@ class PropagationResult:
         return out
 
     def write(self, out: str | Path, *, title: str = "") -> dict[str, Path]:
-        from experiments.report import write_table
+        from ..report import write_table
         out = Path(out)
         md, csv_path = write_table(self.rows(), out / f"{self.model}_propagation",
                                    title=title or (f"{self.model}: sensor-error propagation, {self.n_draws} draws "

@@ -1,4 +1,8 @@
-"""Writing tables a person puts in a report: Markdown and CSV from the same rows."""
+"""What a person puts in a report: Markdown and CSV tables from the same rows, and PNG figures.
+
+Figures are drawn on :class:`matplotlib.figure.Figure` objects with the Agg canvas, never through pyplot's
+global state, so writing a report never changes the matplotlib backend of the user's process.
+"""
 from __future__ import annotations
 
 import csv
@@ -33,3 +37,20 @@ def markdown_table(rows: list[dict], *, title: str = "", floatfmt: str = ".4g") 
     lines.append("|" + "|".join("---" for _ in keys) + "|")
     lines += ["| " + " | ".join(fmt(r.get(k, "")) for k in keys) + " |" for r in rows]
     return "\n".join(lines) + "\n"
+
+
+def figure(nrows: int = 1, ncols: int = 1, *, figsize=(8.0, 4.5), **subplot_kw):
+    """A new (Figure, axes) pair detached from pyplot (``constrained_layout``; ``subplot_kw`` as in
+    ``Figure.subplots``, e.g. ``sharex=True``)."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=figsize, constrained_layout=True)
+    return fig, fig.subplots(nrows, ncols, **subplot_kw)
+
+
+def save_figure(fig, path: str | Path, *, dpi: int = 110) -> Path:
+    """Write ``fig`` as a PNG (creating the folder) and return the path."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=dpi)
+    return path
