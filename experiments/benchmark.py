@@ -291,13 +291,29 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-progress", action="store_true")
 
 
+def scenario_rows(scenarios) -> list[dict]:
+    """The settings of every scenario (environment, options, seed), printed and written with the tables."""
+    return [{"scenario": sc.name, "environment": sc.env_id, "seed": sc.seed,
+             "options": ", ".join(f"{k}={v}" for k, v in sc.options.items()) or "defaults"} for sc in scenarios]
+
+
 def run(args: argparse.Namespace) -> int:
+    from .train import agent_metadata
+
     plants = ["building", "quarter_car"] if args.plant == "both" else [args.plant]
+    agents = {path: agent_metadata(path)["plant"] for path in args.agent}  # ValueError for a bad path
+    for path, plant in agents.items():
+        if plant not in plants:
+            raise ValueError(f"agent {path} was trained on the {plant} plant; add --plant {plant} (or both)")
+    if args.seeds < 1:
+        raise ValueError(f"--seeds must be >= 1, got {args.seeds}")
     for plant in plants:
         scen = default_scenarios(plant, quick=args.quick, seeds=args.seeds)
-        agents = [a for a in args.agent if a.stem.startswith(plant)]
         eps = run_benchmark(plant, args.controllers, scen, damper=args.damper, out=args.out,
-                            progress=not args.no_progress, agents=agents)
+                            progress=not args.no_progress, agents=[p for p, pl in agents.items() if pl == plant])
+        settings = markdown_table(scenario_rows(scen), title=f"{plant}: scenario settings")
+        (args.out / f"{plant}_scenarios.md").write_text(settings)
+        print(settings)
         print((args.out / f"{plant}_benchmark_worst.md").read_text())
-        print(f"wrote {args.out}/{plant}_benchmark.md/.csv and figures ({len(eps)} episodes)")
+        print(f"wrote {args.out}/{plant}_benchmark.md/.csv, {plant}_scenarios.md and figures ({len(eps)} episodes)")
     return 0

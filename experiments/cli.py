@@ -1,7 +1,12 @@
 """``mrd-env``: one entry point, one sub-command per job.
 
-Each sub-command lives in its own module exposing ``add_arguments(parser)`` and ``run(args) -> int``;
-the modules are imported only when their command runs, so ``mrd-env --help`` stays fast.
+Each sub-command lives in its own module exposing ``add_arguments(parser)`` and ``run(args) -> int``. Only the
+module of the command being run is imported (``mrd-env --help`` imports none of them).
+
+Errors: anything the user can get wrong — a bad option, a missing or unreadable file, a bad record, a
+simulation that diverges on the user's parameters, a missing optional dependency — ends the command with one
+line on stderr and exit code 2, never a traceback. An unexpected exception (a bug) prints one line and exits
+with 1; ``--traceback`` shows the whole traceback instead.
 """
 from __future__ import annotations
 
@@ -20,23 +25,72 @@ COMMANDS = {
 }
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="mrd-env", description="MR-damper environments, models and experiments")
-    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+class UserError(Exception):
+    """A problem with what the user asked for, reported as one line (exit code 2)."""
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with its errors on one line (argparse prints the usage line too, and exits itself)."""
+
+    def error(self, message: str):
+        raise UserError(message)
+
+
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The parser; only ``command``'s module is imported to add its options (none for ``mrd-env --help``)."""
+    parser = _Parser(prog="mrd-env", description="MR-damper environments, models and experiments")
+    parser.add_argument("--traceback", action="store_true", help="show the full traceback of an internal error")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=_Parser)
     for name, (module, help_text) in COMMANDS.items():
         p = sub.add_parser(name, help=help_text, description=help_text)
         p.set_defaults(_module=module)
-        importlib.import_module(module).add_arguments(p)
+        if name == command:
+            importlib.import_module(module).add_arguments(p)
     return parser
 
 
+def _command_of(argv: list[str]) -> str | None:
+    return next((a for a in argv if not a.startswith("-")), None)
+
+
+def _user_errors() -> tuple[type[BaseException], ...]:
+    from mrd_env.errors import SimulationDivergedError
+
+    # OSError: missing, unreadable or unwritable files; ImportError: an optional dependency not installed
+    return ValueError, OSError, SimulationDivergedError, ImportError
+
+
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    command = _command_of(argv)
+    prog = f"mrd-env {command}" if command in COMMANDS else "mrd-env"
     try:
+        args = build_parser(command if command in COMMANDS else None).parse_args(argv)
         return int(importlib.import_module(args._module).run(args) or 0)
-    except ValueError as exc:  # bad user input: a clear message, no traceback
-        print(f"mrd-env {args.command}: error: {exc}", file=sys.stderr)
-        return 2
+    except SystemExit as exc:  # --help, or a sub-command that exits by itself
+        return int(exc.code or 0) if not isinstance(exc.code, str) else _fail(prog, exc.code, 2)
+    except KeyboardInterrupt:
+        print(f"{prog}: interrupted", file=sys.stderr)
+        return 130
+    except UserError as exc:
+        return _fail(prog, f"{exc} (see {prog} --help)", 2)
+    except _user_errors() as exc:
+        return _fail(prog, _message(exc), 2)
+    except Exception as exc:  # a bug: one line unless asked for the traceback
+        if "--traceback" in argv:
+            raise
+        return _fail(prog, f"internal error: {type(exc).__name__}: {exc} (rerun with --traceback for details)", 1)
+
+
+def _message(exc: BaseException) -> str:
+    if isinstance(exc, OSError) and exc.filename is not None:
+        return f"{exc.filename}: {exc.strerror or exc}"
+    return str(exc)
+
+
+def _fail(prog: str, message: str, code: int) -> int:
+    print(f"{prog}: error: {' '.join(str(message).split())}", file=sys.stderr)
+    return code
 
 
 if __name__ == "__main__":

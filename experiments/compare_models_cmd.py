@@ -33,7 +33,7 @@ def run(args: argparse.Namespace) -> int:
             fixed = fixed_by_default(d, d.params)
             model_options[m] = {"free": [k for k in d.params.names() if k not in fixed] + [COMMAND_ETA]}
     res = compare_models([rec], args.models, method=args.method, fit_fraction=args.fit_fraction, out=args.out,
-                         seed=args.seed, dt=grid_dt(args), progress=not args.no_progress,
+                         seed=args.seed, dt=grid_dt(args, rec), progress=not args.no_progress,
                          plot_window=args.plot_window, fit_options=opts, model_options=model_options)
     print(res.files["table_md"].read_text())
     print(f"wrote {len(res.files)} files in {args.out}")

@@ -1,8 +1,8 @@
 """``mrd-env identify``: fit one damper model to a measured record; table, figure and (optionally) a preset.
 
 The record is read with declared columns and units (SI inside), optionally cut to [--t-start, --t-end], put
-on a uniform grid (--fs/--dt, default its mean sampling interval; time stamps rounded in the file are
-rebuilt as t0 + k·dt), split into a fit part (the first --fit-fraction) and a held-back validation part; the
+on a uniform grid (its own rate: the mean sampling interval, or --fs if given; time stamps rounded in the file
+are rebuilt as t0 + k·dt; it is resampled only when --dt asks for another step, and the command says so), split into a fit part (the first --fit-fraction) and a held-back validation part; the
 model is fitted on the first and E_t, E_x, E_v (review eq. 3) and J2 (eq. 26) are reported on both.
 """
 from __future__ import annotations
@@ -11,6 +11,8 @@ import argparse
 import math
 from pathlib import Path
 
+import numpy as np
+
 from mrd_env.dampers import available_dampers, make_damper
 from mrd_env.identification.compare import plot_fit, split_records, validate
 from mrd_env.identification.data import DamperRecord, load_record_csv
@@ -18,33 +20,22 @@ from mrd_env.identification.fit import COMMAND_ETA, METHODS, fit_model, save_pre
 
 from mrd_env.report import write_table
 
-
-def _pairs(text: str, what: str) -> dict[str, str]:
-    out = {}
-    for item in filter(None, (s.strip() for s in text.split(","))):
-        if "=" not in item:
-            raise ValueError(f"{what}: expected role=value pairs separated by commas, got {item!r}")
-        k, v = (s.strip() for s in item.split("=", 1))
-        out[k] = v
-    return out
+from .records import add_column_arguments, columns_and_units
 
 
 def add_data_arguments(p: argparse.ArgumentParser) -> None:
     """Options shared by ``identify`` and ``compare-models``: the record and how to read it."""
     p.add_argument("--data", type=Path, required=True, help="CSV file with a header line")
-    p.add_argument("--columns", default=None,
-                   help="roles to header names, e.g. t=t,x=D,command=Y,force=F,v=V (v optional; default: the "
-                        "SI header of files written by mrd-env: t_s, x_m, v_m_per_s, command_V/A, force_N)")
-    p.add_argument("--units", default=None,
-                   help="unit of each chosen column, e.g. t=s,x=cm,command=V,force=N,v=cm/s (required with "
-                        "--columns; accepted: t s|ms, x m|cm|mm, v m/s|cm/s|mm/s, force N|kN, command V|mV|A|mA)")
+    add_column_arguments(p)
     p.add_argument("--t-start", type=float, default=None, help="keep samples from this time on (s)")
     p.add_argument("--t-end", type=float, default=None, help="keep samples up to this time (s)")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--fs", type=float, default=None,
-                   help="sampling rate of the record in Hz (e.g. 3004.8): the simulation grid is 1/fs")
+                   help="the record's sampling rate in Hz (e.g. 3004.8): time stamps are rebuilt as t0 + k/fs; an "
+                        "error if the time column has another rate (to change the rate, use --dt)")
     g.add_argument("--dt", type=float, default=None,
-                   help="simulation step in s (the record is resampled to it if it is not its own rate)")
+                   help="simulate on a grid of this step in s: the record is resampled to it when its own rate "
+                        "differs (and the command says so)")
     p.add_argument("--fit-fraction", type=float, default=0.6,
                    help="fraction of the record (from its start) used for fitting; the rest validates (0.6)")
     p.add_argument("--method", default="least_squares", choices=METHODS, help="optimiser (default least_squares)")
@@ -71,14 +62,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def load_data(args: argparse.Namespace) -> DamperRecord:
-    if args.columns is None:
-        if args.units is not None:
-            raise ValueError("--units needs --columns")
-        rec = DamperRecord.read_csv(args.data)
-    else:
-        if args.units is None:
-            raise ValueError("--columns needs --units (every column's unit must be declared)")
-        rec = load_record_csv(args.data, _pairs(args.columns, "--columns"), _pairs(args.units, "--units"))
+    columns, units = columns_and_units(args, args.data, ("t", "x", "command", "force"))
+    rec = load_record_csv(args.data, columns, units)
     if args.t_start is not None or args.t_end is not None:
         t0 = rec.t[0] if args.t_start is None else args.t_start
         t1 = rec.t[-1] if args.t_end is None else args.t_end
@@ -86,12 +71,30 @@ def load_data(args: argparse.Namespace) -> DamperRecord:
     return rec
 
 
-def grid_dt(args: argparse.Namespace) -> float | None:
+def grid_dt(args: argparse.Namespace, rec: DamperRecord) -> float | None:
+    """The simulation step: the record's own (None), its declared rate (--fs, checked against the time
+    column) or a resampling step (--dt, announced when it changes the rate)."""
     if args.fs is not None:
         if not (math.isfinite(args.fs) and args.fs > 0):
             raise ValueError(f"--fs = {args.fs!r} is invalid: must be > 0 Hz")
-        return 1.0 / args.fs
-    return args.dt
+        dt = 1.0 / args.fs
+        if not on_grid(rec, dt):
+            raise ValueError(f"--fs {args.fs:g} Hz does not match the time column of {rec.label!r} (mean rate "
+                             f"{1 / rec.dt:.6g} Hz); --fs declares the record's rate, --dt resamples it")
+        return dt
+    if args.dt is not None:
+        if not (math.isfinite(args.dt) and args.dt > 0):
+            raise ValueError(f"--dt = {args.dt!r} is invalid: must be > 0 s")
+        if not on_grid(rec, args.dt):
+            print(f"resampling {rec.label!r} from {1 / rec.dt:.6g} Hz to {1 / args.dt:.6g} Hz (--dt {args.dt:g})")
+        return args.dt
+    return None
+
+
+def on_grid(rec: DamperRecord, dt: float) -> bool:
+    """True if every time stamp lies within dt/2 of t0 + k·dt (the record is sampled at 1/dt)."""
+    k = np.arange(rec.n)
+    return bool(np.abs(rec.t - (rec.t[0] + dt * k)).max() <= 0.5 * dt)
 
 
 def fit_options(args: argparse.Namespace) -> dict:
@@ -105,7 +108,7 @@ def _pct(x: float) -> float:
 
 def run(args: argparse.Namespace) -> int:
     rec = load_data(args)
-    dt = grid_dt(args)
+    dt = grid_dt(args, rec)
     whole, fits, idx = split_records([rec], args.fit_fraction, dt)
     damper0 = make_damper(args.model, args.preset)
     free = None

@@ -11,6 +11,21 @@ from mrd_env.rig import plot_loops, simulate, sinusoidal_test
 
 from mrd_env.report import write_table
 
+from .records import add_column_arguments, read_record_columns
+
+
+def replay(damper, args: argparse.Namespace):
+    """The damper driven by the stroke (and velocity, if given) and command of ``--record``."""
+    data, unit = read_record_columns(args, args.record, ("t", "x", "command"))
+    if unit != damper.command.unit:
+        raise ValueError(f"--record {args.record}: its command is in {unit} but the damper's is in "
+                         f"{damper.command.unit}")
+    t = data["t"]
+    dt = (t[-1] - t[0]) / (len(t) - 1)
+    if np.abs(t - (t[0] + dt * np.arange(len(t)))).max() > 0.5 * dt:
+        raise ValueError(f"--record {args.record}: the time column is not uniformly sampled (resample it first)")
+    return simulate(damper, data["x"], data["command"], dt, data.get("v"), labels=["record"])[0]
+
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--model", default="spencer_dyke", help=f"damper model, one of {available_dampers()}")
@@ -22,7 +37,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--cycles", type=float, default=3.0, help="cycles simulated (the last one is plotted)")
     p.add_argument("--dt", type=float, default=1e-3, help="time step in s (default 1e-3)")
     p.add_argument("--record", type=Path, default=None,
-                   help="CSV with columns t_s,x_m,command to replay instead of a sinusoid")
+                   help="CSV to replay instead of a sinusoid: stroke and command over time (e.g. a file written by "
+                        "mrd-env rig, or any CSV with --columns t=...,x=...,command=...[,v=...] and --units)")
+    add_column_arguments(p)
     p.add_argument("--out", type=Path, default=Path("results/rig"), help="output folder")
 
 
@@ -30,15 +47,7 @@ def run(args: argparse.Namespace) -> int:
     damper = make_damper(args.model, args.preset)
     c = damper.command
     if args.record is not None:
-        data = np.genfromtxt(args.record, delimiter=",", names=True)
-        for col in ("t_s", "x_m", "command"):
-            if data.dtype.names is None or col not in data.dtype.names:
-                raise ValueError(f"--record {args.record}: missing column {col!r} (need t_s, x_m, command)")
-        t = data["t_s"]
-        dt = np.diff(t)
-        if np.any(dt <= 0) or np.ptp(dt) > 1e-6 * dt.mean():
-            raise ValueError(f"--record {args.record}: column t_s must be uniformly increasing")
-        results = simulate(damper, data["x_m"], data["command"], float(dt.mean()), labels=["record"])
+        results = [replay(damper, args)]
         last = None
     else:
         levels = args.commands if args.commands is not None else list(np.linspace(c.v_min, c.v_max, 4))

@@ -54,6 +54,28 @@ def train(plant: str = "quarter_car", algo: str = "SAC", timesteps: int = 50_000
     return stem.with_suffix(".zip")
 
 
+def agent_metadata(path: str | Path) -> dict:
+    """The metadata written next to a saved agent (``<stem>.json``): plant, algorithm, env options. An agent is
+    recognised by this file, whatever its name; ``ValueError`` for a missing or unreadable agent."""
+    path = Path(path)
+    if not path.exists():
+        raise ValueError(f"agent {path}: no such file")
+    meta_path = path.with_suffix(".json")
+    if not meta_path.exists():
+        raise ValueError(f"agent {path}: its metadata file {meta_path.name} is missing (mrd-env train writes it "
+                         "next to the agent)")
+    try:
+        meta = json.loads(meta_path.read_text(encoding="utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise ValueError(f"agent {path}: {meta_path.name} is not valid JSON ({exc})") from None
+    missing = [k for k in ("plant", "algo", "env_kwargs") if not isinstance(meta, dict) or k not in meta]
+    if missing:
+        raise ValueError(f"agent {path}: {meta_path.name} lacks {missing}: not written by mrd-env train")
+    if meta["plant"] not in ENV_IDS:
+        raise ValueError(f"agent {path}: unknown plant {meta['plant']!r} in {meta_path.name}")
+    return meta
+
+
 class NormalizedAgent:
     """A saved agent with its observation normalisation: SB3's ``predict`` on raw observations."""
 
@@ -61,7 +83,7 @@ class NormalizedAgent:
         import stable_baselines3 as sb3
 
         path = Path(path)
-        meta = json.loads(path.with_suffix(".json").read_text())
+        meta = agent_metadata(path)
         self.meta = meta
         self.model = getattr(sb3, meta["algo"]).load(path)
         import pickle

@@ -56,9 +56,29 @@ def test_cli_rig_replays_a_user_record(tmp_path):
     t = np.arange(0, 1.0, 1e-3)
     path = tmp_path / "rec.csv"
     np.savetxt(path, np.c_[t, 0.005 * np.sin(2 * np.pi * 3 * t), np.where(t < 0.5, 0.0, 2.0)],
-               delimiter=",", header="t_s,x_m,command", comments="")
+               delimiter=",", header="t_s,x_m,command_V", comments="")
     assert main(["rig", "--record", str(path), "--out", str(tmp_path / "o")]) == 0
     assert (tmp_path / "o" / "spencer_dyke_record.csv").exists()
+
+
+def test_cli_rig_replays_its_own_output_and_any_csv_with_declared_columns(tmp_path):
+    """Regression: the rig rejected the CSVs it writes itself ('missing column command')."""
+    assert main(["rig", "--model", "bouc_wen", "--commands", "1.0", "--out", str(tmp_path / "a")]) == 0
+    own = tmp_path / "a" / "bouc_wen_1V.csv"
+    assert main(["rig", "--model", "bouc_wen", "--record", str(own), "--out", str(tmp_path / "b")]) == 0
+    replayed = np.genfromtxt(tmp_path / "b" / "bouc_wen_record.csv", delimiter=",", names=True)
+    original = np.genfromtxt(own, delimiter=",", names=True)
+    # the same stroke, velocity and command give the same force (the file holds 9 significant digits)
+    np.testing.assert_allclose(replayed["force_N"], original["force_N"], rtol=1e-5, atol=0)
+    # a measured file: semicolons, cm, ms, its own column names
+    t = np.arange(0, 500) * 1.0
+    path = tmp_path / "lab.csv"
+    np.savetxt(path, np.c_[t, 0.5 * np.sin(2 * np.pi * 3e-3 * t), np.full(t.size, 1.0)], delimiter=";",
+               header="time;D;Y", comments="")
+    assert main(["rig", "--record", str(path), "--columns", "t=time,x=D,command=Y", "--units", "t=ms,x=cm,command=V",
+                 "--out", str(tmp_path / "c")]) == 0
+    out = np.genfromtxt(tmp_path / "c" / "spencer_dyke_record.csv", delimiter=",", names=True)
+    assert out["x_m"].max() == pytest.approx(0.005, rel=1e-3) and out["t_s"][-1] == pytest.approx(0.499)
 
 
 def test_cli_reports_bad_input_without_traceback(tmp_path, capsys):

@@ -15,7 +15,7 @@ import numpy as np
 
 from .measures import _check_signal, _check_time
 
-__all__ = ["DamperRecord", "load_record_csv", "UNITS"]
+__all__ = ["DamperRecord", "load_record_csv", "read_columns", "own_columns", "UNITS"]
 
 # Accepted input units per role, as factors to SI. Commands keep V or A (the damper models' command units).
 UNITS: dict[str, dict[str, float]] = {
@@ -187,38 +187,50 @@ class DamperRecord:
 
     @classmethod
     def read_csv(cls, path: str | Path, label: str = "") -> DamperRecord:
-        """Read a file written by :meth:`to_csv` (its header declares the SI units)."""
-        with Path(path).open(newline="", encoding="utf-8-sig") as fh:
-            header = next(csv.reader(fh), [])
-        unit = next((h[len("command_"):] for h in header if h in ("command_V", "command_A")), None)
-        if unit is None:
-            raise ValueError(f"{path}: not a DamperRecord.to_csv file (no 'command_V' or 'command_A' column); "
-                             f"use load_record_csv with declared columns and units")
-        columns = {k: v for k, v in _OWN_HEADER.items() if k != "v" or v in header}
+        """Read a file written by :meth:`to_csv` or by the virtual rig (its header declares the SI units)."""
+        columns, units = own_columns(path)
+        return load_record_csv(path, columns, units, label=label)
+
+
+def own_columns(path: str | Path, required: tuple[str, ...] = _REQUIRED) -> tuple[dict[str, str], dict[str, str]]:
+    """(columns, units) of a file written by mrd-env — :meth:`DamperRecord.to_csv`, ``RigResult.to_csv`` and
+    ``mrd-env rig`` — whose header names the SI unit of each column (``t_s``, ``x_m``, ``v_m_per_s``,
+    ``command_V`` or ``command_A``, ``force_N``); ``ValueError`` if the file lacks a ``required`` role."""
+    header, _, _ = _read_table(Path(path), True, max_rows=0)
+    unit = next((h[len("command_"):] for h in header if h in ("command_V", "command_A")), None)
+    columns = {k: v for k, v in _OWN_HEADER.items() if v in header}
+    if unit is not None:
         columns["command"] = f"command_{unit}"
-        units = {"t": "s", "x": "m", "v": "m/s", "force": "N", "command": unit}
-        return load_record_csv(path, columns, {k: units[k] for k in columns}, label=label)
+    missing = [r for r in required if r not in columns]
+    if missing:
+        wanted = [(_OWN_HEADER.get(r) or "command_V or command_A") for r in missing]
+        raise ValueError(f"{path}: not a file written by mrd-env (no column {' / '.join(wanted)}); name your "
+                         "columns and their units (columns=..., units=...; on the command line --columns and "
+                         "--units)")
+    si = {"t": "s", "x": "m", "v": "m/s", "force": "N", "command": unit}
+    return columns, {k: si[k] for k in columns}
 
 
-def load_record_csv(path: str | Path, columns: dict[str, str], units: dict[str, str], *,
-                    skip_trailing_empty: bool = True, label: str = "") -> DamperRecord:
-    """Load a damper test from a CSV file with a header line, converting the chosen columns to SI once.
+def read_columns(path: str | Path, columns: dict[str, str], units: dict[str, str], *,
+                 required: tuple[str, ...] = _REQUIRED, skip_trailing_empty: bool = True) -> dict[str, np.ndarray]:
+    """The chosen columns of a CSV file with a header line, converted to SI once: {role: array}.
 
-    ``columns`` maps the roles "t", "x", "command", "force" (and optionally "v") to header names; header names
-    may be quoted. ``units`` gives each chosen column's unit (accepted units: :data:`UNITS`); there are no
-    defaults. With ``skip_trailing_empty`` the empty cells left by a trailing comma at the end of each line and
-    blank lines are ignored, as in files exported with a comma after the last column. Columns not chosen are
-    never parsed (they may be partly empty). Raises ``ValueError`` naming the file, column and row for missing
-    columns, missing or unknown units, empty/non-numeric/non-finite cells and a non-increasing time column.
+    The loader behind :func:`load_record_csv` and the rig's record replay: ``columns`` maps roles (among "t",
+    "x", "v", "command", "force"; ``required`` ones must be present) to header names, ``units`` gives each
+    chosen column's unit (:data:`UNITS`; no defaults). Commas, semicolons or tabs separate the cells (detected
+    from the header line). Raises ``ValueError`` naming the file, column and row for a missing file, a file that
+    is not text, missing columns, missing or unknown units, empty/non-numeric/non-finite cells and a
+    non-increasing time column.
     """
     path = Path(path)
-    unknown = sorted(set(columns) - set(_REQUIRED) - set(_OPTIONAL))
+    roles = tuple(dict.fromkeys(_REQUIRED + _OPTIONAL))
+    unknown = sorted(set(columns) - set(roles))
     if unknown:
-        raise ValueError(f"columns has unknown roles {unknown}; valid roles are {list(_REQUIRED + _OPTIONAL)}")
-    missing_roles = [r for r in _REQUIRED if r not in columns]
+        raise ValueError(f"columns has unknown roles {unknown}; valid roles are {list(roles)}")
+    missing_roles = [r for r in required if r not in columns]
     if missing_roles:
         raise ValueError(f"columns must name the file columns for roles {missing_roles} "
-                         f"(required roles: {list(_REQUIRED)}, optional: {list(_OPTIONAL)})")
+                         f"(required roles: {list(required)}, optional: {[r for r in roles if r not in required]})")
     factors = {}
     for role, col in columns.items():
         accepted = list(UNITS[role])
@@ -244,7 +256,7 @@ def load_record_csv(path: str | Path, columns: dict[str, str], units: dict[str, 
             raise ValueError(f"{path}: column '{col}' appears {len(hits)} times in the header")
         index[role] = hits[0]
     if len(rows) < 3:
-        raise ValueError(f"{path}: has {len(rows)} data rows, need at least 3")
+        raise ValueError(f"{path}: has {len(rows)} data row(s), need at least 3")
 
     data = {role: _parse_column(path, rows, lines, index[role], f"column '{columns[role]}' ({role})")
             * factors[role] for role in columns}
@@ -254,35 +266,71 @@ def load_record_csv(path: str | Path, columns: dict[str, str], units: dict[str, 
             _check_time(what, data[role], item="data row")
         else:
             _check_signal(what, data[role], item="data row")
+    return data
+
+
+def load_record_csv(path: str | Path, columns: dict[str, str], units: dict[str, str], *,
+                    skip_trailing_empty: bool = True, label: str = "") -> DamperRecord:
+    """Load a damper test from a CSV file with a header line, converting the chosen columns to SI once.
+
+    ``columns`` maps the roles "t", "x", "command", "force" (and optionally "v") to header names; header names
+    may be quoted. ``units`` gives each chosen column's unit (accepted units: :data:`UNITS`); there are no
+    defaults. With ``skip_trailing_empty`` the empty cells left by a trailing comma at the end of each line and
+    blank lines are ignored, as in files exported with a comma after the last column. Columns not chosen are
+    never parsed (they may be partly empty). Errors: see :func:`read_columns`.
+    """
+    data = read_columns(path, columns, units, skip_trailing_empty=skip_trailing_empty)
     return DamperRecord(data["t"], data["x"], data["command"], data["force"], data.get("v"),
-                        _COMMAND_SI[units["command"]], label or path.stem)
+                        _COMMAND_SI[units["command"]], label or Path(path).stem)
 
 
-def _read_table(path: Path, skip_trailing_empty: bool) -> tuple[list[str], list[list[str]], list[int]]:
-    """Header cells, data rows and their file line numbers."""
+def _read_table(path: Path, skip_trailing_empty: bool,
+                max_rows: int | None = None) -> tuple[list[str], list[list[str]], list[int]]:
+    """Header cells, data rows and their file line numbers (cells separated by ',', ';' or tabs)."""
     def trim(cells: list[str]) -> list[str]:
         if skip_trailing_empty:
             while cells and cells[-1].strip() == "":
                 cells = cells[:-1]
         return cells
 
-    with path.open(newline="", encoding="utf-8-sig") as fh:
-        reader = csv.reader(fh, skipinitialspace=True)
-        header = None
-        rows, lines = [], []
-        for cells in reader:
-            if not any(c.strip() for c in cells):
-                if skip_trailing_empty or header is None:
+    if not path.exists():
+        raise ValueError(f"{path}: no such file")
+    if path.is_dir():
+        raise ValueError(f"{path}: is a folder, not a CSV file")
+    try:
+        with path.open(newline="", encoding="utf-8-sig") as fh:
+            first = ""
+            for first in fh:
+                if first.strip():
+                    break
+            # the separator of the header line: the most frequent of comma, semicolon, tab
+            delimiter = max((",", ";", "\t"), key=first.count) if first.strip() else ","
+            fh.seek(0)
+            reader = csv.reader(fh, delimiter=delimiter, skipinitialspace=True)
+            header = None
+            rows, lines = [], []
+            for cells in reader:
+                if not any(c.strip() for c in cells):
+                    if skip_trailing_empty or header is None:
+                        continue
+                    raise ValueError(f"{path}: line {reader.line_num} is empty")
+                if header is None:
+                    header = [c.strip() for c in trim(cells)]
+                    if max_rows == 0:
+                        break
                     continue
-                raise ValueError(f"{path}: line {reader.line_num} is empty")
-            if header is None:
-                header = [c.strip() for c in trim(cells)]
-                continue
-            rows.append(cells if not skip_trailing_empty else trim(cells))
-            lines.append(reader.line_num)
+                rows.append(cells if not skip_trailing_empty else trim(cells))
+                lines.append(reader.line_num)
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{path}: not a text CSV file (byte {exc.start} is not UTF-8 text)") from None
+    except csv.Error as exc:
+        raise ValueError(f"{path}: not a readable CSV file ({exc})") from None
     if header is None:
         raise ValueError(f"{path}: the file is empty (expected a header line)")
     width = len(header)
+    if width == 1 and rows:
+        raise ValueError(f"{path}: the header line has a single column ({header[0][:40]!r}); expected column names "
+                         "separated by commas, semicolons or tabs")
     for cells, line in zip(rows, lines):
         # rows may be shorter only when trailing empty cells were trimmed
         if len(cells) > width or (not skip_trailing_empty and len(cells) != width):
