@@ -41,10 +41,15 @@ BUILDING_METRICS = ("J1", "J2", "J3", "J4", "J5", "J6", "drift_peak", "acc_peak"
 
 @dataclass(frozen=True)
 class Scenario:
+    """An environment set-up scored over ``seeds`` (one vector environment, one episode per seed)."""
+
     name: str
     env_id: str
     options: dict = field(default_factory=dict)
-    seed: int = 0
+    seeds: tuple = (0,)
+
+    def label(self, seed: int) -> str:
+        return f"{self.name} s{seed}" if len(self.seeds) > 1 else self.name
 
 
 def default_scenarios(plant: str, quick: bool = False, seeds: int = 2) -> list[Scenario]:
@@ -52,10 +57,11 @@ def default_scenarios(plant: str, quick: bool = False, seeds: int = 2) -> list[S
     replayed 5× faster, Kanai–Tajimi motions and another PEER record (building)."""
     if plant == "quarter_car":
         dur = 3.0 if quick else 10.0
-        out = [Scenario(f"ISO-{c} 20 m/s s{s}", "mrd_env/QuarterCar-v0",
+        n = 1 if quick else seeds
+        out = [Scenario(f"ISO-{c} 20 m/s", "mrd_env/QuarterCar-v0",
                         dict(road="iso8608", road_params={"road_class": c, "speed": 20.0}, episode_seconds=dur,
-                             stroke_limit=QC_STROKE_LIMIT), seed=s)
-               for c in ("C", "D") for s in range(1 if quick else seeds)]
+                             stroke_limit=QC_STROKE_LIMIT), seeds=tuple(range(n)))
+               for c in ("C", "D")]
         if not quick:
             out.append(Scenario("bump 5 cm", "mrd_env/QuarterCar-v0",
                                 dict(road="bump", road_params={"height": 0.05, "length": 0.5, "speed": 10.0},
@@ -69,8 +75,8 @@ def default_scenarios(plant: str, quick: bool = False, seeds: int = 2) -> list[S
             out.append(Scenario("El Centro EW (×0.2 time)", "mrd_env/ShearBuilding-v0",
                                 dict(ground_motion="el_centro",
                                      ground_motion_params={"component": "EW", "time_scale": 0.2})))
-            out += [Scenario(f"Kanai–Tajimi s{s}", "mrd_env/ShearBuilding-v0",
-                             dict(ground_motion="kanai_tajimi", episode_seconds=10.0), seed=s) for s in range(seeds)]
+            out.append(Scenario("Kanai–Tajimi", "mrd_env/ShearBuilding-v0",
+                                dict(ground_motion="kanai_tajimi", episode_seconds=10.0), seeds=tuple(range(seeds))))
         return out
     raise ValueError(f"plant must be 'quarter_car' or 'building', got {plant!r}")
 
@@ -81,33 +87,35 @@ class Episode:
     scenario: str
     metrics: dict
     t: np.ndarray
-    response: np.ndarray   # key response history (sprung acceleration or top... first-storey drift)
+    response: np.ndarray   # key response history (sprung acceleration or first-storey drift)
     force: np.ndarray
     velocity: np.ndarray   # damper velocity
     wall_time: float
+    episode_return: float = float("nan")
 
 
 def evaluate(controller, env, seed: int, response: str) -> Episode:
-    """Run one episode with ``controller`` (the same loop for classical laws and trained agents)."""
+    """Run one episode of a scalar environment with ``controller`` (classical laws and agents alike)."""
     base = env.unwrapped
     layout = {n: sl for n, sl, *_ in base.sensor_layout}
-    rate = "travel_rate" if "travel_rate" in layout else "damper_velocity"
-    nan = slice(0, 0)  # a signal the env does not measure (e.g. an agent trained on fewer sensors)
+    rate = base.roles.get("damper_velocity", "")
 
     def first(o, name):
-        v = o[layout.get(name, nan)]
+        v = o[layout[name]] if name in layout else np.zeros(0)
         return float(v[0]) if v.size else float("nan")
 
     obs, _ = env.reset(seed=seed)
     controller.reset()
     t, resp, force, vel = [], [], [], []
+    total = 0.0
     t0 = time.perf_counter()
     while True:
         action, _ = controller.predict(obs, deterministic=True)
-        obs, _, terminated, truncated, info = env.step(action)
+        obs, r, terminated, truncated, info = env.step(action)
+        total += r
         t.append(info["t"])
         resp.append(first(obs, response))
-        force.append(float(np.ravel(info["damper_force"])[0]))
+        force.append(float(base.damper_force[0]))
         vel.append(first(obs, rate))
         if terminated or truncated:
             break
@@ -116,14 +124,59 @@ def evaluate(controller, env, seed: int, response: str) -> Episode:
     if terminated:
         metrics["terminated"] = info.get("termination_reason", "terminated")
     return Episode(getattr(controller, "name", type(controller).__name__), "", metrics, np.array(t),
-                   np.array(resp), np.array(force), np.array(vel), wall)
+                   np.array(resp), np.array(force), np.array(vel), wall, total)
+
+
+def evaluate_batch(make, scenario: Scenario, response: str, **env_options) -> list[Episode]:
+    """One episode per seed of ``scenario`` in one vector environment, driven by ``make(venv)`` (a controller
+    built on the vector environment: its predict takes the batch of observations)."""
+    N = len(scenario.seeds)
+    venv = gym.make_vec(scenario.env_id, num_envs=N, vectorization_mode="vector_entry_point",
+                        **{**scenario.options, **env_options})
+    ctrl = make(venv)
+    layout = {n: sl for n, sl, *_ in venv.sensor_layout}
+    rate = venv.roles.get("damper_velocity", "")
+
+    def first(o, name):
+        return float(o[layout[name]][0]) if name in layout else float("nan")
+
+    obs, _ = venv.reset(seed=list(scenario.seeds))
+    ctrl.reset()
+    done = np.zeros(N, dtype=bool)
+    returns = np.zeros(N)
+    metrics: list[dict] = [{} for _ in range(N)]
+    t, resp, force, vel = [], [], [], []
+    t0 = time.perf_counter()
+    while not done.all():
+        action, _ = ctrl.predict(obs, deterministic=True)
+        obs, r, term, trunc, info = venv.step(action)
+        returns[~done] += r[~done]
+        if not done[0]:
+            t.append(float(info["t"][0]))
+            resp.append(first(obs[0], response))
+            force.append(first(obs[0], "damper_force"))
+            vel.append(first(obs[0], rate))
+        ended = (term | trunc) & ~done
+        for b in np.flatnonzero(ended):
+            metrics[b] = {k: float(v[b]) for k, v in info["episode_metrics"].items()}
+            if term[b]:
+                metrics[b]["terminated"] = str(info.get("termination_reason", [""] * N)[b] or "terminated")
+        done |= ended
+    wall = (time.perf_counter() - t0) / N
+    venv.close()
+    name = getattr(ctrl, "name", type(ctrl).__name__)
+    return [Episode(name, scenario.label(seed), metrics[b], np.array(t) if b == 0 else np.zeros(0),
+                    np.array(resp) if b == 0 else np.zeros(0), np.array(force) if b == 0 else np.zeros(0),
+                    np.array(vel) if b == 0 else np.zeros(0), wall, float(returns[b]))
+            for b, seed in enumerate(scenario.seeds)]
 
 
 def run_benchmark(plant: str, controllers=None, scenarios=None, *, damper: str = "spencer_dyke",
                   out: Path | None = None, progress: bool = True, quick: bool = False,
                   reference_passive: bool = True, agents=()) -> list[Episode]:
-    """Every controller on every scenario; for the quarter car also the conventional passive car (the
-    MR damper replaced by the preset's reference dashpot, e.g. 1500 N·s/m for set A) as a baseline."""
+    """Every controller on every scenario (all seeds of a scenario in one vector environment); for the quarter
+    car also the conventional passive car (the MR damper replaced by the preset's reference dashpot, e.g.
+    1500 N·s/m for set A) as a baseline."""
     import mrd_env  # noqa: F401  (registers the environments)
     from controllers import make_controller
 
@@ -133,64 +186,58 @@ def run_benchmark(plant: str, controllers=None, scenarios=None, *, damper: str =
     response = "sprung_acc" if plant == "quarter_car" else "drift"
     agents = [Path(a) for a in agents]
     jobs = [(s, c) for s in scenarios for c in list(controllers) + agents]
-    try:
-        from tqdm.auto import tqdm
-        bar = tqdm(total=len(jobs), desc=f"benchmark {plant}", disable=not progress)
-    except ImportError:  # pragma: no cover
-        bar = None
-    episodes = []
+    from tqdm.auto import tqdm
+    bar = tqdm(total=len(jobs), desc=f"benchmark {plant}", disable=not progress)
+    by_scenario: dict[str, list[Episode]] = {}
     for sc in scenarios:
-        env = gym.make(sc.env_id, damper=damper, sensors=sensors, **sc.options)
+        eps = []
         for name in controllers:
-            ctrl = make_controller(name, env)
-            ep = evaluate(ctrl, env, sc.seed, response)
-            ep.scenario = sc.name
-            episodes.append(ep)
-            if bar is not None:
-                bar.set_postfix_str(f"{sc.name} / {name}")
-                bar.update()
-        env.close()
+            bar.set_postfix_str(f"{sc.name} / {name}")
+            eps.append(evaluate_batch(lambda v, n=name: make_controller(n, v), sc, response, damper=damper,
+                                      sensors=sensors))
+            bar.update()
         for path in agents:
-            episodes.append(_agent_episode(path, sc, damper, response))
-            if bar is not None:
-                bar.update()
+            eps.append(_agent_episodes(path, sc, damper, response))
+            bar.update()
         if plant == "quarter_car" and reference_passive:
-            episodes.append(_reference_passive(sc, sensors, response))
-    if bar is not None:
-        bar.close()
+            eps.append(_reference_passive(sc, sensors, response))
+        # rows: per seed, every controller (the table's order)
+        for k in range(len(sc.seeds)):
+            by_scenario.setdefault(sc.label(sc.seeds[k]), []).extend(e[k] for e in eps)
+    bar.close()
+    episodes = [e for group in by_scenario.values() for e in group]
     if out is not None:
         write_reports(plant, episodes, Path(out))
     return episodes
 
 
-def _agent_episode(path: Path, sc: Scenario, damper: str, response: str) -> Episode:
+def _agent_episodes(path: Path, sc: Scenario, damper: str, response: str) -> list[Episode]:
     """A saved agent (``mrd-env train``) on the scenario, in the environment set-up it was trained in."""
     from controllers import AgentController
 
     from .train import NormalizedAgent
 
     agent = NormalizedAgent(path)
-    options = {k: v for k, v in sc.options.items() if k not in agent.meta["env_kwargs"]}
-    env = gym.make(sc.env_id, damper=damper, **agent.meta["env_kwargs"], **options)
-    ep = evaluate(AgentController(env, agent, name=f"agent:{path.stem}"), env, sc.seed, response)
-    env.close()
-    ep.controller = f"agent:{path.stem}"
-    ep.scenario = sc.name
-    return ep
+    kwargs = agent.meta["env_kwargs"]
+    options = {k: v for k, v in sc.options.items() if k not in kwargs}
+    scen = Scenario(sc.name, sc.env_id, {**options, **kwargs}, sc.seeds)
+    eps = evaluate_batch(lambda v: AgentController(v, agent, name=f"agent:{path.stem}"), scen, response,
+                         damper=damper)
+    for e in eps:
+        e.controller = f"agent:{path.stem}"
+    return eps
 
 
-def _reference_passive(sc: Scenario, sensors, response) -> Episode:
+def _reference_passive(sc: Scenario, sensors, response) -> list[Episode]:
     from controllers import PassiveOff
     from mrd_env.plants import quarter_car
 
     c = quarter_car(sc.options.get("plant_preset", "set_a")).passive_c
-    env = gym.make(sc.env_id, damper="bingham", damper_params=dict(fc_a=0.0, fc_b=0.0, c0a=c, c0b=0.0, f0=0.0),
-                   sensors=sensors, **sc.options)
-    ep = evaluate(PassiveOff(env), env, sc.seed, response)
-    env.close()
-    ep.controller = f"passive_ref (c={c:g})"
-    ep.scenario = sc.name
-    return ep
+    eps = evaluate_batch(PassiveOff, sc, response, damper="bingham",
+                         damper_params=dict(fc_a=0.0, fc_b=0.0, c0a=c, c0b=0.0, f0=0.0), sensors=sensors)
+    for e in eps:
+        e.controller = f"passive_ref (c={c:g})"
+    return eps
 
 
 def _rows(plant: str, episodes: list[Episode]) -> list[dict]:
@@ -236,7 +283,9 @@ def write_reports(plant: str, episodes: list[Episode], out: Path) -> dict:
     figs = []
     ylabel = "sprung acceleration (m/s²)" if plant == "quarter_car" else "first-storey drift (m)"
     for sc in dict.fromkeys(e.scenario for e in episodes):
-        eps = [e for e in episodes if e.scenario == sc]
+        eps = [e for e in episodes if e.scenario == sc and e.t.size]  # histories: a scenario's first seed
+        if not eps:
+            continue
         fig, (a1, a2) = figure(2, 1, figsize=(10, 6), sharex=True)
         for e in eps:
             a1.plot(e.t, e.response, lw=0.8, label=e.controller)
@@ -293,7 +342,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def scenario_rows(scenarios) -> list[dict]:
     """The settings of every scenario (environment, options, seed), printed and written with the tables."""
-    return [{"scenario": sc.name, "environment": sc.env_id, "seed": sc.seed,
+    return [{"scenario": sc.name, "environment": sc.env_id, "seeds": ", ".join(map(str, sc.seeds)),
              "options": ", ".join(f"{k}={v}" for k, v in sc.options.items()) or "defaults"} for sc in scenarios]
 
 

@@ -1,94 +1,216 @@
 """Template of the compiled stepping routine (see :mod:`mrd_env.integrator`).
 
-Not imported as such: :func:`mrd_env.integrator.kernel_for` writes, for each damper model, a module made of
-a short header binding ``rhs``, ``force``, ``project`` (the model's numba functions) and ``ns`` (its number of
-internal states) followed by this text. Each model thus gets its own module-level kernel with those
-functions as compile-time constants, and numba can cache it on disk across processes.
+Not imported as such: :func:`mrd_env.integrator.kernel_module` writes, for each damper model, a module made of
+a short header binding ``rhs``, ``force``, ``project`` (the model's numba functions, compiled again inline),
+``partials`` (the model's analytic derivatives, or :func:`fd_partials` below) and ``ns`` (its number of internal
+states), followed by this text. Each model thus gets its own module-level kernel with those functions as
+compile-time constants, and numba can cache it on disk across processes.
+
+The stage equations Z = R + hγ f(Z) are solved with the linear plant eliminated (see the integrator's
+docstring): the unknowns are each damper's internal states s_j and its force F_j, nd·(ns + 1) of them.
+
+Conventions of the arrays passed down (everything is inlined into one function per driver, and a call with
+more than 30 arguments cannot be inlined, hence the stacking):
+
+* C (2, nd, nq) = [C_x, C_v]; D (3, nd, nw) = [D_x, D_v, D_a]; per sub-step level: Ainv (nq, nq) = (I − hγA)⁻¹,
+  Bbar (nq, nw) = hγ Ainv B_w, Mq (nq, nd) = hγ Ainv B_F, PP (2, nd, nd) = [C_x Mq, C_v Mq].
+* Jd (nd, ns + 1, ns + 2): per damper, the Jacobian of (ṡ, F) with respect to (s, x, ẋ), rows 0..ns−1 for
+  g = ṡ and row ns for F, columns 0..ns−1 for s, then x, then ẋ (what ``partials`` writes).
+* scratch: Vn (7, max(n, m)) vectors of the state length (and the Newton residual), Vd (10, nd) of the damper
+  count, Vx (4, L) short vectors (q̄, ṡ, finite-difference work, the input inside a step), K (m, m) the Newton
+  matrix, Iw (m + 1) its pivots and the level it was factorised for.
 """
 import math
 
 import numba as nb
 import numpy as np
 
-from mrd_env.integrator import GAMMA, NO_CONVERGENCE, NONFINITE, OK, _lu_factor, _lu_solve
+from mrd_env.integrator import GAMMA, NO_CONVERGENCE, NONFINITE, OK
+from mrd_env.integrator import _lu_factor as _lu_factor_dispatcher, _lu_solve as _lu_solve_dispatcher
+
+_lu_factor = nb.njit(inline='always')(_lu_factor_dispatcher.py_func)
+_lu_solve = nb.njit(inline='always')(_lu_solve_dispatcher.py_func)
+
+NEWTON_TOL = 1e-2  # Newton stops when its last correction is below this fraction of the error tolerance
+MAX_ITER = 12
 
 
 @nb.njit(cache=True)
-def _eval(nq, nd, A, BF, Bw, Cx, Dx, Cv, Dv, Da, P, Y, u, w, F, dY):
-    """F_j and dY/dt at state Y, effective commands u and input w."""
+def workspace_len(nq, nd, n, nw):
+    """(floats, ints) needed by :func:`workspace_views`."""
+    m = max(nd * (ns + 1), 1)
+    L1 = max(n, m)
+    L = max(nw, 2 * ns + 2, nq, 1)
+    return 7 * L1 + 10 * nd + 4 * L + m * m + nd * (ns + 1) * (ns + 2), m + 1
+
+
+@nb.njit(inline='always')
+def workspace_views(wf, wi, nq, nd, n, nw):
+    """(Vn, Vd, Vx, K, Iw, Jd) of one system's step as views of the scratch buffers wf, wi (see the module
+    docstring); the scratch is allocated once, by the caller."""
+    m = max(nd * (ns + 1), 1)
+    L1 = max(n, m)
+    L = max(nw, 2 * ns + 2, nq, 1)
+    o = 0
+    Vn = wf[o:o + 7 * L1].reshape((7, L1))
+    o += 7 * L1
+    Vd = wf[o:o + 10 * nd].reshape((10, nd))
+    o += 10 * nd
+    Vx = wf[o:o + 4 * L].reshape((4, L))
+    o += 4 * L
+    K = wf[o:o + m * m].reshape((m, m))
+    o += m * m
+    Jd = wf[o:o + nd * (ns + 1) * (ns + 2)].reshape((nd, ns + 1, ns + 2))
+    return Vn, Vd, Vx, K, wi[:m + 1], Jd
+
+
+@nb.njit(inline='always')
+def fd_partials(p, s, x, xd, xdd, u, J, work):
+    """The Jacobian J (ns + 1, ns + 2) of (ṡ, F) with respect to (s, x, ẋ) of one damper by forward differences
+    (models without analytic ``partials``). ``work`` holds at least 2·ns values."""
+    g0 = work[0:ns]
+    g1 = work[ns:2 * ns]
+    F0 = force(p, s, x, xd, xdd, u)
+    rhs(p, s, x, xd, u, g0)
+    for c in range(ns + 2):
+        # column c: perturb state c, then x, then ẋ (one call site of each function keeps the kernel small)
+        xc = x
+        vc = xd
+        if c < ns:
+            sc = s[c]
+            d = 1.0e-7 * max(abs(sc), 1.0e-3)
+            s[c] = sc + d
+        elif c == ns:
+            d = 1.0e-7 * max(abs(x), 1.0e-3)
+            xc = x + d
+        else:
+            d = 1.0e-7 * max(abs(xd), 1.0e-3)
+            vc = xd + d
+        F1 = force(p, s, xc, vc, xdd, u)
+        rhs(p, s, xc, vc, u, g1)
+        if c < ns:
+            s[c] = sc
+        J[ns, c] = (F1 - F0) / d
+        for k in range(ns):
+            J[k, c] = (g1[k] - g0[k]) / d
+
+
+@nb.njit(inline='always')
+def kinematics(C, D, q, w, xs, vs, As):
+    """Damper strokes x_j, velocities ẋ_j and accelerations ẍ_j from plant coordinates q and inputs w."""
+    nd = C.shape[1]
+    nq = C.shape[2]
     for j in range(nd):
         x = 0.0
-        xd = 0.0
-        xdd = 0.0
+        v = 0.0
+        a = 0.0
         for i in range(nq):
-            x += Cx[j, i] * Y[i]
-            xd += Cv[j, i] * Y[i]
+            x += C[0, j, i] * q[i]
+            v += C[1, j, i] * q[i]
         for m in range(w.shape[0]):
-            x += Dx[j, m] * w[m]
-            xd += Dv[j, m] * w[m]
-            xdd += Da[j, m] * w[m]
-        o = nq + j * ns
-        s = Y[o:o + ns]
-        F[j] = force(P[j], s, x, xd, xdd, u[j])
-        rhs(P[j], s, x, xd, u[j], dY[o:o + ns])
+            x += D[0, j, m] * w[m]
+            v += D[1, j, m] * w[m]
+            a += D[2, j, m] * w[m]
+        xs[j] = x
+        vs[j] = v
+        As[j] = a
+
+
+@nb.njit(inline='always')
+def solve_stage(C, D, Ainv, Bbar, Mq, PP, P, R, u, w, hg, Z, Fz, atol, rtol, reuse, Vn, Vd, Vx, K, Iw, Jd):
+    """Solve the stage equation Z = R + hγ f(Z) with the plant eliminated; Fz holds the forces (guess in,
+    solution out). ``reuse``: start from the factorised Newton matrix already in K (the two stages of a step
+    share it). Returns False if Newton's method does not converge."""
+    nd = C.shape[1]
+    nq = C.shape[2]
+    m = nd * (ns + 1)
+    piv = Iw[:m]
+    r = Vn[6]
+    qbar = Vx[0]
+    g = Vx[1]
+    work = Vx[2]
+    xbar = Vd[0]
+    vbar = Vd[1]
+    xs = Vd[2]
+    vs = Vd[3]
+    As = Vd[4]
+    # the plant part, linear: q = q̄ + M_q F with q̄ = (I − hγA)⁻¹ R_q + hγ(I − hγA)⁻¹ B_w w
     for i in range(nq):
         acc = 0.0
         for k in range(nq):
-            acc += A[i, k] * Y[k]
-        for j in range(nd):
-            acc += BF[i, j] * F[j]
-        for m in range(w.shape[0]):
-            acc += Bw[i, m] * w[m]
-        dY[i] = acc
-
-
-@nb.njit(cache=True)
-def _stage_matrix(nq, nd, A, BF, Bw, Cx, Dx, Cv, Dv, Da, P, Z, u, w, hg,
-                  F, f0, ftmp, M, piv):
-    """M = I − hγ ∂f/∂Y at Z (finite differences), LU-factorised in place."""
-    n = Z.shape[0]
-    _eval(nq, nd, A, BF, Bw, Cx, Dx, Cv, Dv, Da, P, Z, u, w, F, f0)
-    for c in range(n):
-        zc = Z[c]
-        d = 1.0e-7 * max(abs(zc), 1.0e-3)
-        Z[c] = zc + d
-        _eval(nq, nd, A, BF, Bw, Cx, Dx, Cv, Dv, Da, P, Z, u, w, F, ftmp)
-        Z[c] = zc
-        for r in range(n):
-            M[r, c] = -hg * (ftmp[r] - f0[r]) / d
-        M[c, c] += 1.0
-    return _lu_factor(M, piv)
-
-
-@nb.njit(cache=True)
-def _solve_stage(nq, nd, A, BF, Bw, Cx, Dx, Cv, Dv, Da, P, R, u, w, hg,
-                 Z, F, fz, ftmp, G, M, piv, atol, rtol, max_iter, reuse):
-    """Solve Z = R + hγ f(Z) by Newton's method (Jacobian refreshed while convergence is slow).
-
-    ``reuse``: start from the factorised matrix already in M (both stages share I − hγJ)."""
-    n = Z.shape[0]
+            acc += Ainv[i, k] * R[k]
+        for k in range(w.shape[0]):
+            acc += Bbar[i, k] * w[k]
+        qbar[i] = acc
+    kinematics(C, D, qbar, w, xbar, vbar, As)
     fresh = reuse
     prev = math.inf
-    for it in range(max_iter):
+    for it in range(MAX_ITER):
+        for j in range(nd):
+            x = xbar[j]
+            v = vbar[j]
+            for k in range(nd):
+                x += PP[0, j, k] * Fz[k]
+                v += PP[1, j, k] * Fz[k]
+            xs[j] = x
+            vs[j] = v
         if not fresh:
-            if not _stage_matrix(nq, nd, A, BF, Bw, Cx, Dx, Cv, Dv, Da, P, Z, u, w, hg,
-                                 F, fz, ftmp, M, piv):
+            for i in range(m):
+                for k in range(m):
+                    K[i, k] = 0.0
+            for j in range(nd):
+                o = nq + j * ns
+                J = Jd[j]
+                partials(P[j], Z[o:o + ns], xs[j], vs[j], As[j], u[j], J, work)
+                b = j * ns
+                f = nd * ns + j
+                for i in range(ns):
+                    for k in range(ns):
+                        K[b + i, b + k] = -hg * J[i, k]
+                    K[b + i, b + i] += 1.0
+                    K[f, b + i] = -J[ns, i]
+                    for k in range(nd):
+                        K[b + i, nd * ns + k] = -hg * (J[i, ns] * PP[0, j, k] + J[i, ns + 1] * PP[1, j, k])
+                for k in range(nd):
+                    K[f, nd * ns + k] = -(J[ns, ns] * PP[0, j, k] + J[ns, ns + 1] * PP[1, j, k])
+                K[f, f] += 1.0
+            if not _lu_factor(K, piv):
                 return False
             fresh = True
-        else:
-            _eval(nq, nd, A, BF, Bw, Cx, Dx, Cv, Dv, Da, P, Z, u, w, F, fz)
-        for i in range(n):
-            G[i] = -(Z[i] - R[i] - hg * fz[i])
-        _lu_solve(M, piv, G)
+        # residuals of the damper equations: s − R_s − hγ g(s, x, ẋ), F − φ(s, x, ẋ)
+        for j in range(nd):
+            o = nq + j * ns
+            s = Z[o:o + ns]
+            rhs(P[j], s, xs[j], vs[j], u[j], g)
+            for i in range(ns):
+                r[j * ns + i] = -(s[i] - R[o + i] - hg * g[i])
+            r[nd * ns + j] = -(Fz[j] - force(P[j], s, xs[j], vs[j], As[j], u[j]))
+        _lu_solve(K, piv, r)
+        # convergence on every state: the plant's change is M_q ΔF
         err = 0.0
-        for i in range(n):
-            Z[i] += G[i]
-            e = abs(G[i]) / (atol + rtol * abs(Z[i]))
+        for j in range(nd):
+            o = nq + j * ns
+            for i in range(ns):
+                Z[o + i] += r[j * ns + i]
+                e = abs(r[j * ns + i]) / (atol + rtol * abs(Z[o + i]))
+                if e > err:
+                    err = e
+            Fz[j] += r[nd * ns + j]
+        for i in range(nq):
+            dq = 0.0
+            for k in range(nd):
+                dq += Mq[i, k] * r[nd * ns + k]
+            e = abs(dq) / (atol + rtol * abs(qbar[i]))
             if e > err:
                 err = e
         if not math.isfinite(err):
             return False
         if err <= 1.0:
+            for i in range(nq):
+                acc = qbar[i]
+                for k in range(nd):
+                    acc += Mq[i, k] * Fz[k]
+                Z[i] = acc
             return True
         if err > 0.25 * prev or it % 4 == 3:
             fresh = False  # slow contraction (a kink was crossed) or a stale Jacobian: refresh it
@@ -97,162 +219,197 @@ def _solve_stage(nq, nd, A, BF, Bw, Cx, Dx, Cv, Dv, Da, P, R, u, w, hg,
 
 
 @nb.njit(cache=True)
-def _sdirk_step(nq, nd, A, BF, Bw, Cx, Dx, Cv, Dv, Da, P, Y, u0, v, eta,
-                w0, w1, tau0, h, H, atol, rtol, max_iter, ws, F, f1, fz, ftmp, G, M, piv, R, Z1, Z2, est,
-                u1, u2, Mh):
-    """One SDIRK2 step of length h starting at τ0 (relative to the macro step of length H).
+def sdirk_step(C, D, Ainv, Bbar, Mq, PP, P, Y, Fz, u0, v, eta, w0, w1, tau0, h, H, atol, rtol, level, wf, wi):
+    """One SDIRK2 step of length h = H/2^level starting at τ0 (relative to the macro step of length H), with
+    the level matrices Ainv, Bbar, Mq, PP of this h. Y and the force guess Fz are updated only on success.
 
-    ``Mh[0]`` is the step length M was last factorised for: a matrix from an earlier step of the same
-    length starts the Newton iterations (refreshed as soon as convergence slows).
-    Returns (converged, error estimate in units of the tolerance). Y is updated only on success.
-    """
+    The factorised Newton matrix of an earlier step of the same length starts the iterations (refreshed as
+    soon as convergence slows). Returns (converged, error estimate in units of the tolerance)."""
+    nd = C.shape[1]
+    nq = C.shape[2]
     n = Y.shape[0]
+    m = nd * (ns + 1)
+    Vn, Vd, Vx, K, Iw, Jd = workspace_views(wf, wi, nq, nd, n, D.shape[2])
     hg = h * GAMMA
-    # stage 1 at τ0 + γh
-    t1 = tau0 + GAMMA * h
-    for m in range(w0.shape[0]):
-        ws[m] = w0[m] + (w1[m] - w0[m]) * (t1 / H)
-    for j in range(nd):
-        u1[j] = v[j] + (u0[j] - v[j]) * math.exp(-eta[j] * t1)
+    Z1 = Vn[0]
+    Z2 = Vn[1]
+    R = Vn[2]
+    f1 = Vn[3]
+    est = Vn[4]
+    r = Vn[6]
+    F1 = Vd[5]
+    u1 = Vd[8]
+    u2 = Vd[9]
     for i in range(n):
         R[i] = Y[i]
         Z1[i] = Y[i]
-    reuse = Mh[0] == h
-    Mh[0] = h
-    if not _solve_stage(nq, nd, A, BF, Bw, Cx, Dx, Cv, Dv, Da, P, R, u1, ws, hg,
-                        Z1, F, fz, ftmp, G, M, piv, 1e-3 * atol, 1e-3 * rtol, max_iter, reuse):
-        Mh[0] = 0.0
-        return False, math.inf
-    for i in range(n):
-        f1[i] = (Z1[i] - Y[i]) / hg  # stage derivative without re-evaluating f (exact for stiff parts)
-    # stage 2 at τ0 + h (stiffly accurate: its value is the step's result)
-    t2 = tau0 + h
-    for m in range(w0.shape[0]):
-        ws[m] = w0[m] + (w1[m] - w0[m]) * (t2 / H)
     for j in range(nd):
-        u2[j] = v[j] + (u0[j] - v[j]) * math.exp(-eta[j] * t2)
-    for i in range(n):
-        R[i] = Y[i] + h * (1.0 - GAMMA) * f1[i]
-        Z2[i] = Z1[i]
-    if not _solve_stage(nq, nd, A, BF, Bw, Cx, Dx, Cv, Dv, Da, P, R, u2, ws, hg,
-                        Z2, F, fz, ftmp, G, M, piv, 1e-3 * atol, 1e-3 * rtol, max_iter, True):
-        Mh[0] = 0.0
-        return False, math.inf
-    # local error: SDIRK2 minus the embedded backward-Euler-like solution Y + h f(Z1),
-    # filtered by (I − hγJ)^-1 so that it stays bounded for the stiff components
+        F1[j] = Fz[j]
+    reuse = Iw[m] == level
+    Iw[m] = level
+    for stage in range(2):
+        # stage 1 at τ0 + γh; stage 2 at τ0 + h (stiffly accurate: its value is the step's result)
+        if stage == 0:
+            tau = tau0 + GAMMA * h
+            Z = Z1
+            u = u1
+        else:
+            tau = tau0 + h
+            Z = Z2
+            u = u2
+            for i in range(n):
+                f1[i] = (Z1[i] - Y[i]) / hg  # stage derivative without re-evaluating f (exact for stiff parts)
+                R[i] = Y[i] + h * (1.0 - GAMMA) * f1[i]
+                Z2[i] = Z1[i]
+        for j in range(nd):
+            u[j] = v[j] + (u0[j] - v[j]) * math.exp(-eta[j] * tau)
+        w = _interpolate(w0, w1, tau / H, Vx[3])
+        if not solve_stage(C, D, Ainv, Bbar, Mq, PP, P, R, u, w, hg, Z, F1, NEWTON_TOL * atol,
+                           NEWTON_TOL * rtol, reuse or stage == 1, Vn, Vd, Vx, K, Iw, Jd):
+            Iw[m] = -1
+            return False, math.inf
+    # local error: SDIRK2 minus the embedded backward-Euler-like solution Y + h f(Z1), filtered by
+    # (I − hγJ)⁻¹ (Hairer & Wanner IV.8) so that it stays bounded for the stiff components; with the plant
+    # eliminated: e_q = (I − hγA)⁻¹ est_q + M_q δF and (e_s, δF) solve the last Newton matrix
     for i in range(n):
         est[i] = Z2[i] - (Y[i] + h * f1[i])
-    _lu_solve(M, piv, est)
+    eq0 = Vx[0]
+    ex0 = Vd[2]
+    ev0 = Vd[3]
+    for i in range(nq):
+        acc = 0.0
+        for k in range(nq):
+            acc += Ainv[i, k] * est[k]
+        eq0[i] = acc
+    for j in range(nd):
+        a = 0.0
+        b = 0.0
+        for i in range(nq):
+            a += C[0, j, i] * eq0[i]
+            b += C[1, j, i] * eq0[i]
+        ex0[j] = a
+        ev0[j] = b
+    for j in range(nd):
+        o = nq + j * ns
+        J = Jd[j]
+        for i in range(ns):
+            r[j * ns + i] = est[o + i] + hg * (J[i, ns] * ex0[j] + J[i, ns + 1] * ev0[j])
+        r[nd * ns + j] = J[ns, ns] * ex0[j] + J[ns, ns + 1] * ev0[j]
+    _lu_solve(K, Iw[:m], r)
     err = 0.0
-    for i in range(n):
-        e = abs(est[i]) / (atol + rtol * max(abs(Y[i]), abs(Z2[i])))
+    for i in range(nq):
+        e = eq0[i]
+        for k in range(nd):
+            e += Mq[i, k] * r[nd * ns + k]
+        e = abs(e) / (atol + rtol * max(abs(Y[i]), abs(Z2[i])))
         if e > err:
             err = e
+    for j in range(nd):
+        o = nq + j * ns
+        for i in range(ns):
+            e = abs(r[j * ns + i]) / (atol + rtol * max(abs(Y[o + i]), abs(Z2[o + i])))
+            if e > err:
+                err = e
+    for i in range(n):
         Y[i] = Z2[i]
+    for j in range(nd):
+        Fz[j] = F1[j]
     # stage values may leave the invariant set (z beyond ±z_s) but the step's result must not; discrete
     # modes (a branch chosen by the sign of the acceleration) switch here, between steps
+    xs = Vd[2]
+    vs = Vd[3]
+    kinematics(C, D, Y, w, xs, vs, Vd[4])
     for j in range(nd):
-        x = 0.0
-        xd = 0.0
-        for i in range(nq):
-            x += Cx[j, i] * Y[i]
-            xd += Cv[j, i] * Y[i]
-        for m in range(ws.shape[0]):  # ws holds the input at the step's end (stage 2)
-            x += Dx[j, m] * ws[m]
-            xd += Dv[j, m] * ws[m]
         o = nq + j * ns
-        project(P[j], Y[o:o + ns], x, xd, u2[j])
+        project(P[j], Y[o:o + ns], xs[j], vs[j], u2[j])
     return True, err
 
 
+@nb.njit(inline='always')
+def _interpolate(w0, w1, frac, out):
+    """w0 + (w1 − w0)·frac in ``out[:len(w0)]`` (the input inside a step, linear)."""
+    w = out[:w0.shape[0]]
+    for k in range(w0.shape[0]):
+        w[k] = w0[k] + (w1[k] - w0[k]) * frac
+    return w
+
+
 @nb.njit(cache=True)
-def advance(A, BF, Bw, Cx, Dx, Cv, Dv, Da, P, eta, Y, U, V, W, dt,
-            max_substeps, rtol, atol, F_out, Y_out, nsub_out):
-    """Advance a batch of systems over ``V.shape[1]`` steps of ``dt``.
+def macro_step(C, D, Ainv, Bbar, Mq, PP, P, eta, Y, U, Fz, v, w0, w1, dt, max_level, nsub, atol, rtol, wf, wi):
+    """Advance one system by dt (commands v held, inputs w0 → w1), splitting the step into 2^k sub-steps as
+    the error estimate asks (k ≤ max_level), starting from ``nsub`` sub-steps.
 
-    Shapes: P (N, nd, n_params), eta (N, nd), Y (N, n) with n = nq + nd·ns, U (N, nd) effective
-    commands, V (N, n_steps, nd) commands held over each step, W (N, n_steps + 1, nw) inputs at the grid
-    points. Y and U are updated in place; F_out (N, n_steps, nd) and Y_out (N, n_steps, n) receive the
-    force and state at the end of every step, nsub_out (N, n_steps) the sub-steps used.
-
-    Returns (status, system index, step index): status 0 = ok, 1 = non-finite state, 2 = Newton failed
-    even at the smallest sub-step.
-    """
-    N = Y.shape[0]
-    n = Y.shape[1]
-    nq = A.shape[0]
-    nd = V.shape[2]
-    nw = W.shape[2]
-    n_steps = V.shape[1]
-    nmax = max(n, nd, 1)
-    F = np.zeros(max(nd, 1))
-    f1 = np.zeros(nmax)
-    fz = np.zeros(nmax)
-    ftmp = np.zeros(nmax)
-    G = np.zeros(nmax)
-    R = np.zeros(nmax)
-    Z1 = np.zeros(nmax)
-    Z2 = np.zeros(nmax)
-    est = np.zeros(nmax)
-    u1 = np.zeros(max(nd, 1))
-    u2 = np.zeros(max(nd, 1))
-    M = np.zeros((n, n))
-    piv = np.zeros(n, dtype=np.int64)
-    ws = np.zeros(nw)
-    Ysave = np.zeros(n)
-    u0 = np.zeros(nd)
-    max_iter = 12
-    Mh = np.zeros(1)
-    for b in range(N):
-        nsub = 1
-        Mh[0] = 0.0
-        for k in range(n_steps):
-            for i in range(n):
-                Ysave[i] = Y[b, i]
-            for j in range(nd):
-                u0[j] = U[b, j]
-            w0 = W[b, k]
-            w1 = W[b, k + 1]
-            vk = V[b, k]
-            etab = eta[b]
-            # start from half the previous splitting so the step count can come back down
-            nsub = max(1, nsub // 2)
-            while True:
-                h = dt / nsub
-                ok = True
-                worst = 0.0
-                for i in range(n):
-                    Y[b, i] = Ysave[i]
-                for sidx in range(nsub):
-                    if n == 0:
-                        break
-                    # sub-steps restart the command lag from its exact value at their start
-                    good, err = _sdirk_step(nq, nd, A, BF, Bw, Cx, Dx, Cv, Dv, Da,
-                                            P[b], Y[b], u0, vk, etab, w0, w1, sidx * h, h, dt, atol, rtol,
-                                            max_iter, ws, F, f1, fz, ftmp, G, M, piv, R, Z1, Z2, est, u1, u2, Mh)
-                    if not good:
-                        ok = False
-                        break
-                    if err > worst:
-                        worst = err
-                if ok and (worst <= 1.0 or nsub >= max_substeps):
+    Y, U (effective commands) and Fz (forces) are updated in place. Returns (status, sub-steps used, sub-steps
+    to start the next step with: half as many when the error estimate says that twice the sub-step — eight times
+    the local error of this order-2 method — would still pass, else as many)."""
+    nd = C.shape[1]
+    n = Y.shape[0]
+    Vn, Vd, Vx, K, Iw, Jd = workspace_views(wf, wi, C.shape[2], nd, n, D.shape[2])
+    Ysave = Vn[5]
+    Fsave = Vd[6]
+    u0 = Vd[7]
+    for i in range(n):
+        Ysave[i] = Y[i]
+    for j in range(nd):
+        u0[j] = U[j]
+        Fsave[j] = Fz[j]
+    level = 0
+    k = max(1, nsub)
+    while k > 1:
+        k //= 2
+        level += 1
+    while True:
+        m = 1 << level
+        h = dt / m
+        ok = True
+        worst = 0.0
+        for i in range(n):
+            Y[i] = Ysave[i]
+        for j in range(nd):
+            Fz[j] = Fsave[j]
+        if n > 0:
+            for sidx in range(m):
+                # sub-steps restart the command lag from its exact value at their start
+                good, err = sdirk_step(C, D, Ainv[level], Bbar[level], Mq[level], PP[level], P, Y, Fz, u0, v,
+                                       eta, w0, w1, sidx * h, h, dt, atol, rtol, level, wf, wi)
+                if not good:
+                    ok = False
                     break
-                if nsub >= max_substeps:
-                    for i in range(n):
-                        Y[b, i] = Ysave[i]
-                    return NO_CONVERGENCE, b, k
-                nsub *= 2
-            # exact command lag over the whole step
-            for j in range(nd):
-                U[b, j] = vk[j] + (u0[j] - vk[j]) * math.exp(-etab[j] * dt)
-            _eval(nq, nd, A, BF, Bw, Cx, Dx, Cv, Dv, Da, P[b], Y[b], U[b], w1, F, fz)
-            for j in range(nd):
-                F_out[b, k, j] = F[j]
-                if not math.isfinite(F[j]):
-                    return NONFINITE, b, k
+                if err > worst:
+                    worst = err
+        if ok and (worst <= 1.0 or level >= max_level):
+            break
+        if level >= max_level:
             for i in range(n):
-                Y_out[b, k, i] = Y[b, i]
-                if not math.isfinite(Y[b, i]):
-                    return NONFINITE, b, k
-            nsub_out[b, k] = nsub
-    return OK, -1, -1
+                Y[i] = Ysave[i]
+            for j in range(nd):
+                Fz[j] = Fsave[j]
+            return NO_CONVERGENCE, m, m
+        level += 1
+    # exact command lag over the whole step, then the forces at its end
+    for j in range(nd):
+        U[j] = v[j] + (u0[j] - v[j]) * math.exp(-eta[j] * dt)
+    status = end_forces(C, D, P, Y, U, w1, Fz, Vd)
+    used = 1 << level
+    return status, used, (used // 2 if (level > 0 and 8.0 * worst < 0.8) else used)
+
+
+@nb.njit(inline='always')
+def end_forces(C, D, P, Y, U, w, Fz, Vd):
+    """Forces Fz of one system at its current state and input w; NONFINITE if a state or force is not
+    finite."""
+    nd = C.shape[1]
+    nq = C.shape[2]
+    xs = Vd[2]
+    vs = Vd[3]
+    As = Vd[4]
+    kinematics(C, D, Y, w, xs, vs, As)
+    for j in range(nd):
+        o = nq + j * ns
+        Fz[j] = force(P[j], Y[o:o + ns], xs[j], vs[j], As[j], U[j])
+        if not math.isfinite(Fz[j]):
+            return NONFINITE
+    for i in range(Y.shape[0]):
+        if not math.isfinite(Y[i]):
+            return NONFINITE
+    return OK

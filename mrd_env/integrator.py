@@ -12,10 +12,17 @@ model, on a fixed grid (dt = 1 ms by default)::
 The command lag is integrated exactly (an exponential). The plant and damper states are advanced together
 (no lagged coupling) by the two-stage, stiffly accurate, L-stable SDIRK method of Alexander (1977),
 γ = 1 − 1/√2, order 2: the Bouc–Wen variable's Jacobian reaches |∂ż/∂z| ≈ 2(β+γ) z_s |ẋ−ẏ| (≈ 10⁴ s⁻¹
-at 0.1 m/s for the prototype damper), which makes explicit schemes unstable at 1 ms. Each stage is solved
-by Newton's method with a finite-difference Jacobian; after every step the model's ``project`` puts the
-states back in their invariant set (z within ±z_s), which stage values may leave. The exogenous input w
-is interpolated linearly inside a step.
+at 0.1 m/s for the prototype damper), which makes explicit schemes unstable at 1 ms.
+
+Each stage equation Z = R + hγ f(Z) is solved with the structure of the system: the plant is linear, so
+its part is eliminated exactly, q = (I − hγA)⁻¹(R_q + hγ B_w w) + M_q F with M_q = hγ(I − hγA)⁻¹B_F (matrices
+computed once per sub-step length, :meth:`SystemMatrices.levels`); what is left is Newton's method on each
+damper's internal states and force, nd·(ns + 1) unknowns (3 for a Spencer–Dyke damper), with the damper's
+analytic derivatives (``DamperModel.partials``) or, for models without them, forward differences of the
+damper's own functions (see ``_kernel_template.py``, where everything is inlined into one compiled function
+per driver). After every step the model's ``project`` puts the states back in their invariant set
+(z within ±z_s), which stage values may leave, and switches discrete modes. The exogenous input w is
+interpolated linearly inside a step.
 
 Accuracy control: each step of ``dt`` is split into 2^k equal sub-steps. Starting from half the previous
 step's count, the count doubles (up to ``max_substeps``) until an a-posteriori estimate of the local error
@@ -33,6 +40,7 @@ import importlib.util
 import inspect
 import math
 import os
+import re
 import sys
 import tempfile
 from pathlib import Path
@@ -114,40 +122,75 @@ def _kernel_dir() -> Path:
 
 def _kernel_source(model_cls) -> tuple[str, str]:
     fns = {"rhs": model_cls.rhs, "force": model_cls.force_law, "project": model_cls.project}
-    header = "".join(f"from {f.py_func.__module__} import {f.py_func.__name__} as {name}\n" for name, f in fns.items())
+    analytic = getattr(model_cls, "partials", None)
+    if analytic is not None:
+        fns["partials"] = analytic
+    # the model's functions are compiled again inline: one function per step, no calls in the Newton loop
+    header = "".join(f"from {f.py_func.__module__} import {f.py_func.__name__} as _{name}_dispatcher\n"
+                     f"{name} = nb.njit(inline='always')(_{name}_dispatcher.py_func)\n" for name, f in fns.items())
+    header = "import numba as nb\n" + header
     header += f"ns = {len(model_cls.state_names)}\n"
-    template = Path(__file__).with_name("_kernel_template.py").read_text()
-    # the key covers the template and every damper module, so an edited model never meets a stale kernel
-    h = hashlib.sha256((header + template).encode())
-    h.update(Path(__file__).read_bytes())  # the LU helpers the kernel calls live here
-    for f in sorted(Path(__file__).with_name("dampers").glob("*.py")):
-        h.update(f.read_bytes())
-    for f in fns.values():
-        h.update(Path(inspect.getsourcefile(f.py_func)).read_bytes())
-    return header + template, h.hexdigest()[:16]
+    from .driver import layout_source
+
+    here = Path(__file__).parent
+    template = ((here / "_kernel_template.py").read_text() + "\n\n" + layout_source() + "\n\n"
+                + (here / "_driver_template.py").read_text())
+    footer = "" if analytic is not None else "\npartials = fd_partials  # the model has no analytic derivatives\n"
+    # the key covers the template, this module (the LU helpers the kernel calls live here) and the model's own
+    # modules, so an edited model never meets a stale kernel and editing one model recompiles only its kernel
+    h = hashlib.sha256((header + template + footer).encode())
+    h.update(Path(__file__).read_bytes())
+    h.update((here / "driver.py").read_bytes())
+    for module in sorted(_model_modules(model_cls)):
+        h.update(Path(module).read_bytes())
+    return header + template + footer, h.hexdigest()[:16]
 
 
-def kernel_for(model_cls):
-    """The compiled ``advance`` (see ``_kernel_template.py``) for a damper model class.
+def _model_modules(model_cls) -> set[str]:
+    """Source files of the model's class and of every function its kernel calls, followed through the imports of
+    the damper package (e.g. the shared Bouc–Wen hysteresis)."""
+    files = {inspect.getsourcefile(model_cls)}
+    pkg = Path(__file__).with_name("dampers")
+    todo = list(files)
+    while todo:
+        text = Path(todo.pop()).read_text(encoding="utf-8")
+        for name in re.findall(r"^from \.(\w+) import", text, flags=re.M):
+            f = str(pkg / f"{name}.py")
+            if f not in files and Path(f).exists():
+                files.add(f)
+                todo.append(f)
+    return files
+
+
+def kernel_module(model_cls):
+    """The compiled module of a damper model class (``advance``, ``macro_step``, ... of
+    ``_kernel_template.py``).
 
     Built once per process from a generated module whose numba compilation is cached on disk, so a new
-    process loads it instead of compiling again (about 5 s per model).
+    process loads it instead of compiling again.
     """
-    k = _KERNELS.get(model_cls)
-    if k is None:
-        src, key = _kernel_source(model_cls)
-        mod_name = f"mrd_env_kernel_{model_cls.name}_{key}"
-        path = _kernel_dir() / f"{mod_name}.py"
-        if not path.exists() or path.read_text() != src:
-            tmp = path.with_suffix(f".{os.getpid()}.tmp")
-            tmp.write_text(src)
-            os.replace(tmp, path)  # atomic: concurrent processes never see half a file
-        spec = importlib.util.spec_from_file_location(mod_name, path)
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[mod_name] = module
-        spec.loader.exec_module(module)
-        k = _KERNELS[model_cls] = module.advance
-    return k
+    module = _KERNELS.get(model_cls)
+    if module is None:
+        module = _KERNELS[model_cls] = load_generated_module(f"mrd_env_kernel_{model_cls.name}",
+                                                             *_kernel_source(model_cls))
+    return module
+
+
+def load_generated_module(prefix: str, source: str, key: str):
+    """Write ``source`` as ``<prefix>_<key>.py`` in the kernel cache folder (if needed) and import it."""
+    mod_name = f"{prefix}_{key}"
+    if mod_name in sys.modules:
+        return sys.modules[mod_name]
+    path = _kernel_dir() / f"{mod_name}.py"
+    if not path.exists() or path.read_text() != source:
+        tmp = path.with_suffix(f".{os.getpid()}.tmp")
+        tmp.write_text(source)
+        os.replace(tmp, path)  # atomic: concurrent processes never see half a file
+    spec = importlib.util.spec_from_file_location(mod_name, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[mod_name] = module
+    spec.loader.exec_module(module)
+    return module
 
 
 class SystemMatrices:
@@ -174,6 +217,7 @@ class SystemMatrices:
         self.Cv = mat(Cv, (nd, nq))
         self.Dv = mat(Dv, (nd, nw))
         self.Da = mat(Da, (nd, nw))
+        self._levels: dict = {}
 
     @classmethod
     def displacement_driven(cls) -> "SystemMatrices":
@@ -181,60 +225,149 @@ class SystemMatrices:
         e = np.eye(3)
         return cls(nd=1, nw=3, Dx=e[0:1], Dv=e[1:2], Da=e[2:3])
 
+    @property
+    def C(self) -> np.ndarray:
+        """[C_x, C_v] stacked (2, nd, nq), as the kernel takes them."""
+        return np.ascontiguousarray(np.stack([self.Cx, self.Cv]))
+
+    @property
+    def D(self) -> np.ndarray:
+        """[D_x, D_v, D_a] stacked (3, nd, nw)."""
+        return np.ascontiguousarray(np.stack([self.Dx, self.Dv, self.Da]))
+
+    def levels(self, dt: float, max_level: int) -> tuple[np.ndarray, ...]:
+        """The plant's elimination matrices for the sub-step lengths h = dt/2^k, k = 0..max_level, stacked
+        along the first axis: (I − hγA)⁻¹, hγ(I − hγA)⁻¹B_w, M_q = hγ(I − hγA)⁻¹B_F and [C_x M_q, C_v M_q]."""
+        key = (float(dt), int(max_level))
+        hit = self._levels.get(key)
+        if hit is None:
+            nq, nd, nw = self.nq, self.nd, self.nw
+            L = max_level + 1
+            Ainv, Bbar, Mq = np.zeros((L, nq, nq)), np.zeros((L, nq, nw)), np.zeros((L, nq, nd))
+            PP = np.zeros((L, 2, nd, nd))
+            for k in range(L):
+                c = GAMMA * dt / 2 ** k
+                inv = np.linalg.inv(np.eye(nq) - c * self.A) if nq else np.zeros((0, 0))
+                Ainv[k] = inv
+                Bbar[k] = c * inv @ self.Bw
+                Mq[k] = c * inv @ self.BF
+                PP[k, 0] = self.Cx @ Mq[k]
+                PP[k, 1] = self.Cv @ Mq[k]
+            hit = self._levels[key] = tuple(np.ascontiguousarray(a) for a in (Ainv, Bbar, Mq, PP))
+        return hit
+
+
+def max_level_of(max_substeps: int) -> int:
+    """k such that 2^k is the first power of two >= ``max_substeps``."""
+    return max(0, int(math.ceil(math.log2(max_substeps) - 1e-12)))
+
 
 class Stepper:
-    """Preallocated stepping of a batch of N systems for ``n_steps`` steps per call (environments).
+    """A batch of N systems advanced ``n_steps`` steps of ``dt`` per call, each step with its own command (the
+    rig and identification; environments use :class:`~mrd_env.driver.Driver` directly).
 
-    Holds the states ``Y`` (N, n) and effective commands ``U`` (N, nd); :meth:`step` advances them and
-    returns the per-step forces (N, n_steps, nd) and states (N, n_steps, n) as views of internal buffers
-    (copy them to keep them past the next call).
+    ``Y`` (N, n) and ``U`` (N, nd) are the states and effective commands (assign to set them); :meth:`step`
+    advances them and returns the per-step forces (N, n_steps, nd) and states (N, n_steps, n) as views of
+    internal buffers (copy them to keep them past the next call).
     """
 
     def __init__(self, damper, system: SystemMatrices, N: int, n_steps: int, dt: float, *, P=None,
                  max_substeps: int = 8, rtol: float = 1e-2, atol: float = 1e-5):
-        from .validation import check_scalar
+        from .driver import HIST_FULL, Driver, Processing
 
         self.damper = damper
         self.system = system
-        self.dt = check_scalar("dt", dt, 0.0, lo_open=True, unit="s")
-        self.max_substeps = int(check_scalar("max_substeps", max_substeps, 1, 4096))
-        self.rtol = check_scalar("rtol", rtol, 0.0, lo_open=True)
-        self.atol = check_scalar("atol", atol, 0.0, lo_open=True)
-        nd = system.nd
+        nd, nw = system.nd, system.nw
         n = system.nq + nd * damper.n_states
-        p = damper.params.as_array()
-        # writable C-contiguous copies: numba compiles a separate kernel for read-only arrays
-        self.P = np.array(np.broadcast_to(p, (N, nd, p.size)) if P is None else P, dtype=np.float64, order="C")
-        self.eta = np.full((N, nd), damper.command.eta)
+        # the commands ride along as extra input channels that the plant ignores
+        with_commands = SystemMatrices(nd, nw + nd, A=system.A if system.nq else None, BF=system.BF,
+                                       Bw=np.hstack([system.Bw, np.zeros((system.nq, nd))]),
+                                       Cx=system.Cx, Cv=system.Cv,
+                                       **{k: np.hstack([getattr(system, k), np.zeros((nd, nd))])
+                                          for k in ("Dx", "Dv", "Da")})
+        G = np.zeros((nd + n, n + nd + nw + nd))
+        G[:nd, n:n + nd] = np.eye(nd)  # rows: the forces, then the states
+        G[nd:, :n] = np.eye(n)
+        self.driver = Driver(damper, with_commands, N, Processing(G=G, history_mode=HIST_FULL, command_input=nw),
+                             dt=dt, n_sub=n_steps, v_range=(-math.inf, math.inf), P=P,
+                             max_substeps=max_substeps, rtol=rtol, atol=atol)
+        self.dt = self.driver.dt
+        self.max_substeps = self.driver.max_substeps
+        self.N, self.n_steps, self.n, self.nd, self.nw = N, n_steps, n, nd, nw
         self.Y = np.zeros((N, n))
-        self.U = np.zeros((N, nd))
-        self.F_out = np.zeros((N, n_steps, nd))
-        self.Y_out = np.zeros((N, n_steps, n))
-        self.nsub = np.zeros((N, n_steps), dtype=np.int64)
-        self._kernel = kernel_for(type(damper))
-        s = system
-        self._mats = (s.A, s.BF, s.Bw, s.Cx, s.Dx, s.Cv, s.Dv, s.Da)
+        self.Y[:, system.nq:] = np.tile(damper.initial_state(), nd)
+        self.U = np.full((N, nd), damper.command.v_min)
         self.t = 0.0
+        self._started = False
+
+    @property
+    def eta(self) -> np.ndarray:
+        """The command lag rates (N, nd), per system (assign to change them)."""
+        return self.driver.state("ETA")
+
+    @property
+    def P(self) -> np.ndarray:
+        """The damper parameters (N, nd, n_params) of every system."""
+        return self.driver.state("P").reshape(self.N, self.nd, -1)
 
     def step(self, V: np.ndarray, W: np.ndarray):
-        """Advance by ``V.shape[1]`` steps with commands V (N, n_steps, nd) and inputs W (N, n_steps+1, nw)."""
-        status, b, k = self._kernel(*self._mats, self.P, self.eta, self.Y, self.U, V, W, self.dt,
-                                    self.max_substeps, self.rtol, self.atol, self.F_out, self.Y_out, self.nsub)
-        if status != OK:
-            self._fail(status, b, k)
-        self.t += V.shape[1] * self.dt
-        return self.F_out, self.Y_out
+        """Advance by ``n_steps`` steps with commands V (N, n_steps, nd) and inputs W (N, n_steps+1, nw); raise
+        :class:`~mrd_env.errors.SimulationDivergedError` if a system diverges."""
+        F, Y, ok = self.advance(V, W)
+        if not ok.all():
+            b = int(np.flatnonzero(~ok)[0])
+            reason, t_fail = self.driver.failure(b)
+            raise diverged_error(self.damper.name, reason, self.t - self.n_steps * self.dt + t_fail, b,
+                                 self.max_substeps)
+        return F, Y
 
-    def _fail(self, status, b, k):
-        from .errors import SimulationDivergedError
+    def advance(self, V: np.ndarray, W: np.ndarray):
+        """As :meth:`step`, without raising: (F, Y, ok) with ok[b] False for a system that diverged (its rows
+        from the failure on are not meaningful)."""
+        from .driver import DIVERGED, RUNNING
 
-        t_fail = self.t + (k + 1) * self.dt
-        name = self.damper.name
-        why = ("a non-finite state" if status == NONFINITE else
-               f"no convergence of the implicit step even with {self.max_substeps} sub-steps")
-        raise SimulationDivergedError(
-            f"damper model {name!r}: {why} at t = {t_fail:.6g} s (batch index {b}); "
-            "check the parameters and the input amplitude", model=name, time=t_fail, index=b)
+        d = self.driver
+        N, k, nd = self.N, self.n_steps, self.nd
+        Wc = np.empty((N, k + 1, self.nw + nd))
+        Wc[:, :, :self.nw] = W
+        Wc[:, :k, self.nw:] = V
+        Wc[:, k, self.nw:] = V[:, -1]
+        d.set_inputs(Wc, 1, history_rows=k + 1)
+        if not self._started or self._dirty():
+            d.reset(Y0=self.Y, U0=self.U)
+            self._started = True
+        else:
+            d.int_state("K")[:] = 0
+            d.int_state("STATUS")[:] = RUNNING
+            d.int_state("SUBSTEPS")[:] = 0
+        d.step(np.zeros(0))
+        ok = d.int_state("STATUS") != DIVERGED
+        self.Y = d.state("Y")
+        self.U = d.state("U")
+        self._seen = (self.Y.copy(), self.U.copy())
+        self.t += k * self.dt
+        H = d.H
+        return H[:, 1:, :nd], H[:, 1:, nd:], ok
+
+    def substeps(self) -> np.ndarray:
+        """Mean sub-steps per step of each system over the last call."""
+        return self.driver.int_state("SUBSTEPS") / self.n_steps
+
+    def _dirty(self) -> bool:
+        """True if Y or U were assigned since the last step (the driver must start again from them)."""
+        seen = getattr(self, "_seen", None)
+        return seen is None or not (np.array_equal(seen[0], self.Y) and np.array_equal(seen[1], self.U))
+
+
+def diverged_error(name: str, status: int, t_fail: float, index: int, max_substeps: int):
+    """The :class:`~mrd_env.errors.SimulationDivergedError` of a failed step (status NONFINITE/NO_CONVERGENCE)."""
+    from .errors import SimulationDivergedError
+
+    why = ("a non-finite state" if status == NONFINITE else
+           f"no convergence of the implicit step even with {max_substeps} sub-steps")
+    return SimulationDivergedError(
+        f"damper model {name!r}: {why} at t = {t_fail:.6g} s (batch index {index}); "
+        "check the parameters and the input amplitude", model=name, time=t_fail, index=index)
 
 
 def run(damper, system: SystemMatrices, Y, U, V, W, dt: float, *, t0: float = 0.0, P=None,
@@ -243,8 +376,8 @@ def run(damper, system: SystemMatrices, Y, U, V, W, dt: float, *, t0: float = 0.
 
     ``damper`` is a :class:`~mrd_env.dampers.DamperModel`; Y (N, n) and U (N, nd) are updated in place;
     V (N, n_steps, nd) commands, W (N, n_steps + 1, nw) inputs; ``P`` overrides the parameter vector per
-    system and damper (N, nd, n_params). Returns (F (N, n_steps, nd), Y history (N, n_steps, n),
-    sub-steps used (N, n_steps)).
+    system and damper (N, nd, n_params). Returns (F (N, n_steps, nd), Y history (N, n_steps, n), mean sub-steps
+    per step (N,)).
     """
     V = np.array(V, dtype=np.float64, order="C")
     W = np.array(W, dtype=np.float64, order="C")
@@ -254,6 +387,8 @@ def run(damper, system: SystemMatrices, Y, U, V, W, dt: float, *, t0: float = 0.
     st = Stepper(damper, system, N, n_steps, dt, P=P, max_substeps=max_substeps, rtol=rtol, atol=atol)
     if Y.shape != st.Y.shape or U.shape != st.U.shape:
         raise ValueError(f"Y and U must have shapes {st.Y.shape} and {st.U.shape}, got {Y.shape} and {U.shape}")
-    st.Y, st.U, st.t = Y, U, t0
-    st.step(V, W)
-    return st.F_out, st.Y_out, st.nsub
+    st.Y, st.U, st.t = np.array(Y, dtype=np.float64), np.array(U, dtype=np.float64), t0
+    F, Yh = st.step(V, W)
+    Y[...] = st.Y
+    U[...] = st.U
+    return F, Yh, st.substeps()

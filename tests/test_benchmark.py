@@ -50,7 +50,7 @@ def test_benchmark_reports_are_well_formed_and_reproducible(tmp_path):
 
 def test_quarter_car_benchmark_with_seeded_roads(tmp_path):
     sc = [Scenario("ISO-C 1 s", "mrd_env/QuarterCar-v0",
-                   dict(road="iso8608", road_params={"road_class": "C", "speed": 20.0}, episode_seconds=1.0), seed=3)]
+                   dict(road="iso8608", road_params={"road_class": "C", "speed": 20.0}, episode_seconds=1.0), seeds=(3,))]
     eps = run_benchmark("quarter_car", ["passive_off", "skyhook_on_off", "groundhook"], sc, out=tmp_path,
                         progress=False)
     assert eps[-1].controller.startswith("passive_ref")
@@ -70,7 +70,7 @@ def test_agent_and_classical_controllers_share_the_loop():
             return np.array([1.0], dtype=np.float32), state
 
     ep = evaluate(AgentController(env, Constant(), name="const"), env, 0, "drift")
-    assert ep.metrics and len(ep.t) == 300
+    assert ep.metrics and len(ep.t) == 300 and np.isfinite(ep.episode_return)
     assert make_controller("passive_on", env).predict(np.zeros(env.observation_space.shape))[0][0] == 2.25
 
 
@@ -107,3 +107,18 @@ def test_model_based_estimate_stays_at_rest_despite_the_damper_preload():
     for _ in range(700):
         obs, *_ = env.step(co.predict(obs)[0])
     assert np.max(np.abs(co.kf.x)) < 1e-9
+
+
+def test_a_vector_environment_scores_every_seed_as_scalar_episodes_would():
+    """The benchmark's batched evaluation (one vector env, one row per seed) gives each seed the metrics and
+    return of a scalar episode with that seed."""
+    from experiments.benchmark import evaluate_batch
+
+    sc = Scenario("KT", "mrd_env/ShearBuilding-v0", dict(ground_motion="kanai_tajimi", episode_seconds=0.6),
+                  seeds=(4, 5, 6))
+    sensors = ("abs_acc", "drift", "damper_force", "damper_velocity", "ground_acc")
+    batch = evaluate_batch(lambda v: make_controller("clipped_optimal", v), sc, "drift", sensors=sensors)
+    for seed, ep in zip(sc.seeds, batch):
+        env = gym.make("mrd_env/ShearBuilding-v0", sensors=sensors, **sc.options)
+        single = evaluate(make_controller("clipped_optimal", env), env, seed, "drift")
+        assert ep.metrics == single.metrics and ep.episode_return == single.episode_return

@@ -1,5 +1,5 @@
 """Controllers: each law's command on hand-made observations (sign conventions), the designs against
-python-control/scipy, and clear errors for missing sensors."""
+python-control/scipy, clear errors for missing sensors and roles, and batches (one law, many environments)."""
 import types
 
 import control
@@ -11,29 +11,19 @@ from scipy.linalg import solve_continuous_are
 from controllers import (CONTROLLERS, ClippedOptimal, Groundhook, Hybrid, KalmanEstimator, LinearDesign, Lyapunov,
                          MaximumEnergyDissipation, ModulatedHomogeneousFriction, PassiveOff, PassiveOn,
                          SkyhookContinuous, SkyhookOnOff, make_controller)
-from mrd_env import make_damper
-from mrd_env.dampers import CommandSpec
-from mrd_env.plants import quarter_car, shear_building
+from mrd_env.envs import QuarterCarEnv, ShearBuildingEnv
 
 QC_SENSORS = ("sprung_acc", "travel", "travel_rate", "sprung_vel", "unsprung_vel", "damper_force")
 B_SENSORS = ("abs_acc", "damper_force", "ground_acc", "damper_stroke", "damper_velocity", "floor_vel")
 SIZES = {"abs_acc": 3, "floor_vel": 3, "drift": 3}
 
 
-def fake_env(sensors, building=False, normalized=False):
-    """A stand-in exposing what controllers read from ``env.unwrapped`` (layout, command, plant)."""
-    layout, i = [], 0
-    for s in sensors:
-        k = SIZES.get(s, 1) if building else 1
-        layout.append((s, slice(i, i + k), ""))
-        i += k
-    d = make_damper("spencer_dyke", "spencer1997" if building else "automotive")
-    plant = (shear_building("three_storey") if building else quarter_car("set_a")).plant()
-    low, high = (-1.0, 1.0) if normalized else (d.command.v_min, d.command.v_max)
-    return types.SimpleNamespace(
-        sensor_layout=layout, command_spec=d.command, damper=d, linear_plant=plant, control_dt=1e-3,
-        action_space=gym.spaces.Box(low, high, (1,), np.float32), action_mode="normalized" if normalized else "physical",
-        plant_params=shear_building("three_storey") if building else quarter_car("set_a"), n_obs=i)
+def make_env(sensors, building=False, normalized=False):
+    """A real environment (its plant, damper and declarations) with the given sensors; no episode is run."""
+    mode = "normalized" if normalized else "physical"
+    env = (ShearBuildingEnv if building else QuarterCarEnv)(sensors=sensors, action_mode=mode)
+    env.n_obs = env.observation_space.shape[0]
+    return env
 
 
 def obs(env, **values):
@@ -44,11 +34,16 @@ def obs(env, **values):
     return o
 
 
+def u_of(ctrl, o):
+    """The physical command of one observation (the environments here use physical actions)."""
+    return ctrl.predict(o)[0][0]
+
+
 def test_passive_laws_and_action_modes():
-    env = fake_env(QC_SENSORS)
+    env = make_env(QC_SENSORS)
     assert PassiveOff(env).predict(obs(env))[0] == pytest.approx([0.0])
     assert PassiveOn(env).predict(obs(env))[0] == pytest.approx([2.0])
-    envn = fake_env(QC_SENSORS, normalized=True)
+    envn = make_env(QC_SENSORS, normalized=True)
     assert PassiveOff(envn).predict(obs(envn))[0] == pytest.approx([-1.0])
     assert PassiveOn(envn).predict(obs(envn))[0] == pytest.approx([1.0])
     a, state = PassiveOn(env).predict(obs(env))
@@ -58,57 +53,60 @@ def test_passive_laws_and_action_modes():
 @pytest.mark.parametrize("zs,vrel,on", [(0.3, 0.1, True), (0.3, -0.1, False), (-0.3, -0.1, True), (-0.3, 0.1, False)])
 def test_skyhook_sign_convention(zs, vrel, on):
     """Skyhook: damper force −F on the body; F resists extension v_rel. Full command iff ż_s·v_rel ≥ 0."""
-    env = fake_env(QC_SENSORS)
+    env = make_env(QC_SENSORS)
     u = SkyhookOnOff(env).predict(obs(env, sprung_vel=zs, travel_rate=vrel))[0][0]
     assert u == pytest.approx(2.0 if on else 0.0)
-    uc = SkyhookContinuous(env, c_sky=2500.0, force_per_command=1000.0).command(obs(env, sprung_vel=zs, travel_rate=vrel))
-    assert uc[0] == pytest.approx(min(2.0, 2500 * abs(zs) / 1000.0) if on else 0.0)
+    uc = u_of(SkyhookContinuous(env, c_sky=2500.0, force_per_command=1000.0), obs(env, sprung_vel=zs, travel_rate=vrel))
+    assert uc == pytest.approx(min(2.0, 2500 * abs(zs) / 1000.0) if on else 0.0)
 
 
 @pytest.mark.parametrize("zu,vrel,on", [(0.3, -0.1, True), (0.3, 0.1, False), (-0.3, 0.1, True)])
 def test_groundhook_sign_convention(zu, vrel, on):
-    env = fake_env(QC_SENSORS)
-    u = Groundhook(env).command(obs(env, unsprung_vel=zu, travel_rate=vrel))[0]
+    env = make_env(QC_SENSORS)
+    u = u_of(Groundhook(env), obs(env, unsprung_vel=zu, travel_rate=vrel))
     assert u == pytest.approx(2.0 if on else 0.0)
 
 
 def test_hybrid_reduces_to_skyhook_and_groundhook():
-    env = fake_env(QC_SENSORS)
+    env = make_env(QC_SENSORS)
     for zs, zu, v in [(0.2, -0.5, 0.1), (-0.2, 0.4, 0.3), (0.1, 0.1, -0.2)]:
         o = obs(env, sprung_vel=zs, unsprung_vel=zu, travel_rate=v)
-        assert Hybrid(env, alpha=1.0).command(o) == pytest.approx(SkyhookOnOff(env).command(o))
-        assert Hybrid(env, alpha=0.0).command(o) == pytest.approx(Groundhook(env).command(o))
+        assert u_of(Hybrid(env, alpha=1.0), o) == pytest.approx(u_of(SkyhookOnOff(env), o))
+        assert u_of(Hybrid(env, alpha=0.0), o) == pytest.approx(u_of(Groundhook(env), o))
 
 
 def test_energy_and_friction_laws():
-    env = fake_env(B_SENSORS, building=True)
+    env = make_env(B_SENSORS, building=True)
     med = MaximumEnergyDissipation(env)
-    assert med.command(obs(env, damper_force=500.0, damper_velocity=0.1))[0] == 2.25  # dissipating
-    assert med.command(obs(env, damper_force=500.0, damper_velocity=-0.1))[0] == 0.0
+    f0 = env.F_static  # the laws act on the force beyond the static preload
+    assert u_of(med, obs(env, damper_force=f0 + 500.0, damper_velocity=0.1)) == 2.25  # dissipating
+    assert u_of(med, obs(env, damper_force=f0 + 500.0, damper_velocity=-0.1)) == 0.0
     mhf = ModulatedHomogeneousFriction(env, gain=1e5)
-    mhf.command(obs(env, damper_stroke=0.004, damper_velocity=0.01))
+    u_of(mhf, obs(env, damper_stroke=0.004, damper_velocity=0.01))
     # velocity reverses at 5 mm: the extremum is 5 mm, so g|P| = 500 N
-    assert mhf.command(obs(env, damper_stroke=0.005, damper_velocity=-0.01, damper_force=400.0))[0] == 2.25
-    assert mhf.command(obs(env, damper_stroke=0.0045, damper_velocity=-0.01, damper_force=600.0))[0] == 0.0
+    assert u_of(mhf, obs(env, damper_stroke=0.005, damper_velocity=-0.01, damper_force=f0 + 400.0)) == 2.25
+    assert u_of(mhf, obs(env, damper_stroke=0.0045, damper_velocity=-0.01, damper_force=f0 + 600.0)) == 0.0
 
 
 def test_missing_sensors_raise_clear_error():
-    env = fake_env(("sprung_acc", "travel", "damper_force"))
+    env = make_env(("sprung_acc", "travel", "damper_force"))
     with pytest.raises(ValueError, match=r"SkyhookOnOff needs the sensor\(s\) \['sprung_vel', 'travel_rate'\]"):
         SkyhookOnOff(env)
     with pytest.raises(ValueError, match="unsprung_vel"):
         Groundhook(env)
     with pytest.raises(ValueError, match="damper_force"):
-        ClippedOptimal(fake_env(("sprung_acc", "travel")))
+        ClippedOptimal(make_env(("sprung_acc", "travel")))
     with pytest.raises(ValueError, match="unknown controller"):
         make_controller("nope", env)
+    with pytest.raises(ValueError, match=r"role\(s\) \['wheel_velocity'\]"):  # a building has no wheel
+        Groundhook(make_env(B_SENSORS, building=True))
 
 
 def test_clipped_optimal_lqr_gain_equals_python_control_and_riccati():
-    env = fake_env(B_SENSORS, building=True)
+    env = make_env(B_SENSORS, building=True)
     co = ClippedOptimal(env)
     d = LinearDesign(env)
-    Cz, Dz = d.regulated(env, co.weights)
+    Cz, Dz = d.regulated(co.weights)
     Q, R, N = Cz.T @ Cz, Dz.T @ Dz + np.eye(1) / 3000.0 ** 2, Cz.T @ Dz
     K_ref, _, _ = control.lqr(d.A, d.Bf, Q, R, N)
     assert np.allclose(co.K, K_ref, rtol=1e-9)
@@ -119,19 +117,20 @@ def test_clipped_optimal_lqr_gain_equals_python_control_and_riccati():
 
 
 def test_clipped_on_off_law():
-    env = fake_env(B_SENSORS, building=True)
+    env = make_env(B_SENSORS, building=True)
     co = ClippedOptimal(env)
-    co.desired_force = lambda x: np.array([800.0])
-    assert co.command(obs(env, damper_force=500.0))[0] == 2.25      # (f_c − f) f > 0: more force wanted
-    assert co.command(obs(env, damper_force=900.0))[0] == 0.0       # |f| already above f_c
-    assert co.command(obs(env, damper_force=-500.0))[0] == 0.0      # wrong direction
+    co.desired_force = lambda x: np.full((x.shape[0], 1), 800.0)
+    f0 = env.F_static
+    assert u_of(co, obs(env, damper_force=f0 + 500.0)) == 2.25      # (f_c − f) f > 0: more force wanted
+    assert u_of(co, obs(env, damper_force=f0 + 900.0)) == 0.0       # |f| already above f_c
+    assert u_of(co, obs(env, damper_force=f0 - 500.0)) == 0.0      # wrong direction
 
 
 def test_kalman_estimate_converges_on_the_linear_plant():
     """Simulate the discretised linear building with process and measurement noise from a wrong initial
     state: the filter's error settles far below the state's spread and far below the error of the same
     model run open loop (no measurement correction)."""
-    env = fake_env(B_SENSORS, building=True)
+    env = make_env(B_SENSORS, building=True)
     d = LinearDesign(env)
     C, D = d.output("abs_acc")
     kf = KalmanEstimator(d, C, D, 1e-3, process_noise=1.0, measurement_noise=np.full(3, 0.05 ** 2))
@@ -143,7 +142,7 @@ def test_kalman_estimate_converges_on_the_linear_plant():
         f = np.array([200.0 * np.sin(2 * np.pi * 3 * k * 1e-3)])
         w = rng.normal(0, 1.0, 1)
         y = C @ x + D @ f + rng.normal(0, 0.05, 3)
-        xh = kf.update(y, f)
+        xh = kf.update(y[None], f[None])[0]
         errs.append(np.linalg.norm(xh - x))
         errs_open.append(np.linalg.norm(x_open - x))
         xs.append(np.linalg.norm(x))
@@ -155,16 +154,37 @@ def test_kalman_estimate_converges_on_the_linear_plant():
 
 
 def test_lyapunov_law_sign():
-    env = fake_env(B_SENSORS, building=True)
+    env = make_env(B_SENSORS, building=True)
     ly = Lyapunov(env)
     d = ly.design
     x = np.zeros(d.n)
     x[3] = 0.1  # floor 1 moving up (relative): V decreases if the damper pushes against it
-    ly.estimate = lambda o: (x, np.array([300.0]))
+    ly.estimate = lambda o: (x[None], np.array([[300.0]]))
     # −xᵀ P B_f f = −(P B_f)[3]·0.1·300; B_f = −M⁻¹Sᵀ pushes floor 1 down for f > 0 → V decreases → on
-    assert ly.command(obs(env))[0] == 2.25
+    assert u_of(ly, obs(env)) == 2.25
 
 
 def test_registry_lists_every_law():
     assert {"passive_off", "passive_on", "skyhook_on_off", "skyhook_continuous", "groundhook", "hybrid",
             "clipped_optimal", "lyapunov", "max_energy_dissipation", "modulated_friction"} <= set(CONTROLLERS)
+
+
+@pytest.mark.parametrize("name", sorted(CONTROLLERS))
+def test_a_batch_gives_each_row_what_it_alone_would_get(name):
+    """predict on a batch (N, n_obs) equals predict row by row with separate controllers, memory included;
+    episode_start clears the memory of the rows that start again."""
+    building = name in ("lyapunov", "max_energy_dissipation", "modulated_friction")
+    sensors = B_SENSORS if building else QC_SENSORS + ("unsprung_vel",) if "unsprung_vel" not in QC_SENSORS \
+        else QC_SENSORS
+    env = make_env(sensors, building=building)
+    rng = np.random.default_rng(0)
+    batch = make_controller(name, env)
+    singles = [make_controller(name, env) for _ in range(3)]
+    for k in range(20):
+        O = rng.normal(0, 1, (3, env.n_obs)) * np.where(np.arange(env.n_obs) % 2, 1.0, 100.0)
+        start = np.array([k == 10, False, False])
+        a, _ = batch.predict(O, episode_start=start)
+        for i, c in enumerate(singles):
+            if start[i]:
+                c.reset()
+            np.testing.assert_array_equal(a[i], c.predict(O[i])[0])

@@ -14,7 +14,7 @@ import mrd_env
 from mrd_env.dampers import available_dampers, make_damper
 from mrd_env.disturbances import Record, sine_sweep
 from mrd_env.envs import QuarterCarEnv, ShearBuildingEnv, register_envs
-from mrd_env.errors import SimulationDivergedError
+from mrd_env.driver import DIVERGED
 from mrd_env.metrics import weighting_sos
 from mrd_env.plants import ShearBuildingParams
 
@@ -115,9 +115,9 @@ def test_unwrapped_exposes_design_data():
     for _ in range(300):
         obs, *_ = env.step(2.0)
     m = env.output_matrices()
-    q = env._stepper.Y[0, : 2 * env.linear_plant.n_dof]
+    q = env.plant_state
     F = env.signal("damper_force")[-1]
-    w = env.record.data[env._row - 1]
+    w = env.record.data[env.signal("damper_force").shape[0] - 1]
     pred = m["C"] @ q + m["D_F"] @ F + m["D_w"] @ w + m["d0"]
     np.testing.assert_allclose(pred[m["mask"]], obs[m["mask"]], rtol=1e-5, atol=1e-4)
     assert not m["mask"][-1]  # the command row is not a plant output
@@ -189,9 +189,9 @@ def test_el_centro_reused_across_episodes():
     ({"sensors": ("travel", "travel")}, "must not repeat"),
     ({"plant_params": {"m_s": -300.0}}, "m_s"),
     ({"plant_preset": "set_z"}, "unknown quarter-car preset"),
-    ({"road": "cobbles"}, "road must be one of"),
+    ({"road": "cobbles"}, "road: unknown kind 'cobbles'"),
     ({"road_params": {"road_class": "Z"}}, "road_class"),
-    ({"road_params": {"colour": "red"}}, "unknown key"),
+    ({"road_params": {"colour": "red"}}, r"unknown option\(s\) \['colour'\]"),
     ({"control_dt": 0.0025}, "control_dt must be an integer multiple of dt"),
     ({"action_mode": "fuzzy"}, "action_mode must be"),
     ({"sensor_delay": -1}, "sensor_delay"),
@@ -282,17 +282,17 @@ def test_out_of_box_actions_are_clipped():
     env.reset(seed=0)
     for a, applied in ((10.0, cs.v_max), (-3.0, cs.v_min), ([1.25], 1.25), (np.float32(0.5), 0.5)):
         obs, _, _, _, info = env.step(a)
-        assert info["command"][0] == pytest.approx(applied, abs=1e-7)
+        assert env.command[0] == pytest.approx(applied, abs=1e-7)
         assert obs[1] == pytest.approx(applied, abs=1e-6)
     env = QuarterCarEnv(action_mode="normalized", **SHORT)
     env.reset(seed=0)
     for a, applied in ((5.0, cs.v_max), (-1.5, cs.v_min), (0.0, 0.5 * (cs.v_min + cs.v_max)), (-1.0, cs.v_min)):
-        _, _, _, _, info = env.step(np.array([a], dtype=np.float32))
-        assert info["command"][0] == pytest.approx(applied, abs=1e-7)
+        env.step(np.array([a], dtype=np.float32))
+        assert env.command[0] == pytest.approx(applied, abs=1e-7)
     env = ShearBuildingEnv(damper_floors=(1, 2), **SHORT)
     env.reset(seed=0)
-    _, _, _, _, info = env.step(np.array([9.0, -9.0]))
-    np.testing.assert_array_equal(info["command"], [2.25, 0.0])
+    env.step(np.array([9.0, -9.0]))
+    np.testing.assert_array_equal(env.command, [2.25, 0.0])
 
 
 def test_command_is_held_over_the_control_period():
@@ -341,7 +341,10 @@ def test_online_comfort_filter_matches_sosfilt():
     _run(env, 0.8, seed=2)
     acc = env.signal("sprung_acc")[:, 0]
     offline = scipy.signal.sosfilt(weighting_sos("Wk", env.dt), acc)
-    np.testing.assert_allclose(env._H[: env._row, env._fout], offline, rtol=0, atol=1e-12)
+    online = env.signal("sprung_acc_wk")[:, 0]
+    # the online filter starts at the first step (row 0 is the state at rest before it)
+    np.testing.assert_allclose(online[1:], scipy.signal.sosfilt(weighting_sos("Wk", env.dt), acc[1:]), rtol=0,
+                               atol=1e-12)
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -351,10 +354,10 @@ def test_quarter_car_reward_definition():
     env = QuarterCarEnv(episode_seconds=0.2, control_dt=0.004, reward_weights={"travel": 2.0})
     _, rewards, _, trunc, info = _run(env, 0.6, seed=4)
     assert trunc
-    aw = env._H[: env._row, env._fout]
+    aw = env.signal("sprung_acc_wk")[:, 0]
     x = env.signal("travel")[:, 0]
     ft = env.signal("_tyre_load")[:, 0]
-    per_sample = aw ** 2 + 2.0 * (x / 0.05) ** 2 + (ft / env.static_tyre_load) ** 2
+    per_sample = aw ** 2 + 2.0 * (x / 0.05) ** 2 + (ft / env.plant_params.static_tyre_load) ** 2
     expected = -per_sample[1:].reshape(-1, 4).mean(axis=1)
     np.testing.assert_allclose(rewards, expected, rtol=1e-12)
 
@@ -386,13 +389,21 @@ def test_divergence_terminates_with_last_finite_observation():
     obs0, _ = env.reset(seed=0)
     obs1, *_ = env.step(0.5)
 
-    def boom(V, W):
-        raise SimulationDivergedError("damper model 'x': a non-finite state at t = 0.002 s", model="x")
+    d = env.core.driver
+    kernel_step = env._kstep
 
-    env._stepper.step = boom
+    def boom(*args):  # the compiled step reports a non-finite state at the third physics step
+        d.int_state("STATUS")[0] = DIVERGED
+        d.int_state("REASON")[0] = 1
+        d.int_state("FAIL_STEP")[0] = 2
+        return DIVERGED
+
+    env._kstep = boom
     obs2, r, term, trunc, info = env.step(0.5)
+    env._kstep = kernel_step
     assert term and not trunc
-    assert info["termination_reason"].startswith("diverged: damper model 'x'")
+    assert info["termination_reason"] == ("diverged: damper model 'spencer_dyke': a non-finite state at t = 0.003 s "
+                                          "(batch index 0); check the parameters and the input amplitude")
     np.testing.assert_array_equal(obs2, obs1)
     assert np.isfinite(r) and "episode_metrics" in info
 
@@ -424,9 +435,9 @@ def test_n_storey_building_with_several_dampers():
     _check(env)
     obs, _ = env.reset(seed=0)
     assert obs.shape == (5 + 2,) and env.action_space.shape == (2,)
-    assert env.unwrapped.ground_motion_params["time_scale"] == 1.0  # a user's building is not a lab model
+    assert "(time x1," in env.unwrapped.record.name  # a user's building is not replayed as a lab model
     _, _, _, trunc, info = _run(env, np.array([2.25, 0.0]), seed=0)
-    assert trunc and info["damper_force"].shape == (2,)
+    assert trunc and env.unwrapped.damper_force.shape == (2,)
 
 
 def test_road_from_record_and_sweep():
@@ -450,7 +461,7 @@ def test_road_from_csv(tmp_path):
     obs, *_ = _run(env, 0.0)
     assert env.record.duration == pytest.approx(x[-1] / 10.0, abs=1e-3)
     assert np.max(obs[:, 0]) == pytest.approx(0.005, rel=0.01)
-    assert env.road_params["path"] == str(path)
+    assert env.assembly.options["road_params"]["path"] == str(path)
     with pytest.raises(ValueError, match="height_column"):
         QuarterCarEnv(road="csv", road_params={"path": str(path)})
 

@@ -68,8 +68,9 @@ def test_cli_rig_replays_its_own_output_and_any_csv_with_declared_columns(tmp_pa
     assert main(["rig", "--model", "bouc_wen", "--record", str(own), "--out", str(tmp_path / "b")]) == 0
     replayed = np.genfromtxt(tmp_path / "b" / "bouc_wen_record.csv", delimiter=",", names=True)
     original = np.genfromtxt(own, delimiter=",", names=True)
-    # the same stroke, velocity and command give the same force (the file holds 9 significant digits)
-    np.testing.assert_allclose(replayed["force_N"], original["force_N"], rtol=1e-5, atol=0)
+    # the same stroke, velocity and command give the same force (the file holds 9 significant digits, and the
+    # implicit steps converge to 1e-2 of the integrator's tolerance)
+    np.testing.assert_allclose(replayed["force_N"], original["force_N"], rtol=1e-4, atol=0)
     # a measured file: semicolons, cm, ms, its own column names
     t = np.arange(0, 500) * 1.0
     path = tmp_path / "lab.csv"

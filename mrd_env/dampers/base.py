@@ -12,7 +12,11 @@ A damper model is four things:
 ``rhs``, ``force_law`` and ``project(p, s, x, xd, u)`` are numba ``@njit`` functions taking the parameter
 vector ``p`` (``Params.as_array()``, fields in declaration order); ``project`` runs between integration
 steps: it keeps the states in their invariant set (e.g. a Bouc–Wen z inside its saturation bound) and
-switches discrete modes (:mod:`.acceleration_branch`). To evaluate a configured damper's force from Python,
+switches discrete modes (:mod:`.acceleration_branch`). A model may add its analytic derivatives
+``partials(p, s, x, xd, xdd, u, J, work)``, writing into J (ns + 1, ns + 2) the Jacobian of (ṡ, F) with respect
+to (s, x, ẋ) — rows 0..ns−1 for ṡ, row ns for F; columns 0..ns−1 for s, then x, then ẋ; without them the
+stepping routine differentiates ``rhs`` and ``force_law`` numerically (a test checks every analytic set
+against finite differences). To evaluate a configured damper's force from Python,
 call ``damper.force(x, v, u)``. Adding a model is one new module in this package that defines a
 ``DamperModel`` subclass decorated with ``@register``.
 """
@@ -161,11 +165,12 @@ class DamperModel:
     rhs: ClassVar[Callable]
     force_law: ClassVar[Callable]
     project: ClassVar[Callable]
+    partials: ClassVar[Callable | None] = None
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
         # the compiled functions are plain functions of (p, s, ...): reachable from instances too
-        for name in ("rhs", "force_law", "project"):
+        for name in ("rhs", "force_law", "project", "partials"):
             f = cls.__dict__.get(name)
             if f is not None and not isinstance(f, staticmethod):
                 setattr(cls, name, staticmethod(f))

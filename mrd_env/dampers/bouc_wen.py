@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numba as nb
 
 from .base import CommandSpec, DamperModel, DamperParams, Preset, param
-from .hysteresis import BoucWenSaturation, bouc_wen_zdot, clip_to_saturation
+from .hysteresis import BoucWenSaturation, bouc_wen_partials, bouc_wen_zdot, clip_to_saturation
 from .registry import register
 
 
@@ -49,6 +49,17 @@ def _force(p, s, x, xd, xdd, u):
 
 
 @nb.njit(cache=True)
+def _partials(p, s, x, xd, xdd, u, J, work):
+    dz, dv = bouc_wen_partials(s[0], xd, p[9], p[8], p[7], p[10])
+    J[0, 0] = dz
+    J[0, 1] = 0.0
+    J[0, 2] = dv
+    J[1, 0] = p[5] + p[6] * u
+    J[1, 1] = p[2] + p[3] * u
+    J[1, 2] = p[0] + p[1] * u
+
+
+@nb.njit(cache=True)
 def _project(p, s, x, xd, u):
     s[0] = clip_to_saturation(s[0], p[9], p[8], p[7], p[10])
 
@@ -80,4 +91,5 @@ class BoucWen(BoucWenSaturation, DamperModel):
     default_preset = "spencer1997"
     rhs = _rhs
     force_law = _force
+    partials = _partials
     project = _project

@@ -11,10 +11,32 @@ import numba as nb
 
 
 @nb.njit(cache=True)
+def power(a, n):
+    """a^n for a >= 0; the common integer exponents without a call to pow (the hot path of every step)."""
+    if n == 2.0:
+        return a * a
+    if n == 1.0:
+        return a
+    return a ** n
+
+
+@nb.njit(cache=True)
 def bouc_wen_zdot(z, v, A, beta, gamma, n):
     az = abs(z)
-    azn = az ** n
-    return -gamma * abs(v) * z * (azn / az if az > 0.0 else 0.0) - beta * v * azn + A * v
+    azn1 = power(az, n - 1.0) if az > 0.0 else (1.0 if n == 1.0 else 0.0)
+    return -gamma * abs(v) * z * azn1 - beta * v * az * azn1 + A * v
+
+
+@nb.njit(cache=True)
+def bouc_wen_partials(z, v, A, beta, gamma, n):
+    """(∂ż/∂z, ∂ż/∂v) of eq. (8)."""
+    az = abs(z)
+    azn1 = power(az, n - 1.0) if az > 0.0 else (1.0 if n == 1.0 else 0.0)
+    sz = 1.0 if z > 0.0 else (-1.0 if z < 0.0 else 0.0)
+    sv = 1.0 if v > 0.0 else (-1.0 if v < 0.0 else 0.0)
+    dz = -n * azn1 * (gamma * abs(v) + beta * v * sz)
+    dv = -gamma * sv * z * azn1 - beta * az * azn1 + A
+    return dz, dv
 
 
 @nb.njit(cache=True)
@@ -22,7 +44,8 @@ def bouc_wen_saturation(A, beta, gamma, n):
     """z_s = (A/(β+γ))^(1/n); infinite when β + γ ≤ 0 (no saturation)."""
     if beta + gamma <= 0.0:
         return math.inf
-    return (A / (beta + gamma)) ** (1.0 / n)
+    ratio = A / (beta + gamma)
+    return math.sqrt(ratio) if n == 2.0 else ratio ** (1.0 / n)
 
 
 @nb.njit(cache=True)

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numba as nb
 
 from .base import CommandSpec, DamperModel, DamperParams, Preset, param
-from .hysteresis import BoucWenSaturation, bouc_wen_zdot, clip_to_saturation
+from .hysteresis import BoucWenSaturation, bouc_wen_partials, bouc_wen_zdot, clip_to_saturation
 from .registry import register
 
 
@@ -64,6 +64,30 @@ def _force(p, s, x, xd, xdd, u):
 
 
 @nb.njit(cache=True)
+def _partials(p, s, x, xd, xdd, u, J, work):
+    c0 = p[0] + p[1] * u
+    c1 = p[3] + p[4] * u
+    alpha = p[7] + p[8] * u
+    den = c0 + c1
+    yd = (alpha * s[1] + c0 * xd + p[2] * (x - s[0])) / den
+    # ẏ and its derivatives in (y, z, x, ẋ); F = c1 ẏ + k1 (x − x0); ż = BW(z, ẋ − ẏ)
+    dy, dz, dx, dv = -p[2] / den, alpha / den, p[2] / den, c0 / den
+    J[0, 0] = dy
+    J[0, 1] = dz
+    J[0, 2] = dx
+    J[0, 3] = dv
+    bz, bw = bouc_wen_partials(s[1], xd - yd, p[11], p[10], p[9], p[12])
+    J[1, 0] = -bw * dy
+    J[1, 1] = bz - bw * dz
+    J[1, 2] = -bw * dx
+    J[1, 3] = bw * (1.0 - dv)
+    J[2, 0] = c1 * dy
+    J[2, 1] = c1 * dz
+    J[2, 2] = c1 * dx + p[5]
+    J[2, 3] = c1 * dv
+
+
+@nb.njit(cache=True)
 def _project(p, s, x, xd, u):
     s[1] = clip_to_saturation(s[1], p[11], p[10], p[9], p[12])
 
@@ -93,4 +117,5 @@ class SpencerDyke(BoucWenSaturation, DamperModel):
     default_preset = "spencer1997"
     rhs = _rhs
     force_law = _force
+    partials = _partials
     project = _project

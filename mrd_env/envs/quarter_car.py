@@ -1,29 +1,174 @@
 """Quarter car with an MR damper between the sprung and unsprung masses (``mrd_env/QuarterCar-v0``)."""
 from __future__ import annotations
 
-from typing import Mapping
-
 import numpy as np
 
 from ..disturbances import Record, bump, iso8608_road, road_from_csv, sine_sweep
-from ..metrics import quarter_car_metrics, weighting_sos
-from ..plants import QuarterCarParams, quarter_car
-from .base import MRDamperEnv, _check_options
-
-#: Per road kind: accepted ``road_params`` keys and their defaults (None = required or generator default).
-ROAD_PARAMS = {
-    "iso8608": {"road_class": "C", "speed": 20.0, "method": "fft", "n_min": None, "n_max": None,
-                "n_waves": None, "waviness": None},
-    "bump": {"height": 0.05, "length": 1.0, "speed": 10.0, "t_start": 0.5, "duration": None},
-    "sine_sweep": {"amplitude": 0.01, "f_start": 0.5, "f_end": 20.0, "kind": "log", "duration": None},
-    "csv": {"path": None, "height_column": None, "distance_column": None, "time_column": None,
-            "speed": None, "units": None},
-    "record": {},
-}
+from ..metrics import weighting_sos
+from ..plants import CoupledPlant, QuarterCarParams, quarter_car
+from . import options as opt
+from .base import MRDamperEnv
+from .build import as_options, build
+from .core import Assembly, Episode, EpisodeStats
+from .disturbance import Disturbance, FixedRecord, Generated
+from .reward import CallableReward, QuadraticReward
+from .signals import SignalMap
+from .termination import Limits
+from .vector import MRDamperVectorEnv
 
 #: Reference scales of the quarter-car reward (SI).
 A_REF = 1.0     # m/s², Wk-weighted sprung acceleration
 X_REF = 0.05    # m, suspension travel
+
+ROAD_CHANNELS = ("z_r", "zdot_r")
+ROAD_UNITS = ("m", "m/s")
+SENSOR_UNITS = {"sprung_acc": "m/s^2", "unsprung_acc": "m/s^2", "travel": "m", "travel_rate": "m/s",
+                "sprung_vel": "m/s", "unsprung_vel": "m/s", "damper_force": "N", "command": "cmd", "road": "m",
+                "damper_states": "model"}
+DEFAULT_SENSORS = ("sprung_acc", "unsprung_acc", "travel", "travel_rate", "damper_force", "command")
+DEFAULT_REWARD_WEIGHTS = {"comfort": 1.0, "travel": 1.0, "tyre": 1.0, "termination": 1.0}
+
+
+# --- the road: one rule, these kinds --------------------------------------------------------------------------
+def _iso8608(*, dt, episode_seconds, road_class="C", speed=20.0, method="fft", n_min=None, n_max=None,
+             n_waves=None, waviness=None):
+    # a generated road at least 2 s long, so that the FFT grid holds waves down to low spatial frequencies
+    duration = max(episode_seconds or 10.0, 2.0)
+    extra = {k: v for k, v in dict(n_min=n_min, n_max=n_max, n_waves=n_waves, waviness=waviness).items()
+             if v is not None}
+    iso8608_road(road_class, speed, duration, dt, rng=0, method=method, **extra)  # options checked now, not at reset
+    return Generated(lambda rng: iso8608_road(road_class, speed, duration, dt, rng=rng, method=method, **extra),
+                     ROAD_CHANNELS, f"ISO 8608 class {road_class} at {speed:g} m/s")
+
+
+def _bump(*, dt, episode_seconds, height=0.05, length=1.0, speed=10.0, t_start=0.5, duration=None):
+    return FixedRecord(bump(height, length, speed, t_start, duration, dt=dt), ROAD_CHANNELS, ROAD_UNITS, dt)
+
+
+def _sweep(*, dt, episode_seconds, amplitude=0.01, f_start=0.5, f_end=20.0, kind="log", duration=None):
+    duration = duration if duration is not None else (episode_seconds or 10.0)
+    return FixedRecord(sine_sweep(amplitude, f_start, f_end, duration, dt=dt, kind=kind), ROAD_CHANNELS,
+                       ROAD_UNITS, dt)
+
+
+def _csv(*, dt, episode_seconds, path=None, height_column=None, distance_column=None, time_column=None,
+         speed=None, units=None):
+    if path is None or height_column is None:
+        raise ValueError("road 'csv' needs 'path' and 'height_column' (and 'distance_column' + 'speed', or "
+                         "'time_column')")
+    rest = {k: v for k, v in dict(distance_column=distance_column, time_column=time_column, speed=speed,
+                                  units=units).items() if v is not None}
+    return FixedRecord(road_from_csv(path, height_column=height_column, dt=dt, **rest), ROAD_CHANNELS, ROAD_UNITS,
+                       dt)
+
+
+ROADS = {"iso8608": _iso8608, "bump": _bump, "sine_sweep": _sweep, "csv": _csv}
+
+
+def road_source(road, road_params, dt: float, episode_seconds) -> Disturbance:
+    """The road part: a kind name (with ``road_params``), a dict {"kind": ..., options}, a Record with channels
+    z_r, zdot_r (m, m/s), or a :class:`~.disturbance.Disturbance`."""
+    if isinstance(road, Record):
+        if road_params:
+            raise ValueError("road_params apply to a road kind, not to a Record")
+        return FixedRecord(road, ROAD_CHANNELS, ROAD_UNITS, dt)
+    if isinstance(road, str) and road_params is not None:
+        road = {"kind": road, **as_options(f"road_params (road={road!r})", road_params)}
+    return build("road", road, ROADS, "iso8608", Disturbance, dt=dt, episode_seconds=episode_seconds)
+
+
+# --- the assembly ------------------------------------------------------------------------------------------------
+def _plant_params(plant_preset, plant_params) -> QuarterCarParams:
+    if isinstance(plant_params, QuarterCarParams):
+        return plant_params
+    if plant_params is not None and not isinstance(plant_params, dict):
+        raise ValueError(f"plant_params must be a dict of QuarterCarParams overrides or a QuarterCarParams, "
+                         f"got {type(plant_params).__name__}")
+    return quarter_car(plant_preset, **dict(plant_params or {}))
+
+
+def signals(coupled: CoupledPlant, p: QuarterCarParams, command_unit: str) -> SignalMap:
+    """The quarter car's named signals (see :class:`QuarterCarEnv`)."""
+    sm = SignalMap(coupled)
+    sm.add("sprung_acc", sm.acc([1.0, 0.0]), "m/s^2")
+    sm.add("unsprung_acc", sm.acc([0.0, 1.0]), "m/s^2")
+    sm.add("travel", sm.disp([1.0, -1.0]), "m")
+    sm.add("travel_rate", sm.vel([1.0, -1.0]), "m/s")
+    sm.add("sprung_vel", sm.vel([1.0, 0.0]), "m/s")
+    sm.add("unsprung_vel", sm.vel([0.0, 1.0]), "m/s")
+    sm.add("damper_force", sm.force(), "N")
+    sm.add("road", sm.inp([[1.0, 0.0]]), "m")
+    sm.add("damper_states", sm.damper_states(), "model")
+    sm.add("_z", sm.disp(np.eye(2)), "m")
+    # dynamic tyre load k_t (z_r − z_u) + c_t (ż_r − ż_u), positive = more load than static
+    sm.add("_tyre_load", -p.k_t * sm.disp([0.0, 1.0]) - p.c_t * sm.vel([0.0, 1.0]) + sm.inp([[p.k_t, p.c_t]]), "N")
+    sm.add_commands(command_unit)
+    sm.add_output("sprung_acc_wk", "m/s^2")
+    return sm
+
+
+def metrics(stats: EpisodeStats, episode: Episode, static_tyre_load: float) -> dict[str, float]:
+    """ISO 2631 comfort, travel and tyre load of an episode (as :func:`~mrd_env.metrics.quarter_car_metrics`)."""
+    r, pk = stats.rms, stats.peak
+    out = {"acc_weighted_rms": float(r["sprung_acc_wk"][0]), "acc_rms": float(r["sprung_acc"][0]),
+           "acc_vdv": float((stats.dose4 * stats.dt) ** 0.25), "acc_mtvv": stats.max_running_rms,
+           "travel_rms": float(r["travel"][0]), "travel_peak": float(pk["travel"][0]),
+           "tyre_load_rms": float(r["_tyre_load"][0]), "tyre_load_ratio": float(r["_tyre_load"][0]) / static_tyre_load,
+           "damper_force_rms": float(r["damper_force"][0]), "damper_force_peak": float(pk["damper_force"][0]),
+           "duration": (stats.n_rows - 1) * stats.dt}
+    return out
+
+
+def assembly(*, plant_preset: str = "set_a", plant_params=None, road="iso8608", road_params=None,
+             damper="spencer_dyke", damper_preset: str | None = None, damper_params=None, dt: float = 1e-3,
+             control_dt: float = 1e-3, episode_seconds: float | None = None, sensors=None, sensor_noise=None,
+             sensor_delay: int = 0, history: int = 1, action_mode: str = "physical", reward=None,
+             reward_weights=None, stroke_limit: float | None = None) -> Assembly:
+    """The quarter-car environment's parts from its options (see :class:`QuarterCarEnv`)."""
+    given = {k: v for k, v in locals().items()}
+    dt, control_dt, episode_seconds = opt.time_steps(dt, control_dt, episode_seconds)
+    p = _plant_params(plant_preset, plant_params)
+    d = opt.make_env_damper(damper, damper_preset, damper_params, "automotive")
+    lp = p.plant()
+    coupled = CoupledPlant(lp, d)
+    sm = signals(coupled, p, d.command.unit)
+    w = opt.weights(reward_weights, DEFAULT_REWARD_WEIGHTS)
+    static = p.static_tyre_load
+    if reward is None:
+        reward = QuadraticReward({"sprung_acc_wk": w["comfort"] / A_REF ** 2, "travel": w["travel"] / X_REF ** 2,
+                                  "_tyre_load": w["tyre"] / static ** 2})
+    elif callable(reward) and not isinstance(reward, (QuadraticReward, CallableReward)):
+        reward = CallableReward(reward)
+    elif not isinstance(reward, (QuadraticReward, CallableReward)):
+        raise ValueError("reward must be None, a QuadraticReward, a CallableReward or a callable of the period's "
+                         f"signals, got {type(reward).__name__}")
+    limit = opt.check_scalar("stroke_limit", 0.1 if stroke_limit is None else stroke_limit, 0.0, lo_open=True,
+                             unit="m")
+    source = road_source(road, road_params, dt, episode_seconds)
+    if episode_seconds is None and isinstance(source, Generated):
+        episode_seconds = 10.0
+
+    def new_episode(rec: Record) -> Episode:
+        # at rest in static equilibrium on the road's initial height, moving with it: no step hits the tyre
+        zr0, zrd0 = rec.data[0]
+        return Episode(rec, np.array([zr0, zr0, zrd0, zrd0]))
+
+    from .render import QuarterCarRenderer
+
+    return Assembly(
+        kind="quarter_car", damper=d, plant_params=p, linear_plant=lp, coupled=coupled, signals=sm,
+        sensor_names=tuple(SENSOR_UNITS),
+        sensors=opt.sensors(sensors, sensor_noise, sensor_delay, history, DEFAULT_SENSORS),
+        disturbance=source, reward=reward,
+        limits=Limits({"travel": limit}, penalty=0.0, penalty_per_step=w["termination"]),
+        new_episode=new_episode, metrics=lambda st, ep: metrics(st, ep, static),
+        roles={"body_velocity": "sprung_vel", "wheel_velocity": "unsprung_vel", "damper_velocity": "travel_rate",
+               "damper_stroke": "travel", "damper_force": "damper_force"},
+        objective={"sprung_acc": 1.0 / A_REF ** 2, "travel": 1.0 / X_REF ** 2},
+        dt=dt, control_dt=control_dt, episode_seconds=episode_seconds, action_mode=opt.action_mode(action_mode),
+        filters=[("sprung_acc", "sprung_acc_wk", weighting_sos("Wk", dt))],
+        stat_signals=("sprung_acc_wk", "sprung_acc", "travel", "_tyre_load", "damper_force"),
+        dose_signal="sprung_acc_wk", dose_window=1.0, renderer=QuarterCarRenderer, options=given)
 
 
 class QuarterCarEnv(MRDamperEnv):
@@ -36,18 +181,23 @@ class QuarterCarEnv(MRDamperEnv):
       of :class:`~mrd_env.plants.QuarterCarParams` overrides, or a ``QuarterCarParams``.
     * ``damper`` (model name, default "spencer_dyke", or a ``DamperModel``), ``damper_preset`` (default
       "automotive", or the model's default preset if it has no "automotive" one), ``damper_params`` (overrides).
-    * ``road``: "iso8608" (default; a new random road each episode from ``np_random``), "bump", "sine_sweep",
-      "csv", or a :class:`~mrd_env.disturbances.Record` with channels z_r, zdot_r; ``road_params`` (dict):
-      iso8608 — road_class "C", speed 20 m/s, method "fft" (n_min, n_max, n_waves, waviness as
-      :func:`~mrd_env.disturbances.iso8608_road`); bump — height 0.05 m, length 1 m, speed 10 m/s, t_start
-      0.5 s, duration (default: bump end + 2 s); sine_sweep — amplitude 0.01 m, f_start 0.5 Hz, f_end 20 Hz,
-      kind "log", duration (default episode_seconds or 10 s); csv — path, height_column, distance_column +
-      speed or time_column, units (see :func:`~mrd_env.disturbances.road_from_csv`).
-    * ``episode_seconds``: default 10 s for generated roads (iso8608, sine_sweep), the record's length for
-      bump, csv and Record roads (an episode never runs past its record's end).
-    * ``dt`` 1e-3 s, ``control_dt`` 1e-3 s (integer multiple of dt), ``sensors``, ``sensor_noise``,
-      ``sensor_delay``, ``action_mode``, ``reward_weights``, ``stroke_limit`` (default 0.1 m, on |z_s − z_u|),
-      ``render_mode``: see :class:`~mrd_env.envs.base.MRDamperEnv`.
+    * ``road`` (one rule: a kind name, a dict ``{"kind": ..., **options}``, a
+      :class:`~mrd_env.disturbances.Record` with channels z_r, zdot_r, or a
+      :class:`~mrd_env.envs.disturbance.Disturbance`): "iso8608" (default; a new random road each episode from
+      ``np_random``: road_class "C", speed 20 m/s, method "fft", n_min, n_max, n_waves, waviness as
+      :func:`~mrd_env.disturbances.iso8608_road`), "bump" (height 0.05 m, length 1 m, speed 10 m/s, t_start
+      0.5 s, duration: bump end + 2 s), "sine_sweep" (amplitude 0.01 m, f_start 0.5 Hz, f_end 20 Hz, kind "log",
+      duration: episode_seconds or 10 s), "csv" (path, height_column, distance_column + speed or time_column,
+      units: :func:`~mrd_env.disturbances.road_from_csv`); ``road_params``: the options of a named kind.
+    * ``episode_seconds``: default 10 s for generated roads, the record's length for the others.
+    * ``dt`` 1e-3 s, ``control_dt`` 1e-3 s (an integer multiple of dt; the command is held over it).
+    * ``sensors`` (names, or a :class:`~mrd_env.envs.sensors.Sensors`), ``sensor_noise`` ({name: std} SI),
+      ``sensor_delay`` (control steps), ``history`` (control steps stacked in the observation, oldest first).
+    * ``action_mode``: "physical" ([v_min, v_max] in V or A) or "normalized" ([−1, 1]).
+    * ``reward_weights`` (comfort, travel, tyre 1.0 each; termination 1.0 per remaining control step) or
+      ``reward``: a :class:`~mrd_env.envs.reward.QuadraticReward`, or any callable of the period's signals
+      (``{name: (n_sub, width)}`` → float; one Python call per step).
+    * ``stroke_limit`` (default 0.1 m on |z_s − z_u|), ``render_mode`` ("rgb_array", "human").
 
     Sensors (SI): ``sprung_acc`` z̈_s (m/s², gravity removed), ``unsprung_acc`` z̈_u, ``travel`` z_s − z_u (m),
     ``travel_rate`` (m/s), ``sprung_vel`` ż_s and ``unsprung_vel`` ż_u (m/s, absolute — on a car these come
@@ -59,170 +209,22 @@ class QuarterCarEnv(MRDamperEnv):
 
         r = −[w_comfort (a_w / 1 m/s²)² + w_travel (x / 0.05 m)² + w_tyre (F_t / ((m_s + m_u) g))²]
 
-    a_w the ISO 2631-1 Wk-weighted sprung acceleration filtered online (causal IIR at 1/dt, state kept across
-    steps), x the travel, F_t = k_t (z_r − z_u) + c_t (ż_r − ż_u) the dynamic tyre load (positive = more load
-    than static). Default weights 1, 1, 1 (termination 1 per remaining step). Scale: on the default class-C road
-    at 20 m/s the set-A car with the automotive Spencer–Dyke damper held at 0 V scores about −1.5 per step
-    (a_w ≈ 1.1 m/s², travel ≈ 17 mm RMS, tyre load ≈ 0.26 of static), at 1 V about −3.2; comfort dominates.
+    a_w the ISO 2631-1 Wk-weighted sprung acceleration filtered online (causal IIR at 1/dt), x the travel,
+    F_t = k_t (z_r − z_u) + c_t (ż_r − ż_u) the dynamic tyre load. The car starts at rest in static equilibrium
+    on the road's initial height (both masses at z_r(0), moving with ż_r(0)).
 
-    The car starts at rest in static equilibrium on the road's initial height (both masses at z_r(0), moving
-    with ż_r(0)), so no artificial step hits the tyre. ``info["episode_metrics"]``:
-    :func:`~mrd_env.metrics.quarter_car_metrics` (acc_weighted_rms, acc_rms, acc_vdv, acc_mtvv, travel_rms,
-    travel_peak, tyre_load_rms, tyre_load_ratio) plus damper_force_rms, damper_force_peak (N) and duration (s).
+    ``info["episode_metrics"]`` at the end of an episode: acc_weighted_rms, acc_rms, acc_vdv, acc_mtvv (ISO 2631-1
+    Wk; MTVV over 1 s), travel_rms, travel_peak, tyre_load_rms, tyre_load_ratio, damper_force_rms,
+    damper_force_peak (N), duration (s) — accumulated by the compiled step, no history needed.
     """
 
-    SENSOR_UNITS = {"sprung_acc": "m/s^2", "unsprung_acc": "m/s^2", "travel": "m", "travel_rate": "m/s",
-                    "sprung_vel": "m/s", "unsprung_vel": "m/s", "damper_force": "N", "command": "cmd",
-                    "road": "m", "damper_states": "model"}
-    DEFAULT_SENSORS = ("sprung_acc", "unsprung_acc", "travel", "travel_rate", "damper_force", "command")
-    DEFAULT_REWARD_WEIGHTS = {"comfort": 1.0, "travel": 1.0, "tyre": 1.0, "termination": 1.0}
-    DEFAULT_DAMPER_PRESET = "automotive"
-    DEFAULT_STROKE_LIMIT = 0.1
-    STROKE_SIGNAL = "travel"
-    FILTER_SIGNAL = "sprung_acc"
+    def __init__(self, *, render_mode: str | None = None, **options):
+        super().__init__(assembly(**options), render_mode=render_mode)
 
-    def __init__(self, *, plant_preset: str = "set_a", plant_params=None, road="iso8608",
-                 road_params: Mapping | None = None, damper="spencer_dyke", damper_preset: str | None = None,
-                 damper_params: Mapping[str, float] | None = None, dt: float = 1e-3, control_dt: float = 1e-3,
-                 episode_seconds: float | None = None, sensors=None, sensor_noise: Mapping | None = None,
-                 sensor_delay: int = 0, action_mode: str = "physical",
-                 reward_weights: Mapping[str, float] | None = None, stroke_limit: float | None = None,
-                 render_mode: str | None = None):
-        self._plant_preset = plant_preset
-        self._plant_overrides = plant_params
-        self._road = road
-        self._road_params = road_params
-        super().__init__(damper=damper, damper_preset=damper_preset, damper_params=damper_params, dt=dt,
-                         control_dt=control_dt, episode_seconds=episode_seconds, sensors=sensors,
-                         sensor_noise=sensor_noise, sensor_delay=sensor_delay, action_mode=action_mode,
-                         reward_weights=reward_weights, stroke_limit=stroke_limit, render_mode=render_mode)
 
-    # --- plant and signals --------------------------------------------------------------------------------------
-    def _build_plant(self):
-        ov = self._plant_overrides
-        if isinstance(ov, QuarterCarParams):
-            params = ov
-        else:
-            if ov is not None and not isinstance(ov, Mapping):
-                raise ValueError(f"plant_params must be a dict of QuarterCarParams overrides or a QuarterCarParams, "
-                                 f"got {type(ov).__name__}")
-            params = quarter_car(self._plant_preset, **dict(ov or {}))
-        return params, params.plant()
+class QuarterCarVectorEnv(MRDamperVectorEnv):
+    """``num_envs`` quarter cars in one compiled call (``gymnasium.make_vec("mrd_env/QuarterCar-v0", num_envs=N,
+    vectorization_mode="vector_entry_point", **options)``; options as :class:`QuarterCarEnv`)."""
 
-    def _signal_defs(self, sb):
-        p = self.plant_params
-        sig = {
-            "sprung_acc": sb.acc([1.0, 0.0]),
-            "unsprung_acc": sb.acc([0.0, 1.0]),
-            "travel": sb.disp([1.0, -1.0]),
-            "travel_rate": sb.vel([1.0, -1.0]),
-            "sprung_vel": sb.vel([1.0, 0.0]),
-            "unsprung_vel": sb.vel([0.0, 1.0]),
-            "damper_force": sb.force(),
-            "road": sb.inp([[1.0, 0.0]]),
-            "damper_states": sb.damper_states(),
-            "_z": sb.disp(np.eye(2)),
-        }
-        # dynamic tyre load k_t (z_r − z_u) + c_t (ż_r − ż_u), positive = more load
-        sig["_tyre_load"] = -p.k_t * sb.disp([0.0, 1.0]) - p.c_t * sb.vel([0.0, 1.0]) + sb.inp([[p.k_t, p.c_t]])
-        return sig
-
-    def _filter_sos(self):
-        return weighting_sos("Wk", self.dt)
-
-    def _setup_reward(self):
-        w = self.reward_weights
-        self.static_tyre_load = self.plant_params.static_tyre_load
-        self._rcols = np.array([self._fout, self._sig_cols["travel"][0], self._sig_cols["_tyre_load"][0]],
-                               dtype=np.int64)
-        self._rscale = np.array([w["comfort"] / A_REF ** 2, w["travel"] / X_REF ** 2,
-                                 w["tyre"] / self.static_tyre_load ** 2])
-
-    # --- disturbance ------------------------------------------------------------------------------------------
-    def _setup_disturbance(self):
-        road = self._road
-        if isinstance(road, Record):
-            kind = "record"
-        elif isinstance(road, str) and road in ROAD_PARAMS and road != "record":
-            kind = road
-        else:
-            raise ValueError(f"road must be one of {[k for k in ROAD_PARAMS if k != 'record']} or a Record with "
-                             f"channels ('z_r', 'zdot_r'), got {road!r}")
-        self.road_kind = kind
-        given = _check_options(f"road_params (road={kind!r})", self._road_params, ROAD_PARAMS[kind])
-        params = {k: v for k, v in {**ROAD_PARAMS[kind], **given}.items() if v is not None}
-        self.road_params = params
-        self._fixed_record = None
-        if kind == "iso8608":
-            # validate now (a bad class or speed must fail at construction, not at the first reset)
-            iso8608_road(duration=self._road_seconds(), dt=self.dt, rng=0, **params)
-        elif kind == "sine_sweep":
-            params.setdefault("duration", self.episode_seconds or 10.0)
-            self._fixed_record = sine_sweep(dt=self.dt, **params)
-        elif kind == "bump":
-            self._fixed_record = bump(dt=self.dt, **params)
-        elif kind == "csv":
-            if "path" not in params or "height_column" not in params:
-                raise ValueError("road='csv' needs road_params with 'path' and 'height_column' (and "
-                                 "'distance_column' + 'speed', or 'time_column')")
-            rest = {k: v for k, v in params.items() if k != "path"}
-            self._fixed_record = road_from_csv(params["path"], dt=self.dt, **rest)
-        else:
-            self._fixed_record = self._road_record(road)
-
-    def _road_record(self, rec: Record) -> Record:
-        missing = [c for c in ("z_r", "zdot_r") if c not in rec.channels]
-        if missing:
-            raise ValueError(f"a road Record must have channels ('z_r', 'zdot_r') in m and m/s; {rec!r} "
-                             f"lacks {missing}")
-        data = np.column_stack([rec.channel("z_r"), rec.channel("zdot_r")])
-        out = Record(rec.dt, data, ("z_r", "zdot_r"), ("m", "m/s"), rec.name)
-        return out if abs(out.dt - self.dt) <= 1e-12 * self.dt else out.resample(self.dt)
-
-    def _road_seconds(self) -> float:
-        """Length of a generated random road: the episode (default 10 s), at least 2 s so that the FFT grid
-        holds waves down to low spatial frequencies (a shorter episode uses the road's beginning)."""
-        return max(self.episode_seconds or 10.0, 2.0)
-
-    def _new_episode(self):
-        if self._fixed_record is not None:
-            rec = self._fixed_record
-        else:
-            rec = iso8608_road(duration=self._road_seconds(), dt=self.dt, rng=self.np_random, **self.road_params)
-        zr0, zrd0 = rec.data[0]
-        return rec, np.array([zr0, zr0, zrd0, zrd0])
-
-    # --- metrics ---------------------------------------------------------------------------------------------
-    def _episode_metrics(self, n_rows):
-        acc = self.signal("sprung_acc", n_rows)[:, 0]
-        travel = self.signal("travel", n_rows)[:, 0]
-        tyre = self.signal("_tyre_load", n_rows)[:, 0]
-        force = self.signal("damper_force", n_rows)[:, 0]
-        out = quarter_car_metrics(self.dt, acc, travel, dynamic_tyre_load=tyre,
-                                  static_tyre_load=self.static_tyre_load)
-        out["damper_force_rms"] = float(np.sqrt(np.mean(force ** 2)))
-        out["damper_force_peak"] = float(np.max(np.abs(force)))
-        out["duration"] = (n_rows - 1) * self.dt
-        return out
-
-    # --- rendering -------------------------------------------------------------------------------------------
-    def _make_renderer(self, human):
-        from .render import QuarterCarRenderer
-
-        return QuarterCarRenderer(self, human)
-
-    def _render_state(self) -> dict:
-        """Current displacements (m), force, command and the traces' histories (for :mod:`.render`)."""
-        r = self._row - 1
-        H = self._H
-        c = self._sig_cols
-        z_s, z_u = H[r, c["_z"]]
-        return {"t": r * self.dt, "z_s": float(z_s), "z_u": float(z_u), "z_r": float(H[r, c["road"][0]]),
-                "force": H[r, c["damper_force"]].copy(), "command": H[r, c["command"]].copy()}
-
-    def _render_traces(self, window: float):
-        r = self._row
-        i0 = max(0, r - int(round(window / self.dt)))
-        t = np.arange(i0, r) * self.dt
-        return t, self._H[i0:r, self._sig_cols["sprung_acc"][0]], self._H[i0:r, self._sig_cols["damper_force"]]
-
+    def __init__(self, num_envs: int = 1, *, render_mode: str | None = None, autoreset_mode="NextStep", **options):
+        super().__init__(assembly(**options), num_envs, render_mode=render_mode, autoreset_mode=autoreset_mode)

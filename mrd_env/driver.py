@@ -1,0 +1,244 @@
+"""The compiled driver: N coupled systems advanced over one period per call, with everything an environment
+does per step (see ``_driver_template.py``), and the same call for the rig and identification.
+
+A :class:`Driver` packs a coupled system (:class:`~mrd_env.integrator.SystemMatrices` and a damper model) and a
+:class:`Processing` — the named outputs h = G·[Y, F, W], online filters, reward terms, limits, statistics and
+measurements — into four arrays (float and int constants, float and int per-system state), so that one
+``env.step`` is one compiled call with eight arguments (numba's dispatch costs about 30 ns per argument). The
+layout is defined once, here (:data:`LAYOUT`); the kernel reads it from constants written into its source.
+
+Per-system state (one row of ``fs`` and ``is_`` per system, plus one scratch row for the kernel): the coupled
+state Y, the effective commands U, the forces F, the damper parameters P and lag rates η (so every system may
+have its own damper), the applied command, the filter states, the reward scales, the statistics, the ring of
+the running r.m.s., the delay/history FIFO, the last output row and the last reward; the step counters, the
+status, the noise generator's key and counter.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .integrator import SystemMatrices, kernel_module, max_level_of
+from .validation import check_scalar
+
+#: Names shared by the Python side and the kernel (constants F_*, I_*, DIM_*, SC_*, S_*, T_* and the statuses).
+LAYOUT = {
+    "float_constants": ("C", "D", "AINV", "BBAR", "MQ", "PP", "G", "SOS", "SCAL", "NOISE", "LIMITS"),
+    "int_constants": ("MEAS", "RCOLS", "LCOLS", "STAT_COLS", "FILTERS"),
+    "dims": ("N", "NH", "NPAR", "NSUB", "MAX_LEVEL", "HIST_MODE", "CMD_INPUT", "DOSE_COL", "NORMALIZED",
+             "DELAY", "HISTORY"),
+    "scalars": ("DT", "VMIN", "VMAX", "RTOL", "ATOL", "PEN_CONST", "PEN_STEP"),
+    "state": ("Y", "U", "F", "P", "ETA", "CMD", "ZI", "RSCALE", "STATS", "DOSE", "RING", "FIFO", "ROW", "REWARD"),
+    "int_state": ("K", "NSTEPS", "STATUS", "KEY", "COUNTER", "NSUB", "FIFO_POS", "RING_POS", "ROWS", "REASON",
+                  "FAIL_STEP", "SUBSTEPS"),
+    "status": ("RUNNING", "TERMINATED", "TRUNCATED", "DIVERGED", "BAD_ACTION"),
+}
+RUNNING, TERMINATED, TRUNCATED, DIVERGED, BAD_ACTION = range(5)
+HIST_NONE, HIST_FULL, HIST_PERIOD = 0, 1, 2
+
+_NF = len(LAYOUT["float_constants"])
+_NI = len(LAYOUT["int_constants"])
+_D_DIMS = 5 * (_NF + _NI)
+_S0 = _D_DIMS + len(LAYOUT["dims"])
+_HEADER_LEN = _S0 + 2 * len(LAYOUT["state"])
+
+
+def layout_source() -> str:
+    """The layout as Python constants, written at the top of the driver's generated source."""
+    lines = [f"F_{n} = {5 * i}" for i, n in enumerate(LAYOUT["float_constants"])]
+    lines += [f"I_{n} = {5 * (_NF + i)}" for i, n in enumerate(LAYOUT["int_constants"])]
+    lines += [f"D_DIMS = {_D_DIMS}"]
+    lines += [f"DIM_{n} = {i}" for i, n in enumerate(LAYOUT["dims"])]
+    lines += [f"SC_{n} = {i}" for i, n in enumerate(LAYOUT["scalars"])]
+    lines += [f"S_{n} = {_S0 + 2 * i}" for i, n in enumerate(LAYOUT["state"])]
+    lines += [f"T_{n} = {i}" for i, n in enumerate(LAYOUT["int_state"])]
+    lines += [f"{n} = {i}" for i, n in enumerate(LAYOUT["status"])]
+    return "\n".join(lines) + "\n"
+
+
+@dataclass
+class Processing:
+    """What the driver computes from the physics at every step and period (all optional; the rig uses only the
+    outputs and the history).
+
+    * ``G`` (nsig, n + nd + nw): the named outputs h = G·[Y, F, W] (columns nsig..nsig+nd of a row hold the
+      applied command, then ``n_extra`` columns written by the filters).
+    * ``filters``: (input column, output column, second-order sections (k, 6) in scipy's layout).
+    * ``reward_cols`` with per-system ``reward_scales`` (N, len): reward = −mean over the period of
+      Σ_i scale_i·h[col_i]²; ``penalty`` (constant, per remaining period) is subtracted when a limit is hit.
+    * ``limit_cols``/``limits``: |h[col]| > limit terminates the episode.
+    * ``stat_cols``: running sum of squares and peak of |h|; ``dose_col``: running Σ h⁴ and the maximum of the
+      running r.m.s. over ``dose_window`` steps (the ISO 2631 VDV and MTVV of a weighted acceleration).
+    * ``meas_cols`` with ``noise_std``: the measured columns; ``delay`` (periods) and ``history`` (periods
+      stacked in the observation, oldest first).
+    * ``history_mode``: HIST_NONE, HIST_FULL (every row of the episode into H) or HIST_PERIOD (the rows of the
+      last period); ``command_input``: a column of W holding the command (the rig), else the action.
+    """
+
+    G: np.ndarray
+    n_extra: int = 0
+    filters: list = field(default_factory=list)
+    reward_cols: tuple = ()
+    limit_cols: tuple = ()
+    limits: tuple = ()
+    penalty: tuple = (0.0, 0.0)
+    stat_cols: tuple = ()
+    dose_col: int = -1
+    dose_window: int = 1
+    meas_cols: tuple = ()
+    noise_std: tuple | None = None
+    delay: int = 0
+    history: int = 1
+    history_mode: int = HIST_NONE
+    command_input: int = -1
+    normalized: bool = False
+
+
+class Driver:
+    """N systems of one damper model on one plant, advanced by the compiled driver (see the module docstring).
+
+    ``P`` (N, nd, n_params) and ``eta`` (N, nd) give every system its own damper parameters (default: the
+    damper's). :meth:`reset` starts episodes (``mask``), :meth:`step` advances the running systems by
+    ``n_sub`` steps of ``dt`` and returns system 0's status.
+    """
+
+    def __init__(self, damper, system: SystemMatrices, N: int, processing: Processing, *, dt: float = 1e-3,
+                 n_sub: int = 1, v_range: tuple[float, float] | None = None, P=None, eta=None,
+                 max_substeps: int = 8, rtol: float = 1e-2, atol: float = 1e-5):
+        self.damper = damper
+        self.system = system
+        self.processing = pr = processing
+        self.N = N = int(N)
+        self.dt = check_scalar("dt", dt, 0.0, lo_open=True, unit="s")
+        self.n_sub = int(n_sub)
+        self.max_substeps = int(check_scalar("max_substeps", max_substeps, 1, 4096))
+        rtol = check_scalar("rtol", rtol, 0.0, lo_open=True)
+        atol = check_scalar("atol", atol, 0.0, lo_open=True)
+        max_level = max_level_of(self.max_substeps)
+        self.kernel = kernel_module(type(damper))
+        nd, nw, nq = system.nd, system.nw, system.nq
+        ns = damper.n_states
+        n = nq + nd * ns
+        self.n = n
+        G = np.ascontiguousarray(pr.G, dtype=np.float64)
+        if G.shape[1] != n + nd + nw:
+            raise ValueError(f"G must have {n + nd + nw} columns (states, forces, inputs), got {G.shape}")
+        nsig = G.shape[0]
+        self.nH = nH = nsig + nd + pr.n_extra
+        sos = np.vstack([np.asarray(f[2], dtype=np.float64) for f in pr.filters]) if pr.filters else np.zeros((0, 6))
+        filt, k = [], 0
+        for col_in, col_out, s in pr.filters:
+            filt.append((col_in, col_out, k, len(s)))
+            k += len(s)
+        cmd = damper.command
+        v_min, v_max = v_range if v_range is not None else (cmd.v_min, cmd.v_max)
+        scal = {"DT": self.dt, "VMIN": v_min, "VMAX": v_max, "RTOL": rtol, "ATOL": atol,
+                "PEN_CONST": pr.penalty[0], "PEN_STEP": pr.penalty[1]}
+        n_meas = len(pr.meas_cols)
+        noise = np.zeros(n_meas) if pr.noise_std is None else np.asarray(pr.noise_std, dtype=np.float64)
+        floats = {"C": system.C, "D": system.D, **dict(zip(("AINV", "BBAR", "MQ", "PP"),
+                                                             system.levels(self.dt, max_level))),
+                  "G": G, "SOS": sos, "SCAL": np.array([scal[s] for s in LAYOUT["scalars"]]), "NOISE": noise,
+                  "LIMITS": np.asarray(pr.limits, dtype=np.float64)}
+        ints = {"MEAS": pr.meas_cols, "RCOLS": pr.reward_cols, "LCOLS": pr.limit_cols, "STAT_COLS": pr.stat_cols,
+                "FILTERS": np.asarray(filt, dtype=np.int64).reshape(-1, 4)}
+        npar = damper.params.as_array().size
+        dims = {"N": n, "NH": nH, "NPAR": npar, "NSUB": self.n_sub, "MAX_LEVEL": max_level,
+                "HIST_MODE": pr.history_mode, "CMD_INPUT": pr.command_input, "DOSE_COL": pr.dose_col,
+                "NORMALIZED": int(pr.normalized), "DELAY": int(pr.delay), "HISTORY": int(pr.history)}
+        depth = pr.delay + pr.history
+        sizes = {"Y": n, "U": nd, "F": nd, "P": nd * npar, "ETA": nd, "CMD": nd, "ZI": 2 * len(sos),
+                 "RSCALE": len(pr.reward_cols), "STATS": 2 * len(pr.stat_cols), "DOSE": 3,
+                 "RING": max(int(pr.dose_window), 1), "FIFO": depth * n_meas, "ROW": nH, "REWARD": 1}
+        self.fc, self.ic, self._fields = _pack(floats, ints, dims, sizes)
+        wf, wi = self.kernel.workspace_len(nq, nd, n, nw)
+        width = max(sum(sizes.values()), int(wf))
+        self.fs = np.zeros((N + 1, width))  # the last row is the kernel's scratch
+        self.is_ = np.zeros((N + 1, max(len(LAYOUT["int_state"]), int(wi))), dtype=np.int64)
+        self.obs = np.zeros((N, pr.history * n_meas), dtype=np.float32)
+        self.n_obs = pr.history * n_meas
+        p = damper.params.as_array()
+        self.state("P")[:] = (np.broadcast_to(p, (N, nd, npar)) if P is None else np.asarray(P, float)).reshape(N, -1)
+        self.state("ETA")[:] = cmd.eta if eta is None else np.asarray(eta, float).reshape(N, nd)
+        self.W = np.zeros((N, 2, nw))
+        self.H = np.zeros((N, 0, nH))
+        self.is_[:N, LAYOUT["int_state"].index("STATUS")] = TRUNCATED  # nothing runs before a reset
+
+    # --- named views --------------------------------------------------------------------------------------------
+    def state(self, name: str) -> np.ndarray:
+        """The per-system float field ``name`` (N, length), a view."""
+        o, k = self._fields[name]
+        return self.fs[:self.N, o:o + k]
+
+    def int_state(self, name: str) -> np.ndarray:
+        """The per-system int field ``name`` (N,), a view."""
+        return self.is_[:self.N, LAYOUT["int_state"].index(name)]
+
+    # --- episodes -------------------------------------------------------------------------------------------------
+    def set_inputs(self, W: np.ndarray, n_steps, history_rows: int = 0) -> None:
+        """The input records W (N, rows, nw) of the next episodes, their lengths in periods and the rows of the
+        history buffer (HIST_FULL: the episode's rows; HIST_PERIOD: n_sub)."""
+        self.W = np.ascontiguousarray(W, dtype=np.float64)
+        self.int_state("NSTEPS")[:] = n_steps
+        if self.H.shape[1] != history_rows:
+            self.H = np.zeros((self.N, history_rows, self.nH))
+
+    def reset(self, mask=None, *, Y0=None, U0=None, keys=None) -> None:
+        """Start episodes for the systems in ``mask`` (default: all) from the states ``Y0`` (N, n) and effective
+        commands ``U0`` (N, nd; default v_min), zero filter states, with noise generator ``keys`` (N,)."""
+        mask = np.ones(self.N, dtype=bool) if mask is None else np.asarray(mask, dtype=bool)
+        Y = self.state("Y")
+        Y[mask] = 0.0 if Y0 is None else np.asarray(Y0, dtype=np.float64)[mask]
+        self.state("U")[mask] = self.damper.command.v_min if U0 is None else np.asarray(U0, dtype=np.float64)[mask]
+        self.state("ZI")[mask] = 0.0
+        if keys is not None:
+            self.int_state("KEY")[mask] = np.asarray(keys, dtype=np.int64)[mask]
+        self.kernel.core_reset(self.fc, self.ic, self.fs, self.is_, self.W, self.H, self.obs, mask)
+
+    def step(self, action: np.ndarray) -> int:
+        """Advance the running systems by one period with ``action`` (N·nd,) float64; system 0's status."""
+        return self.kernel.core_step(self.fc, self.ic, self.fs, self.is_, self.W, self.H, action, self.obs)
+
+    def failure(self, b: int) -> tuple[int, float]:
+        """(status code of the integrator, time in s) of system b's divergence."""
+        return int(self.is_[b, LAYOUT["int_state"].index("REASON")]), \
+            (int(self.is_[b, LAYOUT["int_state"].index("FAIL_STEP")]) + 1) * self.dt
+
+
+def _pack(floats: dict, ints: dict, dims: dict, sizes: dict):
+    """(fc, ic, field offsets): the constants in one float and one int array with the headers the kernel reads
+    (offset and up to four dimensions per array), and the per-system field offsets."""
+    fc_parts, ic_head = [], []
+    o = 0
+    for name in LAYOUT["float_constants"]:
+        a = np.ascontiguousarray(floats[name], dtype=np.float64)
+        shape = list(a.shape) + [1] * (4 - a.ndim)
+        ic_head += [o, *shape]
+        fc_parts.append(a.ravel())
+        o += a.size
+    int_data = []
+    o_int = _HEADER_LEN
+    for name in LAYOUT["int_constants"]:
+        a = np.ascontiguousarray(np.asarray(ints[name], dtype=np.int64))
+        if a.ndim == 1:
+            a = a.reshape(-1)
+        shape = list(a.shape) + [1] * (4 - a.ndim)
+        ic_head += [o_int, *shape]
+        int_data.append(a.ravel())
+        o_int += a.size
+    ic_head += [int(dims[n]) for n in LAYOUT["dims"]]
+    fields, o = {}, 0
+    for name in LAYOUT["state"]:
+        fields[name] = (o, int(sizes[name]))
+        ic_head += [o, int(sizes[name])]
+        o += int(sizes[name])
+    assert len(ic_head) == _HEADER_LEN
+    fc = np.concatenate(fc_parts) if fc_parts else np.zeros(0)
+    ic = np.concatenate([np.array(ic_head, dtype=np.int64)] + int_data)
+    return np.ascontiguousarray(fc), np.ascontiguousarray(ic), fields
+
+
+def noise_keys(rngs) -> np.ndarray:
+    """One 63-bit key per generator (the noise of each system's episode, drawn from its own generator)."""
+    return np.array([int(r.integers(0, 2 ** 63 - 1)) for r in rngs], dtype=np.int64)

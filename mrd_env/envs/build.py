@@ -1,0 +1,53 @@
+"""The one rule that builds every part of an environment from what the user passes.
+
+``None`` → the default kind; a name → that kind with its default options; an instance of the part's class →
+itself; a dict → ``{"kind": name, **options}`` (the kind defaults to the default one). Anything else, an unknown
+kind or an unknown option raises ``ValueError`` naming the argument and the valid choices.
+"""
+from __future__ import annotations
+
+import inspect
+from typing import Any, Callable, Mapping
+
+
+def build(what: str, spec: Any, kinds: Mapping[str, Callable], default: str, base: type | tuple = (),
+          **context) -> Any:
+    """Build part ``what`` from ``spec`` (see the module docstring); ``context`` goes to every factory."""
+    if base and isinstance(spec, base):
+        return spec
+    if spec is None:
+        kind, options = default, {}
+    elif isinstance(spec, str):
+        kind, options = spec, {}
+    elif isinstance(spec, Mapping):
+        options = dict(spec)
+        kind = options.pop("kind", default)
+    else:
+        names = [b.__name__ for b in (base if isinstance(base, tuple) else (base,))]
+        raise ValueError(f"{what} must be None, a name among {sorted(kinds)}, a dict of options"
+                         f"{' or a ' + ' / '.join(names) if names else ''}, got {type(spec).__name__}")
+    if not isinstance(kind, str) or kind not in kinds:
+        raise ValueError(f"{what}: unknown kind {kind!r}; valid: {sorted(kinds)}")
+    factory = kinds[kind]
+    check_options(f"{what} ({kind!r})", options, factory, exclude=tuple(context))
+    return factory(**options, **context)
+
+
+def check_options(what: str, options: Mapping, factory: Callable, exclude: tuple = ()) -> None:
+    """``ValueError`` for an option ``factory`` does not take (its keyword parameters, minus ``exclude``)."""
+    params = inspect.signature(factory).parameters
+    if any(p.kind is p.VAR_KEYWORD for p in params.values()):
+        return
+    valid = [n for n, p in params.items() if n not in exclude and p.kind in (p.KEYWORD_ONLY, p.POSITIONAL_OR_KEYWORD)]
+    unknown = sorted(set(options) - set(valid), key=str)
+    if unknown:
+        raise ValueError(f"{what} has unknown option(s) {unknown}; valid: {sorted(valid)}")
+
+
+def as_options(name: str, given) -> dict:
+    """A dict of options (None → {}), else ``ValueError`` naming ``name``."""
+    if given is None:
+        return {}
+    if not isinstance(given, Mapping):
+        raise ValueError(f"{name} must be a dict, got {type(given).__name__}")
+    return dict(given)

@@ -1,0 +1,317 @@
+"""The environment core shared by the scalar and the vector environments: an :class:`Assembly` of parts turned
+into one compiled :class:`~mrd_env.driver.Driver` of N systems.
+
+An assembly is what a plant's environment module builds from the user's options (see
+:mod:`.quarter_car`, :mod:`.shear_building`): the damper, the linear plant and their coupling, the named
+signals, the parts — disturbance source, sensors, reward, limits — and the plant's own knowledge: the
+initial state of an episode, the episode metrics, the roles of its signals for the classical control laws
+(``roles``) and the default control objective (``objective``).
+"""
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..dampers import DamperModel
+from ..disturbances import Record
+from ..driver import HIST_FULL, HIST_NONE, HIST_PERIOD, Driver, Processing, noise_keys
+from ..plants import CoupledPlant, LinearPlant
+from .disturbance import Disturbance
+from .reward import CallableReward, QuadraticReward
+from .sensors import Sensors
+from .signals import SignalMap
+from .termination import Limits
+
+
+@dataclass
+class Episode:
+    """One episode's data: the input record, the plant's initial state [q, q̇] (None: at rest) and anything
+    the reward scales and the metrics need (``extras``, e.g. the uncontrolled building's response)."""
+
+    record: Record
+    q0: np.ndarray | None = None
+    extras: dict = field(default_factory=dict)
+
+
+@dataclass
+class EpisodeStats:
+    """What the driver accumulated over an episode: r.m.s. and peak of every statistics signal (per channel),
+    the fourth-power dose and the maximum running r.m.s. of the dose signal, the number of rows and dt."""
+
+    rms: dict[str, np.ndarray]
+    peak: dict[str, np.ndarray]
+    dose4: float
+    max_running_rms: float
+    n_rows: int
+    dt: float
+
+
+@dataclass
+class Assembly:
+    """Everything an MR-damper environment is made of (see the module docstring)."""
+
+    kind: str
+    damper: DamperModel
+    plant_params: Any
+    linear_plant: LinearPlant
+    coupled: CoupledPlant
+    signals: SignalMap
+    sensor_names: tuple[str, ...]
+    sensors: Sensors
+    disturbance: Disturbance
+    reward: QuadraticReward | CallableReward
+    limits: Limits
+    new_episode: Callable[[Record], Episode]
+    metrics: Callable[[EpisodeStats, Episode], dict]
+    roles: Mapping[str, str]
+    objective: Mapping[str, float]
+    dt: float = 1e-3
+    control_dt: float = 1e-3
+    episode_seconds: float | None = None
+    action_mode: str = "physical"
+    filters: list = field(default_factory=list)       # (input signal, output signal, sos)
+    stat_signals: tuple[str, ...] = ()
+    dose_signal: str | None = None
+    dose_window: float = 1.0                           # s (ISO 2631 running r.m.s.)
+    renderer: Callable | None = None
+    options: dict = field(default_factory=dict)        # the user's options, as given (for records and agents)
+
+    @property
+    def n_sub(self) -> int:
+        return int(round(self.control_dt / self.dt))
+
+
+class PlantDeclarations:
+    """What an environment declares about its plant, for controllers and users (shared by the scalar and vector
+    environments, which set ``self.assembly``): the plant kind, linear model, damper, signal roles and default
+    control objective, and the linear map of every signal."""
+
+    assembly: Assembly
+
+    @property
+    def plant_kind(self) -> str:
+        return self.assembly.kind
+
+    @property
+    def linear_plant(self) -> LinearPlant:
+        return self.assembly.linear_plant
+
+    @property
+    def plant_params(self):
+        return self.assembly.plant_params
+
+    @property
+    def damper(self) -> DamperModel:
+        return self.assembly.damper
+
+    @property
+    def command_spec(self):
+        return self.assembly.damper.command
+
+    @property
+    def n_dampers(self) -> int:
+        return self.assembly.coupled.system.nd
+
+    @property
+    def F_static(self) -> float:
+        """The damper force at rest (e.g. the accumulator preload k1·x0), balanced by the plant (N)."""
+        return self.assembly.coupled.F_static
+
+    @property
+    def roles(self) -> dict[str, str]:
+        """Which signal plays which part in the classical laws: body_velocity (ż_s, or the floor above a
+        damper), wheel_velocity (ż_u), damper_velocity, damper_stroke, damper_force."""
+        return dict(self.assembly.roles)
+
+    @property
+    def objective(self) -> dict[str, float]:
+        """Default weights {signal: weight} on the squared regulated outputs of a linear-quadratic design."""
+        return dict(self.assembly.objective)
+
+    @property
+    def dt(self) -> float:
+        return self.assembly.dt
+
+    @property
+    def control_dt(self) -> float:
+        return self.assembly.control_dt
+
+    @property
+    def action_mode(self) -> str:
+        return self.assembly.action_mode
+
+    def signal_matrices(self, name: str) -> dict[str, np.ndarray]:
+        """The linear map of signal ``name``: s = C·[q, q̇] + D_F·F + D_w·w + d0 (q, q̇ the ``linear_plant``
+        coordinates, F the damper forces, w its inputs). ``ValueError`` for a signal that is not a linear output
+        (the command, a filter output, the damper's internal states)."""
+        sig = self.assembly.signals
+        if name not in sig:
+            raise ValueError(f"unknown signal {name!r}; signals: {sorted(sig.signals)}")
+        G = sig.output_rows(name)
+        if name == "damper_states" or not np.any(G):
+            raise ValueError(f"signal {name!r} is not a linear function of the plant state, forces and inputs")
+        nq = 2 * self.linear_plant.n_dof
+        nY, nd = sig.nY, sig.nd
+        return {"C": G[:, :nq], "D_F": G[:, nY:nY + nd], "D_w": G[:, nY + nd:sig.ncol - 1], "d0": G[:, sig.ncol - 1]}
+
+
+    def output_matrices(self) -> dict[str, np.ndarray]:
+        """The observation's linear map for controller design (without noise, delay and history).
+
+        obs = C @ [q, q̇] + D_F @ F + D_w @ w + d0 for every sensor row except ``command``, filter outputs and
+        ``damper_states`` (whose rows are zero here; ``mask`` marks the rows that are plant outputs). q, q̇ are the
+        ``linear_plant`` coordinates, F the damper forces, w its inputs (``linear_plant.input_names``);
+        accelerations include the damper inertance and the static preload balance (d0).
+        """
+        sig = self.assembly.signals
+        nq = 2 * self.linear_plant.n_dof
+        nY, nd = sig.nY, sig.nd
+        rows, mask = [], []
+        for name, _, _ in self.sensor_layout:
+            G = sig.output_rows(name)
+            linear = name != "damper_states" and bool(np.any(G))
+            rows.append(G if linear else np.zeros_like(G))
+            mask += [linear] * G.shape[0]
+        G = np.vstack(rows)
+        return {"C": G[:, :nq], "D_F": G[:, nY:nY + nd], "D_w": G[:, nY + nd:sig.ncol - 1], "d0": G[:, sig.ncol - 1],
+                "mask": np.array(mask, dtype=bool)}
+
+
+class EnvCore:
+    """N environments of one assembly in one compiled driver.
+
+    ``history``: HIST_FULL keeps every 1 kHz row of the episode (the scalar environment: rendering and
+    ``signal()``), HIST_PERIOD the rows of the last control period (a Python reward), HIST_NONE nothing.
+    """
+
+    def __init__(self, asm: Assembly, N: int, history: int = HIST_NONE):
+        self.asm = asm
+        self.N = N
+        sig = asm.signals
+        self.meas_cols, noise, self.layout, self.labels = asm.sensors.bind(sig, asm.sensor_names)
+        self.python_reward = isinstance(asm.reward, CallableReward)
+        if self.python_reward:
+            rcols, self.rweights = np.zeros(0, np.int64), np.zeros(0)
+            if history == HIST_NONE:
+                history = HIST_PERIOD
+        else:
+            rcols, self.rweights = asm.reward.bind(sig)
+        lcols, limits = asm.limits.bind(sig)
+        filters = [(int(sig[i].columns[0]), int(sig[o].columns[0]), sos) for i, o, sos in asm.filters]
+        stat_cols = np.concatenate([sig[s].columns for s in asm.stat_signals]).astype(np.int64) \
+            if asm.stat_signals else np.zeros(0, np.int64)
+        self._stat_slices, k = {}, 0
+        for s in asm.stat_signals:
+            self._stat_slices[s] = slice(k, k + sig[s].width)
+            k += sig[s].width
+        self.history_mode = history
+        pr = Processing(G=sig.G, n_extra=sig.width - sig.G.shape[0] - asm.coupled.system.nd, filters=filters,
+                        reward_cols=tuple(rcols), limit_cols=tuple(lcols), limits=tuple(limits),
+                        penalty=(asm.limits.penalty, asm.limits.penalty_per_step), stat_cols=tuple(stat_cols),
+                        dose_col=int(sig[asm.dose_signal].columns[0]) if asm.dose_signal else -1,
+                        dose_window=max(1, int(round(asm.dose_window / asm.dt))), meas_cols=tuple(self.meas_cols),
+                        noise_std=tuple(noise), delay=asm.sensors.delay, history=asm.sensors.history,
+                        history_mode=history, normalized=asm.action_mode == "normalized")
+        cmd = asm.damper.command
+        self.driver = Driver(asm.damper, asm.coupled.system, N, pr, dt=asm.dt, n_sub=asm.n_sub,
+                             v_range=(cmd.v_min, cmd.v_max))
+        self.nd = asm.coupled.system.nd
+        self.episodes: list[Episode | None] = [None] * N
+        self._status = self.driver.int_state("STATUS")
+        self._k = self.driver.int_state("K")
+        self._reward = self.driver.state("REWARD")[:, 0]
+        self._rscale = self.driver.state("RSCALE")
+        self._n_steps = self.driver.int_state("NSTEPS")
+
+    # --- episodes -------------------------------------------------------------------------------------------
+    def start(self, rngs, mask=None) -> None:
+        """New episodes for the environments in ``mask`` (all by default), each drawing its record and noise
+        key from its own generator ``rngs[b]``."""
+        asm = self.asm
+        mask = np.ones(self.N, dtype=bool) if mask is None else np.asarray(mask, dtype=bool)
+        idx = np.flatnonzero(mask)
+        recs = {}
+        for b in idx:
+            ep = asm.new_episode(asm.disturbance.sample(rngs[b], asm.dt))
+            self.episodes[b] = ep
+            recs[b] = ep.record
+        n_sub = asm.n_sub
+        rows = {}
+        for b, rec in recs.items():
+            n_avail = rec.n_samples - 1
+            n_phys = n_avail if asm.episode_seconds is None else min(n_avail, int(round(asm.episode_seconds / asm.dt)))
+            n_steps = n_phys // n_sub
+            if n_steps < 1:
+                raise ValueError(f"the disturbance record ({rec.duration:g} s) is shorter than one control period "
+                                 f"({asm.control_dt:g} s)")
+            rows[b] = n_steps * n_sub + 1
+        d = self.driver
+        need = max(rows.values())
+        if d.W.shape[1] < need or d.W.shape[0] != self.N:
+            W = np.zeros((self.N, max(need, d.W.shape[1] if d.W.shape[0] == self.N else 0), d.W.shape[2]
+                          if d.W.shape[0] == self.N else asm.coupled.system.nw))
+            if d.W.shape[0] == self.N:
+                W[:, :d.W.shape[1]] = d.W
+            d.W = W
+        n_in = asm.coupled.system.nw - 1
+        Y0 = np.zeros((self.N, d.n))
+        for b, rec in recs.items():
+            r = rows[b]
+            d.W[b, :r, :n_in] = rec.data[:r]
+            d.W[b, :r, n_in] = 1.0  # the constant channel that balances the static preload
+            d.W[b, r:] = d.W[b, r - 1]
+            self._n_steps[b] = (r - 1) // n_sub
+            if not self.python_reward:
+                self._rscale[b] = asm.reward.scales(self.episodes[b], self.rweights)
+            q0 = self.episodes[b].q0
+            n2 = 2 * asm.linear_plant.n_dof
+            if q0 is not None:
+                Y0[b, :n2] = q0
+            Y0[b, n2:] = np.tile(asm.damper.initial_state(), self.nd)
+        hist_rows = {HIST_NONE: 0, HIST_FULL: d.W.shape[1], HIST_PERIOD: n_sub}[self.history_mode]
+        if d.H.shape[1] != hist_rows:
+            d.H = np.zeros((self.N, hist_rows, d.nH))
+        keys = np.zeros(self.N, dtype=np.int64)
+        keys[idx] = noise_keys([rngs[b] for b in idx])
+        d.reset(mask, Y0=Y0, keys=keys)
+
+    def step(self, action: np.ndarray) -> int:
+        """Advance the running environments by one control period (``action`` float64 (N·nd,)); env 0's status."""
+        return self.driver.step(action)
+
+    # --- results ------------------------------------------------------------------------------------------------
+    @property
+    def obs(self) -> np.ndarray:
+        return self.driver.obs
+
+    def period(self, b: int) -> dict[str, np.ndarray]:
+        """The signals of env b over the last control period {name: (n_sub, width)} (Python rewards)."""
+        H = self.driver.H
+        n_sub = self.asm.n_sub
+        rows = H[b, :n_sub] if self.history_mode == HIST_PERIOD else \
+            H[b, (self._k[b] - 1) * n_sub + 1:self._k[b] * n_sub + 1]
+        return {name: rows[:, s.columns] for name, s in self.asm.signals.signals.items()}
+
+    def stats(self, b: int) -> EpisodeStats:
+        d = self.driver
+        n_rows = int(d.int_state("ROWS")[b])
+        st = d.state("STATS")[b]
+        dose = d.state("DOSE")[b]
+        rms = {name: np.sqrt(st[2 * sl.start:2 * sl.stop:2] / n_rows) for name, sl in self._stat_slices.items()}
+        peak = {name: st[2 * sl.start + 1:2 * sl.stop:2].copy() for name, sl in self._stat_slices.items()}
+        return EpisodeStats(rms, peak, float(dose[0]), float(dose[2]), n_rows, self.asm.dt)
+
+    def episode_metrics(self, b: int) -> dict[str, float]:
+        return self.asm.metrics(self.stats(b), self.episodes[b])
+
+    def failure_message(self, b: int) -> str:
+        from ..integrator import diverged_error
+
+        reason, t = self.driver.failure(b)
+        return str(diverged_error(self.asm.damper.name, reason, t, b, self.driver.max_substeps))
+
+    def time(self, b: int) -> float:
+        return float(self._k[b] * self.asm.control_dt)

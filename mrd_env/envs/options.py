@@ -1,0 +1,71 @@
+"""The options every environment shares — damper, time steps, action mode, sensors, reward weights — checked
+once, with errors that name the option and its valid values."""
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+from ..dampers import DamperModel, damper_class, make_damper
+from ..validation import check_scalar
+from .build import as_options
+from .sensors import Sensors
+
+
+def make_env_damper(damper, preset, params, default_preset: str) -> DamperModel:
+    """The damper of an environment: a model name (with ``preset``, default ``default_preset`` where the model
+    has it, and parameter overrides ``params``) or a :class:`DamperModel`."""
+    if isinstance(damper, DamperModel):
+        if preset is not None:
+            raise ValueError("damper_preset applies to a damper model name, not to a DamperModel instance")
+        params = as_options("damper_params", params)
+        return damper.with_params(**params) if params else damper
+    if not isinstance(damper, str):
+        raise ValueError(f"damper must be a model name (one of the registered models) or a DamperModel, "
+                         f"got {damper!r}")
+    cls = damper_class(damper)  # ValueError naming the available models
+    if preset is None:
+        preset = default_preset if default_preset in cls.presets else None
+    elif not isinstance(preset, str) or preset not in cls.presets:
+        raise ValueError(f"damper_preset {preset!r} is not a preset of damper model {damper!r}; "
+                         f"available: {sorted(cls.presets)}")
+    return make_damper(damper, preset, **as_options("damper_params", params))
+
+
+def time_steps(dt, control_dt, episode_seconds) -> tuple[float, float, float | None]:
+    """(dt, control_dt, episode_seconds) checked: control_dt an integer multiple of dt."""
+    dt = check_scalar("dt", dt, 0.0, 0.1, lo_open=True, unit="s")
+    control_dt = check_scalar("control_dt", control_dt, 0.0, lo_open=True, unit="s")
+    n_sub = int(round(control_dt / dt))
+    if n_sub < 1 or abs(n_sub * dt - control_dt) > 1e-9 * control_dt:
+        raise ValueError(f"control_dt must be an integer multiple of dt = {dt:g} s (e.g. {dt:g}, {2 * dt:g}, "
+                         f"{5 * dt:g} s), got {control_dt!r}")
+    if episode_seconds is not None:
+        episode_seconds = check_scalar("episode_seconds", episode_seconds, n_sub * dt, unit="s")
+    return dt, n_sub * dt, episode_seconds
+
+
+def action_mode(mode) -> str:
+    if mode not in ("physical", "normalized"):
+        raise ValueError(f"action_mode must be 'physical' or 'normalized', got {mode!r}")
+    return mode
+
+
+def sensors(spec, noise, delay, history, default: tuple[str, ...]) -> Sensors:
+    """The sensors part from the ``sensors`` option (None → ``default``; names; a :class:`Sensors`) and the
+    ``sensor_noise``/``sensor_delay``/``history`` options."""
+    if isinstance(spec, Sensors):
+        if noise is not None or delay != 0 or history != 1:
+            raise ValueError("give sensor_noise, sensor_delay and history inside the Sensors object, not beside it")
+        return spec
+    return Sensors(default if spec is None else spec, noise, delay, history)
+
+
+def weights(given, defaults: Mapping[str, float]) -> dict[str, float]:
+    """``reward_weights``: the defaults updated with the given ones (each >= 0, names among the defaults)."""
+    out = dict(defaults)
+    given = as_options("reward_weights", given)
+    unknown = sorted(set(given) - set(defaults), key=str)
+    if unknown:
+        raise ValueError(f"reward_weights has unknown key(s) {unknown}; valid keys: {sorted(defaults)}")
+    for k, v in given.items():
+        out[k] = check_scalar(f"reward_weights[{k!r}]", v, 0.0)
+    return out

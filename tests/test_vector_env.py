@@ -1,0 +1,117 @@
+"""The native vector environments and the Stable-Baselines3 bridge: Gymnasium's vector API and autoreset,
+environment i of a vector environment equal to a scalar environment with the same seed (bit for bit), SB3's
+VecEnv conventions, and a PPO update through the bridge."""
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.vector import AutoresetMode
+
+import mrd_env  # noqa: F401  (registers the environments)
+from mrd_env.envs import QuarterCarVectorEnv, ShearBuildingVectorEnv
+
+QC, SB = "mrd_env/QuarterCar-v0", "mrd_env/ShearBuilding-v0"
+
+
+def _scalar_episode(env_id, seed, actions, **kw):
+    env = gym.make(env_id, **kw)
+    obs, _ = env.reset(seed=seed)
+    out, rewards = [obs], []
+    for a in actions:
+        obs, r, term, trunc, info = env.step(a)
+        out.append(obs)
+        rewards.append(r)
+        if term or trunc:
+            return np.array(out), np.array(rewards), info
+    return np.array(out), np.array(rewards), None
+
+
+@pytest.mark.parametrize("env_id,kw", [
+    (QC, dict(episode_seconds=0.3, sensor_noise={"sprung_acc": 0.05}, sensor_delay=2, history=3)),
+    (SB, dict(ground_motion="kanai_tajimi", episode_seconds=0.3, control_dt=0.002)),
+])
+def test_env_i_equals_a_scalar_env_with_the_same_seed_bit_for_bit(env_id, kw):
+    N = 4
+    venv = gym.make_vec(env_id, num_envs=N, vectorization_mode="vector_entry_point", **kw)
+    rng = np.random.default_rng(0)
+    n_steps = int(round(kw["episode_seconds"] / venv.unwrapped.control_dt))
+    acts = rng.uniform(venv.single_action_space.low, venv.single_action_space.high, (n_steps, N, venv.nd))
+    obs, _ = venv.reset(seed=10)
+    vobs, vrew, vinfo = [obs], [], None
+    for k in range(n_steps):
+        obs, r, term, trunc, info = venv.step(acts[k])
+        vobs.append(obs)
+        vrew.append(r)
+        if (term | trunc).any():
+            assert (term | trunc).all()  # same-length episodes end together
+            vinfo = info
+    vobs, vrew = np.array(vobs), np.array(vrew)
+    for i in range(N):
+        sobs, srew, sinfo = _scalar_episode(env_id, 10 + i, acts[:, i], **kw)
+        np.testing.assert_array_equal(vobs[:, i], sobs)
+        np.testing.assert_array_equal(vrew[:, i], srew)
+        assert {k: v[i] for k, v in vinfo["episode_metrics"].items()} == sinfo["episode_metrics"]
+
+
+def test_vector_env_api_and_next_step_autoreset():
+    venv = gym.make_vec(QC, num_envs=3, vectorization_mode="vector_entry_point", episode_seconds=0.01,
+                        control_dt=0.005)
+    assert isinstance(venv.unwrapped, QuarterCarVectorEnv)
+    assert venv.metadata["autoreset_mode"] == AutoresetMode.NEXT_STEP
+    assert venv.observation_space.shape == (3, 6) and venv.action_space.shape == (3, 1)
+    obs, info = venv.reset(seed=[1, 2, 3])
+    assert obs.shape == (3, 6) and obs.dtype == np.float32
+    a = np.ones((3, 1), dtype=np.float32)
+    _, r, term, trunc, info = venv.step(a)
+    assert not (term | trunc).any() and np.all(r < 0)
+    _, r, term, trunc, info = venv.step(a)
+    assert trunc.all() and not term.any() and info["_episode_metrics"].all()
+    assert info["episode_metrics"]["duration"] == pytest.approx([0.01] * 3)
+    obs2, r, term, trunc, info = venv.step(a)  # the autoreset step: first observation, reward 0, no flags
+    assert np.all(r == 0) and not (term | trunc).any()
+    np.testing.assert_allclose(obs2[:, :4], 0.0, atol=1e-9)  # at rest again
+    with pytest.raises(ValueError, match="actions must be finite"):
+        venv.step(np.full((3, 1), np.nan))
+    with pytest.raises(ValueError, match=r"actions must have shape \(3, 1\)"):
+        venv.step(np.ones(4))
+
+
+def test_termination_in_one_env_does_not_stop_the_others():
+    venv = ShearBuildingVectorEnv(2, episode_seconds=0.5, stroke_limit=1e-4)
+    venv.reset(seed=0)
+    ended_at = None
+    for k in range(500):
+        _, r, term, trunc, info = venv.step(np.array([[0.0], [2.25]]))
+        if term[0]:
+            ended_at = k
+            assert info["termination_reason"][0] == "stroke_limit" and r[0] < -100
+            break
+    assert ended_at is not None
+
+
+def test_sb3_bridge_follows_sb3_conventions_and_trains():
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.env_checker import check_env  # noqa: F401  (the scalar checker, see test_envs)
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    from mrd_env.envs.sb3 import make_sb3_vec_env
+
+    venv = make_sb3_vec_env(QC, n_envs=4, seed=3, episode_seconds=0.02, control_dt=0.01, action_mode="normalized")
+    obs = venv.reset()
+    assert obs.shape == (4, 6)
+    dones_seen = False
+    for _ in range(3):
+        venv.step_async(np.zeros((4, 1), dtype=np.float32))
+        obs, rew, dones, infos = venv.step_wait()
+        assert rew.dtype == np.float32 and len(infos) == 4
+        if dones.any():
+            dones_seen = True
+            i = int(np.flatnonzero(dones)[0])
+            assert infos[i]["terminal_observation"].shape == (6,)
+            assert infos[i]["TimeLimit.truncated"] is True
+            assert "episode_metrics" in infos[i]
+    assert dones_seen
+    model = PPO("MlpPolicy", VecNormalize(venv), n_steps=16, batch_size=32, n_epochs=1, seed=0, device="cpu")
+    model.learn(total_timesteps=64)
+    assert model.num_timesteps >= 64
