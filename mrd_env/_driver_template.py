@@ -123,7 +123,7 @@ def _measure_and_observe(ic, fs, is_, b, h, noise, obs_out):
 def core_reset(fc, ic, fs, is_, W, H, obs, mask):
     """Start an episode for every system with mask[b]: forces and outputs at the initial state (row 0),
     statistics from row 0, the FIFO filled with the first measurement (noise drawn), the observation."""
-    N = fs.shape[0] - 1
+    N = fs.shape[0] - ic[D_DIMS + DIM_SCRATCH]
     C = _f3(fc, ic, F_C)
     D = _f3(fc, ic, F_D)
     G = _f2(fc, ic, F_G)
@@ -301,7 +301,25 @@ def _advance_one(b, fc, ic, fs, is_, W, H, action, obs, C, D, Ainv, Bbar, Mq, PP
 def core_step(fc, ic, fs, is_, W, H, action, obs):
     """Advance every system whose status is RUNNING by one period; the others are left as they are. Returns
     the status of system 0 (the scalar environment's)."""
-    N = fs.shape[0] - 1
+    N = fs.shape[0] - ic[D_DIMS + DIM_SCRATCH]
+    _run_chunk(fc, ic, fs, is_, W, H, action, obs, N, 0, N)
+    return is_[0, T_STATUS]
+
+
+@nb.njit(cache=True, parallel=True)
+def core_step_parallel(fc, ic, fs, is_, W, H, action, obs):
+    """:func:`core_step` with the systems split into as many chunks as there are scratch rows, the chunks
+    running in parallel (numba threads); each system's result is the one the serial call gives."""
+    n_chunks = ic[D_DIMS + DIM_SCRATCH]
+    N = fs.shape[0] - n_chunks
+    for c in nb.prange(n_chunks):
+        _run_chunk(fc, ic, fs, is_, W, H, action, obs, N + c, c * N // n_chunks, (c + 1) * N // n_chunks)
+    return is_[0, T_STATUS]
+
+
+@nb.njit(cache=True)
+def _run_chunk(fc, ic, fs, is_, W, H, action, obs, scratch, b0, b1):
+    """Systems b0..b1−1, with the scratch row ``scratch`` of fs and is_ (see mrd_env.driver)."""
     C = _f3(fc, ic, F_C)
     D = _f3(fc, ic, F_D)
     Ainv = _f3(fc, ic, F_AINV)
@@ -314,15 +332,13 @@ def core_step(fc, ic, fs, is_, W, H, action, obs):
     noise = _f1(fc, ic, F_NOISE)
     limits = _f1(fc, ic, F_LIMITS)
     filt = _i2(ic, I_FILTERS)
-    # the last row of fs and of is_ is the kernel's scratch (see mrd_env.driver)
-    wf = fs[N]
-    wi = is_[N]
+    wf = fs[scratch]
+    wi = is_[scratch]
     m = max(C.shape[1] * (ns + 1), 1)
-    for b in range(N):
+    for b in range(b0, b1):
         if is_[b, T_STATUS] != RUNNING:
             continue
         wi[m] = -1
         status = _advance_one(b, fc, ic, fs, is_, W, H, action, obs, C, D, Ainv, Bbar, Mq, PP, G, sos, filt,
                               scal, noise, limits, wf, wi)
         is_[b, T_STATUS] = status
-    return is_[0, T_STATUS]

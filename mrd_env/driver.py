@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .integrator import SystemMatrices, kernel_module, max_level_of
+from .integrator import ATOL, RTOL, SystemMatrices, kernel_module, max_level_of
 from .validation import check_scalar
 
 #: Names shared by the Python side and the kernel (constants F_*, I_*, DIM_*, SC_*, S_*, T_* and the statuses).
@@ -27,7 +27,7 @@ LAYOUT = {
     "float_constants": ("C", "D", "AINV", "BBAR", "MQ", "PP", "G", "SOS", "SCAL", "NOISE", "LIMITS"),
     "int_constants": ("MEAS", "RCOLS", "LCOLS", "STAT_COLS", "FILTERS"),
     "dims": ("N", "NH", "NPAR", "NSUB", "MAX_LEVEL", "HIST_MODE", "CMD_INPUT", "DOSE_COL", "NORMALIZED",
-             "DELAY", "HISTORY"),
+             "DELAY", "HISTORY", "SCRATCH"),
     "scalars": ("DT", "VMIN", "VMAX", "RTOL", "ATOL", "PEN_CONST", "PEN_STEP"),
     "state": ("Y", "U", "F", "P", "ETA", "CMD", "ZI", "RSCALE", "STATS", "DOSE", "RING", "FIFO", "ROW", "REWARD"),
     "int_state": ("K", "NSTEPS", "STATUS", "KEY", "COUNTER", "NSUB", "FIFO_POS", "RING_POS", "ROWS", "REASON",
@@ -35,6 +35,7 @@ LAYOUT = {
     "status": ("RUNNING", "TERMINATED", "TRUNCATED", "DIVERGED", "BAD_ACTION"),
 }
 RUNNING, TERMINATED, TRUNCATED, DIVERGED, BAD_ACTION = range(5)
+PARALLEL_FROM = 64  # systems from which a batch runs on numba's threads by default
 HIST_NONE, HIST_FULL, HIST_PERIOD = 0, 1, 2
 
 _NF = len(LAYOUT["float_constants"])
@@ -105,7 +106,7 @@ class Driver:
 
     def __init__(self, damper, system: SystemMatrices, N: int, processing: Processing, *, dt: float = 1e-3,
                  n_sub: int = 1, v_range: tuple[float, float] | None = None, P=None, eta=None,
-                 max_substeps: int = 8, rtol: float = 1e-2, atol: float = 1e-5):
+                 max_substeps: int = 8, rtol: float = RTOL, atol: float = ATOL, threads: int | None = None):
         self.damper = damper
         self.system = system
         self.processing = pr = processing
@@ -144,9 +145,11 @@ class Driver:
         ints = {"MEAS": pr.meas_cols, "RCOLS": pr.reward_cols, "LCOLS": pr.limit_cols, "STAT_COLS": pr.stat_cols,
                 "FILTERS": np.asarray(filt, dtype=np.int64).reshape(-1, 4)}
         npar = damper.params.as_array().size
+        self.threads = self._threads(threads)
         dims = {"N": n, "NH": nH, "NPAR": npar, "NSUB": self.n_sub, "MAX_LEVEL": max_level,
                 "HIST_MODE": pr.history_mode, "CMD_INPUT": pr.command_input, "DOSE_COL": pr.dose_col,
-                "NORMALIZED": int(pr.normalized), "DELAY": int(pr.delay), "HISTORY": int(pr.history)}
+                "NORMALIZED": int(pr.normalized), "DELAY": int(pr.delay), "HISTORY": int(pr.history),
+                "SCRATCH": self.threads}
         depth = pr.delay + pr.history
         sizes = {"Y": n, "U": nd, "F": nd, "P": nd * npar, "ETA": nd, "CMD": nd, "ZI": 2 * len(sos),
                  "RSCALE": len(pr.reward_cols), "STATS": 2 * len(pr.stat_cols), "DOSE": 3,
@@ -154,8 +157,10 @@ class Driver:
         self.fc, self.ic, self._fields = _pack(floats, ints, dims, sizes)
         wf, wi = self.kernel.workspace_len(nq, nd, n, nw)
         width = max(sum(sizes.values()), int(wf))
-        self.fs = np.zeros((N + 1, width))  # the last row is the kernel's scratch
-        self.is_ = np.zeros((N + 1, max(len(LAYOUT["int_state"]), int(wi))), dtype=np.int64)
+        # the last rows are the kernel's scratch, one per thread
+        self.fs = np.zeros((N + self.threads, width))
+        self.is_ = np.zeros((N + self.threads, max(len(LAYOUT["int_state"]), int(wi))), dtype=np.int64)
+        self._step = self.kernel.core_step_parallel if self.threads > 1 else self.kernel.core_step
         self.obs = np.zeros((N, pr.history * n_meas), dtype=np.float32)
         self.n_obs = pr.history * n_meas
         p = damper.params.as_array()
@@ -198,7 +203,18 @@ class Driver:
 
     def step(self, action: np.ndarray) -> int:
         """Advance the running systems by one period with ``action`` (N·nd,) float64; system 0's status."""
-        return self.kernel.core_step(self.fc, self.ic, self.fs, self.is_, self.W, self.H, action, self.obs)
+        return self._step(self.fc, self.ic, self.fs, self.is_, self.W, self.H, action, self.obs)
+
+    def _threads(self, threads) -> int:
+        """Threads of the parallel step: the given count, else numba's threads for batches of 64 systems or
+        more (below that, starting threads costs more than it saves), never more than the systems."""
+        import numba
+
+        if threads is None:
+            threads = numba.get_num_threads() if self.N >= PARALLEL_FROM else 1
+        if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or threads < 1:
+            raise ValueError(f"threads must be an int >= 1, got {threads!r}")
+        return int(min(threads, self.N))
 
     def failure(self, b: int) -> tuple[int, float]:
         """(status code of the integrator, time in s) of system b's divergence."""
