@@ -356,6 +356,14 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError(f"agent {path} was trained on the {plant} plant; add --plant {plant} (or both)")
     if args.seeds < 1:
         raise ValueError(f"--seeds must be >= 1, got {args.seeds}")
+    # names checked before any episode runs: a typo must not cost a progress bar and a built environment
+    from controllers import CONTROLLERS
+    from mrd_env.dampers import damper_class
+
+    unknown = [c for c in args.controllers or () if c not in CONTROLLERS]
+    if unknown:
+        raise ValueError(f"--controllers: unknown controller(s) {unknown}; available: {sorted(CONTROLLERS)}")
+    damper_class(args.damper)
     for plant in plants:
         scen = default_scenarios(plant, quick=args.quick, seeds=args.seeds)
         eps = run_benchmark(plant, args.controllers, scen, damper=args.damper, out=args.out,

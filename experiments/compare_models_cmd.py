@@ -35,9 +35,12 @@ def run(args: argparse.Namespace) -> int:
     res = compare_models([rec], args.models, method=args.method, fit_fraction=args.fit_fraction, out=args.out,
                          seed=args.seed, dt=grid_dt(args, rec), progress=not args.no_progress,
                          plot_window=args.plot_window, fit_options=opts, model_options=model_options)
+    failed = [m.model for m in res.models if m.fit is None]
+    if len(failed) == len(res.models):  # nothing to compare: an error, whatever the table says
+        raise ValueError(f"no model could be fitted (table in {args.out}); {res.models[0].model}: "
+                         f"{res.models[0].error}")
     print(res.files["table_md"].read_text())
     print(f"wrote {len(res.files)} files in {args.out}")
-    failed = [m.model for m in res.models if m.fit is None]
     if failed:
         print(f"failed: {', '.join(failed)} (see the table)")
     return 0

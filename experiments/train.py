@@ -29,18 +29,25 @@ def train(plant: str = "quarter_car", algo: str = "SAC", timesteps: int = 50_000
           control_dt: float = 0.01, episode_seconds: float | None = None, out: Path = Path("results/agents"),
           n_envs: int = 1, progress: bool = False) -> Path:
     """Train and save ``<out>/<plant>_<algo>.zip`` (+ ``_vecnormalize.pkl`` and ``.json``); return the zip."""
-    import mrd_env  # noqa: F401  (registers the environments)
-    import stable_baselines3 as sb3
-    from stable_baselines3.common.env_util import make_vec_env
-    from stable_baselines3.common.vec_env import VecNormalize
+    import gymnasium as gym
 
+    import mrd_env  # noqa: F401  (registers the environments)
+
+    # every argument is checked before torch and SB3 are imported (seconds) and before an environment is built
     if plant not in ENV_IDS:
         raise ValueError(f"plant must be one of {sorted(ENV_IDS)}, got {plant!r}")
     if algo not in ALGOS:
         raise ValueError(f"algo must be one of {ALGOS}, got {algo!r}")
-    if timesteps < 1:
-        raise ValueError(f"timesteps must be >= 1, got {timesteps}")
+    for name, value, lo in (("timesteps", timesteps, 1), ("seed", seed, 0), ("n_envs", n_envs, 1)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < lo:
+            raise ValueError(f"{name} must be an int >= {lo}, got {value!r}")
     kw = env_kwargs(plant, control_dt, episode_seconds)
+    gym.make(ENV_IDS[plant], **kw).close()  # a bad control_dt or episode_seconds fails here, by name
+
+    import stable_baselines3 as sb3
+    from stable_baselines3.common.env_util import make_vec_env
+    from stable_baselines3.common.vec_env import VecNormalize
+
     venv = VecNormalize(make_vec_env(ENV_IDS[plant], n_envs=n_envs, seed=seed, env_kwargs=kw),
                         norm_obs=True, norm_reward=True)
     model = getattr(sb3, algo)("MlpPolicy", venv, seed=seed, verbose=0)

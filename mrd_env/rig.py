@@ -14,7 +14,7 @@ import numpy as np
 
 from .dampers import DamperModel, make_damper
 from .integrator import SystemMatrices, run
-from .validation import check_array, check_scalar
+from .validation import as_generator, check_array, check_n_samples, check_scalar
 
 
 @dataclass(frozen=True)
@@ -89,22 +89,30 @@ def simulate(damper: DamperModel | str, x: np.ndarray, command: np.ndarray, dt: 
     """
     damper = _as_damper(damper)
     dt = check_scalar("dt", dt, 0.0, lo_open=True, unit="s")
-    x2 = np.atleast_2d(check_array("x", x))
+    x2 = check_array("x", x)
+    if x2.ndim > 2:
+        raise ValueError(f"x must be 1-D (one record) or 2-D (records × samples), got shape {x2.shape}")
+    x2 = np.atleast_2d(x2)
     n_rec, n = x2.shape
-    if n < 2:
-        raise ValueError(f"x must have at least 2 samples, got {n}")
+    if n < 2 or n_rec < 1:
+        raise ValueError(f"x must hold at least one record of at least 2 samples, got shape {x2.shape}")
     c2 = np.atleast_2d(check_array("command", command))
-    if c2.shape[1] == 1 and n > 1:
+    if c2.ndim == 2 and c2.shape[1] == 1:
         c2 = np.repeat(c2, n, axis=1)
-    c2 = np.array(np.broadcast_to(c2, (n_rec, n)) if c2.shape[0] == 1 else c2)
+    if c2.ndim == 2 and c2.shape == (1, n):
+        c2 = np.repeat(c2, n_rec, axis=0)
     if c2.shape != (n_rec, n):
         raise ValueError(f"command must have shape {(n_rec, n)} (or be one value per record), got {c2.shape}")
     damper.command.check_command(c2)
-    v2 = np.gradient(x2, dt, axis=1) if v is None else np.atleast_2d(check_array("v", v, shape=None))
-    a2 = np.gradient(v2, dt, axis=1) if a is None else np.atleast_2d(check_array("a", a))
+    with np.errstate(over="ignore", invalid="ignore"):  # an overflow is reported below, by name
+        v2 = np.gradient(x2, dt, axis=1) if v is None else np.atleast_2d(check_array("v", v, shape=None))
+        a2 = np.gradient(v2, dt, axis=1) if a is None else np.atleast_2d(check_array("a", a))
     for name, arr in (("v", v2), ("a", a2)):
         if arr.shape != (n_rec, n):
             raise ValueError(f"{name} must have the shape of x {(n_rec, n)}, got {arr.shape}")
+        if not np.all(np.isfinite(arr)):
+            raise ValueError(f"the finite-difference {name} of x overflows float64 with dt = {dt:g} s: "
+                             f"check x (peak {np.abs(x2).max():g} m) and dt, or give {name}")
     W = np.ascontiguousarray(np.stack([x2, v2, a2], axis=2))
     Y = np.tile(damper.initial_state(), (n_rec, 1))
     U = c2[:, :1].copy()  # the effective command starts at the first command (the rig was settled)
@@ -133,8 +141,15 @@ def sinusoidal_test(damper: DamperModel | str, amplitude: float, frequency: floa
     f = check_scalar("frequency", frequency, 0.0, lo_open=True, unit="Hz")
     cycles = check_scalar("cycles", cycles, 0.0, lo_open=True)
     dt = check_test_step(dt, damper, f, "the excitation frequency")
-    cmds = np.atleast_1d(check_array("commands", commands, ndim=None))
-    n = int(round(cycles / (f * dt))) + 1
+    cmds = np.atleast_1d(check_array("commands", commands))
+    if cmds.ndim != 1 or cmds.size == 0:
+        raise ValueError(f"commands must be one command level or a 1-D list of them, got shape {cmds.shape}")
+    # divided in turn: f·dt may underflow to 0
+    steps = check_n_samples(cycles / f / dt, f"cycles / (frequency · dt) = {cycles:g} / ({f:g} Hz · {dt:g} s)")
+    if steps < 0.5:
+        raise ValueError(f"cycles = {cycles:g} at {f:g} Hz lasts less than one step dt = {dt:g} s: "
+                         "give more cycles or a smaller dt")
+    n = int(round(steps)) + 1
     t = np.arange(n) * dt
     w = 2.0 * np.pi * f
     x = np.tile(X * np.sin(w * t), (len(cmds), 1))
@@ -153,12 +168,15 @@ def random_test(damper: DamperModel | str, rms: float, bandwidth: float, duratio
     the Spencer/Dyke characterisation. ``rng``: a ``numpy.random.Generator`` or a seed.
     """
     damper = _as_damper(damper)
-    rng = np.random.default_rng(rng)
+    rng = as_generator(rng)
     rms = check_scalar("rms", rms, 0.0, lo_open=True, unit="m")
     bw = check_scalar("bandwidth", bandwidth, 0.0, lo_open=True, unit="Hz")
     dt = check_test_step(dt, damper, bw, "the stroke's bandwidth")
     duration = check_scalar("duration", duration, 2 * dt, unit="s")
-    n = int(round(duration / dt)) + 1
+    n = int(round(check_n_samples(duration / dt, f"duration / dt = {duration:g} s / {dt:g} s"))) + 1
+    if bw * n * dt < 1.0:  # the lowest non-zero frequency of the record is 1 / (n dt)
+        raise ValueError(f"bandwidth = {bw:g} Hz is below the record's frequency resolution 1/duration = "
+                         f"{1 / (n * dt):g} Hz, so the stroke would be empty: raise bandwidth or duration")
     spec = np.fft.rfft(rng.standard_normal(n))
     freqs = np.fft.rfftfreq(n, dt)
     spec[(freqs > bw) | (freqs == 0.0)] = 0.0

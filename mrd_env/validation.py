@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+import reprlib
 
 import numpy as np
 
@@ -9,15 +10,24 @@ import numpy as np
 def check_scalar(name: str, value, lo: float = -math.inf, hi: float = math.inf, *,
                  lo_open: bool = False, hi_open: bool = False, unit: str = "") -> float:
     """Return ``value`` as a float if it is finite and inside the range, else raise ``ValueError``."""
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a real number, got {value!r}") from None
+    v = as_real(name, value)
     lo_ok = v > lo if lo_open else v >= lo
     hi_ok = v < hi if hi_open else v <= hi
     if not math.isfinite(v) or not (lo_ok and hi_ok):
-        raise ValueError(f"{name} = {value!r} is invalid: must be {describe_range(lo, hi, lo_open, hi_open, unit)}")
+        raise ValueError(f"{name} = {reprlib.repr(value)} is invalid: must be "
+                         f"{describe_range(lo, hi, lo_open, hi_open, unit)}")
     return v
+
+
+def as_real(name: str, value) -> float:
+    """``float(value)``, or a ``ValueError`` naming ``name`` for anything that is not one real number (a complex
+    value would lose its imaginary part silently, an int beyond float64 raises ``OverflowError``)."""
+    try:
+        if np.iscomplexobj(value):
+            raise TypeError("complex")
+        return float(value)
+    except (TypeError, ValueError, OverflowError):
+        raise ValueError(f"{name} must be a real number, got {reprlib.repr(value)}") from None
 
 
 def describe_range(lo: float, hi: float, lo_open: bool = False, hi_open: bool = False, unit: str = "") -> str:
@@ -34,8 +44,11 @@ def check_array(name: str, value, *, ndim: int | None = None, shape: tuple | Non
                 lo: float = -math.inf, hi: float = math.inf, unit: str = "") -> np.ndarray:
     """Return ``value`` as a float64 array after checking shape, finiteness and range."""
     try:
-        a = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
+        raw = np.asarray(value)
+        if raw.dtype.kind in "cmMV":  # complex, time stamps, structured: a float cast would discard or invent data
+            raise TypeError(raw.dtype)
+        a = np.asarray(raw, dtype=np.float64)
+    except (TypeError, ValueError, OverflowError):
         raise ValueError(f"{name} must be an array of real numbers") from None
     if ndim is not None and a.ndim != ndim:
         raise ValueError(f"{name} must be {ndim}-dimensional, got shape {a.shape}")
@@ -48,3 +61,28 @@ def check_array(name: str, value, *, ndim: int | None = None, shape: tuple | Non
         raise ValueError(f"{name} has values in [{a.min():g}, {a.max():g}] outside the valid range "
                          f"[{lo:g}, {hi:g}]{' ' + unit if unit else ''}")
     return a
+
+
+#: The most samples one generated record may hold (0.8 GB per float64 channel): a larger count comes from a
+#: mistyped duration, cycle count or step, and would otherwise end in an unrelated memory error.
+MAX_SAMPLES = 100_000_000
+
+
+def check_n_samples(n: float, what: str) -> float:
+    """``n`` (a sample count computed from the arguments described by ``what``) if it is at most
+    :data:`MAX_SAMPLES`, else a ``ValueError`` naming those arguments."""
+    if not n <= MAX_SAMPLES:
+        raise ValueError(f"{what} asks for {n:.3g} samples, more than the {MAX_SAMPLES:.0e} a record may hold")
+    return n
+
+
+def as_generator(rng, name: str = "rng") -> np.random.Generator:
+    """``rng`` as a ``numpy.random.Generator``: a Generator is used as is, an int seed >= 0 seeds a new one,
+    None draws fresh OS entropy (not reproducible)."""
+    if isinstance(rng, np.random.Generator):
+        return rng
+    if rng is None:
+        return np.random.default_rng()
+    if isinstance(rng, (int, np.integer)) and not isinstance(rng, bool) and rng >= 0:
+        return np.random.default_rng(int(rng))
+    raise ValueError(f"{name} must be a numpy.random.Generator, an int seed >= 0 or None, got {reprlib.repr(rng)}")

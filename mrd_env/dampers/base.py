@@ -24,13 +24,14 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import reprlib
 from dataclasses import dataclass, field, fields
 from typing import Any, Callable, ClassVar, Mapping
 
 import numba as nb
 import numpy as np
 
-from ..validation import check_scalar, describe_range
+from ..validation import as_real, check_scalar, describe_range
 
 
 def param(default: float = dataclasses.MISSING, *, unit: str, lo: float = -math.inf, hi: float = math.inf,
@@ -50,14 +51,11 @@ class DamperParams:
         for f in fields(self):
             m = f.metadata
             v = getattr(self, f.name)
-            try:
-                fv = float(v)
-            except (TypeError, ValueError):
-                raise ValueError(f"{type(self).__name__}.{f.name} must be a real number, got {v!r}") from None
+            fv = as_real(f"{type(self).__name__}.{f.name}", v)
             lo_ok = fv > m["lo"] if m["lo_open"] else fv >= m["lo"]
             if not (math.isfinite(fv) and lo_ok and fv <= m["hi"]):
                 raise ValueError(
-                    f"{type(self).__name__}.{f.name} = {v!r} is invalid: must be "
+                    f"{type(self).__name__}.{f.name} = {reprlib.repr(v)} is invalid: must be "
                     f"{describe_range(m['lo'], m['hi'], m['lo_open'], False, m['unit'])}")
             object.__setattr__(self, f.name, fv)
         self.check()
@@ -107,8 +105,10 @@ class CommandSpec:
         if self.unit not in ("V", "A"):
             raise ValueError(f"CommandSpec.unit must be 'V' or 'A', got {self.unit!r}")
         object.__setattr__(self, "v_min", check_scalar("CommandSpec.v_min", self.v_min, unit=self.unit))
-        object.__setattr__(self, "v_max", check_scalar("CommandSpec.v_max", self.v_max, self.v_min,
-                                                       lo_open=True, unit=self.unit))
+        object.__setattr__(self, "v_max", check_scalar("CommandSpec.v_max", self.v_max, unit=self.unit))
+        if not self.v_max > self.v_min:  # a pair: name both, whichever of them the caller changed
+            raise ValueError(f"CommandSpec.v_max = {self.v_max:g} must be > CommandSpec.v_min = {self.v_min:g} "
+                             f"{self.unit}")
         object.__setattr__(self, "eta", check_scalar("CommandSpec.eta", self.eta, 0.0, lo_open=True, unit="1/s"))
 
     def check_command(self, v: np.ndarray | float, name: str = "command") -> np.ndarray:
@@ -132,7 +132,7 @@ def command_spec(command, base: CommandSpec) -> CommandSpec:
         return command
     if isinstance(command, Mapping):
         valid = [f.name for f in fields(CommandSpec)]
-        unknown = sorted(set(command) - set(valid))
+        unknown = sorted(set(command) - set(valid), key=repr)  # keys of any type, e.g. an int
         if unknown:
             raise ValueError(f"command has unknown key(s) {unknown}; valid keys: {valid}")
         return dataclasses.replace(base, **command)
@@ -187,7 +187,7 @@ class DamperModel:
     @classmethod
     def preset(cls, name: str | None = None) -> Preset:
         key = cls.default_preset if name is None else name
-        if key not in cls.presets:
+        if not isinstance(key, str) or key not in cls.presets:
             raise ValueError(f"unknown preset {key!r} for damper model {cls.name!r}; "
                              f"available: {sorted(cls.presets)}")
         return cls.presets[key]
@@ -210,8 +210,12 @@ class DamperModel:
         """
         from ..validation import check_array
 
-        xb, vb, ab, ub = np.broadcast_arrays(*(check_array(name, val) for name, val in
-                                               (("x", x), ("v", v), ("a", a), ("u", u))))
+        given_ = [check_array(name, val) for name, val in (("x", x), ("v", v), ("a", a), ("u", u))]
+        try:
+            xb, vb, ab, ub = np.broadcast_arrays(*given_)
+        except ValueError:
+            raise ValueError(f"x, v, a and u must broadcast to one shape, got shapes "
+                             f"{', '.join(str(g.shape) for g in given_)}") from None
         self.command.check_command(ub, "u")
         p = self.params.as_array()
         given = None if state is None else check_array("state", state, shape=(self.n_states,))
@@ -221,6 +225,10 @@ class DamperModel:
             if given is None:
                 self.project(p, s, float(xb[i]), float(vb[i]), float(ub[i]))
             out[i] = self.force_law(p, s, float(xb[i]), float(vb[i]), float(ab[i]), float(ub[i]))
+            if not math.isfinite(out[i]):  # float64 overflow: huge inputs or parameters, never a silent inf/NaN
+                raise ValueError(f"the force of {self.name!r} is not finite at x = {xb[i]:g} m, v = {vb[i]:g} m/s, "
+                                 f"a = {ab[i]:g} m/s², u = {ub[i]:g} {self.command.unit}: the inputs or the "
+                                 "parameters overflow float64")
         return float(out) if out.ndim == 0 else out
 
     def inertance(self) -> float:

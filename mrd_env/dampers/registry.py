@@ -30,7 +30,7 @@ def available_dampers() -> list[str]:
 
 def damper_class(name: str):
     _load_all()
-    if name not in _MODELS:
+    if not isinstance(name, str) or name not in _MODELS:
         raise ValueError(f"unknown damper model {name!r}; available: {sorted(_MODELS)}")
     return _MODELS[name]
 

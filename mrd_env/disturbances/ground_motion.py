@@ -235,7 +235,16 @@ def scale_record(record: Record, time_scale: float = 1.0, amplitude_scale: float
     name = record.name
     if s != 1.0 or a != 1.0:
         name = f"{name} (time x{s:g}, amplitude x{a:g})"
-    scaled = Record(record.dt * s, record.data * a, record.channels, record.units, name)
+    with np.errstate(over="ignore"):
+        data = record.data * a
+    if not np.all(np.isfinite(data)):
+        raise ValueError(f"amplitude_scale = {a:g} overflows the record's values (float64)")
+    if dt is not None and record.duration * s < check_scalar("dt", dt, 0.0, lo_open=True, unit="s"):
+        raise ValueError(f"the record lasts {record.duration * s:g} s at time_scale = {s:g}, shorter than "
+                         f"dt = {dt:g} s")
+    if record.dt * s <= 0.0:  # underflow
+        raise ValueError(f"time_scale = {s:g} makes the record's step {record.dt:g} s x {s:g} vanish")
+    scaled = Record(record.dt * s, data, record.channels, record.units, name)
     return scaled if dt is None else scaled.resample(dt)
 
 
@@ -295,16 +304,19 @@ _ENVELOPE_KEYS = {"jennings": ("t1", "t2", "c"), "saragoni_hart": ("eps", "eta",
 
 
 def _envelope(kind, params: Mapping[str, float] | None, t: np.ndarray, duration: float) -> np.ndarray:
+    if params is not None and not isinstance(params, Mapping):
+        raise ValueError(f"envelope_params must be a dict of envelope parameters or None, got {params!r}")
     if kind is None:
         if params:
             raise ValueError("envelope_params must be empty when envelope is None")
         return np.ones_like(t)
-    if kind not in _ENVELOPE_KEYS:
+    if not isinstance(kind, str) or kind not in _ENVELOPE_KEYS:
         raise ValueError(f"envelope must be 'jennings', 'saragoni_hart' or None, got {kind!r}")
     params = dict(params or {})
     unknown = set(params) - set(_ENVELOPE_KEYS[kind])
     if unknown:
-        raise ValueError(f"envelope_params for {kind!r} take {_ENVELOPE_KEYS[kind]}, got unknown {sorted(unknown)}")
+        raise ValueError(f"envelope_params for {kind!r} take {_ENVELOPE_KEYS[kind]}, got unknown "
+                         f"{sorted(unknown, key=repr)}")
     if kind == "jennings":
         t1 = check_scalar("envelope_params['t1']", params.get("t1", 0.1 * duration), 0.0, duration,
                           lo_open=True, unit="s")

@@ -9,7 +9,7 @@ from typing import Mapping
 
 import numpy as np
 
-from ..validation import check_scalar
+from ..validation import as_generator, check_n_samples, check_scalar  # noqa: F401 (as_generator: shared)
 
 #: Standard acceleration of gravity (CGPM 1901), m/s^2. AT2 files give accelerations in units of g.
 STANDARD_GRAVITY = 9.80665
@@ -100,6 +100,9 @@ class Record:
         peak, so a record's PGA can only drop, by at most its change over one original step.
         """
         dt = check_scalar("dt", dt, 0.0, lo_open=True, unit="s")
+        if dt > self.duration:
+            raise ValueError(f"dt = {dt:g} s must be <= the record's duration {self.duration:g} s")
+        check_n_samples(self.duration / dt, f"the record's duration / dt = {self.duration:g} s / {dt:g} s")
         n = n_samples_for(self.duration, dt)
         t_new = np.arange(n) * dt
         t_old = self.t
@@ -114,18 +117,6 @@ class Record:
 # ---------------------------------------------------------------------------------------------------------------
 # Helpers shared by road.py and ground_motion.py (private to the package).
 
-def as_generator(rng) -> np.random.Generator:
-    """``rng`` as a ``numpy.random.Generator``: a Generator is used as is, an int seed >= 0 seeds a new one,
-    None draws fresh OS entropy (not reproducible)."""
-    if isinstance(rng, np.random.Generator):
-        return rng
-    if rng is None:
-        return np.random.default_rng()
-    if isinstance(rng, (int, np.integer)) and not isinstance(rng, bool) and rng >= 0:
-        return np.random.default_rng(int(rng))
-    raise ValueError(f"rng must be a numpy.random.Generator, an int seed >= 0 or None, got {rng!r}")
-
-
 def n_samples_for(duration: float, dt: float) -> int:
     """Number of samples of the grid k*dt covering [0, duration]; the tolerance keeps e.g. 10 s / 1e-3 s
     from losing its last sample to rounding."""
@@ -137,6 +128,7 @@ def check_duration_dt(duration: float, dt: float) -> tuple[float, float]:
     dt = check_scalar("dt", dt, 0.0, lo_open=True, unit="s")
     if dt > duration:
         raise ValueError(f"dt must be <= duration = {duration:g} s, got {dt:g} s")
+    check_n_samples(duration / dt, f"duration / dt = {duration:g} s / {dt:g} s")
     return duration, dt
 
 

@@ -37,6 +37,8 @@ ISO8608_N_MAX = 2.83
 
 # Above this many sinusoids the direct sum is slow (cost n_samples * n_waves); method="fft" has no such limit.
 _MAX_AUTO_WAVES = 10_000
+# More sinusoids than this take hours (and an int beyond float64 cannot even set the band width).
+_MAX_WAVES = 1_000_000
 
 
 def _check_class(road_class) -> str:
@@ -122,8 +124,10 @@ def iso8608_road(road_class: str, speed: float, duration: float, dt: float = 1e-
     if method == "sinusoids":
         if n_waves is None:
             n_waves = int(min(max(math.ceil((n_max - n_min) * distance), 100), _MAX_AUTO_WAVES))
-        elif isinstance(n_waves, bool) or not isinstance(n_waves, (int, np.integer)) or n_waves < 1:
-            raise ValueError(f"n_waves must be an int >= 1 or None, got {n_waves!r}")
+        elif (isinstance(n_waves, bool) or not isinstance(n_waves, (int, np.integer))
+              or not 1 <= n_waves <= _MAX_WAVES):
+            raise ValueError(f"n_waves must be an int in [1, {_MAX_WAVES:.0e}] or None (method='fft' for finer "
+                             f"spectra), got {n_waves!r}")
         dn = (n_max - n_min) / n_waves
         n_i = n_min + (np.arange(n_waves) + 0.5) * dn
         amp = np.sqrt(2.0 * iso8608_psd(n_i, key, waviness) * dn)
@@ -149,7 +153,8 @@ def iso8608_road(road_class: str, speed: float, duration: float, dt: float = 1e-
         z = scipy.fft.irfft(spec, m)[:n] * (m / 2.0)
         spec[k] *= 2j * math.pi * k * df
         zdot = scipy.fft.irfft(spec, m)[:n] * (m / 2.0)
-    return _road_record(z, zdot, dt, f"ISO 8608 class {key} road at {speed:g} m/s")
+    return _road_record(z, zdot, dt, f"ISO 8608 class {key} road at {speed:g} m/s",
+                        "speed, n_min or waviness (the PSD at n_min)")
 
 
 def _sum_cosines(amp: np.ndarray, omega: np.ndarray, phase: np.ndarray, dt: float, n: int):
@@ -176,8 +181,11 @@ def _sum_cosines(amp: np.ndarray, omega: np.ndarray, phase: np.ndarray, dt: floa
     return z, zdot
 
 
-def _road_record(z: np.ndarray, zdot: np.ndarray, dt: float, name: str) -> Record:
-    return Record(dt, np.column_stack([z, zdot]), ROAD_CHANNELS, ROAD_UNITS, name)
+def _road_record(z: np.ndarray, zdot: np.ndarray, dt: float, name: str, culprits: str = "") -> Record:
+    data = np.column_stack([z, zdot])
+    if culprits and not np.all(np.isfinite(data)):  # huge but valid arguments: say which, not "data"
+        raise ValueError(f"the road overflows float64 (a non-finite z_r or zdot_r): {culprits} too large")
+    return Record(dt, data, ROAD_CHANNELS, ROAD_UNITS, name)
 
 
 def bump(height: float, length: float, speed: float, t_start: float = 0.5, duration: float | None = None,
@@ -202,13 +210,15 @@ def bump(height: float, length: float, speed: float, t_start: float = 0.5, durat
     t = np.arange(n_samples_for(duration, dt)) * dt
     on = (t >= t_start) & (t <= t_end)
     w = 2.0 * math.pi * speed / length
-    arg = w * (t[on] - t_start)
     z = np.zeros_like(t)
     zdot = np.zeros_like(t)
-    z[on] = 0.5 * height * (1.0 - np.cos(arg))
-    zdot[on] = 0.5 * height * w * np.sin(arg)
+    with np.errstate(over="ignore", invalid="ignore"):  # an overflow is reported by _road_record, by name
+        arg = w * (t[on] - t_start)
+        z[on] = 0.5 * height * (1.0 - np.cos(arg))
+        zdot[on] = 0.5 * height * w * np.sin(arg)
     kind = "bump" if height >= 0 else "pothole"
-    return _road_record(z, zdot, dt, f"{kind} {abs(height):g} m x {length:g} m at {speed:g} m/s")
+    return _road_record(z, zdot, dt, f"{kind} {abs(height):g} m x {length:g} m at {speed:g} m/s",
+                        "height or speed / length")
 
 
 def sine_sweep(amplitude: float, f_start: float, f_end: float, duration: float, dt: float = 1e-3,
@@ -238,9 +248,11 @@ def sine_sweep(amplitude: float, f_start: float, f_end: float, duration: float, 
         log_r = math.log(ratio)
         f = f_start * np.exp(log_r * t / duration)
         phi = 2.0 * math.pi * f_start * duration / log_r * np.expm1(log_r * t / duration)
-    z = amplitude * np.sin(phi)
-    zdot = amplitude * 2.0 * math.pi * f * np.cos(phi)
-    return _road_record(z, zdot, dt, f"{kind} sweep {f_start:g}-{f_end:g} Hz, {amplitude:g} m")
+    with np.errstate(over="ignore", invalid="ignore"):  # an overflow is reported by _road_record, by name
+        z = amplitude * np.sin(phi)
+        zdot = amplitude * 2.0 * math.pi * f * np.cos(phi)
+    return _road_record(z, zdot, dt, f"{kind} sweep {f_start:g}-{f_end:g} Hz, {amplitude:g} m",
+                        "amplitude")
 
 
 def road_from_csv(path, *, height_column: str, distance_column: str | None = None, time_column: str | None = None,

@@ -17,11 +17,12 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from ..dampers import DamperModel, available_dampers
+from ..dampers import DamperModel, available_dampers, damper_class
 from ..errors import SimulationDivergedError
+from ..validation import check_scalar
 from .data import DamperRecord
-from .fit import (FitResult, PreparedRecord, _as_record, _measures, fit_model, pooled_measures, predict,
-                  save_preset, uniform_record)
+from .fit import (FitResult, PreparedRecord, _as_record, _measures, check_fit_options, fit_model, pooled_measures,
+                  predict, save_preset, uniform_record)
 
 __all__ = ["ModelComparison", "ComparisonResult", "compare_models", "split_records", "validate", "plot_fit",
            "COLUMNS"]
@@ -132,11 +133,19 @@ def compare_models(records, models: Sequence[str | DamperModel] | None = None, *
     models = list(models) if models is not None else available_dampers()
     if not models:
         raise ValueError("models must not be empty")
+    for m in models:
+        if not isinstance(m, DamperModel):
+            damper_class(m)  # an unknown name is the caller's error, not a failed fit: refuse it before fitting
     names = [m.name if isinstance(m, DamperModel) else str(m) for m in models]
     if len(set(names)) != len(names):
         raise ValueError(f"models contains a model twice: {names}")
+    if plot_window is not None:
+        check_scalar("plot_window", plot_window, 0.0, lo_open=True, unit="s")
     presets = dict(presets or {})
     opts = dict(fit_options or {})
+    # options shared by every fit are refused once, here: a bad one would fail every model's fit alike
+    check_fit_options(method, seed, **{k: opts[k] for k in ("maxiter", "popsize", "warmup", "command_range")
+                                       if k in opts})
     whole, fits, idx = split_records(records, fit_fraction, dt)
     integ = opts.get("integrator_options") or {}
     results = []

@@ -10,6 +10,7 @@ import csv
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Mapping
 
 import numpy as np
 
@@ -81,7 +82,7 @@ class DamperRecord:
         cols = {"t": t}
         for name in ("x", "command", "force") + (("v",) if self.v is not None else ()):
             cols[name] = _check_signal(f"column '{name}'", getattr(self, name), n=n, item="row")
-        if self.command_unit not in ("V", "A"):
+        if not isinstance(self.command_unit, str) or self.command_unit not in ("V", "A"):
             raise ValueError(f"command_unit = {self.command_unit!r} is invalid: must be 'V' or 'A'")
         for name, a in cols.items():
             object.__setattr__(self, name, _frozen(a))
@@ -196,7 +197,7 @@ def own_columns(path: str | Path, required: tuple[str, ...] = _REQUIRED) -> tupl
     """(columns, units) of a file written by mrd-env — :meth:`DamperRecord.to_csv`, ``RigResult.to_csv`` and
     ``mrd-env rig`` — whose header names the SI unit of each column (``t_s``, ``x_m``, ``v_m_per_s``,
     ``command_V`` or ``command_A``, ``force_N``); ``ValueError`` if the file lacks a ``required`` role."""
-    header, _, _ = _read_table(Path(path), True, max_rows=0)
+    header, _, _ = _read_table(_as_path(path), True, max_rows=0)
     unit = next((h[len("command_"):] for h in header if h in ("command_V", "command_A")), None)
     columns = {k: v for k, v in _OWN_HEADER.items() if v in header}
     if unit is not None:
@@ -222,9 +223,13 @@ def read_columns(path: str | Path, columns: dict[str, str], units: dict[str, str
     is not text, missing columns, missing or unknown units, empty/non-numeric/non-finite cells and a
     non-increasing time column.
     """
-    path = Path(path)
+    path = _as_path(path)
     roles = tuple(dict.fromkeys(_REQUIRED + _OPTIONAL))
-    unknown = sorted(set(columns) - set(roles))
+    for name, given in (("columns", columns), ("units", units)):
+        if not isinstance(given, Mapping):
+            raise ValueError(f"{name} must be a dict role -> {'header name' if name == 'columns' else 'unit'} "
+                             f"(roles {list(roles)}), got {type(given).__name__}")
+    unknown = sorted(set(columns) - set(roles), key=repr)
     if unknown:
         raise ValueError(f"columns has unknown roles {unknown}; valid roles are {list(roles)}")
     missing_roles = [r for r in required if r not in columns]
@@ -234,14 +239,16 @@ def read_columns(path: str | Path, columns: dict[str, str], units: dict[str, str
     factors = {}
     for role, col in columns.items():
         accepted = list(UNITS[role])
+        if not isinstance(col, str):
+            raise ValueError(f"columns['{role}'] must be a header name (text), got {col!r}")
         if role not in units:
             raise ValueError(f"units['{role}'] is not given for column '{col}': declare its unit, one of "
                              f"{accepted}")
-        if units[role] not in UNITS[role]:
+        if not isinstance(units[role], str) or units[role] not in UNITS[role]:
             raise ValueError(f"units['{role}'] = {units[role]!r} for column '{col}' is not accepted; use one of "
                              f"{accepted}")
         factors[role] = UNITS[role][units[role]]
-    extra = sorted(set(units) - set(columns))
+    extra = sorted(set(units) - set(columns), key=repr)
     if extra:
         raise ValueError(f"units given for roles {extra} that have no column in columns")
 
@@ -282,6 +289,13 @@ def load_record_csv(path: str | Path, columns: dict[str, str], units: dict[str, 
     data = read_columns(path, columns, units, skip_trailing_empty=skip_trailing_empty)
     return DamperRecord(data["t"], data["x"], data["command"], data["force"], data.get("v"),
                         _COMMAND_SI[units["command"]], label or Path(path).stem)
+
+
+def _as_path(path) -> Path:
+    try:
+        return Path(path)
+    except TypeError:
+        raise ValueError(f"path must be a file path (str or os.PathLike), got {path!r}") from None
 
 
 def _read_table(path: Path, skip_trailing_empty: bool,

@@ -552,6 +552,34 @@ def pooled_measures(rows: Sequence[dict]) -> dict[str, float]:
 
 # --- the public fitting function --------------------------------------------------------------------------------
 
+def check_fit_options(method: str = "least_squares", seed: int = 0, *, maxiter: int | None = None,
+                      popsize: int | None = None, warmup: float = 0.0, command_range: str = "clip") -> None:
+    """``ValueError`` for a bad option of :func:`fit_model` that does not depend on the model: checked before
+    any simulation, and once up front by :func:`~mrd_env.identification.compare.compare_models` (where a
+    per-model failure would only mark every model's row failed)."""
+    if not isinstance(method, str) or method not in METHODS:
+        raise ValueError(f"method = {method!r} is invalid: must be one of {list(METHODS)}")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed = {seed!r} is invalid: must be a non-negative int")
+    for name, value in (("maxiter", maxiter), ("popsize", popsize)):
+        if value is None:
+            continue
+        try:
+            ok = not isinstance(value, bool) and int(value) == value and value >= 1
+        except (TypeError, ValueError, OverflowError):
+            ok = False
+        if not ok:
+            raise ValueError(f"{name} = {value!r} is invalid: must be an int >= 1 (or None for the default)")
+    try:
+        w = float(warmup)
+    except (TypeError, ValueError, OverflowError):
+        w = math.nan
+    if not (math.isfinite(w) and w >= 0):
+        raise ValueError(f"warmup = {warmup!r} is invalid: must be >= 0 s")
+    if not isinstance(command_range, str) or command_range not in ("clip", "raise", "widen"):
+        raise ValueError(f"command_range = {command_range!r} is invalid: must be 'clip', 'raise' or 'widen'")
+
+
 def fit_model(model_name: str | DamperModel, records, *, preset: str | None = None,
               free: Iterable[str] | None = None, bounds: Mapping[str, tuple[float, float]] | None = None,
               method: str = "least_squares", seed: int = 0, maxiter: int | None = None, progress: bool = True,
@@ -596,14 +624,11 @@ def fit_model(model_name: str | DamperModel, records, *, preset: str | None = No
     integrator_options : passed to the stepping routine (max_substeps, rtol, atol).
     """
     t_start = time.perf_counter()
-    if method not in METHODS:
-        raise ValueError(f"method = {method!r} is invalid: must be one of {list(METHODS)}")
+    check_fit_options(method, seed, maxiter=maxiter, popsize=popsize, warmup=warmup, command_range=command_range)
     if weighting not in ("record", "sample"):
         raise ValueError(f"weighting = {weighting!r} is invalid: must be 'record' or 'sample'")
     if jacobian not in ("central", "forward"):
         raise ValueError(f"jacobian = {jacobian!r} is invalid: must be 'central' or 'forward'")
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ValueError(f"seed = {seed!r} is invalid: must be a non-negative int")
     seed = int(seed)
     if isinstance(model_name, DamperModel):
         if preset is not None:
@@ -688,8 +713,6 @@ def fit_model(model_name: str | DamperModel, records, *, preset: str | None = No
     prob = _Problem(cls, params0, command, free_t, lo, hi, preps, normalize, opts, weighting)
     x0 = prob.encode([init_vals[k] for k in free_t])
     maxiter = _DEFAULT_MAXITER[method] if maxiter is None else int(maxiter)
-    if maxiter < 1:
-        raise ValueError(f"maxiter = {maxiter!r} is invalid: must be >= 1")
     J0 = float(prob.objective(x0[None, :])[0])
     if J0 >= prob.penalty:
         raise ValueError(f"the initial guess of {cls.name!r} diverges or is infeasible on the records")

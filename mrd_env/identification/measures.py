@@ -27,8 +27,10 @@ _MIN_SAMPLES = 3  # second-order differences at both ends need three points
 def _check_signal(label: str, value, *, n: int | None = None, item: str = "index") -> np.ndarray:
     """``value`` as a 1-D float64 array of finite numbers (of length ``n`` if given), else ``ValueError``."""
     try:
+        if np.iscomplexobj(value):  # a float cast would drop the imaginary part silently
+            raise TypeError("complex")
         a = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise ValueError(f"{label} must be a 1-D array of real numbers") from None
     if a.ndim != 1:
         raise ValueError(f"{label} must be 1-D, got shape {a.shape}")

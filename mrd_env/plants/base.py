@@ -147,7 +147,7 @@ class CoupledPlant:
 
 def preset_with_overrides(presets: dict, name: str, kind: str, overrides: dict):
     """The preset ``name`` of a frozen-dataclass family, with field ``overrides`` (validated anew)."""
-    if name not in presets:
+    if not isinstance(name, str) or name not in presets:
         raise ValueError(f"unknown {kind} preset {name!r}; available: {sorted(presets)}")
     base = presets[name]
     if not overrides:

@@ -34,8 +34,11 @@ class ShearBuildingParams:
         object.__setattr__(self, "K", check_array("ShearBuildingParams.K", self.K, shape=(n, n)))
         object.__setattr__(self, "C", check_array("ShearBuildingParams.C", self.C, shape=(n, n)))
         try:
+            if isinstance(self.damper_floors, (str, bytes)) or any(
+                    isinstance(f, (bool, np.bool_, str, bytes)) for f in self.damper_floors):
+                raise TypeError("floor numbers are numbers, not flags or text")  # "12" is not floors 1 and 2
             floats = [float(f) for f in self.damper_floors]
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             raise ValueError(f"ShearBuildingParams.damper_floors must be floor numbers in 1..{n}, "
                              f"got {self.damper_floors!r}") from None
         if not all(f.is_integer() for f in floats):

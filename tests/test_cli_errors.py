@@ -1,0 +1,175 @@
+"""``mrd-env``: every sub-command refuses bad input with exit code 2 and exactly one line on stderr
+(``mrd-env <command>: error: ...``), never a traceback, and before any long computation starts."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from experiments.cli import COMMANDS, main
+from mrd_env.identification import DamperRecord
+
+
+@pytest.fixture
+def files(tmp_path):
+    """Inputs, good and bad: ``{name}`` in an argument is replaced by the path of file ``name``."""
+    n = 400
+    t = np.arange(n) * 1e-3
+    x = 0.005 * np.sin(2 * np.pi * 3.0 * t)
+    cmd = np.where(t < 0.2, 0.0, 1.0)
+    good = DamperRecord(t, x, cmd, 800.0 * np.tanh(x / 1e-3), command_unit="V").to_csv(tmp_path / "good.csv")
+    paths = {"good": good, "missing": tmp_path / "missing.csv", "folder": tmp_path / "folder",
+             "binary": tmp_path / "binary.csv", "wrong": tmp_path / "wrong.csv", "text": tmp_path / "text.csv",
+             "one_row": tmp_path / "one_row.csv", "nonuniform": tmp_path / "nonuniform.csv",
+             "empty": tmp_path / "empty.csv", "out_file": tmp_path / "out_file"}
+    paths["folder"].mkdir()
+    paths["binary"].write_bytes(bytes(range(256)) * 8)
+    paths["wrong"].write_text("a,b,c\n1,2,3\n4,5,6\n7,8,9\n")
+    lines = good.read_text().splitlines()
+    paths["text"].write_text("\n".join(lines[:10] + [lines[10].replace(lines[10].split(",")[1], "abc")] + lines[11:]))
+    paths["one_row"].write_text("\n".join(lines[:2]) + "\n")
+    tt = t.copy()
+    tt[200:] += 0.05  # a gap of 50 samples
+    DamperRecord(tt, x, cmd, 0 * x).to_csv(paths["nonuniform"])
+    paths["empty"].write_text("")
+    paths["out_file"].write_text("not a folder")
+    # saved agents: none, without metadata, with broken or foreign metadata
+    for stem, meta in (("agent_no_meta", None), ("agent_bad_json", "{"), ("agent_no_keys", json.dumps({"x": 1})),
+                       ("agent_qc", json.dumps({"plant": "quarter_car", "algo": "SAC", "env_kwargs": {}})),
+                       ("agent_plant", json.dumps({"plant": "tower", "algo": "SAC", "env_kwargs": {}}))):
+        paths[stem] = tmp_path / f"{stem}.zip"
+        paths[stem].write_bytes(b"PK\x03\x04 not really a model")
+        if meta is not None:
+            (tmp_path / f"{stem}.json").write_text(meta)
+    return paths
+
+
+def _argv(argv, files):
+    return [a.format(**{k: str(v) for k, v in files.items()}) for a in argv]
+
+
+COLS = "t=t_s,x=x_m,command=command_V,force=force_N"
+UNITS = "t=s,x=m,command=V,force=N"
+DATA_ERRORS = [  # shared by identify and compare-models
+    [],                                                   # --data is required
+    ["--data", "{missing}"], ["--data", "{folder}"], ["--data", "{binary}"], ["--data", "{wrong}"],
+    ["--data", "{text}"], ["--data", "{one_row}"], ["--data", "{empty}"],
+    ["--data", "{good}", "--nope"],
+    ["--data", "{good}", "--fs", "500"],                  # the time column is sampled at 1 kHz
+    ["--data", "{good}", "--fs", "0"], ["--data", "{good}", "--fs", "nan"], ["--data", "{good}", "--fs", "-1"],
+    ["--data", "{good}", "--fs", "abc"],
+    ["--data", "{good}", "--dt", "0"], ["--data", "{good}", "--dt", "-1e-3"], ["--data", "{good}", "--dt", "inf"],
+    ["--data", "{good}", "--fs", "1000", "--dt", "1e-3"],
+    ["--data", "{good}", "--columns", COLS],              # --columns needs --units
+    ["--data", "{good}", "--units", UNITS],
+    ["--data", "{good}", "--columns", COLS, "--units", "t=s,x=furlong,command=V,force=N"],
+    ["--data", "{good}", "--columns", COLS.replace("force_N", "F"), "--units", UNITS],
+    ["--data", "{good}", "--columns", "garbage", "--units", UNITS],
+    ["--data", "{good}", "--columns", COLS + ",speed=x_m", "--units", UNITS + ",speed=m"],
+    ["--data", "{good}", "--columns", COLS, "--units", UNITS + ",v=m/s"],
+    ["--data", "{good}", "--fit-fraction", "1.5"], ["--data", "{good}", "--fit-fraction", "0"],
+    ["--data", "{good}", "--fit-fraction", "nan"],
+    ["--data", "{good}", "--t-start", "10"], ["--data", "{good}", "--t-start", "0.3", "--t-end", "0.1"],
+    ["--data", "{good}", "--t-end", "nan"],
+    ["--data", "{good}", "--method", "nope"], ["--data", "{good}", "--maxiter", "0"],
+    ["--data", "{good}", "--maxiter", "x"], ["--data", "{good}", "--popsize", "0"],
+    ["--data", "{good}", "--seed", "-1"], ["--data", "{good}", "--warmup", "-1"],
+    ["--data", "{good}", "--warmup", "nan"], ["--data", "{good}", "--warmup", "100"],
+    ["--data", "{good}", "--command-range", "nope"],
+]
+
+CASES = {
+    "rig": [
+        ["--nope"], ["--amplitude", "abc"], ["--amplitude", "-0.01"], ["--amplitude", "nan"], ["--amplitude", "0"],
+        ["--frequency", "0"], ["--frequency", "inf"], ["--frequency", "-2"], ["--dt", "0"], ["--dt", "1"],
+        ["--dt", "nan"], ["--cycles", "1e12"], ["--cycles", "-1"], ["--cycles", "1e-9"], ["--commands"],
+        ["--commands", "99"], ["--commands", "nan"], ["--commands", "-1", "1"], ["--model", "nope"],
+        ["--preset", "nope"], ["--model", "bouc_wen", "--preset", "large_scale"],
+        ["--record", "{missing}"], ["--record", "{folder}"], ["--record", "{binary}"], ["--record", "{wrong}"],
+        ["--record", "{text}"], ["--record", "{one_row}"], ["--record", "{empty}"], ["--record", "{nonuniform}"],
+        ["--record", "{good}", "--model", "ali_ramaswamy"],   # a record in V, a damper driven in A
+        ["--record", "{good}", "--columns", "t=t_s,x=x_m,command=command_V"],
+        ["--record", "{good}", "--units", "t=s,x=m,command=V"],
+        ["--record", "{good}", "--columns", "t=t_s,x=x_m,command=command_V", "--units", "t=s,x=furlong,command=V"],
+        ["--record", "{good}", "--columns", "t=t_s,x=nope,command=command_V", "--units", "t=s,x=m,command=V"],
+        ["--record", "{good}", "--columns", "garbage", "--units", "t=s"],
+        ["--record", "{good}", "--columns", "t=t_s,x=x_m", "--units", "t=s,x=m"],   # no command column
+        ["--out", "{out_file}"],
+    ],
+    "benchmark": [
+        ["--nope"], ["--plant", "nope"], ["--seeds", "0"], ["--seeds", "x"], ["--controllers", "nope"],
+        ["--plant", "building", "--controllers", "passive_off", "nope"], ["--damper", "nope"],
+        ["--agent", "{missing}"], ["--agent", "{folder}"], ["--agent", "{agent_no_meta}"],
+        ["--agent", "{agent_bad_json}"], ["--agent", "{agent_no_keys}"], ["--agent", "{agent_plant}"],
+        ["--plant", "building", "--agent", "{agent_qc}"],
+    ],
+    "train": [
+        ["--nope"], ["--algo", "nope"], ["--plant", "nope"], ["--timesteps", "0"], ["--timesteps", "x"],
+        ["--timesteps", "-5"], ["--control-dt", "0"], ["--control-dt", "0.0015"], ["--control-dt", "nan"],
+        ["--episode-seconds", "-1"], ["--episode-seconds", "0"], ["--n-envs", "0"], ["--seed", "-1"],
+    ],
+    "identify": DATA_ERRORS + [
+        ["--data", "{good}", "--model", "nope"], ["--data", "{good}", "--preset", "nope"],
+        ["--data", "{good}", "--free", "nope"], ["--data", "{good}", "--model", "ali_ramaswamy"],
+    ],
+    "compare-models": DATA_ERRORS + [
+        ["--data", "{good}", "--models", "nope"], ["--data", "{good}", "--models", "bingham", "nope"],
+        ["--data", "{good}", "--models", "bingham", "bingham"], ["--data", "{good}", "--plot-window", "0"],
+        ["--data", "{good}", "--plot-window", "nan"],
+    ],
+}
+
+
+@pytest.mark.parametrize("command, argv", [pytest.param(c, a, id=f"{c} {' '.join(a)}") for c, cases in CASES.items()
+                                           for a in cases])
+def test_bad_input_is_one_line_and_exit_2(command, argv, files, capsys, tmp_path):
+    argv = _argv(argv, files)
+    # safety nets: should a case pass its checks after all, it stays short instead of running for minutes
+    extra = {"benchmark": ["--seeds", "1", "--quick", None], "train": ["--timesteps", "1"],
+             "identify": ["--maxiter", "1"], "compare-models": ["--maxiter", "1", "--models", "bingham"]}
+    for opt, val in zip(extra.get(command, [])[::2], extra.get(command, [])[1::2]):
+        if opt not in argv:
+            argv += [opt, val] if val is not None else [opt]
+    argv += ["--out", str(tmp_path / "out")] if "--out" not in argv else []
+    code = main([command, *argv])
+    out, err = capsys.readouterr()
+    assert "Traceback" not in out + err
+    assert code == 2, err
+    assert err.startswith(f"mrd-env {command}: error: "), err
+    assert err.count("\n") == 1 and err.endswith("\n"), err
+
+
+def test_every_command_is_covered():
+    assert set(CASES) == set(COMMANDS)
+
+
+def test_unknown_command_and_no_command(capsys):
+    for argv in (["nope"], [], ["--nope"]):
+        code = main(argv)
+        _, err = capsys.readouterr()
+        assert code == 2 and err.startswith("mrd-env: error: ") and err.count("\n") == 1, err
+
+
+def test_help_exits_0_without_importing_the_commands():
+    code = ("import sys, contextlib, io\n"
+            "from experiments.cli import main\n"
+            "with contextlib.redirect_stdout(io.StringIO()) as out:\n"
+            "    rc = main(['--help'])\n"
+            "mods = [m for m in ('experiments.rig_report', 'experiments.benchmark', 'experiments.train',\n"
+            "        'experiments.identify_cmd', 'experiments.compare_models_cmd', 'mrd_env.rig',\n"
+            "        'mrd_env.identification', 'stable_baselines3', 'torch') if m in sys.modules]\n"
+            "print(rc, 'COMMANDS' if all(c in out.getvalue() for c in ('rig', 'benchmark', 'train', 'identify',\n"
+            "      'compare-models')) else 'missing', mods)\n")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert res.returncode == 0, res.stderr
+    assert res.stdout.strip() == "0 COMMANDS []", res.stdout + res.stderr
+
+
+@pytest.mark.parametrize("command", sorted(COMMANDS))
+def test_command_help_exits_0(command, capsys):
+    assert main([command, "--help"]) == 0
+    out, err = capsys.readouterr()
+    assert f"mrd-env {command}" in out and err == ""
