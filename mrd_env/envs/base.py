@@ -26,7 +26,11 @@ def action_space(asm: Assembly) -> gym.spaces.Box:
 def as_action(action, nd: int, N: int | None = None) -> np.ndarray:
     """``action`` (one environment's, or N environments' when ``N`` is given) as a float64 array of commands,
     else ``ValueError`` (shape, type)."""
-    raw = np.asarray(action)
+    try:
+        raw = np.asarray(action)
+    except ValueError:  # a ragged sequence
+        raise ValueError(f"action must be numeric with shape {(N, nd) if N else (nd,)}, got the ragged "
+                         f"{action!r}") from None
     if raw.dtype.kind not in "fiu":  # complex, bool, strings, objects: not a command
         raise ValueError(f"action must be numeric (real numbers) with shape {(N, nd) if N else (nd,)}, "
                          f"got dtype {raw.dtype}")

@@ -5,18 +5,20 @@ from __future__ import annotations
 from collections.abc import Mapping
 
 from ..dampers import DamperModel, damper_class, make_damper
-from ..validation import check_scalar
+from ..validation import check_n_samples, check_scalar
 from .build import as_options
 from .sensors import Sensors
+
+MAX_PERIOD_STEPS = 100_000  # physics steps in one control period (the period's buffers are allocated)
 
 
 def make_env_damper(damper, preset, params, default_preset: str) -> DamperModel:
     """The damper of an environment: a model name (with ``preset``, default ``default_preset`` where the model
     has it, and parameter overrides ``params``) or a :class:`DamperModel`."""
+    params = named_options("damper_params", params)
     if isinstance(damper, DamperModel):
         if preset is not None:
             raise ValueError("damper_preset applies to a damper model name, not to a DamperModel instance")
-        params = as_options("damper_params", params)
         return damper.with_params(**params) if params else damper
     if not isinstance(damper, str):
         raise ValueError(f"damper must be a model name (one of the registered models) or a DamperModel, "
@@ -27,19 +29,33 @@ def make_env_damper(damper, preset, params, default_preset: str) -> DamperModel:
     elif not isinstance(preset, str) or preset not in cls.presets:
         raise ValueError(f"damper_preset {preset!r} is not a preset of damper model {damper!r}; "
                          f"available: {sorted(cls.presets)}")
-    return make_damper(damper, preset, **as_options("damper_params", params))
+    return make_damper(damper, preset, **params)
+
+
+def named_options(name: str, given) -> dict:
+    """A dict of overrides whose keys are names (strings), else ``ValueError`` naming ``name``."""
+    out = as_options(name, given)
+    bad = [k for k in out if not isinstance(k, str)]
+    if bad:
+        raise ValueError(f"{name} keys must be parameter names (strings), got {bad!r}")
+    return out
 
 
 def time_steps(dt, control_dt, episode_seconds) -> tuple[float, float, float | None]:
     """(dt, control_dt, episode_seconds) checked: control_dt an integer multiple of dt."""
     dt = check_scalar("dt", dt, 0.0, 0.1, lo_open=True, unit="s")
     control_dt = check_scalar("control_dt", control_dt, 0.0, lo_open=True, unit="s")
-    n_sub = int(round(control_dt / dt))
+    ratio = control_dt / dt
+    if not ratio <= MAX_PERIOD_STEPS:
+        raise ValueError(f"control_dt / dt = {ratio:.3g} physics steps per control period (control_dt = "
+                         f"{control_dt:g} s, dt = {dt:g} s): at most {MAX_PERIOD_STEPS}")
+    n_sub = int(round(ratio))
     if n_sub < 1 or abs(n_sub * dt - control_dt) > 1e-9 * control_dt:
         raise ValueError(f"control_dt must be an integer multiple of dt = {dt:g} s (e.g. {dt:g}, {2 * dt:g}, "
                          f"{5 * dt:g} s), got {control_dt!r}")
     if episode_seconds is not None:
         episode_seconds = check_scalar("episode_seconds", episode_seconds, n_sub * dt, unit="s")
+        check_n_samples(episode_seconds / dt, f"episode_seconds = {episode_seconds:g} s at dt = {dt:g} s")
     return dt, n_sub * dt, episode_seconds
 
 

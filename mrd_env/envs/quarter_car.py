@@ -84,7 +84,7 @@ def _plant_params(plant_preset, plant_params) -> QuarterCarParams:
     if plant_params is not None and not isinstance(plant_params, dict):
         raise ValueError(f"plant_params must be a dict of QuarterCarParams overrides or a QuarterCarParams, "
                          f"got {type(plant_params).__name__}")
-    return quarter_car(plant_preset, **dict(plant_params or {}))
+    return quarter_car(plant_preset, **opt.named_options("plant_params", plant_params))
 
 
 def signals(coupled: CoupledPlant, p: QuarterCarParams, command_unit: str) -> SignalMap:

@@ -13,6 +13,8 @@ import numpy as np
 
 from .signals import SignalMap
 
+MAX_STEPS = 10_000  # of delay or history (the FIFO is allocated per environment)
+
 
 class Sensors:
     def __init__(self, names: Sequence[str], noise: Mapping | None = None, delay: int = 0, history: int = 1):
@@ -27,8 +29,8 @@ class Sensors:
         if len(set(names)) != len(names):
             raise ValueError(f"sensors must not repeat a name, got {names}")
         for name, value, lo in (("sensor_delay", delay, 0), ("history", history, 1)):
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < lo:
-                raise ValueError(f"{name} must be an int >= {lo} (control steps), got {value!r}")
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not lo <= value <= MAX_STEPS:
+                raise ValueError(f"{name} must be an int in [{lo}, {MAX_STEPS}] (control steps), got {value!r}")
         if noise is not None and not isinstance(noise, Mapping):
             raise ValueError(f"sensor_noise must be a dict {{sensor: std}}, got {type(noise).__name__}")
         self.names = names
@@ -54,7 +56,7 @@ class Sensors:
             if name not in where:
                 raise ValueError(f"sensor_noise names {name!r}, which is not among the chosen sensors {self.names}")
             sl = where[name]
-            a = np.asarray(v, dtype=float) if not isinstance(v, (str, bytes)) and np.isrealobj(v) else None
+            a = _stds(v)
             width = sl.stop - sl.start
             if a is None or a.shape not in ((), (width,)) or not np.all(np.isfinite(a)) or np.any(a < 0):
                 raise ValueError(f"sensor_noise[{name!r}] must be a finite std >= 0 ({signals[name].unit}), "
@@ -64,3 +66,15 @@ class Sensors:
             labels = [f"{lab}[t-{self.history - 1 - k}]" if k < self.history - 1 else f"{lab}[t]"
                       for k in range(self.history) for lab in labels]
         return np.concatenate(cols).astype(np.int64), std, layout, labels
+
+
+def _stds(value) -> np.ndarray | None:
+    """``value`` as an array of real numbers, or None (text, complex, dicts, ragged lists, overflowing ints)."""
+    if isinstance(value, (str, bytes, Mapping)):
+        return None
+    try:
+        if np.iscomplexobj(value):
+            return None
+        return np.asarray(value, dtype=float)
+    except (TypeError, ValueError, OverflowError):
+        return None

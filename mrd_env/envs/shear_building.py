@@ -34,43 +34,53 @@ DEFAULT_REWARD_WEIGHTS = {"drift": 0.5, "acc": 0.5, "termination": 1.0}
 
 
 # --- the ground motion: one rule, these kinds -------------------------------------------------------------------
-def _scaled(record: Record, time_scale, amplitude_scale, dt) -> FixedRecord:
-    return FixedRecord(scale_record(record, time_scale, amplitude_scale, dt), CHANNELS, UNITS, dt)
+def _scales(time_scale, amplitude_scale, lab: bool) -> tuple[float, float]:
+    """(time_scale, amplitude_scale): the lab model replays records 5× faster by default; both within
+    [1e-3, 1e3] (beyond that a record is no earthquake the plant could meet)."""
+    ts = LAB_TIME_SCALE if time_scale is None and lab else (1.0 if time_scale is None else time_scale)
+    ts = check_scalar("ground_motion_params['time_scale']", ts, 1e-3, 1e3)
+    amp = check_scalar("ground_motion_params['amplitude_scale']", amplitude_scale, 1e-3, 1e3)
+    return ts, amp
+
+
+def _scaled(record: Record, time_scale, amplitude_scale, dt, lab: bool = False) -> FixedRecord:
+    ts, amp = _scales(time_scale, amplitude_scale, lab)
+    return FixedRecord(scale_record(record, ts, amp, dt), CHANNELS, UNITS, dt)
 
 
 def _el_centro(*, dt, episode_seconds, lab, component="NS", source="peer", time_scale=None, amplitude_scale=1.0):
-    ts = LAB_TIME_SCALE if time_scale is None and lab else (1.0 if time_scale is None else time_scale)
-    return FixedRecord(el_centro(component, time_scale=ts, amplitude_scale=amplitude_scale, dt=dt, source=source),
+    ts, amp = _scales(time_scale, amplitude_scale, lab)
+    return FixedRecord(el_centro(component, time_scale=ts, amplitude_scale=amp, dt=dt, source=source),
                        CHANNELS, UNITS, dt)
 
 
 def _peer(name):
     def make(*, dt, episode_seconds, lab, time_scale=None, amplitude_scale=1.0):
-        ts = LAB_TIME_SCALE if time_scale is None and lab else (1.0 if time_scale is None else time_scale)
-        return _scaled(peer_record(name), ts, amplitude_scale, dt)
+        try:
+            record = peer_record(name)
+        except ValueError as exc:
+            raise ValueError(f"ground_motion 'peer:{name}': {exc}") from None
+        return _scaled(record, time_scale, amplitude_scale, dt, lab)
     return make
 
 
 def _at2(*, dt, episode_seconds, lab, path=None, time_scale=None, amplitude_scale=1.0):
     if path is None:
         raise ValueError("ground_motion 'at2' needs ground_motion_params['path']")
-    ts = LAB_TIME_SCALE if time_scale is None and lab else (1.0 if time_scale is None else time_scale)
-    return _scaled(read_at2(path), ts, amplitude_scale, dt)
+    return _scaled(read_at2(path), time_scale, amplitude_scale, dt, lab)
 
 
 def _two_column(*, dt, episode_seconds, lab, path=None, accel_unit=None, time_unit="s", time_scale=None,
                 amplitude_scale=1.0):
     if path is None:
         raise ValueError("ground_motion 'two_column' needs ground_motion_params['path']")
-    ts = LAB_TIME_SCALE if time_scale is None and lab else (1.0 if time_scale is None else time_scale)
-    return _scaled(read_two_column(path, accel_unit=accel_unit, time_unit=time_unit), ts, amplitude_scale, dt)
+    return _scaled(read_two_column(path, accel_unit=accel_unit, time_unit=time_unit), time_scale, amplitude_scale,
+                   dt, lab)
 
 
 def _kanai_tajimi(*, dt, episode_seconds, lab, duration=None, omega_g=15.6, zeta_g=0.6, pga=None, S0=None,
                   envelope="jennings", envelope_params=None, time_scale=None, amplitude_scale=1.0):
-    ts = LAB_TIME_SCALE if time_scale is None and lab else (1.0 if time_scale is None else time_scale)
-    ts = check_scalar("ground_motion_params['time_scale']", ts, 0.0, lo_open=True)
-    amp = check_scalar("ground_motion_params['amplitude_scale']", amplitude_scale, 0.0, lo_open=True)
+    ts, amp = _scales(time_scale, amplitude_scale, lab)
     if pga is None and S0 is None:
         pga = 0.3 * STANDARD_GRAVITY
     lab_seconds = duration if duration is not None else (episode_seconds or 10.0)
@@ -95,7 +105,7 @@ def ground_motion_source(gm, gm_params, dt: float, episode_seconds, lab: bool) -
         if "xg_ddot" not in gm.channels:
             raise ValueError(f"a ground-motion Record must have channel 'xg_ddot' (m/s^2); {gm!r} has {gm.channels}")
         raw = Record(gm.dt, gm.channel("xg_ddot")[:, None], CHANNELS, UNITS, gm.name)
-        unknown = sorted(set(params) - {"time_scale", "amplitude_scale"})
+        unknown = sorted(set(params) - {"time_scale", "amplitude_scale"}, key=str)
         if unknown:
             raise ValueError(f"ground_motion_params for a Record accepts time_scale and amplitude_scale, got {unknown}")
         return _scaled(raw, params.get("time_scale", 1.0), params.get("amplitude_scale", 1.0), dt)
@@ -122,7 +132,7 @@ def _plant_params(plant_preset, plant_params, damper_floors) -> tuple[ShearBuild
         if plant_params is not None and not isinstance(plant_params, dict):
             raise ValueError("plant_params must be a dict of ShearBuildingParams overrides or a ShearBuildingParams, "
                              f"got {type(plant_params).__name__}")
-        params, lab = shear_building(plant_preset, **dict(plant_params or {})), True
+        params, lab = shear_building(plant_preset, **opt.named_options("plant_params", plant_params)), True
     if damper_floors is not None:
         floors = (damper_floors,) if isinstance(damper_floors, (int, np.integer)) else damper_floors
         try:
