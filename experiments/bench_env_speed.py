@@ -7,9 +7,10 @@ OrderEnforcing and PassiveEnvChecker). Rows: the default quarter car (class-C IS
 Spencer–Dyke automotive damper, 1 ms control step), the same at a 10 ms control step (per control step and per
 simulated millisecond), the default shear building (three-storey lab model, El Centro ×0.2 time scale), and
 CartPole-v1; then the wall time of one full El Centro building episode (reset + every step at 1 ms). Each
-figure is the best of ``--repeats`` runs (the least disturbed by other processes on a shared machine); the
-compiled kernels are warmed up first. The commands alternate between v_min and v_max every 50 steps so that
-the damper works through its whole range.
+figure is the median of ``--repeats`` runs, the rows interleaved within each repeat so that a busy machine slows
+them alike; the ratio to CartPole-v1 is the figure to compare across machines. The compiled kernels are
+warmed up first. The commands alternate between v_min and v_max every 50 steps so that the damper works
+through its whole range.
 """
 from __future__ import annotations
 
@@ -48,7 +49,7 @@ def _time_steps(env, n: int, actions) -> float:
     return total / n * 1e6
 
 
-def bench(steps: int = 20000, repeats: int = 3) -> tuple[list[dict], float]:
+def bench(steps: int = 20000, repeats: int = 5) -> tuple[list[dict], float]:
     cases = [
         ("QuarterCar-v0 (default, control 1 ms)", "mrd_env/QuarterCar-v0", {"episode_seconds": 60.0}, 1),
         ("QuarterCar-v0 (control_dt 10 ms)", "mrd_env/QuarterCar-v0",
@@ -59,17 +60,18 @@ def bench(steps: int = 20000, repeats: int = 3) -> tuple[list[dict], float]:
     envs = []
     for label, env_id, kwargs, n_sub in cases:
         env = _make(env_id, **kwargs)
-        lo, hi = env.action_space.low, env.action_space.high
+        lo, hi = env.action_space.low.astype(np.float64), env.action_space.high.astype(np.float64)
         envs.append((label, env, (lo, hi), n_sub))
         _time_steps(env, 200, (lo, hi))  # warm-up: compile / load the kernels
     cart = gym.make("CartPole-v1")
     _time_steps(cart, 2000, (0, 1))
-    best = {}
+    runs: dict[str, list] = {}
     for _ in range(repeats):
         for label, env, acts, n_sub in envs:
             n = max(steps // n_sub, 500)
-            best[label] = min(best.get(label, np.inf), _time_steps(env, n, acts))
-        best["cartpole"] = min(best.get("cartpole", np.inf), _time_steps(cart, steps, (0, 1)))
+            runs.setdefault(label, []).append(_time_steps(env, n, acts))
+        runs.setdefault("cartpole", []).append(_time_steps(cart, steps, (0, 1)))
+    best = {k: float(np.median(v)) for k, v in runs.items()}
     cp = best["cartpole"]
     for label, env, acts, n_sub in envs:
         us = best[label]
@@ -81,7 +83,7 @@ def bench(steps: int = 20000, repeats: int = 3) -> tuple[list[dict], float]:
     # one full El Centro episode of the building, reset included
     env = envs[2][1]
     hi = env.action_space.high
-    wall = np.inf
+    walls = []
     for _ in range(repeats):
         t0 = time.perf_counter()
         env.reset(seed=0)
@@ -91,7 +93,8 @@ def bench(steps: int = 20000, repeats: int = 3) -> tuple[list[dict], float]:
             n += 1
             if term or trunc:
                 break
-        wall = min(wall, time.perf_counter() - t0)
+        walls.append(time.perf_counter() - t0)
+    wall = float(np.median(walls))
     episode = {"steps": n, "simulated_s": n * env.unwrapped.control_dt, "wall_s": wall}
     for _, e, _, _ in envs:
         e.close()
@@ -101,7 +104,7 @@ def bench(steps: int = 20000, repeats: int = 3) -> tuple[list[dict], float]:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--steps", type=int, default=20000, help="env.step calls per timing run (per simulated ms)")
-    ap.add_argument("--repeats", type=int, default=3, help="timing runs per row; the best is reported")
+    ap.add_argument("--repeats", type=int, default=5, help="timing runs per row; the median is reported")
     ap.add_argument("--out", type=Path, default=Path("results/bench"))
     args = ap.parse_args(argv)
     rows, ep = bench(args.steps, args.repeats)

@@ -115,3 +115,28 @@ def test_sb3_bridge_follows_sb3_conventions_and_trains():
     model = PPO("MlpPolicy", VecNormalize(venv), n_steps=16, batch_size=32, n_epochs=1, seed=0, device="cpu")
     model.learn(total_timesteps=64)
     assert model.num_timesteps >= 64
+
+
+def test_a_plant_added_in_two_files_works_with_every_part_and_the_laws():
+    """The half car (mrd_env/plants/half_car.py, mrd_env/envs/half_car.py and one registry line): two dampers,
+    four road inputs, the checker, the vector env, and the classical laws through its declared roles."""
+    from gymnasium.utils.env_checker import check_env
+
+    from controllers import make_controller
+
+    env = gym.make("mrd_env/HalfCar-v0", episode_seconds=0.2,
+                   sensors=("body_acc", "travel", "travel_rate", "body_vel_at_axles", "wheel_vel", "damper_force"))
+    check_env(env.unwrapped, skip_render_check=True)
+    assert env.action_space.shape == (2,)
+    for name in ("skyhook_on_off", "groundhook", "clipped_optimal", "max_energy_dissipation"):
+        ctrl = make_controller(name, env)
+        obs, _ = env.reset(seed=0)
+        while True:
+            obs, r, term, trunc, info = env.step(ctrl.predict(obs)[0])
+            if term or trunc:
+                break
+        assert trunc and np.isfinite(info["episode_metrics"]["acc_weighted_rms"])
+    venv = gym.make_vec("mrd_env/HalfCar-v0", num_envs=3, vectorization_mode="vector_entry_point",
+                        episode_seconds=0.05)
+    obs, _ = venv.reset(seed=0)
+    assert obs.shape == (3, 1 + 1 + 2 + 2 + 2)

@@ -15,6 +15,7 @@ import importlib
 ENVS = {
     "mrd_env/QuarterCar-v0": ("mrd_env.envs.quarter_car", "QuarterCarEnv", "QuarterCarVectorEnv"),
     "mrd_env/ShearBuilding-v0": ("mrd_env.envs.shear_building", "ShearBuildingEnv", "ShearBuildingVectorEnv"),
+    "mrd_env/HalfCar-v0": ("mrd_env.envs.half_car", "HalfCarEnv", "HalfCarVectorEnv"),
 }
 ENV_IDS = {env_id: f"{m}:{c}" for env_id, (m, c, _) in ENVS.items()}
 
