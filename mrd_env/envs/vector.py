@@ -51,6 +51,8 @@ class MRDamperVectorEnv(PlantDeclarations, VectorEnv):
         self._status = core.driver.int_state("STATUS")
         self._reward = core.driver.state("REWARD")[:, 0]
         self._pending = np.zeros(N, dtype=bool)  # NEXT_STEP: episodes that ended and reset at the next step
+        self._any_pending = False
+        self._ashape = (N, self.nd)
         self._started = False
 
     def reset(self, *, seed=None, options=None):
@@ -66,7 +68,8 @@ class MRDamperVectorEnv(PlantDeclarations, VectorEnv):
                 raise ValueError(f"seed must be None, an int or {N} seeds, got {len(seeds)}")
         self._rngs = [seeding.np_random(s)[0] for s in seeds]
         self.core.start(self._rngs)
-        self._pending[:] = False
+        self._pending = np.zeros(N, dtype=bool)
+        self._any_pending = False
         self._started = True
         return self.core.obs.copy(), {"t": np.zeros(N)}
 
@@ -75,38 +78,59 @@ class MRDamperVectorEnv(PlantDeclarations, VectorEnv):
             raise RuntimeError("call reset() before step()")
         core = self.core
         N = self.num_envs
-        a = as_action(actions, self.nd, N)
-        restart = self._pending.copy()
-        if restart.any():  # NEXT_STEP: the environments that ended last step start again, and do not step
+        if type(actions) is np.ndarray and actions.dtype == np.float64 and actions.shape == self._ashape:
+            a = actions.reshape(-1)
+        else:
+            a = as_action(actions, self.nd, N)
+        restart = None
+        if self._any_pending:  # NEXT_STEP: the environments that ended last step start again, and do not step
+            restart = self._pending
             core.start(self._rngs, restart)
             self._status[restart] = TRUNCATED
         core.step(a)
-        status = self._status.copy()
-        if np.any(status[~restart] == BAD_ACTION):
-            self._status[status == BAD_ACTION] = RUNNING
+        if restart is not None:
             self._status[restart] = RUNNING
-            raise ValueError("actions must be finite (no NaN or infinity)")
-        self._status[restart] = RUNNING
         rewards = self._reward.copy()
-        rewards[restart] = 0.0
-        ran = ~restart
+        infos = {"t": core._k * self.assembly.control_dt}
+        if not self._status.any():  # every environment running (RUNNING = 0): the common step
+            obs = core.obs.copy()
+            if restart is not None:
+                rewards[restart] = 0.0
+                self._pending = np.zeros(N, dtype=bool)
+                self._any_pending = False
+            return obs, rewards, np.zeros(N, dtype=bool), np.zeros(N, dtype=bool), infos
+        return self._ended(restart, rewards, infos)
+
+    def _ended(self, restart, rewards, infos):
+        """The step at which some episodes ended (or an action was refused)."""
+        core = self.core
+        N = self.num_envs
+        status = self._status.copy()
+        ran = np.ones(N, dtype=bool) if restart is None else ~restart
+        if np.any(status[ran] == BAD_ACTION):
+            self._status[status == BAD_ACTION] = RUNNING
+            raise ValueError("actions must be finite (no NaN or infinity)")
+        if restart is not None:
+            rewards[restart] = 0.0
         terminated = ran & ((status == TERMINATED) | (status == DIVERGED))
         truncated = ran & (status == TRUNCATED)
-        infos = {"t": core._k * asm_dt(self)}
         ended = np.flatnonzero(terminated | truncated)
         if ended.size:
             self._end_infos(infos, ended, status, rewards)
         obs = core.obs.copy()
-        if self.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP and ended.size:
-            final = np.full(N, None, dtype=object)
-            for b in ended:
-                final[b] = obs[b].copy()
-            infos["final_obs"], infos["_final_obs"] = final, terminated | truncated
-            done = terminated | truncated
-            core.start(self._rngs, done)
-            obs[done] = core.obs[done]
+        done = terminated | truncated
+        if self.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP:
+            if ended.size:
+                final = np.full(N, None, dtype=object)
+                for b in ended:
+                    final[b] = obs[b].copy()
+                infos["final_obs"], infos["_final_obs"] = final, done
+                core.start(self._rngs, done)
+                obs[done] = core.obs[done]
+            self._pending = np.zeros(N, dtype=bool)
         else:
-            self._pending = terminated | truncated
+            self._pending = done
+        self._any_pending = bool(self._pending.any())
         return obs, rewards, terminated, truncated, infos
 
     def _end_infos(self, infos: dict, ended: np.ndarray, status: np.ndarray, rewards: np.ndarray) -> None:
