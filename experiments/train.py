@@ -92,7 +92,13 @@ def _parse_overrides(items) -> dict:
         if "=" not in item:
             raise ValueError(f"--set expects key=value, got {item!r}")
         k, v = item.split("=", 1)
-        out[k.strip()] = yaml.safe_load(v)
+        value = yaml.safe_load(v)
+        if isinstance(value, str):  # YAML 1.1 reads 1e-4 (no dot) as a string
+            try:
+                value = float(value)
+            except ValueError:
+                pass
+        out[k.strip()] = value
     return out
 
 
@@ -302,9 +308,43 @@ def plot_learning_curve(run_dir: Path) -> Path | None:
     return save_figure(fig, run_dir / "learning_curve.png")
 
 
+def plot_seed_curves(run_dirs, path: Path, references: dict[str, float] | None = None) -> Path | None:
+    """The validation returns of several seeds (each, and their mean) against environment steps, with
+    horizontal ``references`` (e.g. the classical laws' validation returns)."""
+    import csv
+
+    from mrd_env.report import figure, save_figure
+
+    curves = []
+    for d in run_dirs:
+        val = Path(d) / "validation.csv"
+        if val.exists():
+            rows = list(csv.DictReader(val.open()))
+            curves.append((Path(d).name, np.array([int(r["timesteps"]) for r in rows]),
+                           np.array([float(r["validation_return"]) for r in rows])))
+    if not curves:
+        return None
+    fig, ax = figure(figsize=(7, 4))
+    for name, x, y in curves:
+        ax.plot(x, y, lw=0.8, alpha=0.6, label=name)
+    n = min(len(y) for _, _, y in curves)
+    ax.plot(curves[0][1][:n], np.mean([y[:n] for _, _, y in curves], axis=0), "k-", lw=2, label="mean over seeds")
+    for i, (name, value) in enumerate((references or {}).items()):
+        ax.axhline(value, ls="--", lw=1, color=f"C{(i + len(curves)) % 10}", label=name)
+    ax.set_xlabel("environment steps")
+    ax.set_ylabel("validation return (unseen seeds)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    return save_figure(fig, path)
+
+
 def train(plant: str, algo: str, seeds, **kw) -> list[Path]:
-    """One agent per seed (sequentially); their folders."""
-    return [train_one(plant, algo, int(s), **kw) for s in seeds]
+    """One agent per seed (sequentially); their folders, and with several seeds a figure of their validation
+    curves (``<out>/<plant>_<algo>_learning_curves.png``)."""
+    folders = [train_one(plant, algo, int(s), **kw) for s in seeds]
+    if len(folders) > 1:
+        plot_seed_curves(folders, Path(kw["out"]) / f"{plant}_{algo}_learning_curves.png")
+    return folders
 
 
 # --- CLI ----------------------------------------------------------------------------------------------------------
