@@ -77,11 +77,25 @@ def check_hyperparameters(algo: str, hyper: dict) -> dict:
     if unknown:
         raise ValueError(f"hyperparameters {unknown} are not {ALGOS[algo]} options; valid: "
                          f"{sorted(_ZOO_KEYS)} and {sorted(accepted)}")
+    for v in hyper.values():
+        schedule(v)  # a malformed lin_ schedule is refused before training
     for key in ("n_envs", "n_timesteps"):
         v = hyper.get(key, 1)
         if isinstance(v, bool) or not isinstance(v, (int, float)) or v < 1 or float(v) != int(v):
             raise ValueError(f"hyperparameter {key} must be an integer >= 1, got {v!r}")
     return hyper
+
+
+def schedule(value):
+    """RL Zoo's ``lin_<x>`` (a value decaying linearly from x to 0 over training, e.g. ``learning_rate:
+    lin_3e-4``) as SB3's schedule; any other value unchanged."""
+    if isinstance(value, str) and value.startswith("lin_"):
+        try:
+            start = float(value[4:])
+        except ValueError:
+            raise ValueError(f"a linear schedule is lin_<number>, got {value!r}") from None
+        return lambda progress_remaining: progress_remaining * start
+    return value
 
 
 def _parse_overrides(items) -> dict:
@@ -235,7 +249,7 @@ def train_one(plant: str, algo: str, seed: int, *, out: Path, timesteps: int | N
     norm_kw = normalize if isinstance(normalize, dict) else {}
     vecnorm = VecNormalize(venv, gamma=float(hyper.get("gamma", 0.99)), **norm_kw) if normalize else None
     train_env = vecnorm if vecnorm is not None else venv
-    kwargs = {k: v for k, v in hyper.items() if k not in _ZOO_KEYS}
+    kwargs = {k: schedule(v) for k, v in hyper.items() if k not in _ZOO_KEYS}
     model = _algorithm(ALGOS[algo])(hyper.get("policy", "MlpPolicy"), train_env, seed=seed, device="cpu", verbose=0,
                                     tensorboard_log=str(Path(out) / "tensorboard") if tensorboard else None, **kwargs)
     obs_kwargs = {k: v for k, v in env_kwargs.items() if k in OBSERVATION_OPTIONS}

@@ -173,3 +173,13 @@ def test_training_distributions_draw_new_episodes():
         assert not np.array_equal(recs[0], recs[1]) and not np.array_equal(recs[1], recs[2])
         env.reset(seed=1)
         np.testing.assert_array_equal(env.unwrapped.record.data[:2000], recs[1])
+
+
+def test_linear_schedules_follow_rl_zoo():
+    from experiments.train import check_hyperparameters, schedule
+
+    lr = schedule("lin_3e-4")
+    assert lr(1.0) == pytest.approx(3e-4) and lr(0.5) == pytest.approx(1.5e-4) and lr(0.0) == 0.0
+    assert schedule(0.2) == 0.2 and schedule("MlpPolicy") == "MlpPolicy"
+    with pytest.raises(ValueError, match="lin_<number>"):
+        check_hyperparameters("ppo", {"learning_rate": "lin_fast"})
