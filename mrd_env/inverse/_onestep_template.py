@@ -131,3 +131,17 @@ def nearest_commands(C, D, Ainv, Bbar, Mq, PP, P, eta, Y, U, F, W, target, grid,
                     break
         out[b] = c_best
         predicted[b] = F_best
+
+
+@nb.njit(cache=True)
+def step_forces(C, D, Ainv, Bbar, Mq, PP, P, eta, Y, U, F, W, W1, V, dt, max_level, atol, rtol, wf, wi, out):
+    """out[b, k]: damper b's force at the end of one step with the command V[b, k] held and the motion going
+    from W[b] to W1[b], from its current state (left unchanged; NaN where the step fails)."""
+    n = Y.shape[1]
+    Ys = np.empty(n)
+    Us = np.empty(1)
+    Fs = np.empty(1)
+    for b in range(Y.shape[0]):
+        for k in range(V.shape[1]):
+            out[b, k] = step_force(C, D, Ainv, Bbar, Mq, PP, P, eta, Y[b], U[b], F[b], V[b, k], W[b], W1[b], dt,
+                                   max_level, atol, rtol, wf, wi, Ys, Us, Fs)

@@ -106,6 +106,17 @@ class OneStep:
                                      self._wi, out, predicted)
         return out, predicted
 
+    def step_forces(self, commands: np.ndarray, x1: np.ndarray, v1: np.ndarray) -> np.ndarray:
+        """Forces (N, K) at the end of the next step for each of K commands per damper (N, K), the motion going
+        to the measured x1, v1 (N,) (acceleration: their backward difference); the state is left unchanged."""
+        W1 = np.stack([x1, v1, (v1 - self.W[:, 1]) / self.dt], axis=1)
+        out = np.empty(commands.shape)
+        self.module.step_forces(*self._sys, self.P, self.eta, self.Y, self.U, self.F, self.W, W1,
+                                np.ascontiguousarray(commands, dtype=np.float64), self.dt, self.max_level, self.atol,
+                                self.rtol, self._wf, self._wi, out)
+        return out
+
+
 class ObserverInverse(Inverse):
     """Base of the inverses that run their damper model along the measured motion (``observer``, a
     :class:`OneStep`): at each call the model is first advanced from the previous measured motion to the new one
