@@ -58,9 +58,10 @@ def step_force(C, D, Ainv, Bbar, Mq, PP, P, eta, Y, U, F, v, w0, w1, dt, max_lev
     Fs[0] = F[0]
     cmd = np.empty(1)
     cmd[0] = v
+    nsub = np.ones(1, dtype=np.int64)  # an int64, not the literal 1: the call then shares the driver's compilation
     wi[ns + 1] = -1
-    st, used, nxt = macro_step(C, D, Ainv, Bbar, Mq, PP, P, eta, Ys, Us, Fs, cmd, w0, w1, dt, max_level, 1, atol,
-                               rtol, wf, wi)
+    st, used, nxt = macro_step(C, D, Ainv, Bbar, Mq, PP, P, eta, Ys, Us, Fs, cmd, w0, w1, dt, max_level, nsub[0],
+                               atol, rtol, wf, wi)
     if st != 0:
         return math.nan
     return Fs[0]

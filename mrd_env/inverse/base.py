@@ -11,7 +11,8 @@ its velocity ẋ(t_k) and, if available, the damper force f(t_k) — and returns
     v = inv.command(f_desired, x, v, f_measured=f)      # arrays of N dampers (or scalars), SI units
 
 Calls are batched over N dampers, like the stepping routine: the inputs are scalars or 1-D arrays of one length
-N, fixed from the first call after :meth:`Inverse.reset` (a call with another N is an error). Forces are the
+N, fixed from the first call after :meth:`Inverse.reset` (a call with another N is an error); ``reset(mask)``
+restarts only the dampers in ``mask`` (a vector environment's ended episodes) at the next call. Forces are the
 whole damper force (N, positive resisting extension, static preload included). Inverses with memory (an observer
 of the damper's states, the lag of their own past commands, a network's input history) assume that consecutive
 calls are consecutive control steps.
@@ -85,10 +86,16 @@ class Inverse(ABC):
         self.dt = check_scalar("dt", dt, 0.0, 1.0, lo_open=True, unit="s")
         self.N = 0
 
-    def reset(self) -> None:
-        """Forget the past (observer states, command history): the next call starts a new record, and may
-        have another batch size."""
-        self.N = 0
+    def reset(self, mask=None) -> None:
+        """Forget the past (observer states, command history): of every damper — the next call starts a new
+        batch, of any size — or of the dampers where ``mask`` (N,) is true, restarted at the next call."""
+        m = None if mask is None else np.asarray(mask, dtype=bool)
+        if m is None or self.N == 0 or m.all():
+            self.N = 0
+            return
+        if m.shape != (self.N,):
+            raise ValueError(f"mask must have shape ({self.N},) (one flag per damper), got {m.shape}")
+        self._restart |= m
 
     def command(self, f_desired, x, v, f_measured=None) -> np.ndarray:
         """The command (N,) in the damper's unit, within [v_min, v_max], to hold over the next control step so
@@ -110,13 +117,17 @@ class Inverse(ABC):
             fm = _as_batch("f_measured", f_measured, n)
         if self.N == 0:
             self.N = n
-            self._start(x, v, fm)
+            self._restart = np.ones(n, dtype=bool)
+        if self._restart.any():
+            self._start(self._restart, x, v, fm)
+            self._restart[:] = False
         self.last_command = np.clip(self._command(fd, x, v, fm), self.v_min, self.v_max)
         return self.last_command
 
     @abstractmethod
-    def _start(self, x: np.ndarray, v: np.ndarray, f_measured: np.ndarray | None) -> None:
-        """Set up the memory for a batch of ``self.N`` dampers at the first call after a reset."""
+    def _start(self, rows: np.ndarray, x: np.ndarray, v: np.ndarray, f_measured: np.ndarray | None) -> None:
+        """(Re)start the memory of the dampers in ``rows`` (N,) from the call's measurements; at the first call
+        after :meth:`reset` every row, and the memory is sized for ``self.N`` dampers."""
 
     @abstractmethod
     def _command(self, f_desired: np.ndarray, x: np.ndarray, v: np.ndarray,

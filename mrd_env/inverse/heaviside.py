@@ -37,7 +37,7 @@ class Heaviside(Inverse):
         if not np.isfinite(self.f_static):
             raise ValueError(f"f_static = {f_static!r} is invalid: must be finite (N)")
 
-    def _start(self, x, v, f_measured):
+    def _start(self, rows, x, v, f_measured):
         pass
 
     def _command(self, f_desired, x, v, f_measured):

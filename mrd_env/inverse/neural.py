@@ -230,13 +230,16 @@ class NeuralInverse(Inverse):
         self._work = np.zeros((2, int(self._sizes.max())))
         self._inp = np.zeros(net.n_inputs)
 
-    def _start(self, x, v, f_measured):
+    def _start(self, rows, x, v, f_measured):
         H = self.network.history
+        if getattr(self, "_Hf", None) is None or self._Hf.shape[0] != self.N:
+            self._Hf, self._Hx, self._Hv = (np.zeros((self.N, H)) for _ in range(3))
+            self.u_hat = np.zeros(self.N)
         # the history starts full of the first measurement (as the environments' sensor history does)
-        self._Hf = np.repeat(f_measured[:, None], H, axis=1)
-        self._Hx = np.repeat(x[:, None], H, axis=1)
-        self._Hv = np.repeat(v[:, None], H, axis=1)
-        self.u_hat = np.full(self.N, self.u0)
+        self._Hf[rows] = f_measured[rows, None]
+        self._Hx[rows] = x[rows, None]
+        self._Hv[rows] = v[rows, None]
+        self.u_hat[rows] = self.u0
 
     def _command(self, f_desired, x, v, f_measured):
         out = np.empty(self.N)

@@ -69,21 +69,22 @@ class OneStep:
         self._status = np.zeros(self.N, dtype=np.int64)
         self.t = 0.0
 
-    def start(self, W: np.ndarray, u0: np.ndarray) -> None:
-        """Start from rest at the motion ``W`` (N, 3) with the effective commands ``u0`` (N,): the rest state
-        switched to the motion (the model's ``project``) and its force, as the rig starts a record."""
+    def start(self, W: np.ndarray, u0: np.ndarray, rows: np.ndarray | None = None) -> None:
+        """Start from rest at the motion ``W`` (N, 3) with the effective commands ``u0`` (N,) — every damper, or
+        those in ``rows`` (N,) — : the rest state switched to the motion (the model's ``project``) and its force,
+        as the rig starts a record."""
         d = self.damper
-        self.W[:] = W
-        self.U[:, 0] = u0
+        rows = np.ones(self.N, dtype=bool) if rows is None else np.asarray(rows, dtype=bool)
+        self.W[rows] = W[rows]
+        self.U[rows, 0] = u0[rows]
+        self._nsub[rows] = 1
         p = self.P[0]
-        for b in range(self.N):
+        for b in np.flatnonzero(rows):
             s = d.initial_state()
             x, v, a = (float(w) for w in W[b])
             d.project(p, s, x, v, float(u0[b]))
             self.Y[b] = s
             self.F[b, 0] = d.force_law(p, s, x, v, a, float(u0[b]))
-        self._nsub[:] = 1
-        self.t = 0.0
 
     def advance(self, command: np.ndarray, x: np.ndarray, v: np.ndarray) -> None:
         """One step with the commands ``command`` (N,) held, the motion going linearly from ``W`` to the
@@ -142,19 +143,28 @@ class ObserverInverse(Inverse):
                                 atol=check_scalar("atol", atol, 0.0, lo_open=True))
         self.observer: OneStep | None = None
 
-    def _start(self, x, v, f_measured):
+    def _start(self, rows, x, v, f_measured):
         if self.observer is None or self.observer.N != self.N:
             self.observer = OneStep(self.damper, self.N, self.dt, **self._integrator)
-        self.observer.start(np.stack([x, v, np.zeros_like(x)], axis=1), np.full(self.N, self.u0))
-        self.last_command = np.full(self.N, self.u0)
-        self._fresh = True
+            self.last_command = np.full(self.N, self.u0)
+        self.last_command[rows] = self.u0
+        # the restarted rows are started at the measured motion: the observer's step to it changes nothing,
+        # its state being the rest state switched to that motion
+        self._fresh = rows.copy()
 
     def _observe(self, x: np.ndarray, v: np.ndarray) -> None:
-        """Advance the observer to the measured motion (x, ẋ) with the last command (not at the first call)."""
-        if self._fresh:
-            self._fresh = False
-            return
-        self.observer.advance(self.last_command, x, v)
+        """Advance the observer to the measured motion (x, ẋ) with the last command; the dampers (re)started at
+        this call start from rest at it instead."""
+        fresh = self._fresh
+        if fresh.any():
+            W = np.stack([x, v, np.zeros_like(x)], axis=1)
+            if not fresh.all():
+                self.observer.W[fresh] = W[fresh]  # no motion over the step: the rows restarted below
+                self.observer.advance(self.last_command, x, v)
+            self.observer.start(W, np.full(self.N, self.u0), fresh)
+            self._fresh = np.zeros(self.N, dtype=bool)
+        else:
+            self.observer.advance(self.last_command, x, v)
 
     def _target(self, f_desired: np.ndarray, f_measured: np.ndarray | None) -> np.ndarray:
         """f_d corrected by the model's current force error (``force_feedback``)."""
