@@ -318,7 +318,7 @@ def test_training_is_reproducible_bit_for_bit(bw):
     kw = dict(n_records=2, duration=0.4, epochs=1, hidden=(8,), history=3, seed=5, progress=False)
     a, b = train_neural_inverse(bw, **kw), train_neural_inverse(bw, **kw)
     assert all(np.array_equal(p, q) for p, q in zip(a.weights + a.biases, b.weights + b.biases))
-    assert a.scales == b.scales and a.meta["n_samples"] == 4 * 2 * (400 - 3)  # own samples and 3 branches
+    assert a.scales == b.scales and a.meta["n_samples"] == 4 * 2 * (401 - 3)  # 401 samples, own and 3 branches
     with pytest.raises(ValueError, match="history"):
         train_neural_inverse(bw, **{**kw, "history": 0})
 

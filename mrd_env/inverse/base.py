@@ -43,12 +43,6 @@ def lag_decay(eta: float, dt: float) -> float:
     return math.exp(-eta * dt)
 
 
-def invert_lag(u_target, u_now, decay: float):
-    """The command v, held over one step, that takes the effective command from ``u_now`` to ``u_target``:
-    the exact inverse of u(t+dt) = v + (u(t) − v)·e^(−η dt) (``decay``)."""
-    return (u_target - u_now * decay) / (1.0 - decay)
-
-
 def _as_batch(name: str, value, n: int | None) -> np.ndarray:
     """``value`` as a 1-D float64 array of finite reals (a scalar is a batch of one)."""
     if type(value) is np.ndarray and value.dtype == np.float64 and value.ndim == 1:

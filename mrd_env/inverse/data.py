@@ -8,11 +8,9 @@ controller uses, appears.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
-from ..rig import random_test, simulate
+from ..rig import RigResult, random_test, simulate
 from ..validation import as_generator, check_scalar
 from .base import as_damper
 
@@ -38,31 +36,16 @@ def random_command(n: int, dt: float, command, rng, *, mean_hold: float = 0.03,
     return out
 
 
-@dataclass(frozen=True)
-class RigRecord:
-    """A virtual-rig record (SI): motion x, v (m, m/s), the command held from each sample to the next, the
-    effective command u after the lag, and the force (N), sampled every ``dt``."""
-
-    t: np.ndarray
-    x: np.ndarray
-    v: np.ndarray
-    command: np.ndarray
-    u: np.ndarray
-    force: np.ndarray
-    dt: float
-
-
 def achievable_forces(damper, *, duration: float = 4.0, dt: float = 1e-3, rms: float = 0.004,
                       bandwidth: float = 8.0, mean_hold: float = 0.03, on_off_fraction: float = 0.3,
-                      rng=None) -> RigRecord:
+                      rng=None) -> RigResult:
     """The damper on the rig under a random stroke (``rms`` m, flat spectrum up to ``bandwidth`` Hz) and a
-    :func:`random_command` (its first step at v_min): its force is a desired force the damper can produce
-    exactly."""
+    :func:`random_command` (its first step at v_min), as a :class:`~mrd_env.rig.RigResult`: its force is a
+    desired force the damper can produce exactly."""
     damper = as_damper(damper)
     rng = as_generator(rng)
     motion = random_test(damper, rms, bandwidth, duration, command=damper.command.v_min, dt=dt, rng=rng)
     cmd = random_command(motion.t.size, dt, damper.command, rng, mean_hold=mean_hold,
                          on_off_fraction=on_off_fraction)
     cmd[0] = damper.command.v_min  # the rig starts at rest, switched off, as :func:`~mrd_env.inverse.track` does
-    r = simulate(damper, motion.x, cmd, dt, v=motion.v)[0]
-    return RigRecord(r.t, r.x, r.v, r.command, r.u, r.force, dt)
+    return simulate(damper, motion.x, cmd, dt, v=motion.v, labels=["achievable"])[0]
