@@ -219,8 +219,8 @@ def run_record(args: argparse.Namespace) -> int:
         if name == "neural":
             for source in args.neural:
                 net = train_neural_inverse(plant, fits if source == "record" else None, dt=dt, epochs=args.epochs,
-                                           n_records=15, duration=4.0, seed=args.seed,
-                                           progress=not args.no_progress)
+                                           seed=args.seed, progress=not args.no_progress,
+                                           **rig_like(fits[0], dt))
                 net.save(out / f"neural_{source}.npz")
                 add(f"neural ({source} data)", track(make_inverse("neural", plant, dt=dt, network=net), plant, x, v,
                                                      f, dt))
@@ -236,6 +236,23 @@ def run_record(args: argparse.Namespace) -> int:
     print(md.read_text())
     print(f"wrote {out}")
     return 0
+
+
+def rig_like(record, dt: float) -> dict:
+    """Virtual-rig settings resembling a measured record, for a neural inverse trained on its fitted model: 15
+    records of 4 s, stroke r.m.s. from half to 1.5 times the record's, bandwidth from half to all of the frequency
+    below which 99 % of its stroke's power lies, command hold times from 5 ms to twice the record's mean."""
+    from scipy.signal import welch
+
+    f, P = welch(record.x - np.mean(record.x), fs=1.0 / dt, nperseg=min(8192, record.n))
+    f99 = float(f[np.searchsorted(np.cumsum(P) / np.sum(P), 0.99)])
+    sx = float(np.std(record.x))
+    cmd = record.command
+    # a switch: a step of more than a tenth of the span (a measured command is noisy from sample to sample)
+    switches = max(int(np.count_nonzero(np.abs(np.diff(cmd)) > 0.1 * (cmd.max() - cmd.min()))), 1)
+    hold = record.duration / switches
+    return {"n_records": 15, "duration": 4.0, "rms": (0.5 * sx, 1.5 * sx), "bandwidth": (0.5 * f99, f99),
+            "mean_hold": (0.005, max(0.005, 2.0 * hold))}
 
 
 class RecordedCommand(Inverse):
