@@ -41,14 +41,7 @@ def torch_forward_time(net, calls: int = 2000) -> float:
     import torch
 
     torch.set_num_threads(1)
-    layers = []
-    for i, (W, b) in enumerate(zip(net.weights, net.biases)):
-        lin = torch.nn.Linear(W.shape[1], W.shape[0]).double()
-        with torch.no_grad():
-            lin.weight.copy_(torch.from_numpy(W))
-            lin.bias.copy_(torch.from_numpy(b))
-        layers += [lin] + ([torch.nn.Tanh()] if i < len(net.weights) - 1 else [])
-    model = torch.nn.Sequential(*layers)
+    model = net.to_torch()
     row = np.random.default_rng(0).normal(size=net.n_inputs)
     with torch.no_grad():
         for _ in range(100):

@@ -276,14 +276,7 @@ def test_neural_compiled_inference_equals_torch():
     from mrd_env.inverse.neural import _flat, _mlp
 
     net = load_network(NETWORKS / "spencer_dyke_spencer1997.npz")
-    layers = []
-    for i, (W, b) in enumerate(zip(net.weights, net.biases)):
-        lin = torch.nn.Linear(W.shape[1], W.shape[0]).double()
-        with torch.no_grad():
-            lin.weight.copy_(torch.from_numpy(W))
-            lin.bias.copy_(torch.from_numpy(b))
-        layers += [lin] + ([torch.nn.Tanh()] if i < len(net.weights) - 1 else [])
-    model = torch.nn.Sequential(*layers)
+    model = net.to_torch()
     X = np.random.default_rng(0).normal(size=(50, net.n_inputs))
     flat, sizes = _flat(net)
     work = np.zeros((2, int(sizes.max())))

@@ -26,7 +26,7 @@ from typing import ClassVar
 import numpy as np
 
 from ..dampers import DamperModel, make_damper
-from ..validation import check_scalar
+from ..validation import check_array, check_scalar
 
 
 def as_damper(damper) -> DamperModel:
@@ -45,23 +45,14 @@ def lag_decay(eta: float, dt: float) -> float:
 
 def _as_batch(name: str, value, n: int | None) -> np.ndarray:
     """``value`` as a 1-D float64 array of finite reals (a scalar is a batch of one)."""
-    if type(value) is np.ndarray and value.dtype == np.float64 and value.ndim == 1:
-        a = np.ascontiguousarray(value)  # the hot path of a control loop: checked below, copied only if strided
+    if type(value) is np.ndarray and value.dtype == np.float64 and value.ndim == 1 and np.isfinite(value).all():
+        a = np.ascontiguousarray(value)  # the hot path of a control loop: copied only if strided
     else:
-        try:
-            raw = np.asarray(value)
-            if raw.dtype.kind not in "biuf":
-                raise TypeError(raw.dtype)
-            a = np.array(raw, dtype=np.float64, ndmin=1)
-        except (TypeError, ValueError, OverflowError):
-            raise ValueError(f"{name} must be a real number or a 1-D array of real numbers (SI units)") from None
+        a = np.atleast_1d(check_array(name, value))
         if a.ndim != 1:
             raise ValueError(f"{name} must be a scalar or a 1-D array (one value per damper), got shape {a.shape}")
     if n is not None and a.shape[0] != n:
         raise ValueError(f"{name} has {a.shape[0]} values, expected {n} (one per damper, as f_desired)")
-    if not np.isfinite(a).all():
-        i = int(np.flatnonzero(~np.isfinite(a))[0])
-        raise ValueError(f"{name} has a non-finite value ({a[i]}) at index {i}")
     return a
 
 

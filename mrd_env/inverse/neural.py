@@ -82,6 +82,19 @@ class Network:
     def n_inputs(self) -> int:
         return n_inputs(self.history)
 
+    def to_torch(self):
+        """The network as a float64 ``torch.nn.Sequential`` (Linear and Tanh layers) with these weights."""
+        import torch
+
+        layers = []
+        for i, (W, b) in enumerate(zip(self.weights, self.biases)):
+            lin = torch.nn.Linear(W.shape[1], W.shape[0]).double()
+            with torch.no_grad():
+                lin.weight.copy_(torch.from_numpy(W))
+                lin.bias.copy_(torch.from_numpy(b))
+            layers += [lin] + ([torch.nn.Tanh()] if i < len(self.weights) - 1 else [])
+        return torch.nn.Sequential(*layers)
+
     def save(self, path: str | Path) -> Path:
         """Write the network as ``.npz`` (float64 weights, metadata as JSON); :func:`load_network` reads it back
         exactly."""
