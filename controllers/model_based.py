@@ -172,6 +172,7 @@ class ClippedOptimal(_ObserverLaw):
             from mrd_env.envs.actuation import ForceActuation
 
             self.actuation = ForceActuation(self.env, inverse)
+            self.name = f"{self.name}+{self.actuation.inverse.name}"
         weights = dict(self.env.objective) if weights is None else dict(weights)
         if not force_ref > 0:
             raise ValueError(f"force_ref must be > 0 N, got {force_ref}")

@@ -14,6 +14,8 @@ and the control laws see, e.g. clipped-optimal's f_c); measured forces are the s
 """
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import numpy as np
 
 from ..inverse import Inverse, make_inverse
@@ -21,10 +23,14 @@ from ..inverse import Inverse, make_inverse
 
 class ForceActuation:
     """Desired forces (N, nd) → commands (N, nd) for the environment ``env`` (scalar or vector), with
-    ``inverse`` a name of :func:`mrd_env.inverse.make_inverse` (``options`` go to it) or an
-    :class:`~mrd_env.inverse.Inverse` built for the env's damper and control step."""
+    ``inverse`` a name of :func:`mrd_env.inverse.make_inverse` (``options`` go to it), a dict
+    ``{"kind": name, **options}`` or an :class:`~mrd_env.inverse.Inverse` built for the env's damper and control
+    step."""
 
-    def __init__(self, env, inverse: str | Inverse = "model", **options):
+    def __init__(self, env, inverse: str | Mapping | Inverse = "model", **options):
+        if isinstance(inverse, Mapping):
+            options = {**{k: v for k, v in inverse.items() if k != "kind"}, **options}
+            inverse = inverse.get("kind", "model")
         base = getattr(env, "unwrapped", env)
         self.damper = base.damper
         self.dt = float(base.control_dt)
@@ -88,3 +94,12 @@ class ForceActuation:
         get = {r: O[:, i] for r, i in self._index.items()}
         fd = np.broadcast_to(np.asarray(f_desired, dtype=np.float64), (O.shape[0], self.n_dampers))
         return self.command(fd, get["damper_force"], get.get("damper_stroke"), get.get("damper_velocity"))
+
+    def step_commands(self, action: np.ndarray, obs, force_range: float) -> np.ndarray:
+        """The commands (N·nd,) of an environment step in ``action_mode="force"``: ``action`` (N·nd,) the desired
+        forces beyond the preload (N), clipped to ±``force_range`` as the action Box; ``obs`` (N, n_obs) the
+        observations the action answers."""
+        if not np.isfinite(action).all():
+            raise ValueError("action must be finite (no NaN or infinity)")
+        fd = np.clip(action, -force_range, force_range).reshape(-1, self.n_dampers)
+        return self.from_observation(fd, obs).reshape(-1)
