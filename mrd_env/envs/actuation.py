@@ -91,15 +91,22 @@ class ForceActuation:
         """Commands (N, nd) for desired forces (N, nd) beyond the preload and observations (N, n_obs) (or one
         observation), reading the damper's force, stroke and velocity from the sensors."""
         O = np.atleast_2d(np.asarray(obs, dtype=np.float64))
-        get = {r: O[:, i] for r, i in self._index.items()}
-        fd = np.broadcast_to(np.asarray(f_desired, dtype=np.float64), (O.shape[0], self.n_dampers))
-        return self.command(fd, get["damper_force"], get.get("damper_stroke"), get.get("damper_velocity"))
+        fd = np.broadcast_to(np.asarray(f_desired, dtype=np.float64), (O.shape[0], self.n_dampers)).reshape(-1)
+        return self._from_rows(fd, O).reshape(-1, self.n_dampers)
 
-    def step_commands(self, action: np.ndarray, obs, force_range: float) -> np.ndarray:
-        """The commands (N·nd,) of an environment step in ``action_mode="force"``: ``action`` (N·nd,) the desired
-        forces beyond the preload (N), clipped to ±``force_range`` as the action Box; ``obs`` (N, n_obs) the
-        observations the action answers."""
+    def step_commands(self, action: np.ndarray, obs: np.ndarray, force_range: float) -> np.ndarray:
+        """The commands (N·nd,) of an environment step in ``action_mode="force"``: ``action`` (N·nd,) float64 the
+        desired forces beyond the preload (N), clipped to ±``force_range`` as the action Box; ``obs`` (N, n_obs) or
+        (n_obs,) the observations the action answers."""
         if not np.isfinite(action).all():
             raise ValueError("action must be finite (no NaN or infinity)")
-        fd = np.clip(action, -force_range, force_range).reshape(-1, self.n_dampers)
-        return self.from_observation(fd, obs).reshape(-1)
+        return self._from_rows(np.clip(action, -force_range, force_range), obs if obs.ndim == 2 else obs[None])
+
+    def _from_rows(self, fd: np.ndarray, O: np.ndarray) -> np.ndarray:
+        """The inverse's commands (N·nd,) for desired forces beyond the preload fd (N·nd,) and observations O
+        (N, n_obs): the hot path of a force-mode step (no broadcasting, one copy per measured signal)."""
+        m = {r: O[:, i].reshape(-1).astype(np.float64) for r, i in self._index.items()}
+        f = m["damper_force"]
+        zeros = None if self.needs_motion else np.zeros(f.size)
+        return self.inverse.command(fd + self.f_static, m.get("damper_stroke", zeros),
+                                    m.get("damper_velocity", zeros), f_measured=f)
