@@ -28,6 +28,9 @@ class Controller(ABC):
     name: ClassVar[str] = "controller"
     requires: ClassVar[tuple[str, ...]] = ()
     needs_roles: ClassVar[tuple[str, ...]] = ()
+    #: True for a controller whose actions are the environment's own (an agent): it also drives an environment in
+    #: ``action_mode="force"``; the laws output commands and refuse it.
+    acts_in_env_space: ClassVar[bool] = False
 
     def __init__(self, env):
         base = getattr(env, "unwrapped", env)
@@ -47,7 +50,13 @@ class Controller(ABC):
         spec = base.command_spec
         self.v_min, self.v_max = float(spec.v_min), float(spec.v_max)
         self.n_dampers = int(base.n_dampers)
-        self.normalized = getattr(base, "action_mode", "physical") == "normalized"
+        mode = getattr(base, "action_mode", "physical")
+        self.force_mode = mode == "force"
+        if self.force_mode and not self.acts_in_env_space:
+            raise ValueError(f"{type(self).__name__} outputs commands; build the environment with action_mode "
+                             "'physical' or 'normalized', not 'force' (a desired force is an agent's action, or "
+                             "ClippedOptimal(inverse=...))")
+        self.normalized = mode == "normalized"
         self.control_dt = float(base.control_dt)
         # the damper's static preload (e.g. the accumulator's k1·x0) is balanced by the plant's static
         # deflection: the laws act on the force beyond it, the one the linear plant model sees
@@ -154,6 +163,7 @@ class AgentController(Controller):
     the environment it was trained in (``gym.make(id, **agent.env_kwargs)`` rebuilds it)."""
 
     name = "agent"
+    acts_in_env_space = True
 
     def __init__(self, env, model, name: str = "agent", env_kwargs: dict | None = None):
         super().__init__(env)
@@ -163,8 +173,11 @@ class AgentController(Controller):
         self._state = None
 
     def command(self, obs):
-        """The agent's actions as physical commands (predict() passes its actions through unchanged)."""
+        """The agent's actions as physical commands, or desired forces in force mode (predict() passes its actions
+        through unchanged)."""
         a = np.asarray(self.model.predict(obs, deterministic=True)[0], dtype=np.float64)
+        if self.force_mode:
+            return a
         return self.v_min + (a + 1.0) * 0.5 * (self.v_max - self.v_min) if self.normalized else a
 
     def reset(self, mask=None) -> None:

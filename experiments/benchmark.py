@@ -24,8 +24,9 @@ QC_CONTROLLERS = ("passive_off", "passive_on", "skyhook_on_off", "skyhook_contin
                   "clipped_optimal")
 # (skyhook is left out for the building: with the damper at the ground floor, the floor velocity relative to
 # the ground and the damper velocity are the same signal, so the law degenerates to passive-on)
-BUILDING_CONTROLLERS = ("passive_off", "passive_on", "clipped_optimal", "lyapunov", "max_energy_dissipation",
-                        "modulated_friction")
+# clipped-optimal also with each inverse model turning its desired force into the command (mrd_env.inverse)
+BUILDING_CONTROLLERS = ("passive_off", "passive_on", "clipped_optimal", "clipped_optimal+sid", "clipped_optimal+model",
+                        "clipped_optimal+neural", "lyapunov", "max_energy_dissipation", "modulated_friction")
 QC_METRICS = ("acc_weighted_rms", "travel_rms", "travel_peak", "tyre_load_rms")
 BUILDING_METRICS = ("J1", "J2", "J3", "J4", "J5", "J6", "drift_peak", "acc_peak", "damper_force_peak")
 
@@ -209,12 +210,12 @@ def run(args: argparse.Namespace) -> int:
     if args.seeds < 1:
         raise ValueError(f"--seeds must be >= 1, got {args.seeds}")
     # names checked before any episode runs: a typo must not cost a progress bar and a built environment
-    from controllers import CONTROLLERS
+    from controllers import available_controllers
     from mrd_env.dampers import damper_class
 
-    unknown = [c for c in args.controllers or () if c not in CONTROLLERS]
+    unknown = [c for c in args.controllers or () if c not in available_controllers()]
     if unknown:
-        raise ValueError(f"--controllers: unknown controller(s) {unknown}; available: {sorted(CONTROLLERS)}")
+        raise ValueError(f"--controllers: unknown controller(s) {unknown}; available: {available_controllers()}")
     damper_class(args.damper)
     for plant in plants:
         scen = held_out_scenarios(plant, seeds=args.seeds, quick=args.quick)

@@ -455,6 +455,8 @@ COMMON_BAD = {
                      {"command": [1.0, [2.0]]}, {"command": _OVERFLOW_INT}],
     "sensor_delay": [-1, 1.5, "1", True, None, _OVERFLOW_INT],
     "action_mode": ["x", None, 1, "Physical", ["physical"]],
+    "inverse": ["nope", 3, {"kind": "nope"}, {"kind": "model", "n_grids": 3}, ["model"]],   # in force mode
+    "force_range": [0.0, -1.0, math.nan, math.inf, "x", _OVERFLOW_INT, 1j],
     "stroke_limit": [0.0, -1.0, math.nan, math.inf, "x", _OVERFLOW_INT, 1j],
     "damper": ["nope", 3, None, ["spencer_dyke"]],
     "damper_preset": ["nope", 3, ["spencer1997"]],
@@ -505,6 +507,8 @@ def _check_bad_option(env_id: str, base: dict, option: str, value) -> None:
         options.pop("sensors", None)
     if option in ("dt", "control_dt"):
         options.pop("dt" if option == "control_dt" else "control_dt", None)
+    if option in ("inverse", "force_range"):
+        options["action_mode"] = "force"
     with pytest.raises(ValueError) as info:
         if option == "render_mode" and not isinstance(value, str):
             # gymnasium.make itself calls render_mode.endswith() before the environment sees it
@@ -569,7 +573,8 @@ ACTIONS = st.one_of(
 
 
 def _expected_command(env, action) -> np.ndarray | None:
-    """The physical command an accepted action must give, or None if it must be refused."""
+    """The physical command an accepted action must give (in force mode: the range it must lie in, (lo, hi)),
+    or None if it must be refused."""
     u = env.unwrapped
     nd = u.n_dampers
     try:
@@ -584,6 +589,8 @@ def _expected_command(env, action) -> np.ndarray | None:
     if a.shape != (nd,) or not np.all(np.isfinite(a)):
         return None
     lo, hi = u.command_spec.v_min, u.command_spec.v_max
+    if u.action_mode == "force":  # the inverse's command: any in the range
+        return np.array([lo, hi])
     if u.action_mode == "normalized":
         return np.clip(lo + (np.clip(a, -1.0, 1.0) + 1.0) * 0.5 * (hi - lo), lo, hi)
     return np.clip(a, lo, hi)
@@ -625,12 +632,15 @@ def _check_action(env_id, mode, floors, action) -> None:
             assert_names(e, "action")
             return
     assert expected is not None, f"the invalid action {action!r} was accepted"
-    np.testing.assert_allclose(env.unwrapped.command, expected, rtol=0, atol=1e-12)
+    if mode == "force":
+        assert np.all((env.unwrapped.command >= expected[0]) & (env.unwrapped.command <= expected[1]))
+    else:
+        np.testing.assert_allclose(env.unwrapped.command, expected, rtol=0, atol=1e-12)
     assert all_finite(obs, r)
 
 
 @MANY
-@given(env_id=st.sampled_from([QC, SB]), mode=st.sampled_from(["physical", "normalized"]),
+@given(env_id=st.sampled_from([QC, SB]), mode=st.sampled_from(["physical", "normalized", "force"]),
        floors=st.sampled_from([(1,), (1, 2)]), action=ACTIONS)
 def test_step_any_action(env_id, mode, floors, action):
     assume(not _ragged(action))  # an environment defect, pinned below

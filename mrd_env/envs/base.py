@@ -15,12 +15,24 @@ from .core import Assembly, EnvCore, PlantDeclarations
 
 
 def action_space(asm: Assembly) -> gym.spaces.Box:
-    """One command per damper: [v_min, v_max] (V or A) in the physical mode, [−1, 1] in the normalised one."""
+    """One command per damper: [v_min, v_max] (V or A) in the physical mode, [−1, 1] in the normalised one; one
+    desired force (N) per damper in [−force_range, force_range] in the force mode."""
     nd = asm.coupled.system.nd
     cs = asm.damper.command
     if asm.action_mode == "physical":
         return gym.spaces.Box(float(cs.v_min), float(cs.v_max), shape=(nd,), dtype=np.float32)
+    if asm.action_mode == "force":
+        return gym.spaces.Box(-asm.force_range, asm.force_range, shape=(nd,), dtype=np.float32)
     return gym.spaces.Box(-1.0, 1.0, shape=(nd,), dtype=np.float32)
+
+
+def force_actuation(env):
+    """The :class:`~.actuation.ForceActuation` of an environment in ``action_mode="force"`` (None otherwise)."""
+    if env.assembly.action_mode != "force":
+        return None
+    from .actuation import ForceActuation
+
+    return ForceActuation(env, env.assembly.inverse)
 
 
 def as_action(action, nd: int, N: int | None = None) -> np.ndarray:
@@ -51,8 +63,10 @@ class MRDamperEnv(PlantDeclarations, gym.Env):
 
     Actions: one command per damper, shape ``(nd,)`` (a scalar is accepted when nd = 1), clipped to the Box
     (``np.clip`` semantics, then mapped onto [v_min, v_max] in normalised mode); the command is held over the
-    control period and reaches the damper through its lag u̇ = −η (u − v). A wrongly shaped, non-numeric or
-    non-finite action raises ``ValueError``.
+    control period and reaches the damper through its lag u̇ = −η (u − v). In force mode the action is the
+    desired damper force beyond the static preload (N), clipped to the Box and turned into the command by the
+    inverse model (``actuation``, reset with every episode). A wrongly shaped, non-numeric or non-finite action
+    raises ``ValueError``.
 
     Observations: float32, the chosen sensors in order (``sensor_layout`` lists ``(name, slice, unit)``;
     ``observation_labels`` names every entry), with noise, delay and history as configured.
@@ -79,6 +93,7 @@ class MRDamperEnv(PlantDeclarations, gym.Env):
         self.observation_labels = core.labels
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, shape=(core.driver.n_obs,), dtype=np.float32)
         self.action_space = action_space(asm)
+        self.actuation = force_actuation(self)
         self.record = None
         self._done = True
         self._renderer = None
@@ -95,6 +110,8 @@ class MRDamperEnv(PlantDeclarations, gym.Env):
         core = self.core
         core.start([self.np_random])
         self.record = core.episodes[0].record
+        if self.actuation is not None:
+            self.actuation.reset()
         self._done = False
         self._t = 0.0
         self._bind()
@@ -116,6 +133,8 @@ class MRDamperEnv(PlantDeclarations, gym.Env):
             a = action
         else:
             a = as_action(action, self.n_dampers)
+        if self.actuation is not None:
+            a = self.actuation.step_commands(a, self._obs0, self.assembly.force_range)
         status = self._kstep(*self._args, a, self.core.obs)
         obs = self._obs0.copy()
         reward = float(self._reward0[0])

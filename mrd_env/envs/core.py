@@ -72,6 +72,8 @@ class Assembly:
     control_dt: float = 1e-3
     episode_seconds: float | None = None
     action_mode: str = "physical"
+    inverse: Any = None                                # action_mode "force": the inverse (name, dict or Inverse)
+    force_range: float | None = None                   # action_mode "force": the action Box ±force_range (N)
     filters: list = field(default_factory=list)       # (input signal, output signal, sos)
     stat_signals: tuple[str, ...] = ()
     dose_signal: str | None = None

@@ -38,7 +38,8 @@ def road(road_class: str, speed: float, duration: float, dt: float, wheelbase: f
 
 def assembly(*, plant_preset="sedan", plant_params=None, road_class="C", speed=20.0, damper="spencer_dyke",
              damper_preset=None, damper_params=None, dt=1e-3, control_dt=1e-3, episode_seconds=10.0, sensors=None,
-             sensor_noise=None, sensor_delay=0, history=1, action_mode="physical", stroke_limit=0.1) -> Assembly:
+             sensor_noise=None, sensor_delay=0, history=1, action_mode="physical", inverse=None, force_range=None,
+             stroke_limit=0.1) -> Assembly:
     dt, control_dt, episode_seconds = opt.time_steps(dt, control_dt, episode_seconds)
     p = plant_params if isinstance(plant_params, HalfCarParams) else \
         half_car(plant_preset, **opt.named_options("plant_params", plant_params))
@@ -81,7 +82,8 @@ def assembly(*, plant_preset="sedan", plant_params=None, road_class="C", speed=2
         roles={"body_velocity": "body_vel_at_axles", "wheel_velocity": "wheel_vel", "damper_velocity": "travel_rate",
                "damper_stroke": "travel", "damper_force": "damper_force"},
         objective={"body_acc": 1.0, "travel": 1.0 / 0.05 ** 2},
-        dt=dt, control_dt=control_dt, episode_seconds=episode_seconds, action_mode=opt.action_mode(action_mode),
+        dt=dt, control_dt=control_dt, episode_seconds=episode_seconds,
+        **opt.actuation(action_mode, inverse, force_range),
         filters=[("body_acc", "body_acc_wk", weighting_sos("Wk", dt))],
         stat_signals=("body_acc_wk", "pitch_acc", "travel", "_tyre_load"))
 

@@ -59,10 +59,43 @@ def time_steps(dt, control_dt, episode_seconds) -> tuple[float, float, float | N
     return dt, n_sub * dt, episode_seconds
 
 
+ACTION_MODES = ("physical", "normalized", "force")
+#: Default ``force_range`` (N) of ``action_mode="force"``: the force scale of the prototype damper (Spencer et al.
+#: 1997, 3 kN capacity; also clipped-optimal control's force_ref).
+DEFAULT_FORCE_RANGE = 3000.0
+
+
 def action_mode(mode) -> str:
-    if mode not in ("physical", "normalized"):
-        raise ValueError(f"action_mode must be 'physical' or 'normalized', got {mode!r}")
+    if not isinstance(mode, str) or mode not in ACTION_MODES:
+        raise ValueError(f"action_mode must be one of {list(ACTION_MODES)}, got {mode!r}")
     return mode
+
+
+def actuation(mode, inverse, force_range) -> dict:
+    """The action options of an assembly: ``action_mode``, and for ``"force"`` the ``inverse`` (a name of
+    :func:`mrd_env.inverse.make_inverse`, a dict ``{"kind": name, **options}`` or an
+    :class:`~mrd_env.inverse.Inverse`; default "model") and ``force_range`` (N, default 3000 N)."""
+    from ..inverse import INVERSES, Inverse
+
+    mode = action_mode(mode)
+    if mode != "force":
+        if inverse is not None or force_range is not None:
+            raise ValueError(f"inverse and force_range apply to action_mode='force', not to {mode!r}")
+        return {"action_mode": mode}
+    if inverse is None:
+        inverse = "model"
+    if isinstance(inverse, Mapping):
+        kind = inverse.get("kind", "model")
+    elif isinstance(inverse, (str, Inverse)):
+        kind = inverse if isinstance(inverse, str) else inverse.name
+    else:
+        raise ValueError(f"inverse must be a name among {list(INVERSES)}, a dict {{'kind': name, **options}} or an "
+                         f"Inverse, got {type(inverse).__name__}")
+    if not isinstance(kind, str) or kind not in INVERSES:
+        raise ValueError(f"inverse: unknown kind {kind!r}; valid: {list(INVERSES)}")
+    f = check_scalar("force_range", DEFAULT_FORCE_RANGE if force_range is None else force_range, 0.0,
+                     lo_open=True, unit="N")
+    return {"action_mode": mode, "inverse": inverse, "force_range": f}
 
 
 def sensors(spec, noise, delay, history, default: tuple[str, ...]) -> Sensors:

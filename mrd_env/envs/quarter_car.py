@@ -163,8 +163,9 @@ def metrics(stats: EpisodeStats, episode: Episode, static_tyre_load: float) -> d
 def assembly(*, plant_preset: str = "set_a", plant_params=None, road="iso8608", road_params=None,
              damper="spencer_dyke", damper_preset: str | None = None, damper_params=None, dt: float = 1e-3,
              control_dt: float = 1e-3, episode_seconds: float | None = None, sensors=None, sensor_noise=None,
-             sensor_delay: int = 0, history: int = 1, action_mode: str = "physical", reward=None,
-             reward_weights=None, stroke_limit: float | None = None) -> Assembly:
+             sensor_delay: int = 0, history: int = 1, action_mode: str = "physical", inverse=None,
+             force_range: float | None = None, reward=None, reward_weights=None,
+             stroke_limit: float | None = None) -> Assembly:
     """The quarter-car environment's parts from its options (see :class:`QuarterCarEnv`)."""
     given = {k: v for k, v in locals().items()}
     dt, control_dt, episode_seconds = opt.time_steps(dt, control_dt, episode_seconds)
@@ -211,7 +212,8 @@ def assembly(*, plant_preset: str = "set_a", plant_params=None, road="iso8608", 
         roles={"body_velocity": "sprung_vel", "wheel_velocity": "unsprung_vel", "damper_velocity": "travel_rate",
                "damper_stroke": "travel", "damper_force": "damper_force"},
         objective={"sprung_acc": 1.0 / A_REF ** 2, "travel": 1.0 / X_REF ** 2},
-        dt=dt, control_dt=control_dt, episode_seconds=episode_seconds, action_mode=opt.action_mode(action_mode),
+        dt=dt, control_dt=control_dt, episode_seconds=episode_seconds,
+        **opt.actuation(action_mode, inverse, force_range),
         filters=[("sprung_acc", "sprung_acc_wk", weighting_sos("Wk", dt))],
         stat_signals=("sprung_acc_wk", "sprung_acc", "travel", "_tyre_load", "damper_force"),
         dose_signal="sprung_acc_wk", dose_window=1.0, renderer=QuarterCarRenderer, options=given)
@@ -239,7 +241,12 @@ class QuarterCarEnv(MRDamperEnv):
     * ``dt`` 1e-3 s, ``control_dt`` 1e-3 s (an integer multiple of dt; the command is held over it).
     * ``sensors`` (names, or a :class:`~mrd_env.envs.sensors.Sensors`), ``sensor_noise`` ({name: std} SI),
       ``sensor_delay`` (control steps), ``history`` (control steps stacked in the observation, oldest first).
-    * ``action_mode``: "physical" ([v_min, v_max] in V or A) or "normalized" ([−1, 1]).
+    * ``action_mode``: "physical" ([v_min, v_max] in V or A), "normalized" ([−1, 1]) or "force": the desired
+      damper force beyond the static preload, in N, Box [−``force_range``, ``force_range``] (default 3000 N),
+      turned into the command inside the step by the ``inverse`` (default "model"; a name of
+      :func:`mrd_env.inverse.make_inverse`, a dict ``{"kind": name, **options}`` or an Inverse built for the
+      damper at ``control_dt``) from the measured damper force, stroke and velocity (the sensors of ``roles``;
+      :class:`~mrd_env.envs.actuation.ForceActuation`).
     * ``reward_weights`` (comfort 0.5, travel 0.25, tyre 0.25; termination 10 per second) or
       ``reward``: a :class:`~mrd_env.envs.reward.QuadraticReward`, or any callable of the period's signals
       (``{name: (n_sub, width)}`` → float; one Python call per step).

@@ -248,8 +248,8 @@ def assembly(*, plant_preset: str = "three_storey", plant_params=None, damper_fl
              ground_motion="el_centro", ground_motion_params=None, damper="spencer_dyke",
              damper_preset: str | None = None, damper_params=None, dt: float = 1e-3, control_dt: float = 1e-3,
              episode_seconds: float | None = None, sensors=None, sensor_noise=None, sensor_delay: int = 0,
-             history: int = 1, action_mode: str = "physical", reward=None, reward_weights=None,
-             stroke_limit: float | None = None) -> Assembly:
+             history: int = 1, action_mode: str = "physical", inverse=None, force_range: float | None = None,
+             reward=None, reward_weights=None, stroke_limit: float | None = None) -> Assembly:
     """The building environment's parts from its options (see :class:`ShearBuildingEnv`)."""
     given = {k: v for k, v in locals().items()}
     dt, control_dt, episode_seconds = opt.time_steps(dt, control_dt, episode_seconds)
@@ -316,7 +316,8 @@ def assembly(*, plant_preset: str = "three_storey", plant_params=None, damper_fl
         roles={"body_velocity": "upper_floor_vel", "damper_velocity": "damper_velocity",
                "damper_stroke": "damper_stroke", "damper_force": "damper_force"},
         objective={"drift": 1.0 / 0.005 ** 2},
-        dt=dt, control_dt=control_dt, episode_seconds=episode_seconds, action_mode=opt.action_mode(action_mode),
+        dt=dt, control_dt=control_dt, episode_seconds=episode_seconds,
+        **opt.actuation(action_mode, inverse, force_range),
         stat_signals=("drift", "_drift_ratio", "abs_acc", "_base_shear", "damper_force", "damper_stroke",
                       "floor_disp"),
         renderer=BuildingRenderer, options=given)
@@ -347,7 +348,8 @@ class ShearBuildingEnv(MRDamperEnv):
     * ``episode_seconds``: default the record's length.
     * ``stroke_limit`` default 0.05 m on every damper's |stroke| (El Centro at full amplitude moves the
       ground–floor-1 damper by under 2 mm).
-    * ``dt``, ``control_dt``, ``sensors``, ``sensor_noise``, ``sensor_delay``, ``history``, ``action_mode``,
+    * ``dt``, ``control_dt``, ``sensors``, ``sensor_noise``, ``sensor_delay``, ``history``, ``action_mode``
+      (with ``inverse`` and ``force_range`` for "force"),
       ``reward_weights`` or ``reward``, ``render_mode``: as :class:`~mrd_env.envs.quarter_car.QuarterCarEnv`.
 
     Sensors (SI): ``abs_acc`` absolute floor accelerations ẍ + ẍ_g (m/s², n floors), ``drift`` interstorey drifts

@@ -18,7 +18,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from ..driver import BAD_ACTION, DIVERGED, HIST_NONE, RUNNING, TERMINATED, TRUNCATED
-from .base import action_space, as_action
+from .base import action_space, as_action, force_actuation
 from .core import Assembly, EnvCore, PlantDeclarations
 
 
@@ -47,6 +47,7 @@ class MRDamperVectorEnv(PlantDeclarations, VectorEnv):
         self.sensors = asm.sensors.names
         self.sensor_layout = core.layout
         self.observation_labels = core.labels
+        self.actuation = force_actuation(self)
         self._rngs: list = [None] * N
         self._status = core.driver.int_state("STATUS")
         self._reward = core.driver.state("REWARD")[:, 0]
@@ -68,6 +69,8 @@ class MRDamperVectorEnv(PlantDeclarations, VectorEnv):
                 raise ValueError(f"seed must be None, an int or {N} seeds, got {len(seeds)}")
         self._rngs = [seeding.np_random(s)[0] for s in seeds]
         self.core.start(self._rngs)
+        if self.actuation is not None:
+            self.actuation.reset()
         self._pending = np.zeros(N, dtype=bool)
         self._any_pending = False
         self._started = True
@@ -82,6 +85,10 @@ class MRDamperVectorEnv(PlantDeclarations, VectorEnv):
             a = actions.reshape(-1)
         else:
             a = as_action(actions, self.nd, N)
+        if self.actuation is not None:
+            a = self.actuation.step_commands(a, core.obs, self.assembly.force_range)
+            if self._any_pending:  # these restart and do not step: their inverse starts at their next step
+                self.actuation.reset(self._pending)
         restart = None
         if self._any_pending:  # NEXT_STEP: the environments that ended last step start again, and do not step
             restart = self._pending
@@ -126,6 +133,8 @@ class MRDamperVectorEnv(PlantDeclarations, VectorEnv):
                     final[b] = obs[b].copy()
                 infos["final_obs"], infos["_final_obs"] = final, done
                 core.start(self._rngs, done)
+                if self.actuation is not None:
+                    self.actuation.reset(done)
                 obs[done] = core.obs[done]
             self._pending = np.zeros(N, dtype=bool)
         else:
