@@ -99,16 +99,24 @@ def _base(label: str) -> str:
 
 def plot(plant: str, rows: list[dict], path: Path) -> Path:
     """Mean return with its 95 % interval per controller, one group per scenario."""
+    import matplotlib
+
     scen = list(dict.fromkeys(r["scenario"] for r in rows))
     ctrls = list(dict.fromkeys(r["controller"] for r in rows))
     fig, ax = figure(figsize=(max(8.0, 1.2 * len(scen) * len(ctrls) / 4), 4.8))
     width = 0.8 / len(ctrls)
+    # one colour per law (tab20: no colour repeats up to 20), its 1 ms rows hatched
+    bases = list(dict.fromkeys(c.split(" @ ")[0] for c in ctrls))
+    cmap = matplotlib.colormaps["tab20"]
     for i, c in enumerate(ctrls):
+        colour = cmap(bases.index(c.split(" @ ")[0]) % 20)
+        hatch = "//" if c.endswith("@ 1 ms") else None
         for j, s in enumerate(scen):
             r = next((r for r in rows if r["scenario"] == s and r["controller"] == c), None)
             if r is None:
                 continue
-            ax.bar(j + i * width, r["return"], width, color=f"C{i % 10}", label=c if j == 0 else None)
+            ax.bar(j + i * width, r["return"], width, color=colour, hatch=hatch, edgecolor="white", lw=0.3,
+                   label=c if j == 0 else None)
             ax.errorbar(j + i * width, r["return"], yerr=[[r["return"] - r["return_lo95"]],
                                                           [r["return_hi95"] - r["return"]]], color="k", lw=0.8)
     ax.set_xticks(np.arange(len(scen)) + 0.4 - width / 2, scen, fontsize=8)
