@@ -198,8 +198,9 @@ def _simulate_batch(cls, command: CommandSpec, prep: PreparedRecord, P: np.ndarr
     for c0 in range(0, S, _CHUNK):
         sl = slice(c0, min(S, c0 + _CHUNK))
         m = sl.stop - c0
-        st = Stepper(damper, _RIG, m, n - 1, prep.dt, P=P[sl, None, :], **integrator_options)
-        st.eta[:, 0] = eta[sl]
+        lag = np.broadcast_to(command.lag_vector(), (m, 1, 3)).copy()
+        lag[:, 0, 0] = eta[sl]
+        st = Stepper(damper, _RIG, m, n - 1, prep.dt, P=P[sl, None, :], lag=lag, **integrator_options)
         st.Y = np.array(Y0[sl], dtype=np.float64)
         st.U = np.full((m, 1), prep.command[0])
         Fc, _, good = st.advance(np.broadcast_to(V1, (m,) + V1.shape), np.broadcast_to(W1, (m,) + W1.shape))
