@@ -34,10 +34,20 @@ import numpy as np
 from ..validation import as_real, check_scalar, describe_range
 
 
+# Why a parameter is kept fixed by identification unless named free (``param(..., fixed=...)``).
+FIXED_SHAPE = "Bouc–Wen exponent: a shape choice, kept fixed (n = 2 in the presets)"
+FIXED_SCALING = ("Bouc–Wen scaling redundancy: (α, A, β, γ) → (α/s, s·A, β/sⁿ, γ/sⁿ) gives the same force, so one "
+                 "of them is fixed")
+FIXED_SMOOTHING = "smoothing scale of a sign function: a numerical regularisation, not a damper property"
+FIXED_FILTER = "time constant of an internal velocity filter: an estimator setting, not a damper property"
+FIXED_TEST_CONDITION = "a condition of the test (set it to the record's value), not a damper property"
+
+
 def param(default: float = dataclasses.MISSING, *, unit: str, lo: float = -math.inf, hi: float = math.inf,
-          lo_open: bool = False, doc: str = "") -> Any:
-    """Declare a model parameter: its SI ``unit``, valid range and meaning."""
-    meta = {"unit": unit, "lo": lo, "hi": hi, "lo_open": lo_open, "doc": doc}
+          lo_open: bool = False, doc: str = "", fixed: str = "") -> Any:
+    """Declare a model parameter: its SI ``unit``, valid range and meaning; ``fixed`` says why identification keeps
+    it fixed by default (one of the ``FIXED_*`` reasons; empty: fitted by default)."""
+    meta = {"unit": unit, "lo": lo, "hi": hi, "lo_open": lo_open, "doc": doc, "fixed": fixed}
     if default is dataclasses.MISSING:
         return field(metadata=meta)
     return field(default=default, metadata=meta)
@@ -76,6 +86,19 @@ class DamperParams:
     @classmethod
     def units(cls) -> dict[str, str]:
         return {f.name: f.metadata["unit"] for f in fields(cls)}
+
+    @classmethod
+    def index_constants(cls) -> str:
+        """The source line naming each parameter's index in ``p`` (``P_<NAME> = i`` in field order), as every
+        model module declares it so that force laws read ``p[P_C0A]`` instead of ``p[0]``; a test checks each
+        module's constants against this."""
+        names = ", ".join(f"P_{n.upper()}" for n in cls.names())
+        return f"{names} = range({len(cls.names())})"
+
+    @classmethod
+    def fixed_by_default(cls) -> dict[str, str]:
+        """{name: reason} of the parameters that identification keeps fixed unless named free."""
+        return {f.name: f.metadata["fixed"] for f in fields(cls) if f.metadata.get("fixed")}
 
     @classmethod
     def bounds(cls) -> dict[str, tuple[float, float]]:
