@@ -28,8 +28,10 @@ import numpy as np
 
 from mrd_env.dampers import CommandSpec, available_dampers, make_damper
 from mrd_env.identification import DamperRecord, load_record_csv
-from mrd_env.identification.compare import compare_models, split_records, validate
-from mrd_env.identification.fit import COMMAND_ETA, fit_model, fixed_by_default, save_preset, sensitivity
+from mrd_env.identification.compare import compare_models
+from mrd_env.identification.fit import fit_model
+from mrd_env.identification.parameters import fixed_by_default
+from mrd_env.identification.sensitivity import sensitivity
 from mrd_env.rig import random_test, sinusoidal_test
 
 from mrd_env.report import write_table
@@ -65,7 +67,7 @@ def synthetic_recovery(model: str, out: Path, *, noise: float = 0.01, progress: 
     free = [k for k in d.params.names() if k not in fixed]
     start = perturbed_start(d, free)
     crb = sensitivity(d, recs, noise=sigma)["rel_std"]
-    res = fit_model(model, recs, initial=start, progress=progress, weighting="sample")
+    res = fit_model(model, recs, initial=start, search={"progress": progress}, data={"weighting": "sample"})
     rows = []
     for k in free:
         true = getattr(d.params, k)
@@ -83,14 +85,22 @@ def synthetic_recovery(model: str, out: Path, *, noise: float = 0.01, progress: 
 
 
 def real_comparison(path: Path, out: Path, *, models, fs: float | None, fit_fraction: float, method: str,
-                    command_range: str, progress: bool) -> list[dict]:
-    rec = load_record_csv(path, {"t": "t", "x": "D", "command": "Y", "force": "F", "v": "V"},
-                          {"t": "s", "x": "cm", "command": "V", "force": "N", "v": "cm/s"})
+                    command_range: str, progress: bool, validate: Path | None = None) -> list[dict]:
+    """Every model (and the neural forward model) fitted on the first ``fit_fraction`` of the record (or on all
+    of it, scored on ``validate``); then Spencer–Dyke with the command dynamics fitted (asymmetric lag and delay)
+    and the force aligned with the motion. Faults are excluded (the default). Returns the table's rows."""
+    columns = {"t": "t", "x": "D", "command": "Y", "force": "F", "v": "V"}
+    units = {"t": "s", "x": "cm", "command": "V", "force": "N", "v": "cm/s"}
+    rec = load_record_csv(path, columns, units)
+    other = None if validate is None else load_record_csv(validate, columns, units)
     dt = None if fs is None else 1.0 / fs
     # models whose command channel is a current (A) are driven by the record's voltage: the driver's V → A gain
     # is absorbed into their per-command coefficients (same numbers, channel relabelled, range covering 0-2.25 V)
     entries = []
     for m in (models or available_dampers()):
+        if m == "neural":
+            entries.append(m)
+            continue
         d = make_damper(m)
         if d.command.unit != rec.command_unit:
             c = d.command
@@ -101,26 +111,32 @@ def real_comparison(path: Path, out: Path, *, models, fs: float | None, fit_frac
             entries.append(d)
         else:
             entries.append(m)
-    res = compare_models([rec], entries, method=method, fit_fraction=fit_fraction, out=out, dt=dt,
-                         progress=progress, fit_options={"command_range": command_range})
+    search = {"method": method, "progress": progress}
+    data = {"dt": dt, "command_range": command_range}
+    res = compare_models([rec], entries, search=search, data=data, fit_fraction=fit_fraction, out=out,
+                         validation_records=None if other is None else [other],
+                         model_options={"neural": {"search": {"method": "adam", "progress": progress}}})
     rows = res.rows
-    # Spencer–Dyke with the command lag η fitted too
     if "spencer_dyke" in (models or available_dampers()):
-        d = make_damper("spencer_dyke")
-        fixed = fixed_by_default(d, d.params)
-        free = [k for k in d.params.names() if k not in fixed] + [COMMAND_ETA]
-        whole, fits, idx = split_records([rec], fit_fraction, dt)
-        fr = fit_model("spencer_dyke", fits, free=free, method=method, dt=dt, progress=progress,
-                       command_range=command_range)
-        v_rows, v_all, _, _ = validate(fr.damper, whole, idx, dt=dt, command_range=command_range)
-        save_preset(fr, out / "spencer_dyke_eta_fitted.json")
-        rows.append({"model": "spencer_dyke + η", "free params": len(fr.free), "fit E_t %": 100 * fr.overall["E_t"],
-                     "E_t %": 100 * v_all["E_t"], "E_x %": 100 * v_all["E_x"], "E_v %": 100 * v_all["E_v"],
-                     "J2 N": v_all["J2"], "fit J2 N": fr.overall["J2"], "wall time s": fr.wall_time,
-                     "evaluations": fr.n_evaluations, "converged": "yes" if fr.converged else "no"})
+        # the command dynamics fitted (η_rise, η_fall, delay) and the force aligned with the motion
+        d = make_damper("spencer_dyke", command={"eta_fall": 190.0})
+        free = [k for k in d.params.names() if k not in fixed_by_default(d, d.params)]
+        free += ["command_eta", "command_eta_fall", "command_delay"]
+        sd = compare_models([rec], [d], search=search, data={**data, "align": True}, fit_fraction=fit_fraction,
+                            out=out / "spencer_dyke_lag", validation_records=None if other is None else [other],
+                            model_options={"spencer_dyke": {"free": free,
+                                                            "initial": {"command_eta": 300.0,
+                                                                        "command_eta_fall": 125.0}}})
+        row = dict(sd.rows[0])
+        c = sd.models[0].fit.damper.command if sd.models[0].fit is not None else None
+        row["model"] = ("spencer_dyke + lag + align" + ("" if c is None else
+                        f" (η_rise {c.eta:.0f}/s, η_fall {c.eta_down:.0f}/s, τ {1e3 * c.delay:.2f} ms)"))
+        rows.append(row)
     how = "clipped to" if command_range == "clip" else "widening"
-    write_table(rows, out / "comparison_all", title=f"{path.name}: fit on the first {100 * fit_fraction:g} %, "
-                f"errors on the rest ({method}, commands {how} the preset range)", floatfmt=".4g")
+    where = (f"fit on all of {path.name}, errors on {validate.name}" if validate is not None
+             else f"fit on the first {100 * fit_fraction:g} %, errors on the rest")
+    write_table(rows, out / "comparison_all", title=f"{path.name}: {where} ({method}, commands {how} the preset "
+                "range; faults excluded)", floatfmt=".4g")
     return rows
 
 
@@ -131,7 +147,10 @@ def main(argv=None) -> int:
     p.add_argument("--fit-fraction", type=float, default=0.6)
     p.add_argument("--method", default="least_squares")
     p.add_argument("--command-range", default="clip", choices=("clip", "widen"))
-    p.add_argument("--models", nargs="+", default=None, help="default: all registered models")
+    p.add_argument("--models", nargs="+", default=None,
+                   help="default: all registered models and the neural forward model")
+    p.add_argument("--validate", type=Path, default=None,
+                   help="with --real: fit on all of that record, report the errors on this one")
     p.add_argument("--skip-synthetic", action="store_true")
     p.add_argument("--propagate", type=int, default=0, metavar="N",
                    help="also propagate the default sensor errors (review Table 7) to the Spencer–Dyke parameters "
@@ -141,11 +160,11 @@ def main(argv=None) -> int:
     args = p.parse_args(argv)
     out = args.out
     out.mkdir(parents=True, exist_ok=True)
-    models = args.models or available_dampers()
+    models = args.models or available_dampers() + ["neural"]
     progress = not args.no_progress
     if not args.skip_synthetic:
         summary = []
-        for m in models:
+        for m in [m for m in models if m != "neural"]:  # the network has no true parameters to recover
             t0 = time.perf_counter()
             try:
                 summary.append(synthetic_recovery(m, out, progress=progress))
@@ -165,7 +184,8 @@ def main(argv=None) -> int:
         print(pr.files["table_md"].read_text())
     if args.real is not None:
         real_comparison(args.real, out / "real", models=models, fs=args.fs, fit_fraction=args.fit_fraction,
-                               method=args.method, command_range=args.command_range, progress=progress)
+                        method=args.method, command_range=args.command_range, progress=progress,
+                        validate=args.validate)
         print((out / "real" / "comparison_all.md").read_text())
     return 0
 
