@@ -63,3 +63,33 @@ def test_symmetric_spec_is_unchanged_default():
         CommandSpec("V", 0.0, 1.0, 190.0, eta_fall=0.0)
     with pytest.raises(ValueError, match="CommandSpec.delay"):
         CommandSpec("V", 0.0, 1.0, 190.0, delay=-1e-3)
+
+
+def test_environments_use_the_same_command_dynamics():
+    """The environments step the same compiled driver: a delay longer than the run leaves the damper at its
+    initial command, an explicit symmetric spec is bit-identical to the default one."""
+    import gymnasium as gym
+
+    import mrd_env  # noqa: F401  (registers the environments)
+
+    def run(command):
+        env = gym.make("mrd_env/QuarterCar-v0", damper=make_damper("bingham", command=command))
+        obs, _ = env.reset(seed=3)
+        out = [obs]
+        for _ in range(5):
+            obs, *_ = env.step(env.action_space.high)
+            out.append(obs)
+        return np.array(out)
+
+    base = run(None)
+    assert np.array_equal(run({"eta": 190.0, "eta_fall": None, "delay": 0.0}), base)
+    held = run({"delay": 1.0})  # the command never arrives within the run: the damper stays at v_min
+    passive = run({"eta": 190.0})
+    assert not np.array_equal(held, base)
+    env = gym.make("mrd_env/QuarterCar-v0", damper=make_damper("bingham"))
+    env.reset(seed=3)
+    ref = [env.step(env.action_space.low)[0] for _ in range(5)]
+    # the physics of the held run is that of a run at v_min; only the applied command (the last column) differs
+    np.testing.assert_array_equal(held[1:, :-1], np.array(ref)[:, :-1])
+    assert np.all(held[1:, -1] == 2.25)
+    assert np.array_equal(passive, base)

@@ -51,7 +51,8 @@ from .parameters import (COMMAND_PARAMS, _make_params, _valid_range, command_wit
                          fixed_by_default, initial_values)
 from .prepare import PreparedRecord, as_records, prepare_record
 from .problem import Problem
-from .result import FitResult, _measures, pooled_measures
+from .neural import NeuralOptions, fit_neural
+from .result import FitResult, _measures, pooled_measures, record_info
 from .simulate import predict
 
 __all__ = ["fit_model", "SearchOptions", "DataOptions"]
@@ -84,8 +85,6 @@ def fit_model(model: str | DamperModel, records, *, preset: str | None = None, f
     search = as_options(SearchOptions, search, "search")
     data = as_options(DataOptions, data, "data")
     recs = as_records(records)
-    from .neural import NeuralOptions, fit_neural
-
     if isinstance(model, NeuralOptions) or (isinstance(model, str) and model == "neural"):
         if preset is not None or free is not None or bounds is not None or initial is not None:
             raise ValueError("the neural model takes no preset, free, bounds or initial (use NeuralOptions)")
@@ -141,13 +140,6 @@ def fit_model(model: str | DamperModel, records, *, preset: str | None = None, f
                      int(search.seed), J, J0, per, pooled_measures(per), time.perf_counter() - t_start,
                      prob.n_evaluations, nit, bool(converged), str(message), tuple(history), prob.n_infeasible,
                      prob.n_diverged, record_info(preps), settings)
-
-
-def record_info(preps: list[PreparedRecord]) -> tuple[dict, ...]:
-    """What a fit result keeps about each record: label, size, grid, clipped commands, faults and offset."""
-    return tuple({"label": p.label, "n": p.n, "dt_s": p.dt, "t0_s": float(p.record.t[0]),
-                  "duration_s": p.record.duration, "commands_clipped": p.n_clipped, "offset_samples": p.offset,
-                  "faults": [str(f) for f in p.faults], "samples_scored": int(p.mask.sum())} for p in preps)
 
 
 def _initial_guess(model, preset, initial):

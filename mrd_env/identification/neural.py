@@ -23,7 +23,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..dampers import CommandSpec
+from .align import estimate_offset
 from .prepare import PreparedRecord, prepare_record
+from .result import FitResult, _measures, pooled_measures, record_info
 
 __all__ = ["NeuralOptions", "NeuralForwardModel", "fit_neural", "LAGS"]
 
@@ -121,10 +123,6 @@ class NeuralForwardModel:
 def fit_neural(records, net: NeuralOptions, search, data):
     """Train the network on ``records`` (see the module docstring); returns a :class:`~.result.FitResult`."""
     import torch
-
-    from .align import estimate_offset
-    from .fit import record_info
-    from .result import FitResult, _measures, pooled_measures
 
     if search.method != "adam":
         raise ValueError(f"the neural model is trained by 'adam', not {search.method!r}")

@@ -97,3 +97,10 @@ def pooled_measures(rows: Sequence[dict]) -> dict[str, float]:
     out["J1"] = float(sum(r["J1"] for r in rows))
     out["J2"] = float(math.sqrt(out["J1"] / n.sum()))
     return out
+
+
+def record_info(preps: list[PreparedRecord]) -> tuple[dict, ...]:
+    """What a fit result keeps about each record: label, size, grid, clipped commands, faults and offset."""
+    return tuple({"label": p.label, "n": p.n, "dt_s": p.dt, "t0_s": float(p.record.t[0]),
+                  "duration_s": p.record.duration, "commands_clipped": p.n_clipped, "offset_samples": p.offset,
+                  "faults": [str(f) for f in p.faults], "samples_scored": int(p.mask.sum())} for p in preps)
