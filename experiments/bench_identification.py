@@ -13,13 +13,16 @@ level on every record, so this is the maximum-likelihood fit). Per parameter: th
 bound of its relative standard deviation (:func:`mrd_env.identification.fit.sensitivity`); a parameter with a
 bound ≤ 0.5 % is counted as well identifiable.
 
-Real data: :func:`mrd_env.identification.compare.compare_models` on the record (fit on the first
---fit-fraction, errors on the rest), plus Spencer–Dyke with the command lag η fitted as well. The default
-column mapping is the NEES export's (t, D cm, Y V, F N, V cm/s).
+Real data (``--real``): :func:`mrd_env.identification.compare.compare_models` on the record (fit on the first
+--fit-fraction, errors on the rest; or fit on all of it and errors on ``--validate``): every model with its
+preset's command lag; Spencer–Dyke (every model with ``--lag-all``) with the command dynamics fitted (η_rise,
+η_fall, delay) and the force aligned with the motion; the neural forward model on the force offset that fit
+found. The default column mapping is the NEES export's (t, D cm, Y V, F N, V cm/s).
 """
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import time
 from pathlib import Path
@@ -84,60 +87,74 @@ def synthetic_recovery(model: str, out: Path, *, noise: float = 0.01, progress: 
             "well-identified parameters": " ".join(r["parameter"] for r in well)}
 
 
+LAG = ("command_eta", "command_eta_fall", "command_delay")
+
+
 def real_comparison(path: Path, out: Path, *, models, fs: float | None, fit_fraction: float, method: str,
-                    command_range: str, progress: bool, validate: Path | None = None) -> list[dict]:
-    """Every model (and the neural forward model) fitted on the first ``fit_fraction`` of the record (or on all
-    of it, scored on ``validate``); then Spencer–Dyke with the command dynamics fitted (asymmetric lag and delay)
-    and the force aligned with the motion. Faults are excluded (the default). Returns the table's rows."""
+                    command_range: str, progress: bool, validate: Path | None = None,
+                    lag_all: bool = False) -> list[dict]:
+    """The real-data table: every model fitted as before (the preset's command lag, no alignment) on the first
+    ``fit_fraction`` of the record (or on all of it, scored on ``validate``); Spencer–Dyke with its command
+    dynamics fitted (η_rise, η_fall, delay, starting from the preset's symmetric η) and the force aligned with the
+    motion; the neural forward model on the force offset that fit found. ``lag_all``: every model the
+    Spencer–Dyke way. Faults are excluded (the default). Returns the table's rows."""
     columns = {"t": "t", "x": "D", "command": "Y", "force": "F", "v": "V"}
     units = {"t": "s", "x": "cm", "command": "V", "force": "N", "v": "cm/s"}
     rec = load_record_csv(path, columns, units)
-    other = None if validate is None else load_record_csv(validate, columns, units)
+    other = None if validate is None else [load_record_csv(validate, columns, units)]
     dt = None if fs is None else 1.0 / fs
-    # models whose command channel is a current (A) are driven by the record's voltage: the driver's V → A gain
-    # is absorbed into their per-command coefficients (same numbers, channel relabelled, range covering 0-2.25 V)
-    entries = []
-    for m in (models or available_dampers()):
-        if m == "neural":
-            entries.append(m)
-            continue
-        d = make_damper(m)
-        if d.command.unit != rec.command_unit:
-            c = d.command
-            try:
-                d = type(d)(d.params, CommandSpec(rec.command_unit, min(c.v_min, 0.0), max(c.v_max, 2.25), c.eta))
-            except ValueError:  # the preset is not valid over the wider range: keep its own (commands clipped)
-                d = type(d)(d.params, CommandSpec(rec.command_unit, c.v_min, c.v_max, c.eta))
-            entries.append(d)
-        else:
-            entries.append(m)
+    names = [m for m in (models or available_dampers()) if m != "neural"]
+    entries = [_voltage_driven(m, rec.command_unit) for m in names]
     search = {"method": method, "progress": progress}
     data = {"dt": dt, "command_range": command_range}
-    res = compare_models([rec], entries, search=search, data=data, fit_fraction=fit_fraction, out=out,
-                         validation_records=None if other is None else [other],
-                         model_options={"neural": {"search": {"method": "adam", "progress": progress}}})
-    rows = res.rows
-    if "spencer_dyke" in (models or available_dampers()):
-        # the command dynamics fitted (η_rise, η_fall, delay) and the force aligned with the motion
-        d = make_damper("spencer_dyke", command={"eta_fall": 190.0})
-        free = [k for k in d.params.names() if k not in fixed_by_default(d, d.params)]
-        free += ["command_eta", "command_eta_fall", "command_delay"]
-        sd = compare_models([rec], [d], search=search, data={**data, "align": True}, fit_fraction=fit_fraction,
-                            out=out / "spencer_dyke_lag", validation_records=None if other is None else [other],
-                            model_options={"spencer_dyke": {"free": free,
-                                                            "initial": {"command_eta": 300.0,
-                                                                        "command_eta_fall": 125.0}}})
-        row = dict(sd.rows[0])
-        c = sd.models[0].fit.damper.command if sd.models[0].fit is not None else None
-        row["model"] = ("spencer_dyke + lag + align" + ("" if c is None else
-                        f" (η_rise {c.eta:.0f}/s, η_fall {c.eta_down:.0f}/s, τ {1e3 * c.delay:.2f} ms)"))
+    common = dict(search=search, fit_fraction=fit_fraction, validation_records=other)
+
+    def lagged(d):
+        """``d`` with an asymmetric lag allowed, and its free parameters plus the command dynamics."""
+        d = type(d)(d.params, dataclasses.replace(d.command, eta_fall=d.command.eta))
+        return d, {"free": [k for k in d.params.names() if k not in fixed_by_default(d, d.params)] + list(LAG)}
+
+    rows = []  # the command-dynamics fits and the network first (a failure there shows early), the table after
+    offset = 0
+    for d in entries if lag_all else [e for e in entries if getattr(e, "name", e) == "spencer_dyke"]:
+        d, opts = lagged(make_damper(d) if isinstance(d, str) else d)
+        res = compare_models([rec], [d], data={**data, "align": True}, out=out / f"{d.name}_lag_align",
+                             model_options={d.name: opts}, **common)
+        row = dict(res.rows[0])
+        fit = res.models[0].fit
+        if fit is not None:
+            c = fit.damper.command
+            row["model"] = (f"{d.name} + lag + align (η_rise {c.eta:.0f}/s, η_fall {c.eta_down:.0f}/s, "
+                            f"τ {1e3 * c.delay:.2f} ms)")
+            if d.name == "spencer_dyke":
+                offset = fit.settings["offsets"][0]
         rows.append(row)
+    if models is None or "neural" in models:
+        res = compare_models([rec], ["neural"], search={"method": "adam", "progress": progress},
+                             data={**data, "offset": offset}, fit_fraction=fit_fraction, validation_records=other,
+                             out=out / "neural")
+        rows.append({**res.rows[0], "model": f"neural (force offset {offset} from Spencer–Dyke)"})
+    if names:
+        rows = compare_models([rec], entries, data=data, out=out / "preset_lag", **common).rows + rows
     how = "clipped to" if command_range == "clip" else "widening"
     where = (f"fit on all of {path.name}, errors on {validate.name}" if validate is not None
              else f"fit on the first {100 * fit_fraction:g} %, errors on the rest")
     write_table(rows, out / "comparison_all", title=f"{path.name}: {where} ({method}, commands {how} the preset "
                 "range; faults excluded)", floatfmt=".4g")
     return rows
+
+
+def _voltage_driven(model: str, unit: str):
+    """Models whose command channel is a current (A) are driven by the record's voltage: the driver's V → A gain
+    is absorbed into their per-command coefficients (same numbers, channel relabelled, range covering 0-2.25 V)."""
+    d = make_damper(model)
+    if d.command.unit == unit:
+        return model
+    c = d.command
+    try:
+        return type(d)(d.params, CommandSpec(unit, min(c.v_min, 0.0), max(c.v_max, 2.25), c.eta))
+    except ValueError:  # the preset is not valid over the wider range: keep its own (commands clipped)
+        return type(d)(d.params, CommandSpec(unit, c.v_min, c.v_max, c.eta))
 
 
 def main(argv=None) -> int:
@@ -151,6 +168,8 @@ def main(argv=None) -> int:
                    help="default: all registered models and the neural forward model")
     p.add_argument("--validate", type=Path, default=None,
                    help="with --real: fit on all of that record, report the errors on this one")
+    p.add_argument("--lag-all", action="store_true",
+                   help="with --real: fit every model with its command dynamics and the force alignment")
     p.add_argument("--skip-synthetic", action="store_true")
     p.add_argument("--propagate", type=int, default=0, metavar="N",
                    help="also propagate the default sensor errors (review Table 7) to the Spencer–Dyke parameters "
@@ -185,7 +204,7 @@ def main(argv=None) -> int:
     if args.real is not None:
         real_comparison(args.real, out / "real", models=models, fs=args.fs, fit_fraction=args.fit_fraction,
                         method=args.method, command_range=args.command_range, progress=progress,
-                        validate=args.validate)
+                        validate=args.validate, lag_all=args.lag_all)
         print((out / "real" / "comparison_all.md").read_text())
     return 0
 

@@ -9,9 +9,10 @@ layout is defined once, here (:data:`LAYOUT`); the kernel reads it from constant
 
 Per-system state (one row of ``fs`` and ``is_`` per system, plus one scratch row for the kernel): the coupled
 state Y, the effective commands U, the forces F, the damper parameters P and command dynamics (η_rise, η_fall,
-delay τ; so every system may have its own damper), the queue of past commands the delay reads, the applied command, the filter states, the reward scales, the statistics, the ring of
-the running r.m.s., the delay/history FIFO, the last output row and the last reward; the step counters, the
-status, the noise generator's key and counter.
+delay τ; so every system may have its own damper), the queue of past commands the delay reads, the applied
+command, the filter states, the reward scales, the statistics, the ring of the running r.m.s., the
+delay/history FIFO, the last output row and the last reward; the step counters, the status, the noise
+generator's key and counter, the position in the command queue.
 """
 from __future__ import annotations
 
@@ -30,7 +31,8 @@ LAYOUT = {
     "dims": ("N", "NH", "NPAR", "NSUB", "MAX_LEVEL", "HIST_MODE", "CMD_INPUT", "DOSE_COL", "NORMALIZED",
              "DELAY", "HISTORY", "SCRATCH"),
     "scalars": ("DT", "VMIN", "VMAX", "RTOL", "ATOL", "PEN_CONST", "PEN_STEP"),
-    "state": ("Y", "U", "F", "P", "LAG", "CMDQ", "CMD", "ZI", "RSCALE", "STATS", "DOSE", "RING", "FIFO", "ROW", "REWARD"),
+    "state": ("Y", "U", "F", "P", "LAG", "CMDQ", "CMD", "ZI", "RSCALE", "STATS", "DOSE", "RING", "FIFO", "ROW",
+              "REWARD"),
     "int_state": ("K", "NSTEPS", "STATUS", "KEY", "COUNTER", "NSUB", "FIFO_POS", "RING_POS", "ROWS", "REASON",
                   "FAIL_STEP", "SUBSTEPS", "CMDQ_POS"),
     "status": ("RUNNING", "TERMINATED", "TRUNCATED", "DIVERGED", "BAD_ACTION"),
@@ -101,8 +103,9 @@ class Driver:
     """N systems of one damper model on one plant, advanced by the compiled driver (see the module docstring).
 
     ``P`` (N, nd, n_params) and ``lag`` (N, nd, 3: η_rise, η_fall, delay; :mod:`mrd_env.command_lag`) give
-    every system its own damper parameters and command dynamics (default: the damper's). :meth:`reset` starts episodes (``mask``), :meth:`step` advances the running systems by
-    ``n_sub`` steps of ``dt`` and returns system 0's status.
+    every system its own damper parameters and command dynamics (default: the damper's). :meth:`reset` starts
+    episodes (``mask``), :meth:`step` advances the running systems by ``n_sub`` steps of ``dt`` and returns
+    system 0's status.
     """
 
     def __init__(self, damper, system: SystemMatrices, N: int, processing: Processing, *, dt: float = 1e-3,
@@ -155,7 +158,8 @@ class Driver:
         lag = np.broadcast_to(cmd.lag_vector() if lag is None else np.asarray(lag, dtype=np.float64), (N, nd, 3))
         check_lag(lag)
         self.queue_length = queue_length(lag[..., LAG_DELAY], self.dt)
-        sizes = {"Y": n, "U": nd, "F": nd, "P": nd * npar, "LAG": 3 * nd, "CMDQ": self.queue_length * nd, "CMD": nd, "ZI": 2 * len(sos),
+        sizes = {"Y": n, "U": nd, "F": nd, "P": nd * npar, "LAG": 3 * nd, "CMDQ": self.queue_length * nd, "CMD": nd,
+                 "ZI": 2 * len(sos),
                  "RSCALE": len(pr.reward_cols), "STATS": 2 * len(pr.stat_cols), "DOSE": 3,
                  "RING": max(int(pr.dose_window), 1), "FIFO": depth * n_meas, "ROW": nH, "REWARD": 1}
         self.fc, self.ic, self._fields = _pack(floats, ints, dims, sizes)

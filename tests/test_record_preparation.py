@@ -10,7 +10,7 @@ import pytest
 from mrd_env import make_damper
 from mrd_env.dampers import CommandSpec
 from mrd_env.identification import DamperRecord, FaultsExcluded, find_faults, fit_model, predict
-from mrd_env.identification.align import estimate_offset
+from mrd_env.identification.align import best_offset
 from mrd_env.identification.compare import compare_models
 from mrd_env.identification.prepare import prepare_record
 from mrd_env.identification.presets import load_preset, save_preset
@@ -50,8 +50,9 @@ def test_asymmetric_lag_and_delay_are_recovered():
 def test_channel_offset_is_estimated_and_corrected():
     d, rec = _record(noise=0.01)
     moved = _shifted(rec, 2)
-    assert estimate_offset(prepare_record(moved, d.command)) == 2
-    assert estimate_offset(prepare_record(rec, d.command)) == 0
+    for s, r in ((2, moved), (0, rec)):  # the true model's force finds the offset
+        prep = prepare_record(r, d.command)
+        assert best_offset(predict(d, prep)[1], prep) == s
     free = ["fc_a", "fc_b", "c0a", "c0b"]
     start = {k: 1.3 * getattr(d.params, k) for k in free}
     aligned = fit_model(d, moved, free=free, initial=start, search=QUIET, data={"align": True})
@@ -127,6 +128,10 @@ def test_neural_forward_model_fits_predicts_and_reloads_exactly(tmp_path):
     assert np.array_equal(predict(loaded, held)[1], F)
     with pytest.raises(ValueError, match="takes no preset"):
         fit_model("neural", fit, free=["c0a"])
+    with pytest.raises(ValueError, match="cannot find the force offset itself"):
+        fit_model("neural", fit, data={"align": True})
+    shifted = fit_model("neural", _shifted(fit, 1), search={"maxiter": 2, "progress": False}, data={"offset": 1})
+    assert shifted.settings["offsets"] == [1]
 
 
 def test_cross_record_validation_table(tmp_path):

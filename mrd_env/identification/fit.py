@@ -44,7 +44,7 @@ import time
 from typing import Iterable, Mapping
 
 from ..dampers import DamperModel, damper_class
-from .align import best_offset, estimate_offset
+from .align import best_offset
 from .optimisers import run_search
 from .options import DataOptions, SearchOptions, as_options
 from .parameters import (COMMAND_PARAMS, _make_params, _valid_range, command_with, default_bounds,
@@ -103,8 +103,6 @@ def fit_model(model: str | DamperModel, records, *, preset: str | None = None, f
 
     align = data.align and data.offset is None
     offsets = [data.offset or 0] * len(recs)
-    if align:  # a first, model-free estimate; checked below with the fitted model
-        offsets = [estimate_offset(prepare_record(r, command, **data.prepare_kwargs())) for r in recs]
     preps = [prepare_record(r, command, offset=o, **data.prepare_kwargs()) for r, o in zip(recs, offsets)]
     if data.command_range == "widen":
         cmin = min(command.v_min, *(float(p.command.min()) for p in preps))
@@ -118,18 +116,28 @@ def fit_model(model: str | DamperModel, records, *, preset: str | None = None, f
             raise ValueError(f"the initial guess of {cls.name!r} diverges or is infeasible on the records")
         return prob, J0, run_search(prob, x0, search, f"fit {cls.name} ({search.method})")
 
-    x0 = Problem.scale(init_vals, free_t, lo, hi)
-    prob, J0, (theta, nit, converged, message, history) = solve(preps, x0)
-    damper = _fitted(cls, prob, theta, command, free_t)
-    for _ in range(ALIGN_ROUNDS if align else 0):  # the offset the fitted model prefers; fit again if it differs
+    def realigned(damper):
+        """The records with the force offsets ``damper`` prefers, or None if they are the ones in use."""
         better = [best_offset(predict(damper, p, **opts)[1], p) for p in preps]
         if better == offsets:
+            return None
+        return better, [prepare_record(r, command, offset=o, **data.prepare_kwargs()) for r, o in zip(recs, better)]
+
+    x0 = Problem.scale(init_vals, free_t, lo, hi)
+    if align and (moved := realigned(cls(params0, command))) is not None:  # the offset of the initial guess
+        offsets, preps = moved
+    prob, J0, (theta, nit, converged, message, history) = solve(preps, x0)
+    damper = _fitted(cls, prob, theta, command, free_t)
+    n_evaluations = prob.n_evaluations
+    for _ in range(ALIGN_ROUNDS if align else 0):  # the offset the fitted model prefers; fit again if it differs
+        moved = realigned(damper)
+        if moved is None:
             break
-        offsets = better
-        preps = [prepare_record(r, command, offset=o, **data.prepare_kwargs()) for r, o in zip(recs, offsets)]
-        n_before = prob.n_evaluations
-        prob, _, (theta, nit, converged, message, history) = solve(preps, theta)
-        prob.n_evaluations += n_before
+        offsets, preps = moved
+        # from the fit so far and from the initial guess (the first may sit in the previous offset's optimum)
+        runs = [solve(preps, start) for start in (theta.copy(), x0)]
+        n_evaluations += sum(r[0].n_evaluations for r in runs)
+        prob, _, (theta, nit, converged, message, history) = min(runs, key=lambda r: r[0].best)
         damper = _fitted(cls, prob, theta, command, free_t)
     J = float(prob.objective(theta[None, :])[0])
     per = [_measures(p, predict(damper, p, **opts)[1]) for p in preps]
@@ -138,7 +146,7 @@ def fit_model(model: str | DamperModel, records, *, preset: str | None = None, f
     return FitResult(cls.name, damper, damper.params.to_dict(), init_vals, free_t, bnd,
                      {k: v for k, v in fixed_by_default(cls, params0).items() if k not in free_t}, search.method,
                      int(search.seed), J, J0, per, pooled_measures(per), time.perf_counter() - t_start,
-                     prob.n_evaluations, nit, bool(converged), str(message), tuple(history), prob.n_infeasible,
+                     n_evaluations, nit, bool(converged), str(message), tuple(history), prob.n_infeasible,
                      prob.n_diverged, record_info(preps), settings)
 
 

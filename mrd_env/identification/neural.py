@@ -23,7 +23,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..dampers import CommandSpec
-from .align import estimate_offset
 from .prepare import PreparedRecord, prepare_record
 from .result import FitResult, _measures, pooled_measures, record_info
 
@@ -49,7 +48,8 @@ class NeuralOptions:
         if not (isinstance(self.hidden, int) and 1 <= self.hidden <= 4096):
             raise ValueError(f"hidden = {self.hidden!r} is invalid: must be an int in [1, 4096]")
         lags = tuple(self.lags)
-        if not lags or any((not isinstance(k, (int, np.integer))) or k < 0 for k in lags) or len(set(lags)) != len(lags):
+        bad = any((not isinstance(k, (int, np.integer))) or k < 0 for k in lags)
+        if not lags or bad or len(set(lags)) != len(lags):
             raise ValueError(f"lags = {self.lags!r} is invalid: must be distinct ints >= 0")
         object.__setattr__(self, "lags", tuple(int(k) for k in lags))
         if not (isinstance(self.batch, int) and self.batch >= 1):
@@ -135,9 +135,11 @@ def fit_neural(records, net: NeuralOptions, search, data):
     command = CommandSpec(units.pop(), lo, hi if hi > lo else lo + 1.0)
     kw = data.prepare_kwargs()
     preps = [prepare_record(r, command, **kw) for r in records]
-    if data.offset is not None or data.align:
-        offsets = [data.offset if data.offset is not None else estimate_offset(p) for p in preps]
-        preps = [prepare_record(r, command, offset=o, **kw) for r, o in zip(records, offsets)]
+    if data.align and data.offset is None:
+        raise ValueError("the neural model cannot find the force offset itself (a more recent motion always fits "
+                         "better): give data={'offset': s}, e.g. the offset a parametric fit with align=True reports")
+    if data.offset:
+        preps = [prepare_record(r, command, offset=data.offset, **kw) for r in records]
     dts = {round(p.dt, 12) for p in preps}
     if len(dts) != 1:
         raise ValueError(f"the records have different grid steps {sorted(dts)} s: give data.dt to put them on one")

@@ -110,7 +110,8 @@ class DataOptions:
                              "'widen'")
         if self.faults not in FAULT_MODES:
             raise ValueError(f"faults = {self.faults!r} is invalid: must be one of {list(FAULT_MODES)}")
-        if self.offset is not None and (isinstance(self.offset, bool) or not isinstance(self.offset, (int, np.integer))):
+        if self.offset is not None and (isinstance(self.offset, bool)
+                                        or not isinstance(self.offset, (int, np.integer))):
             raise ValueError(f"offset = {self.offset!r} is invalid: must be an int number of samples (or None)")
         if self.weighting not in ("record", "sample"):
             raise ValueError(f"weighting = {self.weighting!r} is invalid: must be 'record' or 'sample'")

@@ -115,8 +115,8 @@ def propagate_sensor_errors(damper: DamperModel | str = "spencer_dyke", *,
     search = as_options(SearchOptions, search, "search")
     if search == SearchOptions():  # no progress bar per draw unless asked
         search = dataclasses.replace(search, progress=False)
-    units = {**damper.Params.units(), **{k: v[1] for k, v in COMMAND_PARAMS.items()}, "E_t": "-", "E_x": "-", "E_v": "-", "J2": "N",
-             "E_t_true": "-", "E_x_true": "-", "E_v_true": "-", "J2_true": "N"}
+    units = {**damper.Params.units(), **{k: v[1] for k, v in COMMAND_PARAMS.items()}, "E_t": "-", "E_x": "-",
+             "E_v": "-", "J2": "N", "E_t_true": "-", "E_x_true": "-", "E_v_true": "-", "J2_true": "N"}
     free_holder: list[tuple[str, ...]] = []
 
     def one_draw(child: np.random.Generator) -> dict[str, float]:

@@ -21,8 +21,8 @@ _RIG = SystemMatrices.displacement_driven()
 def simulate_batch(cls, command: CommandSpec, prep: PreparedRecord, P: np.ndarray, lag: np.ndarray,
                    Y0: np.ndarray, integrator_options: Mapping) -> tuple[np.ndarray, np.ndarray]:
     """Forces (S, n) of S parameter vectors P (S, n_params) with command dynamics ``lag`` (S, 3: η_rise, η_fall,
-    delay) on one record, and a mask of the runs that did not diverge (their rows are NaN). One compiled call per chunk of candidates; a diverging candidate stops alone,
-    the others of its chunk run on."""
+    delay) on one record, and a mask of the runs that did not diverge (their rows are NaN). One compiled call per
+    chunk of candidates; a diverging candidate stops alone, the others of its chunk run on."""
     S = P.shape[0]
     n = prep.n
     F = np.full((S, n), np.nan)
