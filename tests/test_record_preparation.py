@@ -2,7 +2,6 @@
 cross-record validation — all on synthetic rig records whose truth is known (the real record is never read)."""
 import argparse
 import csv
-import warnings
 
 import numpy as np
 import pytest

@@ -44,14 +44,15 @@ import time
 from typing import Iterable, Mapping
 
 from ..dampers import DamperModel, damper_class
+from ..errors import SimulationDivergedError
 from .align import best_offset
+from .neural import NeuralOptions, fit_neural
 from .optimisers import run_search
 from .options import DataOptions, SearchOptions, as_options
 from .parameters import (COMMAND_PARAMS, _make_params, _valid_range, command_with, default_bounds,
                          fixed_by_default, initial_values)
-from .prepare import PreparedRecord, as_records, prepare_record
+from .prepare import as_records, prepare_record
 from .problem import Problem
-from .neural import NeuralOptions, fit_neural
 from .result import FitResult, _measures, pooled_measures, record_info
 from .simulate import predict
 
@@ -117,8 +118,12 @@ def fit_model(model: str | DamperModel, records, *, preset: str | None = None, f
         return prob, J0, run_search(prob, x0, search, f"fit {cls.name} ({search.method})")
 
     def realigned(damper):
-        """The records with the force offsets ``damper`` prefers, or None if they are the ones in use."""
-        better = [best_offset(predict(damper, p, **opts)[1], p) for p in preps]
+        """The records with the force offsets ``damper`` prefers, or None if they are the ones in use (or the
+        damper diverges: the fit reports that)."""
+        try:
+            better = [best_offset(predict(damper, p, **opts)[1], p) for p in preps]
+        except SimulationDivergedError:
+            return None
         if better == offsets:
             return None
         return better, [prepare_record(r, command, offset=o, **data.prepare_kwargs()) for r, o in zip(recs, better)]

@@ -22,7 +22,10 @@ class FitResult:
     duration-weighted RMS of the per-record values. ``objective`` / ``initial_objective``: Σ_r w_r J2_r at the
     fitted parameters and at the initial guess. ``n_evaluations`` counts candidate parameter vectors simulated
     (every Jacobian column and population member counts one); ``history`` the best objective after each
-    iteration (generation).
+    iteration (generation). For the neural model (``model == "neural"``, ``damper`` a
+    :class:`~.neural.NeuralForwardModel`) ``params``/``free`` are empty, the objectives are the training loss
+    (mean squared standardised force error) per epoch, and ``n_evaluations`` counts sample presentations.
+    ``settings["offsets"]``: the force offset (samples) used on each record.
     """
 
     model: str
