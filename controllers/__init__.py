@@ -3,12 +3,13 @@
 Build a controller from the environment it drives: ``SkyhookOnOff(env)``; ``make_controller(name, env)``
 by name. ``CONTROLLERS`` lists the names.
 """
-from .base import AgentController, Controller, PassiveOff, PassiveOn
+from .agents import TrainedAgent, load_agent, shipped_agents
+from .base import AgentController, Controller, PassiveOff, PassiveOn, RandomCommand
 from .friction_laws import MaximumEnergyDissipation, ModulatedHomogeneousFriction
 from .model_based import ClippedOptimal, KalmanEstimator, LinearDesign, Lyapunov
 from .velocity_laws import Groundhook, Hybrid, SkyhookContinuous, SkyhookOnOff, force_gain
 
-CONTROLLERS = {c.name: c for c in (PassiveOff, PassiveOn, SkyhookOnOff, SkyhookContinuous, Groundhook, Hybrid,
+CONTROLLERS = {c.name: c for c in (RandomCommand, PassiveOff, PassiveOn, SkyhookOnOff, SkyhookContinuous, Groundhook, Hybrid,
                                    ClippedOptimal, Lyapunov, MaximumEnergyDissipation,
                                    ModulatedHomogeneousFriction)}
 
@@ -22,5 +23,5 @@ def make_controller(name: str, env, **options) -> Controller:
 
 __all__ = ["AgentController", "CONTROLLERS", "ClippedOptimal", "Controller", "Groundhook", "Hybrid",
            "KalmanEstimator", "LinearDesign", "Lyapunov", "MaximumEnergyDissipation",
-           "ModulatedHomogeneousFriction", "PassiveOff", "PassiveOn", "SkyhookContinuous", "SkyhookOnOff",
-           "force_gain", "make_controller"]
+           "ModulatedHomogeneousFriction", "PassiveOff", "PassiveOn", "RandomCommand", "SkyhookContinuous", "SkyhookOnOff",
+           "TrainedAgent", "force_gain", "load_agent", "make_controller", "shipped_agents"]

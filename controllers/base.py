@@ -134,6 +134,20 @@ class PassiveOn(Controller):
         return np.full((obs.shape[0], 1), self.v_max)
 
 
+class RandomCommand(Controller):
+    """A command drawn uniformly in [u_min, u_max] every control step (the baseline any learnt or designed
+    law must beat); ``seed`` or a ``numpy.random.Generator`` makes it reproducible."""
+
+    name = "random"
+
+    def __init__(self, env, seed=0):
+        super().__init__(env)
+        self.rng = np.random.default_rng(seed)
+
+    def command(self, obs):
+        return self.rng.uniform(self.v_min, self.v_max, size=(obs.shape[0], self.n_dampers))
+
+
 class AgentController(Controller):
     """A trained agent (anything with SB3's ``predict``) behind the same interface; actions pass through
     unchanged because the agent acts in the environment's own action space. ``env_kwargs``: the options of

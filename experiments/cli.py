@@ -17,7 +17,9 @@ import sys
 COMMANDS = {
     "rig": ("experiments.rig_report", "virtual damper test rig: loops (PNG), records (CSV), peak/energy table"),
     "benchmark": ("experiments.benchmark", "controller × scenario benchmark: Markdown/CSV tables and figures"),
-    "train": ("experiments.train", "train a Stable-Baselines3 agent on an environment and save it"),
+    "train": ("experiments.train", "train agents (Stable-Baselines3, RL Zoo conventions): curves, best agent, "
+                                   "checkpoints"),
+    "evaluate": ("experiments.evaluate_cmd", "agents and classical laws side by side on the held-out scenarios"),
     "identify": ("experiments.identify_cmd",
                  "fit a damper model to a measured record: errors table, figure, JSON preset"),
     "compare-models": ("experiments.compare_models_cmd",
@@ -66,6 +68,7 @@ def main(argv: list[str] | None = None) -> int:
     prog = f"mrd-env {command}" if command in COMMANDS else "mrd-env"
     try:
         args = build_parser(command if command in COMMANDS else None).parse_args(argv)
+        args._argv = argv  # the command line, for the records that say how to reproduce a run
         return int(importlib.import_module(args._module).run(args) or 0)
     except SystemExit as exc:  # --help, or a sub-command that exits by itself
         return int(exc.code or 0) if not isinstance(exc.code, str) else _fail(prog, exc.code, 2)

@@ -1,124 +1,409 @@
-"""``mrd-env train``: train a Stable-Baselines3 agent on an mrd-env environment and save it.
+"""``mrd-env train``: train agents on an mrd-env environment, following RL Zoo's conventions.
 
-The agent acts in the normalised action space ([-1, 1] → the damper's command range) at ``--control-dt``
-(10 ms by default: RL at 1 kHz makes very long credit-assignment horizons); observations are normalised
-with SB3's ``VecNormalize``, whose statistics are saved next to the model. Evaluate the saved agent with
-``mrd-env benchmark --agent PATH`` (it runs through the same evaluation loop as the classical laws).
-Long trainings are experiments, not tests.
+Hyperparameters per environment and algorithm come from YAML files shipped with the project
+(``experiments/hyperparams/<algo>.yml``, RL Zoo's layout: ``n_envs``, ``n_timesteps``, ``policy``,
+``normalize`` and the algorithm's own keyword arguments, keyed by environment id); ``--hyperparams`` names
+another file, ``--set key=value`` overrides one entry. The agent trains on the training distribution of
+:mod:`experiments.scenarios` (a new road or ground motion per episode) in the native vector environment through
+the SB3 bridge, with observations (and rewards) normalised by ``VecNormalize``. During training it is evaluated
+every ``--eval-freq`` steps on the validation scenarios (the training distribution on seeds training never
+draws; the test scenarios are never seen), and the best agent is kept; checkpoints every ``--checkpoint-freq``
+steps; learning curves as CSV (training episodes, validation) and PNG; TensorBoard logs with ``--tensorboard``;
+several seeds in one command (``--seeds 0 1 2``); a progress bar.
+
+Each run writes a folder ``<out>/<plant>_<algo>_s<seed>/`` holding the final agent (``agent.json``, ``model.zip``,
+``normalization.npz``: :func:`controllers.load_agent` reads it), ``best/`` (the best validation agent), the
+checkpoints, ``training.csv``, ``validation.csv`` and ``learning_curve.png``. ``agent.json`` records the plant,
+the algorithm, the seed and budget, the environment options (``env_kwargs``), the hyperparameters, the wall
+time and the command that reproduces the run.
 """
 from __future__ import annotations
 
 import argparse
 import json
+import shlex
+import sys
+import time
 from pathlib import Path
 
 import numpy as np
 
-ALGOS = ("SAC", "PPO", "TD3")
-ENV_IDS = {"quarter_car": "mrd_env/QuarterCar-v0", "building": "mrd_env/ShearBuilding-v0"}
+from .scenarios import ENV_IDS, TRAINING, Scenario, validation
 
-
-def env_kwargs(plant: str, control_dt: float, episode_seconds: float | None) -> dict:
-    kw = dict(action_mode="normalized", control_dt=control_dt)
-    if episode_seconds is not None:
-        kw["episode_seconds"] = episode_seconds
-    return kw
-
-
-def train(plant: str = "quarter_car", algo: str = "SAC", timesteps: int = 50_000, *, seed: int = 0,
-          control_dt: float = 0.01, episode_seconds: float | None = None, out: Path = Path("results/agents"),
-          n_envs: int = 1, progress: bool = False) -> Path:
-    """Train and save ``<out>/<plant>_<algo>.zip`` (+ ``_vecnormalize.pkl`` and ``.json``); return the zip."""
-    import gymnasium as gym
-
-    import mrd_env  # noqa: F401  (registers the environments)
-
-    # every argument is checked before torch and SB3 are imported (seconds) and before an environment is built
-    if plant not in ENV_IDS:
-        raise ValueError(f"plant must be one of {sorted(ENV_IDS)}, got {plant!r}")
-    if algo not in ALGOS:
-        raise ValueError(f"algo must be one of {ALGOS}, got {algo!r}")
-    for name, value, lo in (("timesteps", timesteps, 1), ("seed", seed, 0), ("n_envs", n_envs, 1)):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < lo:
-            raise ValueError(f"{name} must be an int >= {lo}, got {value!r}")
-    kw = env_kwargs(plant, control_dt, episode_seconds)
-    gym.make(ENV_IDS[plant], **kw).close()  # a bad control_dt or episode_seconds fails here, by name
-
-    import stable_baselines3 as sb3
-    from stable_baselines3.common.env_util import make_vec_env
-    from stable_baselines3.common.vec_env import VecNormalize
-
-    venv = VecNormalize(make_vec_env(ENV_IDS[plant], n_envs=n_envs, seed=seed, env_kwargs=kw),
-                        norm_obs=True, norm_reward=True)
-    model = getattr(sb3, algo)("MlpPolicy", venv, seed=seed, verbose=0)
-    model.learn(total_timesteps=int(timesteps), progress_bar=progress)
-    out.mkdir(parents=True, exist_ok=True)
-    stem = out / f"{plant}_{algo}"
-    model.save(stem.with_suffix(".zip"))
-    venv.save(str(stem) + "_vecnormalize.pkl")
-    stem.with_suffix(".json").write_text(json.dumps(
-        {"plant": plant, "algo": algo, "timesteps": int(timesteps), "seed": seed, "env_kwargs": kw}, indent=2))
-    return stem.with_suffix(".zip")
+ALGOS = {"ppo": "PPO", "sac": "SAC", "td3": "TD3", "a2c": "A2C", "recurrentppo": "RecurrentPPO", "tqc": "TQC"}
+HYPERPARAMS = Path(__file__).with_name("hyperparams")
+#: Keys of a hyperparameter entry that are not the algorithm's keyword arguments (RL Zoo's conventions).
+_ZOO_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "env_kwargs")
 
 
 def agent_metadata(path: str | Path) -> dict:
-    """The metadata written next to a saved agent (``<stem>.json``): plant, algorithm, env options. An agent is
-    recognised by this file, whatever its name; ``ValueError`` for a missing or unreadable agent."""
-    path = Path(path)
+    """The metadata of a saved agent (its folder or a file in it); ``ValueError`` for a missing or bad agent."""
+    from controllers.agents import agent_files
+
+    return agent_files(path)[1]
+
+
+def hyperparameters(algo: str, env_id: str, path: Path | None = None, overrides: dict | None = None) -> dict:
+    """The entry of ``env_id`` in the YAML file of ``algo`` (RL Zoo's format), with ``overrides``."""
+    import yaml
+
+    path = Path(path) if path is not None else HYPERPARAMS / f"{algo}.yml"
     if not path.exists():
-        raise ValueError(f"agent {path}: no such file")
-    meta_path = path.with_suffix(".json")
-    if not meta_path.exists():
-        raise ValueError(f"agent {path}: its metadata file {meta_path.name} is missing (mrd-env train writes it "
-                         "next to the agent)")
+        raise ValueError(f"no hyperparameter file {path}")
     try:
-        meta = json.loads(meta_path.read_text(encoding="utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise ValueError(f"agent {path}: {meta_path.name} is not valid JSON ({exc})") from None
-    missing = [k for k in ("plant", "algo", "env_kwargs") if not isinstance(meta, dict) or k not in meta]
-    if missing:
-        raise ValueError(f"agent {path}: {meta_path.name} lacks {missing}: not written by mrd-env train")
-    if meta["plant"] not in ENV_IDS:
-        raise ValueError(f"agent {path}: unknown plant {meta['plant']!r} in {meta_path.name}")
-    return meta
+        table = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
+    except (yaml.YAMLError, UnicodeDecodeError) as exc:
+        raise ValueError(f"{path} is not a YAML hyperparameter file ({' '.join(str(exc).split())[:120]})") from None
+    if not isinstance(table, dict):
+        raise ValueError(f"{path} is not a YAML hyperparameter file (expected {{env id: {{key: value}}}})")
+    if env_id not in table:
+        raise ValueError(f"{path} has no entry for {env_id}; entries: {sorted(table)}")
+    out = dict(table[env_id])
+    for k, v in (overrides or {}).items():
+        out[k] = v
+    return check_hyperparameters(algo, out)
 
 
-class NormalizedAgent:
-    """A saved agent with its observation normalisation: SB3's ``predict`` on raw observations."""
+def check_hyperparameters(algo: str, hyper: dict) -> dict:
+    """``hyper`` if every key is an RL Zoo key or a keyword of the algorithm, and the budget is valid."""
+    import inspect
 
-    def __init__(self, path: str | Path):
-        import stable_baselines3 as sb3
+    from controllers.agents import _algorithm
 
-        path = Path(path)
-        meta = agent_metadata(path)
-        self.meta = meta
-        self.model = getattr(sb3, meta["algo"]).load(path)
-        import pickle
+    if algo not in ALGOS:
+        raise ValueError(f"algo must be one of {sorted(ALGOS)}, got {algo!r}")
+    accepted = set(inspect.signature(_algorithm(ALGOS[algo]).__init__).parameters) - {"self", "env", "policy"}
+    unknown = sorted(k for k in hyper if k not in _ZOO_KEYS and k not in accepted)
+    if unknown:
+        raise ValueError(f"hyperparameters {unknown} are not {ALGOS[algo]} options; valid: "
+                         f"{sorted(_ZOO_KEYS)} and {sorted(accepted)}")
+    for key in ("n_envs", "n_timesteps"):
+        v = hyper.get(key, 1)
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or v < 1 or float(v) != int(v):
+            raise ValueError(f"hyperparameter {key} must be an integer >= 1, got {v!r}")
+    return hyper
 
-        with open(str(path.with_suffix("")) + "_vecnormalize.pkl", "rb") as fh:
-            vn = pickle.load(fh)
-        self.obs_rms, self.clip, self.eps = vn.obs_rms, vn.clip_obs, vn.epsilon
+
+def _parse_overrides(items) -> dict:
+    import yaml
+
+    out = {}
+    for item in items or ():
+        if "=" not in item:
+            raise ValueError(f"--set expects key=value, got {item!r}")
+        k, v = item.split("=", 1)
+        value = yaml.safe_load(v)
+        if isinstance(value, str):  # YAML 1.1 reads 1e-4 (no dot) as a string
+            try:
+                value = float(value)
+            except ValueError:
+                pass
+        out[k.strip()] = value
+    return out
+
+
+def env_options(plant: str, control_dt: float = 0.01, sensors=None, history: int = 1,
+                disturbance=None, **extra) -> dict:
+    """The training environment's options: the plant's training distribution (or ``disturbance``), normalised
+    actions, the control step, and the observation options."""
+    kw = {**TRAINING[plant], "action_mode": "normalized", "control_dt": float(control_dt), "history": int(history)}
+    if sensors:
+        kw["sensors"] = list(sensors)
+    if disturbance is not None:
+        key = "road" if plant == "quarter_car" else "ground_motion"
+        kw.pop("road", None)
+        kw.pop("ground_motion", None)
+        kw[key] = disturbance
+    kw.update(extra)
+    return kw
+
+
+class _Live:
+    """The agent being trained, as a predict on raw observations (the running normalisation of VecNormalize)."""
+
+    def __init__(self, model, vecnorm):
+        self.model, self.vecnorm = model, vecnorm
+
+    def reset(self, mask=None):
+        pass
 
     def predict(self, obs, state=None, episode_start=None, deterministic=True):
-        o = np.clip((np.asarray(obs) - self.obs_rms.mean) / np.sqrt(self.obs_rms.var + self.eps), -self.clip, self.clip)
-        return self.model.predict(o.astype(np.float32), state=state, episode_start=episode_start,
-                                  deterministic=deterministic)
+        o = self.vecnorm.normalize_obs(np.asarray(obs, dtype=np.float32)) if self.vecnorm is not None else obs
+        return self.model.predict(o, state=state, episode_start=episode_start, deterministic=deterministic)
 
+
+def _callbacks(run_dir: Path, model_saver, vecnorm, scenarios: list[Scenario], obs_kwargs: dict, eval_freq: int,
+               checkpoint_freq: int, timesteps: int, progress: bool):
+    """Validation with best-agent saving, checkpoints and a progress bar (SB3 callbacks)."""
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    from controllers.base import AgentController
+
+    from .evaluation import evaluate_batch
+
+    class Validation(BaseCallback):
+        def __init__(self):
+            super().__init__()
+            self.best = -np.inf
+            self.rows = []
+            self.next_eval = eval_freq
+            self.next_ckpt = checkpoint_freq
+
+        def _evaluate(self):
+            live = _Live(self.model, vecnorm)
+            returns = []
+            for sc in scenarios:
+                eps = evaluate_batch(lambda v: AgentController(v, live, name="live"), sc, "", **obs_kwargs)
+                returns += [e.episode_return for e in eps]
+            mean = float(np.mean(returns))
+            self.rows.append({"timesteps": self.num_timesteps, "validation_return": mean,
+                              "validation_return_std": float(np.std(returns))})
+            _write_csv(run_dir / "validation.csv", self.rows)
+            if mean > self.best:
+                self.best = mean
+                model_saver(run_dir / "best", {"validation_return": mean, "timesteps": self.num_timesteps})
+
+        def _on_step(self) -> bool:
+            if eval_freq and self.num_timesteps >= self.next_eval:
+                while self.next_eval <= self.num_timesteps:  # once, however many steps a vector step adds
+                    self.next_eval += eval_freq
+                self._evaluate()
+            if checkpoint_freq and self.num_timesteps >= self.next_ckpt:
+                while self.next_ckpt <= self.num_timesteps:
+                    self.next_ckpt += checkpoint_freq
+                model_saver(run_dir / "checkpoints" / f"step_{self.num_timesteps}", {"timesteps": self.num_timesteps})
+            return True
+
+        def _on_training_end(self) -> None:
+            if eval_freq:
+                self._evaluate()
+
+    class Progress(BaseCallback):
+        def _on_training_start(self):
+            from tqdm.auto import tqdm
+            self.bar = tqdm(total=timesteps, desc=f"train {run_dir.name}", unit="step", disable=not progress)
+
+        def _on_step(self) -> bool:
+            self.bar.update(self.model.num_timesteps - self.bar.n)
+            return True
+
+        def _on_training_end(self):
+            self.bar.close()
+
+    return Validation(), Progress()
+
+
+def _write_csv(path: Path, rows: list[dict]) -> None:
+    import csv
+
+    with path.open("w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+
+
+def train_one(plant: str, algo: str, seed: int, *, out: Path, timesteps: int | None = None,
+              hyper: dict | None = None, env_kwargs: dict | None = None, eval_freq: int = 20_000,
+              eval_episodes: int = 8, checkpoint_freq: int = 0, tensorboard: bool = False, progress: bool = False,
+              command: str = "") -> Path:
+    """Train one agent (see the module docstring); return its folder."""
+    import torch
+    from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
+
+    from controllers.agents import AGENT_FORMAT, OBSERVATION_OPTIONS, _algorithm
+
+    from mrd_env.envs.sb3 import make_sb3_vec_env
+
+    if plant not in ENV_IDS:
+        raise ValueError(f"plant must be one of {sorted(ENV_IDS)}, got {plant!r}")
+    if algo not in ALGOS:
+        raise ValueError(f"algo must be one of {sorted(ALGOS)}, got {algo!r}")
+    env_id = ENV_IDS[plant]
+    hyper = dict(hyper if hyper is not None else hyperparameters(algo, env_id))
+    env_kwargs = dict(env_kwargs if env_kwargs is not None else env_options(plant))
+    env_kwargs.update(hyper.get("env_kwargs") or {})
+    n_envs = int(hyper.get("n_envs", 1))
+    timesteps = int(timesteps if timesteps is not None else float(hyper.get("n_timesteps", 100_000)))
+    if timesteps < 1:
+        raise ValueError(f"timesteps must be >= 1, got {timesteps}")
+    run_dir = Path(out) / f"{plant}_{algo}_s{seed}"
+    run_dir.mkdir(parents=True, exist_ok=True)
+    torch.set_num_threads(1)  # the environments take the other core
+    venv = VecMonitor(make_sb3_vec_env(env_id, n_envs=n_envs, seed=seed, **env_kwargs),
+                      filename=str(run_dir / "training"))
+    normalize = hyper.get("normalize", True)
+    norm_kw = normalize if isinstance(normalize, dict) else {}
+    vecnorm = VecNormalize(venv, gamma=float(hyper.get("gamma", 0.99)), **norm_kw) if normalize else None
+    train_env = vecnorm if vecnorm is not None else venv
+    kwargs = {k: v for k, v in hyper.items() if k not in _ZOO_KEYS}
+    model = _algorithm(ALGOS[algo])(hyper.get("policy", "MlpPolicy"), train_env, seed=seed, device="cpu", verbose=0,
+                                    tensorboard_log=str(Path(out) / "tensorboard") if tensorboard else None, **kwargs)
+    obs_kwargs = {k: v for k, v in env_kwargs.items() if k in OBSERVATION_OPTIONS}
+    t_start = time.perf_counter()
+
+    def save(folder: Path, extra: dict) -> None:
+        folder.mkdir(parents=True, exist_ok=True)
+        model.save(folder / "model.zip")
+        meta = {"format": AGENT_FORMAT, "name": f"{ALGOS[algo]} s{seed}", "plant": plant, "env_id": env_id,
+                "algo": ALGOS[algo], "recurrent": algo == "recurrentppo", "seed": seed, "timesteps": timesteps,
+                "env_kwargs": env_kwargs, "hyperparameters": hyper, "model": "model.zip",
+                "normalization": None, "command": command, "wall_time_s": time.perf_counter() - t_start, **extra}
+        if vecnorm is not None:
+            rms = vecnorm.obs_rms
+            np.savez(folder / "normalization.npz", mean=rms.mean, var=rms.var, clip=vecnorm.clip_obs,
+                     epsilon=vecnorm.epsilon)
+            meta["normalization"] = "normalization.npz"
+        (folder / "agent.json").write_text(json.dumps(meta, indent=2, default=_jsonable), encoding="utf-8")
+
+    # validation: the training distribution itself on seeds training never draws
+    disturbance = {k: v for k, v in env_kwargs.items() if k not in OBSERVATION_OPTIONS}
+    scenarios = [Scenario("validation", env_id, disturbance, validation(plant, eval_episodes)[0].seeds)]
+    callbacks = _callbacks(run_dir, save, vecnorm, scenarios, obs_kwargs, eval_freq, checkpoint_freq, timesteps,
+                           progress)
+    model.learn(total_timesteps=timesteps, callback=list(callbacks), tb_log_name=run_dir.name)
+    save(run_dir, {"timesteps_done": int(model.num_timesteps)})
+    plot_learning_curve(run_dir)
+    train_env.close()
+    return run_dir
+
+
+def _jsonable(v):
+    if isinstance(v, (np.floating, np.integer)):
+        return v.item()
+    if isinstance(v, tuple):
+        return list(v)
+    raise TypeError(f"not JSON serialisable: {type(v).__name__}")
+
+
+def plot_learning_curve(run_dir: Path) -> Path | None:
+    """Training episode returns (mean over 20 episodes) and validation returns against environment steps."""
+    import csv
+
+    from mrd_env.report import figure, save_figure
+
+    fig, ax = figure(figsize=(7, 4))
+    drawn = False
+    mon = run_dir / "training.monitor.csv"
+    if mon.exists():
+        rows = list(csv.reader(mon.open()))[2:]
+        if rows:
+            r = np.array([float(x[0]) for x in rows])
+            steps = np.cumsum([int(x[1]) for x in rows])
+            k = min(20, r.size)
+            ax.plot(steps[k - 1:], np.convolve(r, np.ones(k) / k, mode="valid"), lw=1, label="training episodes")
+            drawn = True
+    val = run_dir / "validation.csv"
+    if val.exists():
+        rows = list(csv.DictReader(val.open()))
+        ax.plot([int(r["timesteps"]) for r in rows], [float(r["validation_return"]) for r in rows], "o-", ms=3,
+                label="validation (unseen seeds)")
+        drawn = True
+    if not drawn:
+        return None
+    ax.set_xlabel("environment steps")
+    ax.set_ylabel("episode return")
+    ax.set_title(run_dir.name)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    return save_figure(fig, run_dir / "learning_curve.png")
+
+
+def plot_seed_curves(run_dirs, path: Path, references: dict[str, float] | None = None) -> Path | None:
+    """The validation returns of several seeds (each, and their mean) against environment steps, with
+    horizontal ``references`` (e.g. the classical laws' validation returns)."""
+    import csv
+
+    from mrd_env.report import figure, save_figure
+
+    curves = []
+    for d in run_dirs:
+        val = Path(d) / "validation.csv"
+        if val.exists():
+            rows = list(csv.DictReader(val.open()))
+            curves.append((Path(d).name, np.array([int(r["timesteps"]) for r in rows]),
+                           np.array([float(r["validation_return"]) for r in rows])))
+    if not curves:
+        return None
+    fig, ax = figure(figsize=(7, 4))
+    for name, x, y in curves:
+        ax.plot(x, y, lw=0.8, alpha=0.6, label=name)
+    n = min(len(y) for _, _, y in curves)
+    ax.plot(curves[0][1][:n], np.mean([y[:n] for _, _, y in curves], axis=0), "k-", lw=2, label="mean over seeds")
+    for i, (name, value) in enumerate((references or {}).items()):
+        ax.axhline(value, ls="--", lw=1, color=f"C{(i + len(curves)) % 10}", label=name)
+    ax.set_xlabel("environment steps")
+    ax.set_ylabel("validation return (unseen seeds)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    return save_figure(fig, path)
+
+
+def train(plant: str, algo: str, seeds, **kw) -> list[Path]:
+    """One agent per seed (sequentially); their folders, and with several seeds a figure of their validation
+    curves (``<out>/<plant>_<algo>_learning_curves.png``)."""
+    folders = [train_one(plant, algo, int(s), **kw) for s in seeds]
+    if len(folders) > 1:
+        plot_seed_curves(folders, Path(kw["out"]) / f"{plant}_{algo}_learning_curves.png")
+    return folders
+
+
+# --- CLI ----------------------------------------------------------------------------------------------------------
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--plant", choices=sorted(ENV_IDS), default="quarter_car")
-    p.add_argument("--algo", choices=ALGOS, default="SAC")
-    p.add_argument("--timesteps", type=int, default=50_000)
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--control-dt", type=float, default=0.01, help="agent step in s (multiple of 1 ms)")
-    p.add_argument("--episode-seconds", type=float, default=None)
-    p.add_argument("--n-envs", type=int, default=1)
+    p.add_argument("--algo", choices=sorted(ALGOS), default="ppo")
+    p.add_argument("--seeds", type=int, nargs="+", default=[0], help="one agent per seed (default 0)")
+    p.add_argument("--timesteps", type=int, default=None, help="environment steps (default: the YAML's n_timesteps)")
+    p.add_argument("--hyperparams", type=Path, default=None, help="YAML file (default experiments/hyperparams/<algo>.yml)")
+    p.add_argument("--set", nargs="+", action="extend", default=[], metavar="KEY=VALUE",
+                   help="override hyperparameters (YAML values; repeatable)")
+    p.add_argument("--control-dt", type=float, default=0.01, help="agent step in s (a multiple of 1 ms; default 0.01)")
+    p.add_argument("--sensors", nargs="+", default=None, help="sensor names (default: the plant's measured set)")
+    p.add_argument("--history", type=int, default=1, help="control steps stacked in the observation (default 1)")
+    p.add_argument("--disturbance", default=None,
+                   help="training disturbance as JSON (default: the plant's training distribution), e.g. "
+                        "'{\"kind\": \"iso8608\", \"road_class\": \"C\"}'")
+    p.add_argument("--eval-freq", type=int, default=20_000, help="validation every so many steps (0: never)")
+    p.add_argument("--eval-episodes", type=int, default=8, help="validation episodes (unseen seeds)")
+    p.add_argument("--checkpoint-freq", type=int, default=0, help="checkpoint every so many steps (0: never)")
+    p.add_argument("--tensorboard", action="store_true", help="TensorBoard logs in <out>/tensorboard")
     p.add_argument("--out", type=Path, default=Path("results/agents"))
-    p.add_argument("--progress", action="store_true", help="show SB3's progress bar")
+    p.add_argument("--no-progress", action="store_true")
 
 
 def run(args: argparse.Namespace) -> int:
-    path = train(args.plant, args.algo, args.timesteps, seed=args.seed, control_dt=args.control_dt,
-                 episode_seconds=args.episode_seconds, out=args.out, n_envs=args.n_envs, progress=args.progress)
-    print(f"saved {path} (evaluate with: mrd-env benchmark --plant {args.plant} --agent {path})")
+    if any(s < 0 for s in args.seeds):
+        raise ValueError(f"--seeds must be >= 0, got {args.seeds}")
+    if args.timesteps is not None and args.timesteps < 1:
+        raise ValueError(f"--timesteps must be >= 1, got {args.timesteps}")
+    for name, v in (("--eval-freq", args.eval_freq), ("--checkpoint-freq", args.checkpoint_freq)):
+        if v < 0:
+            raise ValueError(f"{name} must be >= 0, got {v}")
+    if args.eval_episodes < 1:
+        raise ValueError(f"--eval-episodes must be >= 1, got {args.eval_episodes}")
+    disturbance = None
+    if args.disturbance is not None:
+        try:
+            disturbance = json.loads(args.disturbance)
+        except json.JSONDecodeError:
+            disturbance = args.disturbance  # a kind's name
+    env_kwargs = env_options(args.plant, args.control_dt, args.sensors, args.history, disturbance)
+    env_id = ENV_IDS[args.plant]
+    hyper = hyperparameters(args.algo, env_id, args.hyperparams, _parse_overrides(args.set))
+    if args.tensorboard:
+        import importlib.util
+        if importlib.util.find_spec("tensorboard") is None:
+            raise ImportError("--tensorboard needs the tensorboard package (pip install tensorboard)")
+    # the environment is built (and its options checked) before any training starts
+    import gymnasium as gym
+
+    import mrd_env  # noqa: F401
+    gym.make(env_id, **env_kwargs).close()
+    command = "mrd-env " + " ".join(shlex.quote(a) for a in getattr(args, "_argv", sys.argv[1:]))
+    folders = train(args.plant, args.algo, args.seeds, out=args.out, timesteps=args.timesteps, hyper=hyper,
+                    env_kwargs=env_kwargs, eval_freq=args.eval_freq, eval_episodes=args.eval_episodes,
+                    checkpoint_freq=args.checkpoint_freq, tensorboard=args.tensorboard,
+                    progress=not args.no_progress, command=command)
+    for f in folders:
+        print(f"saved {f} (evaluate with: mrd-env evaluate --plant {args.plant} --agents {f})")
     return 0

@@ -298,10 +298,9 @@ def _advance_one(b, fc, ic, fs, is_, W, H, action, obs, C, D, Ainv, Bbar, Mq, PP
     is_[b, T_K] += 1
     is_[b, T_ROWS] += n_sub
     reward = -total / n_sub
-    remaining = is_[b, T_NSTEPS] - is_[b, T_K]
     if status == TERMINATED:
-        reward -= scal[SC_PEN_CONST] + scal[SC_PEN_STEP] * remaining
-    elif remaining <= 0:
+        reward -= scal[SC_PEN_CONST] + scal[SC_PEN_STEP] * is_[b, T_NSTEPS]
+    elif is_[b, T_NSTEPS] - is_[b, T_K] <= 0:
         status = TRUNCATED
     fs[b, ic[S_REWARD]] = reward
     _measure_and_observe(ic, fs, is_, b, h, _f1(fc, ic, F_NOISE), obs)

@@ -70,7 +70,8 @@ class Processing:
       applied command, then ``n_extra`` columns written by the filters).
     * ``filters``: (input column, output column, second-order sections (k, 6) in scipy's layout).
     * ``reward_cols`` with per-system ``reward_scales`` (N, len): reward = −mean over the period of
-      Σ_i scale_i·h[col_i]²; ``penalty`` (constant, per remaining period) is subtracted when a limit is hit.
+      Σ_i scale_i·h[col_i]²; ``penalty`` (a constant, and an amount per period of the episode's planned length)
+      is subtracted when a limit is hit.
     * ``limit_cols``/``limits``: |h[col]| > limit terminates the episode.
     * ``stat_cols``: running sum of squares and peak of |h|; ``dose_col``: running Σ h⁴ and the maximum of the
       running r.m.s. over ``dose_window`` steps (the ISO 2631 VDV and MTVV of a weighted acceleration).

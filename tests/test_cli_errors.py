@@ -36,14 +36,20 @@ def files(tmp_path):
     DamperRecord(tt, x, cmd, 0 * x).to_csv(paths["nonuniform"])
     paths["empty"].write_text("")
     paths["out_file"].write_text("not a folder")
-    # saved agents: none, without metadata, with broken or foreign metadata
-    for stem, meta in (("agent_no_meta", None), ("agent_bad_json", "{"), ("agent_no_keys", json.dumps({"x": 1})),
-                       ("agent_qc", json.dumps({"plant": "quarter_car", "algo": "SAC", "env_kwargs": {}})),
-                       ("agent_plant", json.dumps({"plant": "tower", "algo": "SAC", "env_kwargs": {}}))):
-        paths[stem] = tmp_path / f"{stem}.zip"
-        paths[stem].write_bytes(b"PK\x03\x04 not really a model")
+    # saved agents (a folder holding agent.json and the model): without metadata, with broken, foreign or
+    # incomplete metadata, for an unknown environment, without the model, and a valid quarter-car one
+    good_meta = {"format": "mrd-env-agent", "plant": "quarter_car", "env_id": "mrd_env/QuarterCar-v0",
+                 "algo": "PPO", "env_kwargs": {}, "model": "model.zip"}
+    for stem, meta in (("agent_no_meta", None), ("agent_bad_json", "{"), ("agent_foreign", json.dumps({"x": 1})),
+                       ("agent_no_keys", json.dumps({"format": "mrd-env-agent", "plant": "quarter_car"})),
+                       ("agent_env", json.dumps({**good_meta, "env_id": "mrd_env/Tower-v0"})),
+                       ("agent_no_model", json.dumps({**good_meta, "model": "gone.zip"})),
+                       ("agent_qc", json.dumps(good_meta))):
+        paths[stem] = tmp_path / stem
+        paths[stem].mkdir()
+        (paths[stem] / "model.zip").write_bytes(b"PK\x03\x04 not really a model")
         if meta is not None:
-            (tmp_path / f"{stem}.json").write_text(meta)
+            (paths[stem] / "agent.json").write_text(meta)
     return paths
 
 
@@ -105,13 +111,23 @@ CASES = {
         ["--nope"], ["--plant", "nope"], ["--seeds", "0"], ["--seeds", "x"], ["--controllers", "nope"],
         ["--plant", "building", "--controllers", "passive_off", "nope"], ["--damper", "nope"],
         ["--agent", "{missing}"], ["--agent", "{folder}"], ["--agent", "{agent_no_meta}"],
-        ["--agent", "{agent_bad_json}"], ["--agent", "{agent_no_keys}"], ["--agent", "{agent_plant}"],
-        ["--plant", "building", "--agent", "{agent_qc}"],
+        ["--agent", "{agent_bad_json}"], ["--agent", "{agent_foreign}"], ["--agent", "{agent_no_keys}"],
+        ["--agent", "{agent_env}"], ["--agent", "{agent_no_model}"], ["--plant", "building", "--agent", "{agent_qc}"],
     ],
     "train": [
         ["--nope"], ["--algo", "nope"], ["--plant", "nope"], ["--timesteps", "0"], ["--timesteps", "x"],
         ["--timesteps", "-5"], ["--control-dt", "0"], ["--control-dt", "0.0015"], ["--control-dt", "nan"],
-        ["--episode-seconds", "-1"], ["--episode-seconds", "0"], ["--n-envs", "0"], ["--seed", "-1"],
+        ["--seeds", "-1"], ["--seeds", "x"], ["--history", "0"], ["--sensors", "nope"],
+        ["--disturbance", '{{"kind": "nope"}}'], ["--disturbance", '{{"kind": "iso8608", "road_class": "Z"}}'],
+        ["--set", "n_envs"], ["--set", "n_envs=0"], ["--set", "nope=1"], ["--hyperparams", "{missing}"],
+        ["--hyperparams", "{binary}"], ["--algo", "sac", "--hyperparams", "{empty}"], ["--eval-freq", "-1"],
+        ["--eval-episodes", "0"], ["--checkpoint-freq", "-1"], ["--plant", "building", "--set", "n_envs=2.5"],
+    ],
+    "evaluate": [
+        ["--nope"], ["--plant", "nope"], ["--agents", "{missing}"], ["--agents", "{agent_bad_json}"],
+        ["--agents", "{agent_foreign}"], ["--plant", "building", "--agents", "{agent_qc}"], ["--laws", "nope"],
+        ["--seeds", "0"], ["--seeds", "x"], ["--control-dt", "0"], ["--control-dt", "0.0015"],
+        ["--control-dt", "nan"], ["--out", "{out_file}"],
     ],
     "identify": DATA_ERRORS + [
         ["--data", "{good}", "--model", "nope"], ["--data", "{good}", "--preset", "nope"],
@@ -132,7 +148,8 @@ CASES = {
 def test_bad_input_is_one_line_and_exit_2(command, argv, files, capsys, tmp_path):
     argv = _argv(argv, files)
     # safety nets: should a case pass its checks after all, it stays short instead of running for minutes
-    extra = {"benchmark": ["--seeds", "1", "--quick", None], "train": ["--timesteps", "1"],
+    extra = {"benchmark": ["--seeds", "1", "--quick", None], "train": ["--timesteps", "1", "--eval-freq", "0"],
+             "evaluate": ["--seeds", "1", "--quick", None, "--agents", None, "--no-1ms", None],
              "identify": ["--maxiter", "1"], "compare-models": ["--maxiter", "1", "--models", "bingham"]}
     for opt, val in zip(extra.get(command, [])[::2], extra.get(command, [])[1::2]):
         if opt not in argv:
@@ -163,9 +180,10 @@ def test_help_exits_0_without_importing_the_commands():
             "with contextlib.redirect_stdout(io.StringIO()) as out:\n"
             "    rc = main(['--help'])\n"
             "mods = [m for m in ('experiments.rig_report', 'experiments.benchmark', 'experiments.train',\n"
+            "        'experiments.evaluate_cmd', 'experiments.scenarios',\n"
             "        'experiments.identify_cmd', 'experiments.compare_models_cmd', 'mrd_env.rig',\n"
             "        'mrd_env.identification', 'stable_baselines3', 'torch') if m in sys.modules]\n"
-            "print(rc, 'COMMANDS' if all(c in out.getvalue() for c in ('rig', 'benchmark', 'train', 'identify',\n"
+            "print(rc, 'COMMANDS' if all(c in out.getvalue() for c in ('rig', 'benchmark', 'train', 'evaluate', 'identify',\n"
             "      'compare-models')) else 'missing', mods)\n")
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert res.returncode == 0, res.stderr

@@ -169,7 +169,17 @@ def test_registry_lists_every_law():
             "clipped_optimal", "lyapunov", "max_energy_dissipation", "modulated_friction"} <= set(CONTROLLERS)
 
 
-@pytest.mark.parametrize("name", sorted(CONTROLLERS))
+def test_random_baseline_is_seeded_and_in_range():
+    env = make_env(QC_SENSORS)
+    obs = np.zeros((5, env.n_obs))
+    a = [make_controller("random", env, seed=s).predict(obs)[0] for s in (1, 1, 2)]
+    np.testing.assert_array_equal(a[0], a[1])
+    assert not np.array_equal(a[0], a[2])
+    assert np.all(a[0] >= env.command_spec.v_min) and np.all(a[0] <= env.command_spec.v_max)
+
+
+# (the random baseline draws every row from one generator: a batch is not its rows one by one)
+@pytest.mark.parametrize("name", sorted(set(CONTROLLERS) - {"random"}))
 def test_a_batch_gives_each_row_what_it_alone_would_get(name):
     """predict on a batch (N, n_obs) equals predict row by row with separate controllers, memory included;
     episode_start clears the memory of the rows that start again."""

@@ -108,8 +108,9 @@ def test_unwrapped_exposes_design_data():
     assert env.linear_plant.n_dof == 3 and env.plant_params.n_floors == 3
     assert env.damper.name == "spencer_dyke" and env.command_spec.v_max == 2.25
     names = [name for name, _, _ in env.sensor_layout]
-    assert names == ["abs_acc", "damper_force", "ground_acc", "command"]
-    assert env.observation_space.shape == (3 + 1 + 1 + 1,)
+    assert names == ["abs_acc", "drift", "floor_vel", "damper_force", "damper_stroke", "damper_velocity",
+                     "ground_acc", "command"]
+    assert env.observation_space.shape == (3 + 3 + 3 + 1 + 1 + 1 + 1 + 1,)
     # the output map reproduces the observation from the plant state, forces and inputs
     obs, _ = env.reset(seed=0)
     for _ in range(300):
@@ -125,7 +126,7 @@ def test_unwrapped_exposes_design_data():
 
 def test_damper_states_hidden_unless_requested():
     env = QuarterCarEnv(**SHORT)
-    assert env.observation_space.shape == (6,)
+    assert env.observation_space.shape == (8,)
     assert "damper_states" not in env.sensors
     env2 = QuarterCarEnv(sensors=("travel", "damper_states"), **SHORT)
     assert env2.observation_space.shape == (1 + env2.damper.n_states,)
@@ -262,7 +263,7 @@ def test_bad_action_shape_with_several_dampers():
 
 def test_step_before_reset_and_after_end():
     env = QuarterCarEnv(episode_seconds=0.002)
-    assert env.observation_space.shape == (6,)
+    assert env.observation_space.shape == (8,)
     with pytest.raises(RuntimeError, match="reset"):
         env.step(0.0)
     env.reset(seed=0)
@@ -350,16 +351,63 @@ def test_online_comfort_filter_matches_sosfilt():
 # ---------------------------------------------------------------------------------------------------------------
 # rewards, termination, truncation, metrics
 
+def _passive_car_mean_squares(env, rows):
+    """Mean squares of Wk-weighted sprung acceleration, travel and dynamic tyre load of the conventional passive
+    car (the set's dashpot) on the env's current road, simulated independently with ``scipy.signal.lsim``."""
+    p = env.plant_params
+    ms, mu, ks, kt, ct, c = p.m_s, p.m_u, p.k_s, p.k_t, p.c_t, p.passive_c
+    # states z_s, z_u, ż_s, ż_u; inputs z_r, ż_r
+    A = np.array([[0, 0, 1, 0], [0, 0, 0, 1], [-ks / ms, ks / ms, -c / ms, c / ms],
+                  [ks / mu, -(ks + kt) / mu, c / mu, -(c + ct) / mu]])
+    B = np.array([[0, 0], [0, 0], [0, 0], [kt / mu, ct / mu]])
+    w = env.record.data[:rows]
+    t = np.arange(rows) * env.dt
+    q0 = np.array([w[0, 0], w[0, 0], w[0, 1], w[0, 1]])
+    _, _, X = scipy.signal.lsim((A, B, np.eye(4), np.zeros((4, 2))), w, t, X0=q0)
+    acc = X @ A[2] + w @ B[2]
+    aw = scipy.signal.sosfilt(weighting_sos("Wk", env.dt), acc)
+    travel = X[:, 0] - X[:, 1]
+    tyre = kt * (w[:, 0] - X[:, 1]) + ct * (w[:, 1] - X[:, 3])
+    return np.mean(aw[1:] ** 2), np.mean(travel[1:] ** 2), np.mean(tyre[1:] ** 2)
+
+
 def test_quarter_car_reward_definition():
+    """r = −∫ Σ w_i h_i² / ⟨h_i²⟩_passive dt over each control period, the passive car simulated apart."""
     env = QuarterCarEnv(episode_seconds=0.2, control_dt=0.004, reward_weights={"travel": 2.0})
     _, rewards, _, trunc, info = _run(env, 0.6, seed=4)
     assert trunc
     aw = env.signal("sprung_acc_wk")[:, 0]
     x = env.signal("travel")[:, 0]
     ft = env.signal("_tyre_load")[:, 0]
-    per_sample = aw ** 2 + 2.0 * (x / 0.05) ** 2 + (ft / env.plant_params.static_tyre_load) ** 2
-    expected = -per_sample[1:].reshape(-1, 4).mean(axis=1)
-    np.testing.assert_allclose(rewards, expected, rtol=1e-12)
+    a0, x0, f0 = _passive_car_mean_squares(env, aw.size)
+    per_sample = 0.5 * aw ** 2 / a0 + 2.0 * x ** 2 / x0 + 0.25 * ft ** 2 / f0
+    expected = -env.dt * per_sample[1:].reshape(-1, 4).sum(axis=1)
+    np.testing.assert_allclose(rewards, expected, rtol=1e-6)
+
+
+def test_the_passive_car_scores_minus_one_per_second():
+    """The MR damper replaced by the set's dashpot (a Bingham model with only c0 = passive_c): the reward's
+    reference car, so the return is −(episode length in s) on any road."""
+    c = QuarterCarEnv(episode_seconds=0.1).plant_params.passive_c
+    for road in ({"road_class": "B", "speed": 10.0}, {"road_class": "D", "speed": 25.0}):
+        env = QuarterCarEnv(episode_seconds=2.0, road_params=road, damper="bingham",
+                            damper_params=dict(fc_a=0.0, fc_b=0.0, c0a=c, c0b=0.0, f0=0.0))
+        _, rewards, term, trunc, _ = _run(env, 0.0, seed=7)
+        assert trunc and not term
+        assert rewards.sum() == pytest.approx(-2.0, rel=2e-3)
+
+
+@pytest.mark.parametrize("env_id", [QC, SB])
+def test_returns_do_not_depend_on_the_control_rate(env_id):
+    """A constant command gives the same physics at any control step, hence the same return (to the error
+    control's tolerance: the sub-step history restarts with each control period)."""
+    ret = {}
+    for control_dt in (1e-3, 1e-2):
+        env = gym.make(env_id, episode_seconds=1.0, control_dt=control_dt)
+        _, rewards, _, trunc, _ = _run(env, 1.0, seed=3)
+        assert trunc
+        ret[control_dt] = rewards.sum()
+    assert ret[1e-3] == pytest.approx(ret[1e-2], rel=1e-4)
 
 
 def test_quarter_car_episode_metrics_at_truncation():
@@ -380,7 +428,7 @@ def test_stroke_limit_terminates():
     assert term and not trunc
     assert info["termination_reason"] == "stroke_limit"
     assert "episode_metrics" in info and info["episode_metrics"]["travel_peak"] > 1e-3
-    assert rewards[-1] < -100  # the termination term: one per remaining control step
+    assert rewards[-1] < -10 * 5.0  # the termination term: 10 per second of the episode's planned length
     assert np.all(np.isfinite(rewards))
 
 
@@ -417,15 +465,15 @@ def test_building_zero_force_damper_criteria_near_one():
         assert m[j] == pytest.approx(1.0, abs=0.02), j
     for key in ("drift_peak", "acc_rms", "base_shear_peak", "force_over_weight", "stroke_over_disp"):
         assert np.isfinite(m[key])
-    # rewards are normalised by the uncontrolled building: -1 per step on average
-    assert np.mean(rewards) == pytest.approx(-1.0, abs=0.02)
+    # rewards are normalised by the uncontrolled building: -1 per second
+    assert rewards.sum() == pytest.approx(-info["episode_metrics"]["duration"], rel=0.02)
 
 
 def test_building_damper_reduces_response():
     env = ShearBuildingEnv()
     _, rewards, _, trunc, info = _run(env, 2.25, seed=0)
     m = info["episode_metrics"]
-    assert trunc and m["J1"] < 0.6 and m["J4"] < 0.6 and np.mean(rewards) > -0.6
+    assert trunc and m["J1"] < 0.6 and m["J4"] < 0.6 and rewards.sum() > -0.6 * m["duration"]
 
 
 def test_n_storey_building_with_several_dampers():

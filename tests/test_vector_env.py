@@ -59,9 +59,9 @@ def test_vector_env_api_and_next_step_autoreset():
                         control_dt=0.005)
     assert isinstance(venv.unwrapped, QuarterCarVectorEnv)
     assert venv.metadata["autoreset_mode"] == AutoresetMode.NEXT_STEP
-    assert venv.observation_space.shape == (3, 6) and venv.action_space.shape == (3, 1)
+    assert venv.observation_space.shape == (3, 8) and venv.action_space.shape == (3, 1)
     obs, info = venv.reset(seed=[1, 2, 3])
-    assert obs.shape == (3, 6) and obs.dtype == np.float32
+    assert obs.shape == (3, 8) and obs.dtype == np.float32
     a = np.ones((3, 1), dtype=np.float32)
     _, r, term, trunc, info = venv.step(a)
     assert not (term | trunc).any() and np.all(r < 0)
@@ -85,7 +85,7 @@ def test_termination_in_one_env_does_not_stop_the_others():
         _, r, term, trunc, info = venv.step(np.array([[0.0], [2.25]]))
         if term[0]:
             ended_at = k
-            assert info["termination_reason"][0] == "stroke_limit" and r[0] < -100
+            assert info["termination_reason"][0] == "stroke_limit" and r[0] < -10 * 0.5  # 10 per planned second
             break
     assert ended_at is not None
 
@@ -99,7 +99,7 @@ def test_sb3_bridge_follows_sb3_conventions_and_trains():
 
     venv = make_sb3_vec_env(QC, n_envs=4, seed=3, episode_seconds=0.02, control_dt=0.01, action_mode="normalized")
     obs = venv.reset()
-    assert obs.shape == (4, 6)
+    assert obs.shape == (4, 8)
     dones_seen = False
     for _ in range(3):
         venv.step_async(np.zeros((4, 1), dtype=np.float32))
@@ -108,7 +108,7 @@ def test_sb3_bridge_follows_sb3_conventions_and_trains():
         if dones.any():
             dones_seen = True
             i = int(np.flatnonzero(dones)[0])
-            assert infos[i]["terminal_observation"].shape == (6,)
+            assert infos[i]["terminal_observation"].shape == (8,)
             assert infos[i]["TimeLimit.truncated"] is True
             assert "episode_metrics" in infos[i]
     assert dones_seen

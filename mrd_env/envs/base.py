@@ -138,8 +138,7 @@ class MRDamperEnv(PlantDeclarations, gym.Env):
         info = {"t": self._t}
         if status == DIVERGED:
             asm = self.assembly
-            steps_left = int(core._n_steps[0] - core._k[0])
-            reward = -(asm.limits.penalty + asm.limits.penalty_per_step * steps_left)
+            reward = -asm.limits.amount(core._n_steps[0] * asm.control_dt)
             info["t"] = core.time(0)
             info["termination_reason"] = f"diverged: {core.failure_message(0)}"
         elif status == TERMINATED:

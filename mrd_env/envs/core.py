@@ -198,7 +198,10 @@ class EnvCore:
             if history == HIST_NONE:
                 history = HIST_PERIOD
         else:
-            rcols, self.rweights = asm.reward.bind(sig)
+            rcols, w = asm.reward.bind(sig)
+            # the kernel averages over the period's n_sub rows: × control_dt makes the reward the integral of
+            # the cost over the period, so that returns do not depend on the control rate
+            self.rweights = w * asm.control_dt
         lcols, limits = asm.limits.bind(sig)
         filters = [(int(sig[i].columns[0]), int(sig[o].columns[0]), sos) for i, o, sos in asm.filters]
         stat_cols = np.concatenate([sig[s].columns for s in asm.stat_signals]).astype(np.int64) \
@@ -210,7 +213,7 @@ class EnvCore:
         self.history_mode = history
         pr = Processing(G=sig.G, n_extra=sig.width - sig.G.shape[0] - asm.coupled.system.nd, filters=filters,
                         reward_cols=tuple(rcols), limit_cols=tuple(lcols), limits=tuple(limits),
-                        penalty=(asm.limits.penalty, asm.limits.penalty_per_step), stat_cols=tuple(stat_cols),
+                        penalty=(asm.limits.penalty, asm.limits.penalty_rate * asm.control_dt), stat_cols=tuple(stat_cols),
                         dose_col=int(sig[asm.dose_signal].columns[0]) if asm.dose_signal else -1,
                         dose_window=max(1, int(round(asm.dose_window / asm.dt))), meas_cols=tuple(self.meas_cols),
                         noise_std=tuple(noise), delay=asm.sensors.delay, history=asm.sensors.history,

@@ -6,7 +6,9 @@ import numpy as np
 from ..disturbances import Record, bump, iso8608_road, road_from_csv, sine_sweep
 from ..metrics import weighting_sos
 from ..plants import CoupledPlant, QuarterCarParams, quarter_car
+from ..plants.response import foh_response
 from . import options as opt
+from . import randomize
 from .base import MRDamperEnv
 from .build import as_options, build
 from .core import Assembly, Episode, EpisodeStats
@@ -25,20 +27,35 @@ ROAD_UNITS = ("m", "m/s")
 SENSOR_UNITS = {"sprung_acc": "m/s^2", "unsprung_acc": "m/s^2", "travel": "m", "travel_rate": "m/s",
                 "sprung_vel": "m/s", "unsprung_vel": "m/s", "damper_force": "N", "command": "cmd", "road": "m",
                 "damper_states": "model"}
-DEFAULT_SENSORS = ("sprung_acc", "unsprung_acc", "travel", "travel_rate", "damper_force", "command")
-DEFAULT_REWARD_WEIGHTS = {"comfort": 1.0, "travel": 1.0, "tyre": 1.0, "termination": 1.0}
+#: What a test car measures (and what every controller and agent gets by default, for a fair comparison): body and
+#: wheel accelerometers, their integrals (the absolute velocities), a suspension displacement sensor and its
+#: derivative, the damper's load cell and the command the controller itself sent.
+DEFAULT_SENSORS = ("sprung_acc", "unsprung_acc", "travel", "travel_rate", "sprung_vel", "unsprung_vel",
+                   "damper_force", "command")
+DEFAULT_REWARD_WEIGHTS = {"comfort": 0.5, "travel": 0.25, "tyre": 0.25, "termination": 10.0}
+#: The reward's terms: the signal of each weight.
+REWARD_SIGNALS = {"comfort": "sprung_acc_wk", "travel": "travel", "tyre": "_tyre_load"}
 
 
 # --- the road: one rule, these kinds --------------------------------------------------------------------------
 def _iso8608(*, dt, episode_seconds, road_class="C", speed=20.0, method="fft", n_min=None, n_max=None,
              n_waves=None, waviness=None):
+    """A new random road per episode; ``road_class`` may be a list and ``speed`` a range (lo, hi) to draw per
+    episode (:mod:`.randomize`)."""
     # a generated road at least 2 s long, so that the FFT grid holds waves down to low spatial frequencies
     duration = max(episode_seconds or 10.0, 2.0)
     extra = {k: v for k, v in dict(n_min=n_min, n_max=n_max, n_waves=n_waves, waviness=waviness).items()
              if v is not None}
-    iso8608_road(road_class, speed, duration, dt, rng=0, method=method, **extra)  # options checked now, not at reset
-    return Generated(lambda rng: iso8608_road(road_class, speed, duration, dt, rng=rng, method=method, **extra),
-                     ROAD_CHANNELS, f"ISO 8608 class {road_class} at {speed:g} m/s")
+    # the options are checked now, not at reset: every class and both ends of the speed range
+    for c in randomize.values("road_class", road_class, lambda v: v):
+        for v in randomize.values("road_params['speed']", speed):
+            iso8608_road(c, v, duration, dt, rng=0, method=method, **extra)
+
+    def generate(rng):
+        return iso8608_road(randomize.draw(road_class, rng), randomize.draw(speed, rng), duration, dt, rng=rng,
+                            method=method, **extra)
+    return Generated(generate, ROAD_CHANNELS, f"ISO 8608 class {randomize.describe(road_class)} at "
+                                              f"{randomize.describe(speed)} m/s")
 
 
 def _bump(*, dt, episode_seconds, height=0.05, length=1.0, speed=10.0, t_start=0.5, duration=None):
@@ -107,6 +124,30 @@ def signals(coupled: CoupledPlant, p: QuarterCarParams, command_unit: str) -> Si
     return sm
 
 
+def passive_reference(p: QuarterCarParams, rec: Record, q0: np.ndarray, rows: int, dt: float) -> dict:
+    """Mean squares of the reward's terms (Wk-weighted sprung acceleration, travel, dynamic tyre load) for the
+    conventional passive car — the set's passive damper ``passive_c`` in place of the MR damper, a linear plant
+    simulated exactly — on the record's first ``rows`` samples: the reward's units."""
+    import scipy.signal
+
+    lp = p.plant()
+    A, _, Bw = lp.state_space(extra_damping=p.passive_c)
+    w = np.asarray(rec.data[:rows])
+    X = foh_response(A, Bw, w, dt, x0=q0)
+    acc = X @ A[2:3].T + w @ Bw[2:3].T
+    a_w = scipy.signal.sosfilt(weighting_sos("Wk", dt), acc[:, 0])
+    travel = X[:, 0] - X[:, 1]
+    tyre = p.k_t * (w[:, 0] - X[:, 1]) + p.c_t * (w[:, 1] - X[:, 3])
+    tail = slice(1, None) if rows > 1 else slice(None)
+    return {"comfort": float(np.mean(a_w[tail] ** 2)), "travel": float(np.mean(travel[tail] ** 2)),
+            "tyre": float(np.mean(tyre[tail] ** 2))}
+
+
+def _absolute_reference(p: QuarterCarParams) -> dict:
+    """Fixed reference scales, for a car without a passive reference damper (``passive_c`` = 0)."""
+    return {"comfort": A_REF ** 2, "travel": X_REF ** 2, "tyre": p.static_tyre_load ** 2}
+
+
 def metrics(stats: EpisodeStats, episode: Episode, static_tyre_load: float) -> dict[str, float]:
     """ISO 2631 comfort, travel and tyre load of an episode (as :func:`~mrd_env.metrics.quarter_car_metrics`)."""
     r, pk = stats.rms, stats.peak
@@ -135,8 +176,9 @@ def assembly(*, plant_preset: str = "set_a", plant_params=None, road="iso8608", 
     w = opt.weights(reward_weights, DEFAULT_REWARD_WEIGHTS)
     static = p.static_tyre_load
     if reward is None:
-        reward = QuadraticReward({"sprung_acc_wk": w["comfort"] / A_REF ** 2, "travel": w["travel"] / X_REF ** 2,
-                                  "_tyre_load": w["tyre"] / static ** 2})
+        reward = QuadraticReward({REWARD_SIGNALS[k]: w[k] for k in REWARD_SIGNALS},
+                                 episode_scale=lambda ep: np.array([1.0 / ep.extras["reference"][k]
+                                                                    for k in REWARD_SIGNALS]))
     elif callable(reward) and not isinstance(reward, (QuadraticReward, CallableReward)):
         reward = CallableReward(reward)
     elif not isinstance(reward, (QuadraticReward, CallableReward)):
@@ -151,7 +193,11 @@ def assembly(*, plant_preset: str = "set_a", plant_params=None, road="iso8608", 
     def new_episode(rec: Record) -> Episode:
         # at rest in static equilibrium on the road's initial height, moving with it: no step hits the tyre
         zr0, zrd0 = rec.data[0]
-        return Episode(rec, np.array([zr0, zr0, zrd0, zrd0]))
+        q0 = np.array([zr0, zr0, zrd0, zrd0])
+        rows = rec.n_samples if episode_seconds is None else min(rec.n_samples,
+                                                                  int(round(episode_seconds / dt)) + 1)
+        ref = passive_reference(p, rec, q0, rows, dt) if p.passive_c > 0 else _absolute_reference(p)
+        return Episode(rec, q0, {"reference": {k: max(v, 1e-12) for k, v in ref.items()}})
 
     from .render import QuarterCarRenderer
 
@@ -160,7 +206,7 @@ def assembly(*, plant_preset: str = "set_a", plant_params=None, road="iso8608", 
         sensor_names=tuple(SENSOR_UNITS),
         sensors=opt.sensors(sensors, sensor_noise, sensor_delay, history, DEFAULT_SENSORS),
         disturbance=source, reward=reward,
-        limits=Limits({"travel": limit}, penalty=0.0, penalty_per_step=w["termination"]),
+        limits=Limits({"travel": limit}, penalty=0.0, penalty_rate=w["termination"]),
         new_episode=new_episode, metrics=lambda st, ep: metrics(st, ep, static),
         roles={"body_velocity": "sprung_vel", "wheel_velocity": "unsprung_vel", "damper_velocity": "travel_rate",
                "damper_stroke": "travel", "damper_force": "damper_force"},
@@ -194,7 +240,7 @@ class QuarterCarEnv(MRDamperEnv):
     * ``sensors`` (names, or a :class:`~mrd_env.envs.sensors.Sensors`), ``sensor_noise`` ({name: std} SI),
       ``sensor_delay`` (control steps), ``history`` (control steps stacked in the observation, oldest first).
     * ``action_mode``: "physical" ([v_min, v_max] in V or A) or "normalized" ([−1, 1]).
-    * ``reward_weights`` (comfort, travel, tyre 1.0 each; termination 1.0 per remaining control step) or
+    * ``reward_weights`` (comfort 0.5, travel 0.25, tyre 0.25; termination 10 per second) or
       ``reward``: a :class:`~mrd_env.envs.reward.QuadraticReward`, or any callable of the period's signals
       (``{name: (n_sub, width)}`` → float; one Python call per step).
     * ``stroke_limit`` (default 0.1 m on |z_s − z_u|), ``render_mode`` ("rgb_array", "human").
@@ -203,15 +249,22 @@ class QuarterCarEnv(MRDamperEnv):
     ``travel_rate`` (m/s), ``sprung_vel`` ż_s and ``unsprung_vel`` ż_u (m/s, absolute — on a car these come
     from integrated accelerometers), ``damper_force`` (N, load cell, includes the static preload), ``command``
     (applied, V or A), ``road`` z_r (m), ``damper_states`` (the model's internal states, hidden unless asked).
-    Default: sprung_acc, unsprung_acc, travel, travel_rate, damper_force, command.
+    Default (what a test car measures; every controller and agent gets the same): sprung_acc, unsprung_acc,
+    travel, travel_rate, sprung_vel, unsprung_vel, damper_force, command.
 
-    Reward per control step, averaged over its physics sub-steps::
+    Reward: the cost integrated over the control period (so returns do not depend on the control rate)::
 
-        r = −[w_comfort (a_w / 1 m/s²)² + w_travel (x / 0.05 m)² + w_tyre (F_t / ((m_s + m_u) g))²]
+        r = −∫ c dt,   c = w_comfort a_w² / ⟨a_w²⟩_p + w_travel x² / ⟨x²⟩_p + w_tyre F_t² / ⟨F_t²⟩_p
 
     a_w the ISO 2631-1 Wk-weighted sprung acceleration filtered online (causal IIR at 1/dt), x the travel,
-    F_t = k_t (z_r − z_u) + c_t (ż_r − ż_u) the dynamic tyre load. The car starts at rest in static equilibrium
-    on the road's initial height (both masses at z_r(0), moving with ż_r(0)).
+    F_t = k_t (z_r − z_u) + c_t (ż_r − ż_u) the dynamic tyre load; ⟨·⟩_p the mean square of the same signal for
+    the conventional passive car (the set's ``passive_c`` damper, simulated exactly at reset) on the same road.
+    The return is thus the comfort / rattle-space / road-holding index of the field, relative to the passive
+    car, per second: the passive car scores −1 per second on any road, and rough and smooth roads weigh alike.
+    An episode ended by the stroke limit loses ``reward_weights["termination"]`` = 10 × its planned length in
+    seconds: more than any controller that finishes pays (a test checks it on every benchmark scenario). The
+    car starts at rest in static equilibrium on the road's initial height (both masses at z_r(0), moving with
+    ż_r(0)).
 
     ``info["episode_metrics"]`` at the end of an episode: acc_weighted_rms, acc_rms, acc_vdv, acc_mtvv (ISO 2631-1
     Wk; MTVV over 1 s), travel_rms, travel_peak, tyre_load_rms, tyre_load_ratio, damper_force_rms,

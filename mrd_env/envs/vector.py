@@ -143,8 +143,7 @@ class MRDamperVectorEnv(PlantDeclarations, VectorEnv):
         reasons = np.full(N, None, dtype=object)
         for b in ended:
             if status[b] == DIVERGED:
-                left = int(core._n_steps[b] - core._k[b])
-                rewards[b] = -(asm.limits.penalty + asm.limits.penalty_per_step * left)
+                rewards[b] = -asm.limits.amount(core._n_steps[b] * asm.control_dt)
                 reasons[b] = f"diverged: {core.failure_message(b)}"
             elif status[b] == TERMINATED:
                 reasons[b] = "stroke_limit"

@@ -1,0 +1,136 @@
+"""Trained agents behind the controllers' interface: ``load_agent(path)`` reads an agent saved by
+``mrd-env train`` — a folder holding ``agent.json`` (the metadata), ``model.zip`` (the Stable-Baselines3 or
+sb3-contrib policy) and ``normalization.npz`` (the observation statistics it was trained with) — and returns a
+:class:`TrainedAgent`: ``predict(obs)`` on raw observations of one environment or a batch, the options of the
+environment it was trained in (``env_kwargs``: ``gym.make(agent.env_id, **agent.env_kwargs)`` rebuilds it) and
+the options that define its observation and action (``observation_kwargs``: sensors, history, control step,
+action mode), which an evaluation must keep while it changes the disturbance.
+
+An agent is recognised by its metadata file, never by its file name. The agents shipped with the project live
+in ``controllers/agents/`` (:func:`shipped_agents`).
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+AGENT_FORMAT = "mrd-env-agent"
+#: Options of the environment that define what an agent sees and does (kept whatever the scenario).
+OBSERVATION_OPTIONS = ("sensors", "sensor_noise", "sensor_delay", "history", "control_dt", "dt", "action_mode",
+                       "damper", "damper_preset", "damper_params", "plant_preset", "plant_params")
+SHIPPED = Path(__file__).with_name("agents")
+
+
+def agent_files(path: str | Path) -> tuple[Path, dict]:
+    """(folder, metadata) of the agent at ``path`` (its folder, or any file in it); ``ValueError`` for a missing
+    or unreadable agent."""
+    path = Path(path)
+    if not path.exists():
+        raise ValueError(f"agent {path}: no such file or folder")
+    folder = path if path.is_dir() else path.parent
+    meta_path = folder / "agent.json"
+    if not meta_path.exists():
+        raise ValueError(f"agent {path}: no agent.json in {folder} (mrd-env train writes it next to the model)")
+    try:
+        meta = json.loads(meta_path.read_text(encoding="utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise ValueError(f"agent {path}: agent.json is not valid JSON ({exc})") from None
+    if not isinstance(meta, dict) or meta.get("format") != AGENT_FORMAT:
+        raise ValueError(f"agent {path}: agent.json is not an mrd-env agent (missing \"format\": \"{AGENT_FORMAT}\")")
+    missing = [k for k in ("plant", "env_id", "algo", "env_kwargs", "model") if k not in meta]
+    if missing:
+        raise ValueError(f"agent {path}: agent.json lacks {missing}")
+    import gymnasium as gym
+
+    import mrd_env  # noqa: F401  (registers the environments)
+    if meta["env_id"] not in gym.registry:
+        raise ValueError(f"agent {path}: unknown environment {meta['env_id']!r} in agent.json")
+    if not (folder / meta["model"]).exists():
+        raise ValueError(f"agent {path}: the model file {meta['model']} is missing")
+    return folder, meta
+
+
+def _algorithm(name: str):
+    import stable_baselines3 as sb3
+
+    if hasattr(sb3, name):
+        return getattr(sb3, name)
+    try:
+        import sb3_contrib
+    except ImportError:
+        raise ImportError(f"the agent's algorithm {name} needs sb3-contrib (pip install sb3-contrib)") from None
+    if not hasattr(sb3_contrib, name):
+        raise ValueError(f"unknown algorithm {name!r} in agent.json")
+    return getattr(sb3_contrib, name)
+
+
+class TrainedAgent:
+    """A saved agent: SB3's ``predict`` on raw observations (normalised as in training)."""
+
+    def __init__(self, folder: Path, meta: dict):
+        self.folder = folder
+        self.meta = meta
+        self.plant = meta["plant"]
+        self.env_id = meta["env_id"]
+        self.env_kwargs = dict(meta["env_kwargs"])
+        self.observation_kwargs = {k: v for k, v in self.env_kwargs.items() if k in OBSERVATION_OPTIONS}
+        self.name = meta.get("name") or f"{meta['algo']} s{meta.get('seed', 0)}"
+        self.model = _algorithm(meta["algo"]).load(folder / meta["model"], device="cpu")
+        norm = meta.get("normalization")
+        if norm:
+            with np.load(folder / norm) as z:
+                self._mean, self._var = z["mean"], z["var"]
+                self._clip, self._eps = float(z["clip"]), float(z["epsilon"])
+        else:
+            self._mean = None
+        self._state = None
+
+    def normalize(self, obs) -> np.ndarray:
+        o = np.asarray(obs, dtype=np.float64)
+        if self._mean is None:
+            return o.astype(np.float32)
+        return np.clip((o - self._mean) / np.sqrt(self._var + self._eps), -self._clip, self._clip).astype(np.float32)
+
+    def reset(self, mask=None) -> None:
+        self._state = None
+
+    def predict(self, observation, state=None, episode_start=None, deterministic: bool = True):
+        obs = np.asarray(observation)
+        if episode_start is None and self.meta.get("recurrent") and obs.ndim == 2:
+            episode_start = np.zeros(obs.shape[0], dtype=bool)
+        action, self._state = self.model.predict(self.normalize(obs), state=self._state if state is None else state,
+                                                 episode_start=episode_start, deterministic=deterministic)
+        return action, self._state
+
+    def bind(self, env):
+        """This agent as a :class:`~controllers.base.AgentController` of ``env`` (one or a vector of them), after
+        checking that ``env`` shows it the observation it was trained on."""
+        from .base import AgentController
+
+        base = getattr(env, "unwrapped", env)
+        shape = tuple(getattr(base, "single_observation_space", base.observation_space).shape)
+        if self._mean is not None and shape != tuple(np.shape(self._mean)):
+            raise ValueError(f"agent {self.name}: the environment's observation has shape {shape}, the agent was "
+                             f"trained on {tuple(np.shape(self._mean))}; build it with agent.observation_kwargs")
+        if abs(float(base.control_dt) - float(self.env_kwargs.get("control_dt", 1e-3))) > 1e-12:
+            raise ValueError(f"agent {self.name}: the environment steps every {base.control_dt:g} s, the agent was "
+                             f"trained at {self.env_kwargs.get('control_dt', 1e-3):g} s")
+        return AgentController(env, self, name=self.name, env_kwargs=self.env_kwargs)
+
+
+def load_agent(path: str | Path) -> TrainedAgent:
+    """The agent saved at ``path`` (its folder, or a file in it)."""
+    folder, meta = agent_files(path)
+    return TrainedAgent(folder, meta)
+
+
+def shipped_agents(plant: str | None = None) -> list[Path]:
+    """Folders of the agents shipped with the project (for ``plant``, or all)."""
+    out = []
+    for meta_path in sorted(SHIPPED.glob("*/agent.json")):
+        meta = json.loads(meta_path.read_text(encoding="utf-8"))
+        if plant is None or meta.get("plant") == plant:
+            out.append(meta_path.parent)
+    return out

@@ -1,0 +1,173 @@
+"""``mrd-env evaluate``: agents and classical laws side by side on the held-out test scenarios.
+
+Every controller sees the same sensors at the same control step: the agents' (their observation options,
+:data:`controllers.agents.OBSERVATION_OPTIONS`), which are the plant's measured set by default; the laws run
+there too, and once more at 1 ms (their own best rate) as extra rows. For each controller and scenario: the
+environment's return and the field's metrics (quarter car: Wk-weighted r.m.s. acceleration, travel, tyre load;
+building: J1–J6), mean and 95 % interval over seeds and episodes (for agents, over their training seeds too);
+then the mean over all test scenarios. Writes ``<out>/<plant>_evaluation.md``/``.csv`` and
+``<out>/<plant>_evaluation.png`` (returns with their intervals). By default the agents shipped with the project
+(``controllers/agents/``) are evaluated.
+"""
+from __future__ import annotations
+
+import argparse
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+
+from mrd_env.report import figure, save_figure, write_table
+
+from .evaluation import Episode, evaluate_batch, mean_ci
+from .scenarios import held_out_scenarios
+
+METRICS = {"quarter_car": ("acc_weighted_rms", "travel_peak", "tyre_load_ratio"),
+           "building": ("J1", "J2", "J3", "J4", "J5", "J6")}
+LAWS = {"quarter_car": ("random", "passive_off", "passive_on", "skyhook_on_off", "skyhook_continuous", "groundhook", "hybrid",
+                        "clipped_optimal"),
+        "building": ("random", "passive_off", "passive_on", "clipped_optimal", "lyapunov", "max_energy_dissipation",
+                     "modulated_friction")}
+
+
+def evaluate(plant: str, agents=(), laws=None, *, seeds: int = 3, control_dt: float | None = None,
+             laws_at_1ms: bool = True, progress: bool = True, quick: bool = False) -> dict[str, list[Episode]]:
+    """{controller name: episodes on every test scenario}. Agents with the same name (an algorithm trained on
+    several seeds) are pooled under one row."""
+    import mrd_env  # noqa: F401
+    from controllers import load_agent, make_controller
+    from tqdm.auto import tqdm
+
+    loaded = [load_agent(a) for a in agents]
+    for a in loaded:
+        if a.plant != plant:
+            raise ValueError(f"agent {a.folder} was trained on the {a.plant} plant, not {plant}")
+    obs_kw = dict(loaded[0].observation_kwargs) if loaded else {}
+    if control_dt is not None:
+        obs_kw["control_dt"] = float(control_dt)
+    # the laws keep their own memory (filters, observers): the same sensors, without the agent's stacked history
+    law_kw = {**{k: v for k, v in obs_kw.items() if k != "action_mode"}, "history": 1}
+    scenarios = held_out_scenarios(plant, seeds=seeds, quick=quick)
+    laws = LAWS[plant] if laws is None else laws
+    jobs = len(scenarios) * (len(loaded) + len(laws) * (2 if laws_at_1ms else 1))
+    bar = tqdm(total=jobs, desc=f"evaluate {plant}", disable=not progress)
+    out: dict[str, list[Episode]] = defaultdict(list)
+    response = "sprung_acc" if plant == "quarter_car" else "drift"
+    for sc in scenarios:
+        for a in loaded:
+            out[f"agent {a.name.split(' s')[0]}"] += evaluate_batch(lambda v, a=a: a.bind(v), sc, response,
+                                                                    **a.observation_kwargs)
+            bar.update()
+        for name in laws:
+            dt = law_kw.get("control_dt", 1e-3)
+            out[f"{name} @ {dt * 1e3:g} ms"] += evaluate_batch(lambda v, n=name: make_controller(n, v), sc, response,
+                                                               **law_kw)
+            bar.update()
+            if laws_at_1ms and abs(dt - 1e-3) > 1e-12:
+                kw = {**law_kw, "control_dt": 1e-3, "history": 1}
+                out[f"{name} @ 1 ms"] += evaluate_batch(lambda v, n=name: make_controller(n, v), sc, response, **kw)
+                bar.update()
+    bar.close()
+    return dict(out)
+
+
+def summarise(plant: str, results: dict[str, list[Episode]]) -> list[dict]:
+    """Rows: per scenario and controller, mean and 95 % interval of the return and the metrics; then the
+    mean over the test scenarios (``all test scenarios``)."""
+    rows = []
+    scen = list(dict.fromkeys(_base(e.scenario) for eps in results.values() for e in eps))
+    for s in scen + ["all test scenarios"]:
+        for ctrl, eps in results.items():
+            mine = [e for e in eps if s == "all test scenarios" or _base(e.scenario) == s]
+            if not mine:
+                continue
+            m, lo, hi = mean_ci([e.episode_return for e in mine])
+            row = {"scenario": s, "controller": ctrl, "episodes": len(mine), "return": m, "return_lo95": lo,
+                   "return_hi95": hi}
+            for k in METRICS[plant]:
+                row[k] = mean_ci([e.metrics.get(k, np.nan) for e in mine])[0]
+            row["terminated"] = sum(1 for e in mine if "terminated" in e.metrics)
+            rows.append(row)
+    return rows
+
+
+def _base(label: str) -> str:
+    """The scenario of an episode label (without the seed suffix)."""
+    head, _, tail = label.rpartition(" s")
+    return head if tail.isdigit() and head else label
+
+
+def plot(plant: str, rows: list[dict], path: Path) -> Path:
+    """Mean return with its 95 % interval per controller, one group per scenario."""
+    scen = list(dict.fromkeys(r["scenario"] for r in rows))
+    ctrls = list(dict.fromkeys(r["controller"] for r in rows))
+    fig, ax = figure(figsize=(max(8.0, 1.2 * len(scen) * len(ctrls) / 4), 4.8))
+    width = 0.8 / len(ctrls)
+    for i, c in enumerate(ctrls):
+        for j, s in enumerate(scen):
+            r = next((r for r in rows if r["scenario"] == s and r["controller"] == c), None)
+            if r is None:
+                continue
+            ax.bar(j + i * width, r["return"], width, color=f"C{i % 10}", label=c if j == 0 else None)
+            ax.errorbar(j + i * width, r["return"], yerr=[[r["return"] - r["return_lo95"]],
+                                                          [r["return_hi95"] - r["return"]]], color="k", lw=0.8)
+    ax.set_xticks(np.arange(len(scen)) + 0.4 - width / 2, scen, fontsize=8)
+    ax.set_ylabel("episode return (mean, 95 % interval)")
+    ax.set_title(f"{plant}: agents and classical laws on the held-out test scenarios")
+    ax.legend(fontsize=7, ncol=3)
+    ax.grid(axis="y", alpha=0.3)
+    return save_figure(fig, path)
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--plant", choices=["building", "quarter_car", "both"], default="both")
+    p.add_argument("--agents", type=Path, nargs="*", default=None,
+                   help="agent folders (or files in them) written by mrd-env train (default: the shipped agents)")
+    p.add_argument("--laws", nargs="*", default=None, help="classical laws (default: all that apply)")
+    p.add_argument("--seeds", type=int, default=3, help="episodes per random test scenario (default 3)")
+    p.add_argument("--control-dt", type=float, default=None,
+                   help="control step of the comparison (default: the agents'; 1 ms without agents)")
+    p.add_argument("--no-1ms", action="store_true", help="do not add the laws at their own 1 ms rate")
+    p.add_argument("--quick", action="store_true", help="short scenarios (a smoke run)")
+    p.add_argument("--out", type=Path, default=Path("results/evaluate"))
+    p.add_argument("--no-progress", action="store_true")
+
+
+def run(args: argparse.Namespace) -> int:
+    from controllers import CONTROLLERS, shipped_agents
+    from controllers.agents import agent_files
+
+    if args.seeds < 1:
+        raise ValueError(f"--seeds must be >= 1, got {args.seeds}")
+    unknown = [c for c in args.laws or () if c not in CONTROLLERS]
+    if unknown:
+        raise ValueError(f"--laws: unknown controller(s) {unknown}; available: {sorted(CONTROLLERS)}")
+    plants = ["building", "quarter_car"] if args.plant == "both" else [args.plant]
+    args.out.mkdir(parents=True, exist_ok=True)
+    if args.control_dt is not None:  # checked by the environment itself, before any episode runs
+        import gymnasium as gym
+
+        import mrd_env  # noqa: F401
+        from .scenarios import ENV_IDS
+        for p in plants:
+            gym.make(ENV_IDS[p], control_dt=args.control_dt).close()
+    chosen = {p: [] for p in plants}
+    if args.agents is None:
+        for p in plants:
+            chosen[p] = shipped_agents(p)
+    else:
+        for a in args.agents:
+            meta = agent_files(a)[1]  # ValueError for a bad path
+            if meta["plant"] not in chosen:
+                raise ValueError(f"agent {a} was trained on the {meta['plant']} plant; add --plant {meta['plant']}")
+            chosen[meta["plant"]].append(a)
+    for p in plants:
+        res = evaluate(p, chosen[p], args.laws, seeds=args.seeds, control_dt=args.control_dt,
+                       laws_at_1ms=not args.no_1ms, progress=not args.no_progress, quick=args.quick)
+        rows = summarise(p, res)
+        md, csv_path = write_table(rows, args.out / f"{p}_evaluation", floatfmt=".4g",
+                                   title=f"{p}: return and metrics on the held-out test scenarios (mean, 95 % interval)")
+        fig = plot(p, [r for r in rows if r["scenario"] != "all test scenarios"], args.out / f"{p}_evaluation.png")
+        print(md.read_text())
+        print(f"wrote {md}, {csv_path}, {fig}")
+    return 0

@@ -1,0 +1,124 @@
+"""One evaluation loop for every controller — classical laws and trained agents — and the statistics of the
+results: mean and 95 % confidence interval over seeds and episodes.
+
+A scenario's seeds run in one vector environment; the controller (built on that vector environment, so that
+it reads the same sensors at the same control rate as any other) acts on the whole batch at once.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import gymnasium as gym
+import numpy as np
+
+from .scenarios import Scenario
+
+
+@dataclass
+class Episode:
+    controller: str
+    scenario: str
+    metrics: dict
+    t: np.ndarray
+    response: np.ndarray   # key response history (sprung acceleration or first-storey drift)
+    force: np.ndarray
+    velocity: np.ndarray   # damper velocity
+    wall_time: float
+    episode_return: float = float("nan")
+    seed: int = 0
+
+
+def evaluate(controller, env, seed: int, response: str) -> Episode:
+    """Run one episode of a scalar environment with ``controller`` (classical laws and agents alike)."""
+    base = env.unwrapped
+    layout = {n: sl for n, sl, *_ in base.sensor_layout}
+    rate = base.roles.get("damper_velocity", "")
+
+    def first(o, name):
+        v = o[layout[name]] if name in layout else np.zeros(0)
+        return float(v[0]) if v.size else float("nan")
+
+    obs, _ = env.reset(seed=seed)
+    controller.reset()
+    t, resp, force, vel = [], [], [], []
+    total = 0.0
+    t0 = time.perf_counter()
+    while True:
+        action, _ = controller.predict(obs, deterministic=True)
+        obs, r, terminated, truncated, info = env.step(action)
+        total += r
+        t.append(info["t"])
+        resp.append(first(obs, response))
+        force.append(float(base.damper_force[0]))
+        vel.append(first(obs, rate))
+        if terminated or truncated:
+            break
+    wall = time.perf_counter() - t0
+    metrics = dict(info.get("episode_metrics", {}))
+    if terminated:
+        metrics["terminated"] = info.get("termination_reason", "terminated")
+    return Episode(getattr(controller, "name", type(controller).__name__), "", metrics, np.array(t),
+                   np.array(resp), np.array(force), np.array(vel), wall, total, seed)
+
+
+def evaluate_batch(make, scenario: Scenario, response: str, name: str | None = None, **env_options) -> list[Episode]:
+    """One episode per seed of ``scenario`` in one vector environment, driven by ``make(venv)`` (a controller
+    built on the vector environment: its predict takes the batch of observations). The time histories are
+    those of the first seed."""
+    N = len(scenario.seeds)
+    venv = gym.make_vec(scenario.env_id, num_envs=N, vectorization_mode="vector_entry_point",
+                        **{**scenario.options, **env_options})
+    ctrl = make(venv)
+    layout = {n: sl for n, sl, *_ in venv.sensor_layout}
+    rate = venv.roles.get("damper_velocity", "")
+
+    def first(o, key):
+        return float(o[layout[key]][0]) if key in layout else float("nan")
+
+    obs, _ = venv.reset(seed=list(scenario.seeds))
+    ctrl.reset()
+    done = np.zeros(N, dtype=bool)
+    returns = np.zeros(N)
+    metrics: list[dict] = [{} for _ in range(N)]
+    t, resp, force, vel = [], [], [], []
+    t0 = time.perf_counter()
+    while not done.all():
+        action, _ = ctrl.predict(obs, deterministic=True)
+        obs, r, term, trunc, info = venv.step(action)
+        returns[~done] += r[~done]
+        if not done[0]:
+            t.append(float(info["t"][0]))
+            resp.append(first(obs[0], response))
+            force.append(first(obs[0], "damper_force"))
+            vel.append(first(obs[0], rate))
+        ended = (term | trunc) & ~done
+        for b in np.flatnonzero(ended):
+            metrics[b] = {k: float(v[b]) for k, v in info["episode_metrics"].items()}
+            if term[b]:
+                metrics[b]["terminated"] = str(info.get("termination_reason", [""] * N)[b] or "terminated")
+        done |= ended
+    wall = (time.perf_counter() - t0) / N
+    venv.close()
+    name = name or getattr(ctrl, "name", type(ctrl).__name__)
+    empty = np.zeros(0)
+    return [Episode(name, scenario.label(seed), metrics[b], np.array(t) if b == 0 else empty,
+                    np.array(resp) if b == 0 else empty, np.array(force) if b == 0 else empty,
+                    np.array(vel) if b == 0 else empty, wall, float(returns[b]), int(seed))
+            for b, seed in enumerate(scenario.seeds)]
+
+
+def mean_ci(values, confidence: float = 0.95) -> tuple[float, float, float]:
+    """(mean, lower, upper): Student-t interval of the mean; a single value (or identical values) gives a
+    zero-width interval."""
+    from scipy import stats
+
+    x = np.asarray([v for v in values if np.isfinite(v)], dtype=float)
+    if x.size == 0:
+        return math.nan, math.nan, math.nan
+    m = float(x.mean())
+    if x.size == 1 or np.all(x == x[0]):
+        return m, m, m
+    h = float(stats.sem(x) * stats.t.ppf(0.5 + confidence / 2, x.size - 1))
+    return m, m - h, m + h

@@ -1,0 +1,175 @@
+"""RL tooling end to end on tiny budgets: train (RL Zoo layout, validation, best agent, curves), reload with
+``controllers.load_agent``, evaluate next to the laws; rewards that rank and never pay for termination."""
+from __future__ import annotations
+
+import csv
+import json
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import mrd_env  # noqa: F401
+from controllers import CONTROLLERS, load_agent, make_controller
+from experiments.cli import main
+from experiments.evaluation import evaluate_batch
+from experiments.scenarios import HELD_OUT_SEED, TRAINING, held_out_scenarios, validation
+
+TINY = ["--timesteps", "256", "--eval-freq", "128", "--eval-episodes", "1", "--no-progress",
+        "--set", "n_envs=2", "n_steps=64", "batch_size=64", "n_epochs=1"]
+
+
+@pytest.fixture(scope="module")
+def trained(tmp_path_factory):
+    out = tmp_path_factory.mktemp("agents")
+    assert main(["train", "--plant", "building", "--seeds", "0", "1", "--out", str(out), *TINY]) == 0
+    return out
+
+
+def test_train_writes_agents_curves_and_the_best_validation_agent(trained):
+    for seed in (0, 1):
+        run = trained / f"building_ppo_s{seed}"
+        for f in ("agent.json", "model.zip", "normalization.npz", "training.monitor.csv", "validation.csv",
+                  "learning_curve.png", "best/agent.json", "best/model.zip"):
+            assert (run / f).exists(), f
+        meta = json.loads((run / "agent.json").read_text())
+        assert meta["format"] == "mrd-env-agent" and meta["plant"] == "building" and meta["seed"] == seed
+        assert meta["env_kwargs"]["control_dt"] == 0.01 and meta["hyperparameters"]["n_envs"] == 2
+        assert meta["command"].startswith(f"mrd-env train --plant building --seeds 0 1 --out {trained}")
+        with (run / "validation.csv").open() as fh:
+            rows = list(csv.DictReader(fh))
+        assert [int(r["timesteps"]) for r in rows][:2] == [128, 256]
+        assert all(np.isfinite(float(r["validation_return"])) for r in rows)
+
+
+def test_the_best_agent_reproduces_its_validation_return(trained):
+    """Reloaded from its folder (raw observations, the saved normalisation), the best agent scores on the
+    validation episodes what it scored during training."""
+    run = trained / "building_ppo_s0"
+    best = load_agent(run / "best")
+    sc = validation("building", 1)[0]
+    eps = evaluate_batch(lambda v: best.bind(v), sc, "", **best.observation_kwargs)
+    assert eps[0].episode_return == pytest.approx(best.meta["validation_return"], rel=1e-4)
+
+
+def test_loaded_agent_rebuilds_its_environment_and_acts_in_it(trained):
+    agent = load_agent(trained / "building_ppo_s1")
+    env = gym.make(agent.env_id, **agent.env_kwargs)
+    obs, _ = env.reset(seed=HELD_OUT_SEED)
+    action, _ = agent.predict(obs)
+    assert env.action_space.contains(np.asarray(action, dtype=np.float32))
+    assert agent.observation_kwargs["control_dt"] == 0.01
+    with pytest.raises(ValueError, match="trained at 0.01 s"):
+        agent.bind(gym.make(agent.env_id, **{**agent.observation_kwargs, "control_dt": 0.001}))
+
+
+def test_same_seed_same_agent(tmp_path):
+    for name in ("a", "b"):
+        assert main(["train", "--plant", "quarter_car", "--seeds", "3", "--out", str(tmp_path / name), *TINY,
+                     "--eval-freq", "0"]) == 0
+    a, b = (load_agent(tmp_path / n / "quarter_car_ppo_s3") for n in ("a", "b"))
+    for (ka, va), (kb, vb) in zip(a.model.policy.state_dict().items(), b.model.policy.state_dict().items()):
+        assert ka == kb and np.array_equal(va.numpy(), vb.numpy())
+
+
+def test_evaluate_puts_agents_and_laws_side_by_side(trained, tmp_path):
+    agents = [str(trained / f"building_ppo_s{s}") for s in (0, 1)]
+    assert main(["evaluate", "--plant", "building", "--agents", *agents, "--laws", "passive_off", "clipped_optimal",
+                 "--quick", "--seeds", "1", "--out", str(tmp_path), "--no-progress"]) == 0
+    with (tmp_path / "building_evaluation.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    ctrls = {r["controller"] for r in rows}
+    assert ctrls == {"agent PPO", "passive_off @ 10 ms", "clipped_optimal @ 10 ms", "passive_off @ 1 ms",
+                     "clipped_optimal @ 1 ms"}
+    agent_row = next(r for r in rows if r["controller"] == "agent PPO" and r["scenario"] != "all test scenarios")
+    assert int(agent_row["episodes"]) == 2  # both training seeds pooled
+    for r in rows:
+        assert float(r["return_lo95"]) <= float(r["return"]) <= float(r["return_hi95"])
+        assert 0 < float(r["J1"]) < 2
+    assert (tmp_path / "building_evaluation.png").stat().st_size > 10_000
+    # the benchmark takes the same agent folders
+    assert main(["benchmark", "--plant", "building", "--quick", "--seeds", "1", "--controllers", "passive_off",
+                 "--agent", agents[0], "--out", str(tmp_path / "b"), "--no-progress"]) == 0
+
+
+def test_recurrent_policies_work_with_the_tooling(tmp_path):
+    pytest.importorskip("sb3_contrib")
+    assert main(["train", "--plant", "quarter_car", "--algo", "recurrentppo", "--seeds", "0", "--out",
+                 str(tmp_path), *TINY, "--set", "policy_kwargs={lstm_hidden_size: 8}"]) == 0
+    agent = load_agent(tmp_path / "quarter_car_recurrentppo_s0")
+    assert agent.meta["recurrent"]
+    sc = held_out_scenarios("quarter_car", quick=True)[0]
+    eps = evaluate_batch(lambda v: agent.bind(v), sc, "", **agent.observation_kwargs)
+    assert np.isfinite(eps[0].episode_return)
+
+
+def test_history_stacks_past_observations_for_memoryless_policies():
+    env = gym.make("mrd_env/QuarterCar-v0", episode_seconds=0.1, history=3, control_dt=0.01)
+    one = gym.make("mrd_env/QuarterCar-v0", episode_seconds=0.1, control_dt=0.01)
+    assert env.observation_space.shape[0] == 3 * one.observation_space.shape[0]
+    obs, _ = env.reset(seed=0)
+    o1, _ = one.reset(seed=0)
+    seen = [o1]
+    for _ in range(4):
+        obs, *_ = env.step(np.array([1.0], dtype=np.float32))
+        o1, *_ = one.step(np.array([1.0], dtype=np.float32))
+        seen.append(o1)
+    np.testing.assert_array_equal(obs, np.concatenate(seen[-3:]))  # oldest first
+
+
+# --- rewards ------------------------------------------------------------------------------------------------------
+
+def _returns(plant: str, scenario, control_dt: float = 0.01) -> dict[str, list]:
+    laws = [c for c in CONTROLLERS if c != "skyhook_on_off" or plant == "quarter_car"]
+    out = {}
+    for name in laws:
+        try:
+            eps = evaluate_batch(lambda v, n=name: make_controller(n, v), scenario, "", control_dt=control_dt)
+        except ValueError:  # a law for the other plant (needs roles this plant does not declare)
+            continue
+        out[name] = eps
+    return out
+
+
+@pytest.mark.parametrize("plant", ["quarter_car", "building"])
+def test_termination_never_pays(plant):
+    """On every benchmark scenario: an episode ended by the stroke limit scores below every controller that
+    finishes — the penalty (10 per planned second) exceeds any finisher's cost, rough roads included."""
+    for sc in held_out_scenarios(plant):
+        res = _returns(plant, sc)
+        env = gym.make(sc.env_id, **sc.options, control_dt=0.01)
+        asm = env.unwrapped.assembly
+        finished = [e.episode_return for eps in res.values() for e in eps if "terminated" not in e.metrics]
+        ended = [e.episode_return for eps in res.values() for e in eps if "terminated" in e.metrics]
+        assert finished, sc.name
+        for seed in sc.seeds:
+            env.reset(seed=seed)
+            planned = env.unwrapped.core._n_steps[0] * asm.control_dt
+            # the best a terminated episode can score: no cost before the limit, then the penalty
+            assert -asm.limits.amount(planned) < min(finished), sc.name
+        assert all(r < min(finished) for r in ended), sc.name
+
+
+def test_rewards_separate_random_passive_and_the_best_law():
+    """On a class-C road (paired seeds): best law > passive-off > random > passive-on, each gap well beyond
+    the seed-to-seed spread of the differences."""
+    sc = held_out_scenarios("quarter_car", seeds=4)[0]
+    ret = {n: np.array([e.episode_return for e in evaluate_batch(lambda v, n=n: make_controller(n, v), sc, "",
+                                                                   control_dt=0.01)])
+           for n in ("skyhook_continuous", "passive_off", "random", "passive_on")}
+    order = ["skyhook_continuous", "passive_off", "random", "passive_on"]
+    for better, worse in zip(order, order[1:]):
+        diff = ret[better] - ret[worse]
+        assert diff.mean() > 3 * diff.std() + 1e-9 and diff.min() > 0, (better, worse, diff)
+
+
+def test_training_distributions_draw_new_episodes():
+    for plant, env_id in (("quarter_car", "mrd_env/QuarterCar-v0"), ("building", "mrd_env/ShearBuilding-v0")):
+        env = gym.make(env_id, **TRAINING[plant], control_dt=0.01)
+        recs = []
+        for seed in (0, 1, 2):
+            env.reset(seed=seed)
+            recs.append(env.unwrapped.record.data[:2000].copy())
+        assert not np.array_equal(recs[0], recs[1]) and not np.array_equal(recs[1], recs[2])
+        env.reset(seed=1)
+        np.testing.assert_array_equal(env.unwrapped.record.data[:2000], recs[1])
