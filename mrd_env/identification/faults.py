@@ -50,8 +50,10 @@ class Fault:
     i1: int
 
     def __str__(self) -> str:
-        span = f"t = {self.start:.5g} s" if self.i0 == self.i1 else f"t = {self.start:.5g}–{self.end:.5g} s"
-        return f"{self.kind} of {self.channel} at {span} ({self.i1 - self.i0 + 1} samples)"
+        where = f"{self.kind} of {self.channel} at t = {self.start:.5g}"
+        if self.i0 == self.i1:
+            return f"{where} s (1 sample)"
+        return f"{where}–{self.end:.5g} s ({self.i1 - self.i0 + 1} samples)"
 
 
 def _runs(flags: np.ndarray) -> list[tuple[int, int]]:

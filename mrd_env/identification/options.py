@@ -37,7 +37,7 @@ class SearchOptions:
     ``method``: "least_squares", "differential_evolution" or "pso" (parametric models); "adam" (the neural
     model, :mod:`.neural`; the only method it takes). ``seed``: of every random choice; results are
     bit-reproducible. ``maxiter``: least squares — residual evaluations (200); DE/PSO — generations (60);
-    adam — epochs (60). ``popsize``: DE population multiplier (10) / PSO swarm size (10 × free parameters, at
+    adam — epochs (150). ``popsize``: DE population multiplier (10) / PSO swarm size (10 × free parameters, at
     least 20). ``tol``: least squares ftol = xtol (1e-8), DE tol (0.01), PSO ftol (1e-6). ``diff_step`` and
     ``jacobian`` ("central"/"forward"): the least-squares finite differences in the [0, 1] scale of the bounds.
     ``bound_factor``: f of the default bounds. ``progress``: tqdm progress bars.
