@@ -183,16 +183,19 @@ def run_achievable(args: argparse.Namespace) -> int:
 
 def run_record(args: argparse.Namespace) -> int:
     from mrd_env.identification.compare import split_records
-    from mrd_env.identification.fit import fit_model, load_preset, save_preset
+    from mrd_env.identification import fit_model, load_preset, save_preset
     from mrd_env.inverse.training import train_neural_inverse
 
-    from .identify_cmd import fit_options, grid_dt, load_data
+    from .identify_cmd import free_with_command, grid_dt, load_data, options
 
     _check_names(args.inverses, [args.model])
     if args.epochs < 1:
         raise ValueError(f"--epochs must be >= 1, got {args.epochs}")
     plant = load_preset(args.plant_preset) if args.plant_preset is not None else None
-    rec = load_data(args)
+    recs = load_data(args)
+    if len(recs) != 1:
+        raise ValueError(f"--data: inverse record takes one record, got {len(recs)}")
+    rec = recs[0]
     dt = grid_dt(args, rec)
     whole, fits, idx = split_records([rec], args.fit_fraction, dt)
     r, k = whole[0], idx[0]
@@ -200,8 +203,8 @@ def run_record(args: argparse.Namespace) -> int:
     out = args.out
     out.mkdir(parents=True, exist_ok=True)
     if plant is None:
-        fr = fit_model(args.model, fits, method=args.method, seed=args.seed, dt=dt, progress=not args.no_progress,
-                       **fit_options(args))
+        search, data = options(args, dt)
+        fr = fit_model(args.model, fits, search=search, data=data, free=free_with_command(args, args.model, None))
         plant = fr.damper
         save_preset(fr, out / f"plant_{args.model}.json")
     x, v, f = r.x[k:], r.velocity()[k:], r.force[k:]

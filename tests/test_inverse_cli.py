@@ -10,7 +10,7 @@ import pytest
 from experiments.cli import main
 from mrd_env import make_damper
 from mrd_env.identification import DamperRecord
-from mrd_env.identification.fit import save_preset
+from mrd_env.identification import save_preset
 from mrd_env.inverse import achievable_forces
 
 

@@ -1,13 +1,13 @@
 """Template of the inverses' compiled one-step routines (see :mod:`mrd_env.inverse.onestep`).
 
 Not imported as such: :func:`mrd_env.inverse.onestep.onestep_module` writes, for each damper model, a module made
-of a header importing ``macro_step`` and ``ns`` from that model's compiled stepping kernel
+of a header importing ``macro_step``, ``workspace_views`` and ``ns`` from that model's compiled stepping kernel
 (:func:`mrd_env.integrator.kernel_module`) followed by this text, so that every step below is the project's
 stepping routine (SDIRK2 with error control, the command lag integrated exactly) on the virtual rig: no plant,
 the damper driven by its stroke, velocity and acceleration w = (x, ẋ, ẍ), interpolated linearly inside the step.
 
 Arguments shared by the functions: the rig's system arrays C, D and level matrices Ainv, Bbar, Mq, PP
-(:meth:`mrd_env.integrator.SystemMatrices.levels`), the parameter vector P (1, n_params), the lag rate eta (1,),
+(:meth:`mrd_env.integrator.SystemMatrices.levels`), the parameter vector P (1, n_params), the command dynamics lag (1, 3) (η_rise, η_fall, τ; the delay τ is not modelled here),
 the step dt, the finest sub-step level, the tolerances, and scratch buffers wf, wi (one system's workspace).
 """
 import math
@@ -17,26 +17,35 @@ import numpy as np
 
 
 @nb.njit(cache=True)
-def advance(C, D, Ainv, Bbar, Mq, PP, P, eta, Y, U, F, W, V, x1, v1, dt, max_level, nsub, atol, rtol, wf, wi,
+def advance(C, D, Ainv, Bbar, Mq, PP, P, lag, Y, U, F, W, V, x1, v1, dt, max_level, nsub, atol, rtol, wf, wi,
             status):
     """Advance N dampers by one step with the commands V[b] held, from their motion W[b] = (x, ẋ, ẍ) to the
     measured x1[b], v1[b] (ẍ: the backward difference of the velocities): states Y (N, ns), effective commands
     U (N, 1), forces F (N, 1) and W in place; status[b] is the kernel's (0: OK)."""
     m = ns + 1
-    cmd = np.empty(1)
     w1 = np.empty(3)
+    Vd = workspace_views(wf, wi, C.shape[2], 1, Y.shape[1], D.shape[2])[1]
     for b in range(Y.shape[0]):
         wi[m] = -1  # the Newton matrix of another system is not reused
-        cmd[0] = V[b]
+        hold(Vd, V[b])
         w1[0] = x1[b]
         w1[1] = v1[b]
         w1[2] = (v1[b] - W[b, 1]) / dt
-        st, used, nxt = macro_step(C, D, Ainv, Bbar, Mq, PP, P, eta, Y[b], U[b], F[b], cmd, W[b], w1, dt,
-                                   max_level, nsub[b], atol, rtol, wf, wi)
+        st, used, nxt = macro_step(C, D, Ainv, Bbar, Mq, PP, P, lag, Y[b], U[b], F[b], W[b], w1, dt, max_level,
+                                   nsub[b], atol, rtol, wf, wi)
         nsub[b] = nxt
         status[b] = st
         for i in range(3):
             W[b, i] = w1[i]
+
+
+@nb.njit(inline='always')
+def hold(Vd, v):
+    """The command v held over the whole step, in the kernel's rows of the step's commands (before and after
+    the switch time, which is 0): the inverses' one-step models leave out the command delay."""
+    Vd[10, 0] = v
+    Vd[11, 0] = v
+    Vd[12, 0] = 0.0
 
 
 @nb.njit(inline='always')
@@ -48,7 +57,7 @@ def extrapolate(w0, dt, w1):
 
 
 @nb.njit(cache=True)
-def step_force(C, D, Ainv, Bbar, Mq, PP, P, eta, Y, U, F, v, w0, w1, dt, max_level, atol, rtol, wf, wi, Ys, Us,
+def step_force(C, D, Ainv, Bbar, Mq, PP, P, lag, Y, U, F, v, w0, w1, dt, max_level, atol, rtol, wf, wi, Ys, Us,
                Fs):
     """The force at the end of one step from the state (Y, U, F) of one damper with the command v held and the
     motion w0 → w1, leaving that state unchanged (NaN if the step fails)."""
@@ -56,11 +65,10 @@ def step_force(C, D, Ainv, Bbar, Mq, PP, P, eta, Y, U, F, v, w0, w1, dt, max_lev
         Ys[i] = Y[i]
     Us[0] = U[0]
     Fs[0] = F[0]
-    cmd = np.empty(1)
-    cmd[0] = v
+    hold(workspace_views(wf, wi, C.shape[2], 1, Y.shape[0], D.shape[2])[1], v)
     nsub = np.ones(1, dtype=np.int64)  # an int64, not the literal 1: the call then shares the driver's compilation
     wi[ns + 1] = -1
-    st, used, nxt = macro_step(C, D, Ainv, Bbar, Mq, PP, P, eta, Ys, Us, Fs, cmd, w0, w1, dt, max_level, nsub[0],
+    st, used, nxt = macro_step(C, D, Ainv, Bbar, Mq, PP, P, lag, Ys, Us, Fs, w0, w1, dt, max_level, nsub[0],
                                atol, rtol, wf, wi)
     if st != 0:
         return math.nan
@@ -68,7 +76,7 @@ def step_force(C, D, Ainv, Bbar, Mq, PP, P, eta, Y, U, F, v, w0, w1, dt, max_lev
 
 
 @nb.njit(cache=True)
-def nearest_commands(C, D, Ainv, Bbar, Mq, PP, P, eta, Y, U, F, W, target, grid, n_refine, dt, max_level,
+def nearest_commands(C, D, Ainv, Bbar, Mq, PP, P, lag, Y, U, F, W, target, grid, n_refine, dt, max_level,
                      atol, rtol, wf, wi, out, predicted):
     """For each damper b, the command whose force at the end of the next step — the motion extrapolated from
     W[b] at constant acceleration — is nearest ``target[b]``: the forces of
@@ -87,7 +95,7 @@ def nearest_commands(C, D, Ainv, Bbar, Mq, PP, P, eta, Y, U, F, W, target, grid,
         extrapolate(W[b], dt, w1)
         best = -1
         for k in range(K):
-            Fk[k] = step_force(C, D, Ainv, Bbar, Mq, PP, P, eta, Y[b], U[b], F[b], grid[k], W[b], w1, dt,
+            Fk[k] = step_force(C, D, Ainv, Bbar, Mq, PP, P, lag, Y[b], U[b], F[b], grid[k], W[b], w1, dt,
                                max_level, atol, rtol, wf, wi, Ys, Us, Fs)
             if math.isfinite(Fk[k]) and (best < 0 or abs(Fk[k] - f) < abs(Fk[best] - f)):
                 best = k
@@ -110,7 +118,7 @@ def nearest_commands(C, D, Ainv, Bbar, Mq, PP, P, eta, Y, U, F, W, target, grid,
                 if fs == ft:
                     break
                 r = (s * ft - t * fs) / (ft - fs)
-                fr = step_force(C, D, Ainv, Bbar, Mq, PP, P, eta, Y[b], U[b], F[b], r, W[b], w1, dt,
+                fr = step_force(C, D, Ainv, Bbar, Mq, PP, P, lag, Y[b], U[b], F[b], r, W[b], w1, dt,
                                 max_level, atol, rtol, wf, wi, Ys, Us, Fs)
                 if not math.isfinite(fr):
                     break
@@ -135,7 +143,7 @@ def nearest_commands(C, D, Ainv, Bbar, Mq, PP, P, eta, Y, U, F, W, target, grid,
 
 
 @nb.njit(cache=True)
-def step_forces(C, D, Ainv, Bbar, Mq, PP, P, eta, Y, U, F, W, W1, V, dt, max_level, atol, rtol, wf, wi, out):
+def step_forces(C, D, Ainv, Bbar, Mq, PP, P, lag, Y, U, F, W, W1, V, dt, max_level, atol, rtol, wf, wi, out):
     """out[b, k]: damper b's force at the end of one step with the command V[b, k] held and the motion going
     from W[b] to W1[b], from its current state (left unchanged; NaN where the step fails)."""
     n = Y.shape[1]
@@ -144,5 +152,5 @@ def step_forces(C, D, Ainv, Bbar, Mq, PP, P, eta, Y, U, F, W, W1, V, dt, max_lev
     Fs = np.empty(1)
     for b in range(Y.shape[0]):
         for k in range(V.shape[1]):
-            out[b, k] = step_force(C, D, Ainv, Bbar, Mq, PP, P, eta, Y[b], U[b], F[b], V[b, k], W[b], W1[b], dt,
+            out[b, k] = step_force(C, D, Ainv, Bbar, Mq, PP, P, lag, Y[b], U[b], F[b], V[b, k], W[b], W1[b], dt,
                                    max_level, atol, rtol, wf, wi, Ys, Us, Fs)

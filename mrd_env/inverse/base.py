@@ -38,9 +38,11 @@ def as_damper(damper) -> DamperModel:
     return damper
 
 
-def lag_decay(eta: float, dt: float) -> float:
-    """e^(−η dt): the fraction of the gap u − v left after one step of the command lag u̇ = −η (u − v)."""
-    return math.exp(-eta * dt)
+def lag_decay(command, dt: float) -> np.ndarray:
+    """(e^(−η_rise dt), e^(−η_fall dt)): the fraction of the gap u − v left after one step of the command lag
+    u̇ = −η (u − v) on a rising and on a falling command (``command``: a CommandSpec). The inverses leave out
+    the command's pure delay."""
+    return np.array([math.exp(-command.eta * dt), math.exp(-command.eta_down * dt)])
 
 
 def _as_batch(name: str, value, n: int | None) -> np.ndarray:

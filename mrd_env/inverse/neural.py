@@ -190,9 +190,10 @@ def _neural_commands(flat, sizes, scales, Hf, Hx, Hv, u_hat, fd, x, v, fm, lo, h
         Hv[b, 0] = v[b]
         _features(Hf[b], Hx[b], Hv[b], u_hat[b], fd[b], scales, lo, span, dt, inp)
         u_next = u_hat[b] + scales[5] * _mlp(inp, flat, sizes, work)
-        c = min(max((u_next - u_hat[b] * decay) / (1.0 - decay), lo), hi)
+        d = decay[0] if u_next > u_hat[b] else decay[1]  # the rate of a rising or a falling command
+        c = min(max((u_next - u_hat[b] * d) / (1.0 - d), lo), hi)
         out[b] = c
-        u_hat[b] = c + (u_hat[b] - c) * decay
+        u_hat[b] = c + (u_hat[b] - c) * (decay[0] if c > u_hat[b] else decay[1])
 
 
 @nb.njit(cache=True)
@@ -236,7 +237,7 @@ class NeuralInverse(Inverse):
         self.network = net
         self._flat, self._sizes = _flat(net)
         self._scales = np.array(net.scales, dtype=np.float64)
-        self._decay = lag_decay(c.eta, self.dt)
+        self._decay = lag_decay(c, self.dt)
         self.u0 = self.v_min if u0 is None else float(u0)
         if not self.v_min <= self.u0 <= self.v_max:
             raise ValueError(f"u0 = {u0!r} is invalid: must be within [{self.v_min:g}, {self.v_max:g}] {c.unit}")

@@ -30,7 +30,7 @@ def onestep_module(model_cls):
     if module is None:
         kernel = kernel_module(model_cls)
         header = ("import math\nimport numba as nb\nimport numpy as np\n"
-                  f"from {kernel.__name__} import macro_step, ns\n")
+                  f"from {kernel.__name__} import macro_step, ns, workspace_views\n")
         source = header + (Path(__file__).with_name("_onestep_template.py")).read_text()
         # the kernel's module name carries its own key: a changed model or routine gives a new module here too
         key = hashlib.sha256(source.encode()).hexdigest()[:16]
@@ -57,7 +57,7 @@ class OneStep:
         ns = damper.n_states
         self._sys = (_RIG.C, _RIG.D, *_RIG.levels(self.dt, self.max_level))
         self.P = damper.params.as_array()[None, :]
-        self.eta = np.array([damper.command.eta])
+        self.lag = damper.command.lag_vector().reshape(1, 3)
         wf, wi = kernel_module(type(damper)).workspace_len(0, 1, ns, 3)
         self._wf = np.zeros(int(wf))
         self._wi = np.zeros(int(wi), dtype=np.int64)
@@ -89,7 +89,7 @@ class OneStep:
     def advance(self, command: np.ndarray, x: np.ndarray, v: np.ndarray) -> None:
         """One step with the commands ``command`` (N,) held, the motion going linearly from ``W`` to the
         measured stroke ``x`` and velocity ``v`` (N,) (acceleration: the backward difference of the velocities)."""
-        self.module.advance(*self._sys, self.P, self.eta, self.Y, self.U, self.F, self.W, command, x, v, self.dt,
+        self.module.advance(*self._sys, self.P, self.lag, self.Y, self.U, self.F, self.W, command, x, v, self.dt,
                             self.max_level, self._nsub, self.atol, self.rtol, self._wf, self._wi, self._status)
         self.t += self.dt
         if self._status.any():
@@ -102,7 +102,7 @@ class OneStep:
         ``_onestep_template.nearest_commands``)."""
         out = np.empty(self.N)
         predicted = np.empty(self.N)
-        self.module.nearest_commands(*self._sys, self.P, self.eta, self.Y, self.U, self.F, self.W, target, grid,
+        self.module.nearest_commands(*self._sys, self.P, self.lag, self.Y, self.U, self.F, self.W, target, grid,
                                      int(n_refine), self.dt, self.max_level, self.atol, self.rtol, self._wf,
                                      self._wi, out, predicted)
         return out, predicted
@@ -112,7 +112,7 @@ class OneStep:
         to the measured x1, v1 (N,) (acceleration: their backward difference); the state is left unchanged."""
         W1 = np.stack([x1, v1, (v1 - self.W[:, 1]) / self.dt], axis=1)
         out = np.empty(commands.shape)
-        self.module.step_forces(*self._sys, self.P, self.eta, self.Y, self.U, self.F, self.W, W1,
+        self.module.step_forces(*self._sys, self.P, self.lag, self.Y, self.U, self.F, self.W, W1,
                                 np.ascontiguousarray(commands, dtype=np.float64), self.dt, self.max_level, self.atol,
                                 self.rtol, self._wf, self._wi, out)
         return out

@@ -130,7 +130,8 @@ def _sid_commands(kind, c, Y, U, W, f, lo, hi, decay, invert, dissipative_only, 
         if dissipative_only and (f[b] - Fs) * v < 0.0:
             u = lo
         if invert:
-            u = (u - U[b, 0] * decay) / (1.0 - decay)
+            d = decay[0] if u > U[b, 0] else decay[1]  # the rate of a rising or a falling command
+            u = (u - U[b, 0] * d) / (1.0 - d)
         out[b] = min(max(u, lo), hi)
 
 
@@ -166,7 +167,7 @@ class SimplifiedInverse(ObserverInverse):
                 raise ValueError(f"{name} must be True or False, got {flag!r}")
         self.invert_lag = bool(invert_lag)
         self.dissipative_only = bool(dissipative_only)
-        self._decay = lag_decay(self.damper.command.eta, self.dt)
+        self._decay = lag_decay(self.damper.command, self.dt)
 
     def _command(self, f_desired, x, v, f_measured):
         self._observe(x, v)

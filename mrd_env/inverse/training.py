@@ -25,6 +25,7 @@ from typing import Sequence
 
 import numpy as np
 
+from ..command_lag import effective_command
 from ..validation import as_generator, check_scalar
 from .base import as_damper, lag_decay
 from .data import achievable_forces
@@ -53,16 +54,6 @@ def rig_records(damper, *, n_records: int = 40, duration: float = 5.0, dt: float
     return out
 
 
-def _lagged(command: np.ndarray, eta: float, dt: float, u0: float) -> np.ndarray:
-    """The effective command u of a command record held from sample to sample (the exact lag)."""
-    decay = math.exp(-eta * dt)
-    u = np.empty_like(command)
-    u[0] = u0
-    for k in range(1, command.size):
-        u[k] = command[k - 1] + (u[k - 1] - command[k - 1]) * decay
-    return u
-
-
 def branches(damper, records: Sequence, dt: float, rng) -> tuple[np.ndarray, np.ndarray]:
     """One-step branches of rig records (all of one length n): (desired forces, effective commands at the end
     of the step), each (R, n − 1, 3), for three commands tried from the state at every sample k — one drawn
@@ -79,7 +70,7 @@ def branches(damper, records: Sequence, dt: float, rng) -> tuple[np.ndarray, np.
     cmd = np.array([r.command for r in records])
     obs = OneStep(damper, R, dt)
     obs.start(np.stack([x[:, 0], v[:, 0], np.zeros(R)], axis=1), u[:, 0])
-    decay = lag_decay(c.eta, dt)
+    decay = lag_decay(c, dt)
     fd = np.empty((R, n - 1, 3))
     u_next = np.empty((R, n - 1, 3))
     V = np.empty((R, 3))
@@ -92,7 +83,7 @@ def branches(damper, records: Sequence, dt: float, rng) -> tuple[np.ndarray, np.
         fd[:, k] = Fb
         fd[:, k, 1] -= push[:, 0]
         fd[:, k, 2] += push[:, 1]
-        u_next[:, k] = V + (u[:, k, None] - V) * decay
+        u_next[:, k] = V + (u[:, k, None] - V) * np.where(V > u[:, k, None], decay[0], decay[1])
         obs.advance(cmd[:, k], x[:, k + 1], v[:, k + 1])
     return fd, u_next
 
@@ -113,7 +104,7 @@ def features(records: Sequence, damper, history: int, dt: float, *, rng=None) ->
                              f"history + 1 = {history + 1} samples (resample it first)")
         v = np.asarray(r.v if getattr(r, "v", None) is not None else np.gradient(r.x, t), dtype=np.float64)
         cmd = np.clip(np.asarray(r.command, dtype=np.float64), c.v_min, c.v_max)
-        u = np.asarray(r.u, dtype=np.float64) if hasattr(r, "u") else _lagged(cmd, c.eta, dt, cmd[0])
+        u = np.asarray(r.u, dtype=np.float64) if hasattr(r, "u") else effective_command(c, cmd, dt)
         rows.append((np.asarray(r.force, dtype=np.float64), np.asarray(r.x, dtype=np.float64), v, u))
 
     def std(fn):
