@@ -155,12 +155,23 @@ class ClippedOptimal(_ObserverLaw):
     interstorey drifts with 1/(5 mm)²; quarter car: sprung acceleration with 1/(1 m/s²)² and travel with
     1/(5 cm)²). R = 1/(force_ref)² per damper with force_ref = 3000 N (the prototype damper's force scale;
     with these the El Centro lab ranking of Dyke et al. 1996 is reproduced, see the README).
+
+    ``inverse``: None (the on–off law above), or an inverse model that turns f_c into the command instead — a
+    name of :func:`mrd_env.inverse.make_inverse` ("heaviside", "sid", "model", "neural") or an
+    :class:`~mrd_env.inverse.Inverse` — through :class:`mrd_env.envs.actuation.ForceActuation` (the inverses
+    other than "heaviside" read the damper's stroke and velocity sensors too).
     """
 
     name = "clipped_optimal"
 
-    def __init__(self, env, weights: dict | None = None, force_ref: float = 3000.0, **observer):
+    def __init__(self, env, weights: dict | None = None, force_ref: float = 3000.0, inverse=None, **observer):
         super().__init__(env, **observer)
+        if inverse is None:
+            self.actuation = None
+        else:
+            from mrd_env.envs.actuation import ForceActuation
+
+            self.actuation = ForceActuation(self.env, inverse)
         weights = dict(self.env.objective) if weights is None else dict(weights)
         if not force_ref > 0:
             raise ValueError(f"force_ref must be > 0 N, got {force_ref}")
@@ -178,8 +189,15 @@ class ClippedOptimal(_ObserverLaw):
 
     def command(self, obs):
         x_hat, f = self.estimate(obs)
-        fc = self.desired_force(x_hat)
+        fc = self.last_desired = self.desired_force(x_hat)
+        if self.actuation is not None:
+            return self.actuation.from_observation(fc, obs)
         return self.on_off((fc - f) * f > 0.0)
+
+    def reset_rows(self, mask):
+        super().reset_rows(mask)
+        if self.actuation is not None:
+            self.actuation.reset(mask)
 
 
 class Lyapunov(_ObserverLaw):

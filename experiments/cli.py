@@ -24,6 +24,8 @@ COMMANDS = {
                  "fit a damper model to a measured record: errors table, figure, JSON preset"),
     "compare-models": ("experiments.compare_models_cmd",
                        "fit several damper models to a record and compare them on the held-back part"),
+    "inverse": ("experiments.inverse_cmd",
+                "inverse models: force-tracking tables and figures (achievable forces, a measured record); train one"),
 }
 
 

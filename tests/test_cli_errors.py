@@ -140,6 +140,19 @@ CASES = {
         ["--data", "{good}", "--models", "bingham", "bingham"], ["--data", "{good}", "--plot-window", "0"],
         ["--data", "{good}", "--plot-window", "nan"],
     ],
+    "inverse": [
+        [], ["nope"], ["achievable", "--nope"], ["achievable", "--inverses", "nope"], ["achievable", "--plants", "nope"],
+        ["achievable", "--preset", "nope"], ["achievable", "--duration", "0"], ["achievable", "--rms", "-1"],
+        ["achievable", "--seed", "-1"], ["achievable", "--mismatch", "bouc_wen"],
+        ["achievable", "--network", "{missing}"], ["achievable", "--network", "{binary}"],
+        ["record"], ["record", "--data", "{missing}"], ["record", "--data", "{good}", "--model", "nope"],
+        ["record", "--data", "{good}", "--inverses", "nope"], ["record", "--data", "{good}", "--plant-preset",
+                                                                "{missing}"],
+        ["record", "--data", "{good}", "--epochs", "0"], ["record", "--data", "{good}", "--fs", "500"],
+        ["train", "--epochs", "0"], ["train", "--out", "{folder}"], ["train", "--model", "nope", "--out", "{missing}"],
+        ["train", "--rms", "0", "1", "--out", "{missing}"], ["train", "--seed", "-1", "--out", "{missing}"],
+        ["train", "--history", "0", "--out", "{missing}"], ["train", "--dt", "0", "--out", "{missing}"],
+    ],
 }
 
 

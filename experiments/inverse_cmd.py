@@ -1,0 +1,303 @@
+"""``mrd-env inverse``: inverse models of the damper — force-tracking tables and figures, and neural training.
+
+    mrd-env inverse achievable                          # desired forces the damper can produce (random commands)
+    mrd-env inverse record --data FILE --columns ... --units ... --fs 3004.8     # a measured record
+    mrd-env inverse train --model spencer_dyke --preset spencer1997 --out net.npz
+
+``achievable``: for each plant model, a virtual-rig record under a random stroke and random commands
+(:func:`mrd_env.inverse.achievable_forces`) gives the desired force; every inverse built on the plant's own
+model tracks it in closed loop with the plant (a perfect inverse has zero error), and so does every inverse built
+on another model (``--mismatch inverse_model:plant_model``, default Bouc–Wen inverses on the Spencer–Dyke plant).
+
+``record``: the desired force is a measured force; the plant is the model fitted to the first ``--fit-fraction``
+of the record (or ``--plant-preset``), the inverses are built on that model (the neural one is trained on the
+fit part of the record itself, and/or on virtual-rig data of the fitted model), and E_t (review eq. 3) is
+measured on the held-back rest. The row "measured command" is the plant driven by the command the test sent.
+
+Tables are written as Markdown and CSV, figures as PNG (desired vs achieved force, commands, force–velocity loops).
+"""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+
+from mrd_env.dampers import available_dampers, make_damper
+from mrd_env.inverse import INVERSES, make_inverse, plot_tracking, track
+from mrd_env.inverse.base import Inverse
+from mrd_env.report import write_table
+
+DT = 1e-3
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    sub = p.add_subparsers(dest="action", required=True, metavar="ACTION")
+    a = sub.add_parser("achievable", help="track desired forces the damper can produce (tables, figures)",
+                       description="track desired forces the damper can produce (tables, figures)")
+    a.add_argument("--plants", nargs="+", default=["spencer_dyke", "bouc_wen"], help="plant damper models")
+    a.add_argument("--preset", default="spencer1997", help="preset of every damper (default spencer1997)")
+    a.add_argument("--inverses", nargs="+", default=list(INVERSES), help=f"inverses, among {list(INVERSES)}")
+    a.add_argument("--mismatch", nargs="*", default=["bouc_wen:spencer_dyke"],
+                   help="extra pairs inverse_model:plant_model (default bouc_wen:spencer_dyke)")
+    a.add_argument("--duration", type=float, default=10.0, help="record length in s (default 10)")
+    a.add_argument("--rms", type=float, default=0.004, help="stroke r.m.s. in m (default 0.004)")
+    a.add_argument("--bandwidth", type=float, default=8.0, help="stroke bandwidth in Hz (default 8)")
+    a.add_argument("--seed", type=int, default=1, help="seed of the record (default 1)")
+    a.add_argument("--network", type=Path, action="append", default=[],
+                   help="a neural-inverse network file to use for its model (default: the shipped ones)")
+    a.add_argument("--out", type=Path, default=Path("results/inverse/achievable"), help="output folder")
+
+    from .identify_cmd import add_data_arguments
+
+    r = sub.add_parser("record", help="track a measured force with a plant fitted to the record",
+                       description="track a measured force with a plant fitted to the record")
+    add_data_arguments(r)
+    r.add_argument("--model", default="spencer_dyke", help="the plant's damper model (fitted to the record)")
+    r.add_argument("--plant-preset", type=Path, default=None,
+                   help="use this fitted preset (JSON, mrd-env identify --save-preset) instead of fitting")
+    r.add_argument("--inverses", nargs="+", default=list(INVERSES), help=f"inverses, among {list(INVERSES)}")
+    r.add_argument("--neural", nargs="+", default=["record", "rig"], choices=("record", "rig"),
+                   help="neural inverses: trained on the record's fit part and/or on rig data of the fitted model")
+    r.add_argument("--epochs", type=int, default=30, help="neural training epochs (default 30)")
+    r.add_argument("--plot-window", type=float, default=1.0, help="seconds shown over time (default 1)")
+    r.add_argument("--out", type=Path, default=Path("results/inverse/record"), help="output folder")
+
+    t = sub.add_parser("train", help="train a neural inverse and save it (.npz)",
+                       description="train a neural inverse on virtual-rig data of a damper (or on measured records) "
+                                   "and save it")
+    t.add_argument("--model", default="spencer_dyke", help=f"damper model, one of {available_dampers()}")
+    t.add_argument("--preset", default=None, help="its preset (default: the model's)")
+    t.add_argument("--out", type=Path, required=True, help="network file to write (.npz)")
+    t.add_argument("--dt", type=float, default=DT, help="control step in s (default 1e-3)")
+    t.add_argument("--history", type=int, default=8, help="measurements in the input history (default 8)")
+    t.add_argument("--hidden", type=int, nargs="+", default=[64, 64], help="hidden layer widths (default 64 64)")
+    t.add_argument("--epochs", type=int, default=30, help="training epochs (default 30)")
+    t.add_argument("--records", type=int, default=40, help="virtual-rig records (default 40)")
+    t.add_argument("--duration", type=float, default=5.0, help="seconds per record (default 5)")
+    t.add_argument("--rms", type=float, nargs=2, default=[0.001, 0.006], metavar=("LO", "HI"),
+                   help="stroke r.m.s. range in m (default 0.001 0.006)")
+    t.add_argument("--bandwidth", type=float, nargs=2, default=[2.0, 15.0], metavar=("LO", "HI"),
+                   help="stroke bandwidth range in Hz (default 2 15)")
+    t.add_argument("--hold", type=float, nargs=2, default=[0.005, 0.1], metavar=("LO", "HI"),
+                   help="mean command hold time range in s (default 0.005 0.1)")
+    t.add_argument("--seed", type=int, default=0, help="seed (default 0)")
+    t.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def run(args: argparse.Namespace) -> int:
+    return {"achievable": run_achievable, "record": run_record, "train": run_train}[args.action](args)
+
+
+# --- achievable forces ----------------------------------------------------------------------------------------
+
+def _check_names(inverses, models) -> None:
+    bad = [i for i in inverses if i not in INVERSES]
+    if bad:
+        raise ValueError(f"--inverses: unknown inverse(s) {bad}; available: {list(INVERSES)}")
+    bad = [m for m in models if m not in available_dampers()]
+    if bad:
+        raise ValueError(f"unknown damper model(s) {bad}; available: {available_dampers()}")
+
+
+def _pairs(args) -> list[tuple[str, str]]:
+    """(inverse model, plant model) of every block of the table."""
+    pairs = [(m, m) for m in args.plants]
+    for item in args.mismatch:
+        parts = item.split(":")
+        if len(parts) != 2 or not all(parts):
+            raise ValueError(f"--mismatch: expected inverse_model:plant_model, got {item!r}")
+        pairs.append((parts[0], parts[1]))
+    return pairs
+
+
+def build_inverse(name: str, damper, dt: float, networks: dict):
+    """``make_inverse(name, damper, dt=dt)``; the neural one with the network given for the model, if any; None
+    for an inverse that does not apply to the model (SID outside the Bouc–Wen family)."""
+    from mrd_env.inverse.sid import SID_MODELS
+
+    if name == "sid" and damper.name not in SID_MODELS:
+        return None
+    options = {"network": networks[damper.name]} if name == "neural" and damper.name in networks else {}
+    return make_inverse(name, damper, dt=dt, **options)
+
+
+def achievable_rows(pairs, inverses, *, preset: str, duration: float, rms: float, bandwidth: float, seed: int,
+                    networks: dict | None = None, out: Path | None = None) -> list[dict]:
+    """The tracking table of the ``achievable`` action (one row per inverse model, plant and inverse), with one
+    figure per pair when ``out`` is given."""
+    from mrd_env.inverse import achievable_forces
+
+    networks = networks or {}
+    rows = []
+    for inv_model, plant_model in pairs:
+        plant = make_damper(plant_model, preset)
+        rec = achievable_forces(plant, duration=duration, dt=DT, rms=rms, bandwidth=bandwidth, rng=seed)
+        inv_damper = make_damper(inv_model, preset)
+        results = {}
+        for name in inverses:
+            inv = build_inverse(name, inv_damper, DT, networks)
+            if inv is None:
+                continue
+            r = track(inv, plant, rec.x, rec.v, rec.force, DT)
+            results[name] = r
+            rows.append({"plant": plant_model, "inverse model": inv_model, "inverse": name,
+                         "NRMSE %": 100 * float(r.nrmse[0]), "E_t %": 100 * float(r.E_t[0]),
+                         "µs per call": 1e6 * r.command_time})
+        if out is not None and results:
+            plot_tracking(results, out / f"achievable_{inv_model}_on_{plant_model}.png", window=(1.0, 2.0),
+                          title=f"achievable forces: inverses on {inv_model}, plant {plant_model} ({preset})")
+    return rows
+
+
+def run_achievable(args: argparse.Namespace) -> int:
+    from mrd_env.inverse.neural import load_network
+    from mrd_env.validation import check_scalar
+
+    pairs = _pairs(args)
+    _check_names(args.inverses, [m for pair in pairs for m in pair])
+    for m in {m for pair in pairs for m in pair}:
+        make_damper(m, args.preset)  # an unknown preset fails here, before any run
+    check_scalar("--duration", args.duration, 0.1, 3600.0, unit="s")
+    check_scalar("--rms", args.rms, 0.0, 0.1, lo_open=True, unit="m")
+    check_scalar("--bandwidth", args.bandwidth, 0.0, 100.0, lo_open=True, unit="Hz")
+    if args.seed < 0:
+        raise ValueError(f"--seed must be >= 0, got {args.seed}")
+    networks = {}
+    for path in args.network:
+        net = load_network(path)
+        networks[net.meta["model"]] = net
+    out = args.out
+    out.mkdir(parents=True, exist_ok=True)
+    rows = achievable_rows(pairs, args.inverses, preset=args.preset, duration=args.duration, rms=args.rms,
+                           bandwidth=args.bandwidth, seed=args.seed, networks=networks, out=out)
+    md, _ = write_table(rows, out / "achievable", floatfmt=".3g",
+                        title=f"achievable forces ({args.preset}, {args.duration:g} s, stroke {1e3 * args.rms:g} mm "
+                              f"r.m.s. up to {args.bandwidth:g} Hz, seed {args.seed}): tracking errors")
+    print(md.read_text())
+    print(f"wrote {out}")
+    return 0
+
+
+# --- a measured record ----------------------------------------------------------------------------------------
+
+def run_record(args: argparse.Namespace) -> int:
+    from mrd_env.identification.compare import split_records
+    from mrd_env.identification.fit import fit_model, load_preset, save_preset
+    from mrd_env.inverse.training import train_neural_inverse
+
+    from .identify_cmd import fit_options, grid_dt, load_data
+
+    _check_names(args.inverses, [args.model])
+    if args.epochs < 1:
+        raise ValueError(f"--epochs must be >= 1, got {args.epochs}")
+    plant = load_preset(args.plant_preset) if args.plant_preset is not None else None
+    rec = load_data(args)
+    dt = grid_dt(args, rec)
+    whole, fits, idx = split_records([rec], args.fit_fraction, dt)
+    r, k = whole[0], idx[0]
+    dt = r.dt if dt is None else dt
+    out = args.out
+    out.mkdir(parents=True, exist_ok=True)
+    if plant is None:
+        fr = fit_model(args.model, fits, method=args.method, seed=args.seed, dt=dt, progress=not args.no_progress,
+                       **fit_options(args))
+        plant = fr.damper
+        save_preset(fr, out / f"plant_{args.model}.json")
+    x, v, f = r.x[k:], r.velocity()[k:], r.force[k:]
+    cmd = np.clip(r.command[k:], plant.command.v_min, plant.command.v_max)
+    t = r.t[k:] - r.t[k]  # the held-back part, from 0
+    results, rows = {}, []
+
+    def add(label, res):
+        results[label] = res
+        rows.append({"inverse": label, "E_t %": 100 * float(res.E_t[0]), "NRMSE %": 100 * float(res.nrmse[0]),
+                     "µs per call": 1e6 * res.command_time})
+
+    add("measured command", track(RecordedCommand(plant, cmd, dt=dt), plant, x, v, f, dt))
+    for name in args.inverses:
+        if name == "neural":
+            for source in args.neural:
+                net = train_neural_inverse(plant, fits if source == "record" else None, dt=dt, epochs=args.epochs,
+                                           seed=args.seed, progress=not args.no_progress,
+                                           **rig_like(fits[0], dt))
+                net.save(out / f"neural_{source}.npz")
+                add(f"neural ({source} data)", track(make_inverse("neural", plant, dt=dt, network=net), plant, x, v,
+                                                     f, dt))
+            continue
+        inv = build_inverse(name, plant, dt, {})
+        if inv is not None:
+            add(name, track(inv, plant, x, v, f, dt))
+    title = (f"{r.label}: plant {plant.name} fitted on the first {100 * args.fit_fraction:g} %, tracking of the "
+             f"measured force on the held-back {t[-1]:.2f} s")
+    md, _ = write_table(rows, out / "record_tracking", title=title, floatfmt=".4g")
+    window = (0.0, min(args.plot_window, float(t[-1])))  # time from the start of the held-back part
+    plot_tracking(results, out / "record_tracking.png", window=window, title=title)
+    print(md.read_text())
+    print(f"wrote {out}")
+    return 0
+
+
+def rig_like(record, dt: float) -> dict:
+    """Virtual-rig settings resembling a measured record, for a neural inverse trained on its fitted model: 15
+    records of 4 s, stroke r.m.s. from half to 1.5 times the record's, bandwidth from half to all of the frequency
+    below which 99 % of its stroke's power lies, command hold times from 5 ms to twice the record's mean."""
+    from scipy.signal import welch
+
+    f, P = welch(record.x - np.mean(record.x), fs=1.0 / dt, nperseg=min(8192, record.n))
+    f99 = float(f[np.searchsorted(np.cumsum(P) / np.sum(P), 0.99)])
+    sx = float(np.std(record.x))
+    cmd = record.command
+    # a switch: a step of more than a tenth of the span (a measured command is noisy from sample to sample)
+    switches = max(int(np.count_nonzero(np.abs(np.diff(cmd)) > 0.1 * (cmd.max() - cmd.min()))), 1)
+    hold = record.duration / switches
+    return {"n_records": 15, "duration": 4.0, "rms": (0.5 * sx, 1.5 * sx), "bandwidth": (0.5 * f99, f99),
+            "mean_hold": (0.005, max(0.005, 2.0 * hold))}
+
+
+class RecordedCommand(Inverse):
+    """Not an inverse: the commands a test sent, replayed one per call (the plant's own error as a baseline)."""
+
+    name = "measured command"
+
+    def __init__(self, damper, commands, *, dt: float):
+        super().__init__(damper, dt=dt)
+        self.commands = np.asarray(commands, dtype=np.float64)
+
+    def _start(self, rows, x, v, f_measured):
+        self.k = 0
+
+    def _command(self, f_desired, x, v, f_measured):
+        self.k += 1
+        return self.commands[self.k - 1:self.k]
+
+
+# --- training -----------------------------------------------------------------------------------------------------
+
+def run_train(args: argparse.Namespace) -> int:
+    from mrd_env.inverse.training import train_neural_inverse
+
+    damper = make_damper(args.model, args.preset)
+    for name, lohi in (("--rms", args.rms), ("--bandwidth", args.bandwidth), ("--hold", args.hold)):
+        if not (np.all(np.isfinite(lohi)) and 0 < lohi[0] <= lohi[1]):
+            raise ValueError(f"{name} must be a range LO HI with 0 < LO <= HI, got {lohi}")
+    if args.seed < 0:
+        raise ValueError(f"--seed must be >= 0, got {args.seed}")
+    if args.out.is_dir():
+        raise ValueError(f"--out {args.out} is a folder; give a file name (.npz)")
+    preset = args.preset or type(damper).default_preset
+    reproduce = ("mrd-env inverse train " + " ".join([
+        f"--model {args.model}", f"--preset {preset}", f"--dt {args.dt:g}", f"--history {args.history}",
+        "--hidden " + " ".join(map(str, args.hidden)), f"--epochs {args.epochs}", f"--records {args.records}",
+        f"--duration {args.duration:g}", f"--rms {args.rms[0]:g} {args.rms[1]:g}",
+        f"--bandwidth {args.bandwidth[0]:g} {args.bandwidth[1]:g}", f"--hold {args.hold[0]:g} {args.hold[1]:g}",
+        f"--seed {args.seed}", f"--out {args.out}"]))
+    net = train_neural_inverse(damper, dt=args.dt, history=args.history, hidden=args.hidden, epochs=args.epochs,
+                               seed=args.seed, n_records=args.records, duration=args.duration,
+                               rms=tuple(args.rms), bandwidth=tuple(args.bandwidth), mean_hold=tuple(args.hold),
+                               reproduce=reproduce, progress=not args.no_progress)
+    path = net.save(args.out)
+    print(f"validation RMS of the scaled target {net.meta['validation_rms_u']:.4f}, {net.meta['n_samples']} "
+          f"samples, {net.meta['wall_time_s']:.1f} s; wrote {path}")
+    print(f"reproduce: {reproduce}")
+    return 0

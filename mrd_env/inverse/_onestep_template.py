@@ -1,0 +1,148 @@
+"""Template of the inverses' compiled one-step routines (see :mod:`mrd_env.inverse.onestep`).
+
+Not imported as such: :func:`mrd_env.inverse.onestep.onestep_module` writes, for each damper model, a module made
+of a header importing ``macro_step`` and ``ns`` from that model's compiled stepping kernel
+(:func:`mrd_env.integrator.kernel_module`) followed by this text, so that every step below is the project's
+stepping routine (SDIRK2 with error control, the command lag integrated exactly) on the virtual rig: no plant,
+the damper driven by its stroke, velocity and acceleration w = (x, ẋ, ẍ), interpolated linearly inside the step.
+
+Arguments shared by the functions: the rig's system arrays C, D and level matrices Ainv, Bbar, Mq, PP
+(:meth:`mrd_env.integrator.SystemMatrices.levels`), the parameter vector P (1, n_params), the lag rate eta (1,),
+the step dt, the finest sub-step level, the tolerances, and scratch buffers wf, wi (one system's workspace).
+"""
+import math
+
+import numba as nb
+import numpy as np
+
+
+@nb.njit(cache=True)
+def advance(C, D, Ainv, Bbar, Mq, PP, P, eta, Y, U, F, W, V, x1, v1, dt, max_level, nsub, atol, rtol, wf, wi,
+            status):
+    """Advance N dampers by one step with the commands V[b] held, from their motion W[b] = (x, ẋ, ẍ) to the
+    measured x1[b], v1[b] (ẍ: the backward difference of the velocities): states Y (N, ns), effective commands
+    U (N, 1), forces F (N, 1) and W in place; status[b] is the kernel's (0: OK)."""
+    m = ns + 1
+    cmd = np.empty(1)
+    w1 = np.empty(3)
+    for b in range(Y.shape[0]):
+        wi[m] = -1  # the Newton matrix of another system is not reused
+        cmd[0] = V[b]
+        w1[0] = x1[b]
+        w1[1] = v1[b]
+        w1[2] = (v1[b] - W[b, 1]) / dt
+        st, used, nxt = macro_step(C, D, Ainv, Bbar, Mq, PP, P, eta, Y[b], U[b], F[b], cmd, W[b], w1, dt,
+                                   max_level, nsub[b], atol, rtol, wf, wi)
+        nsub[b] = nxt
+        status[b] = st
+        for i in range(3):
+            W[b, i] = w1[i]
+
+
+@nb.njit(inline='always')
+def extrapolate(w0, dt, w1):
+    """w1 = the motion (x, ẋ, ẍ) one step after w0 at constant acceleration."""
+    w1[0] = w0[0] + dt * w0[1] + 0.5 * dt * dt * w0[2]
+    w1[1] = w0[1] + dt * w0[2]
+    w1[2] = w0[2]
+
+
+@nb.njit(cache=True)
+def step_force(C, D, Ainv, Bbar, Mq, PP, P, eta, Y, U, F, v, w0, w1, dt, max_level, atol, rtol, wf, wi, Ys, Us,
+               Fs):
+    """The force at the end of one step from the state (Y, U, F) of one damper with the command v held and the
+    motion w0 → w1, leaving that state unchanged (NaN if the step fails)."""
+    for i in range(Y.shape[0]):
+        Ys[i] = Y[i]
+    Us[0] = U[0]
+    Fs[0] = F[0]
+    cmd = np.empty(1)
+    cmd[0] = v
+    nsub = np.ones(1, dtype=np.int64)  # an int64, not the literal 1: the call then shares the driver's compilation
+    wi[ns + 1] = -1
+    st, used, nxt = macro_step(C, D, Ainv, Bbar, Mq, PP, P, eta, Ys, Us, Fs, cmd, w0, w1, dt, max_level, nsub[0],
+                               atol, rtol, wf, wi)
+    if st != 0:
+        return math.nan
+    return Fs[0]
+
+
+@nb.njit(cache=True)
+def nearest_commands(C, D, Ainv, Bbar, Mq, PP, P, eta, Y, U, F, W, target, grid, n_refine, dt, max_level,
+                     atol, rtol, wf, wi, out, predicted):
+    """For each damper b, the command whose force at the end of the next step — the motion extrapolated from
+    W[b] at constant acceleration — is nearest ``target[b]``: the forces of
+    the ``grid`` commands, then ``n_refine`` Illinois (regula falsi) steps inside the grid interval that brackets
+    the target next to the best grid point (none if no interval brackets it: the target is out of reach and the
+    best grid command, an end of the range when the force is monotone in the command, is kept)."""
+    K = grid.shape[0]
+    n = Y.shape[1]
+    Ys = np.empty(n)
+    Us = np.empty(1)
+    Fs = np.empty(1)
+    Fk = np.empty(K)
+    w1 = np.empty(3)
+    for b in range(Y.shape[0]):
+        f = target[b]
+        extrapolate(W[b], dt, w1)
+        best = -1
+        for k in range(K):
+            Fk[k] = step_force(C, D, Ainv, Bbar, Mq, PP, P, eta, Y[b], U[b], F[b], grid[k], W[b], w1, dt,
+                               max_level, atol, rtol, wf, wi, Ys, Us, Fs)
+            if math.isfinite(Fk[k]) and (best < 0 or abs(Fk[k] - f) < abs(Fk[best] - f)):
+                best = k
+        if best < 0:  # every prediction failed: keep the lowest command
+            out[b] = grid[0]
+            predicted[b] = math.nan
+            continue
+        c_best = grid[best]
+        F_best = Fk[best]
+        lo = -1
+        for k in (best - 1, best):  # the interval on either side of the best grid point
+            if 0 <= k < K - 1 and (Fk[k] - f) * (Fk[k + 1] - f) <= 0.0 and Fk[k] != Fk[k + 1]:
+                lo = k
+                break
+        if lo >= 0:  # Illinois: regula falsi halving the value kept at an end that stays twice in a row
+            s, fs = grid[lo], Fk[lo] - f
+            t, ft = grid[lo + 1], Fk[lo + 1] - f
+            side = 0
+            for it in range(n_refine):
+                if fs == ft:
+                    break
+                r = (s * ft - t * fs) / (ft - fs)
+                fr = step_force(C, D, Ainv, Bbar, Mq, PP, P, eta, Y[b], U[b], F[b], r, W[b], w1, dt,
+                                max_level, atol, rtol, wf, wi, Ys, Us, Fs)
+                if not math.isfinite(fr):
+                    break
+                if abs(fr - f) < abs(F_best - f):
+                    c_best = r
+                    F_best = fr
+                fr -= f
+                if fr * ft > 0.0:
+                    t, ft = r, fr
+                    if side == -1:
+                        fs *= 0.5
+                    side = -1
+                elif fr * fs > 0.0:
+                    s, fs = r, fr
+                    if side == 1:
+                        ft *= 0.5
+                    side = 1
+                else:
+                    break
+        out[b] = c_best
+        predicted[b] = F_best
+
+
+@nb.njit(cache=True)
+def step_forces(C, D, Ainv, Bbar, Mq, PP, P, eta, Y, U, F, W, W1, V, dt, max_level, atol, rtol, wf, wi, out):
+    """out[b, k]: damper b's force at the end of one step with the command V[b, k] held and the motion going
+    from W[b] to W1[b], from its current state (left unchanged; NaN where the step fails)."""
+    n = Y.shape[1]
+    Ys = np.empty(n)
+    Us = np.empty(1)
+    Fs = np.empty(1)
+    for b in range(Y.shape[0]):
+        for k in range(V.shape[1]):
+            out[b, k] = step_force(C, D, Ainv, Bbar, Mq, PP, P, eta, Y[b], U[b], F[b], V[b, k], W[b], W1[b], dt,
+                                   max_level, atol, rtol, wf, wi, Ys, Us, Fs)
