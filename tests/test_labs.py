@@ -87,3 +87,19 @@ def test_a_failed_check_fails_the_lab(tmp_path):
     proc = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, timeout=60)
     assert proc.returncode == 1
     assert "energy grows with command" in proc.stderr
+
+
+def test_a_lab_executes_as_a_notebook(tmp_path, monkeypatch):
+    """Lab 1 converted by jupytext and run cell by cell in a Jupyter kernel shows its figures under the cells
+    (needs the labs extra and nbclient/ipykernel; skipped without them)."""
+    jupytext = pytest.importorskip("jupytext")
+    nbclient = pytest.importorskip("nbclient")
+    pytest.importorskip("ipykernel")
+    monkeypatch.setenv("MRD_LAB_OUT", str(tmp_path))
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
+    nb = jupytext.read(LABS / "lab1_rig.py")
+    nbclient.NotebookClient(nb, timeout=600, kernel_name="python3", resources={"metadata": {"path": str(tmp_path)}}
+                            ).execute()
+    outputs = [o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])]
+    assert sum("image/png" in o.get("data", {}) for o in outputs) == len(FIGURES["lab1_rig"])
+    assert not [o for o in outputs if o.output_type == "error"]
