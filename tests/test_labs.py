@@ -16,7 +16,7 @@ LABS = ROOT / "experiments" / "labs"
 
 #: lab script → the figures it must write (relative to $MRD_LAB_OUT/<lab>/)
 FIGURES = {
-    "lab1_rig": ["loops_command.png", "loops_frequency.png", "energy_per_cycle.png", "command_lag.png"],
+    "lab1_rig": ["loops_command.png", "figure5_parameters.png", "loops_frequency.png", "energy_per_cycle.png", "command_lag.png"],
     "lab2_identification": ["record.png", "model_comparison.png", "parameter_spread.png"],
     "lab3_quarter_car": ["tradeoff.png", "spectrum_wk.png"],
     "lab4_building": ["poles.png", "j_criteria.png"],

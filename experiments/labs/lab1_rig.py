@@ -20,7 +20,8 @@
 #
 # **Learning objectives.** After this lab you can
 # 1. read force–displacement and force–velocity loops and say what the command and the frequency do to them
-#    (the review's Figures 2 and 5: yield force, post-yield slope, pre-yield hysteresis);
+#    (the review's Figures 2 and 5: yield force, post-yield slope, pre-yield hysteresis), and read the Figure 5
+#    parameters from a loop;
 # 2. compute the energy dissipated per cycle, ∮ F dx, and relate it to an equivalent viscous damping;
 # 3. check a simulation against a closed form (the Bingham model's energy per cycle) and published values;
 # 4. measure the command lag — how long the damper takes to follow a step of its command.
@@ -75,6 +76,40 @@ for ax in (ax_x, ax_v):
 ax_v.legend(title="command")
 fig.suptitle(f"Spencer–Dyke prototype damper, X = {X * 1e3:g} mm, f = {f0:g} Hz: loops against the command")
 lab.save(fig, "loops_command.png")
+
+# %% [markdown]
+# ## Task 1b — The parameters of the review's Figure 5, read from the loops
+# Figure 5 of the review describes a force–velocity loop by a yield force F_yield, a post-yield damping c_ps,
+# a pre-yield damping c_pre and a zero-force velocity v₀. Fit a straight line to the loop where |ẋ| > 0.6 ẋ_max:
+# its slope is c_ps and its intercept F_yield (measure the force from the preload −k₁x₀). Compare with the large-
+# velocity limit of eq. (12): there z saturates at z_s = (A/(β + γ))^(1/n) and the k₀ spring is negligible, so
+# F + k₁x₀ ≈ c₁(α z_s + c₀ ẋ)/(c₀ + c₁): c_ps = c₀c₁/(c₀ + c₁), F_yield = α z_s c₁/(c₀ + c₁).
+
+# %%
+p = damper.params
+z_s = (p.A / (p.beta + p.gamma)) ** (1 / p.n)
+preload = -p.k1 * p.x0  # N
+figure5 = {}  # command -> (c_ps, F_yield) read from the loop, and the large-velocity limit of eq. (12)
+fig, ax = figure(figsize=(7, 4.2))
+for r, v in zip(by_command, commands):
+    vel, F = r.v[last], r.force[last] - preload
+    fast = vel > 0.6 * vel.max()
+    c_ps, F_yield = np.polyfit(vel[fast], F[fast], 1)
+    c0, c1, alpha = p.c0a + p.c0b * v, p.c1a + p.c1b * v, p.alpha_a + p.alpha_b * v
+    figure5[v] = {"c_ps": c_ps, "F_yield": F_yield, "c_ps eq. (12)": c0 * c1 / (c0 + c1),
+                  "F_yield eq. (12)": alpha * z_s * c1 / (c0 + c1)}
+    line = ax.plot(vel, F, lw=1, label=f"{v:g} V")[0]
+    ax.plot([0, vel.max()], [F_yield, F_yield + c_ps * vel.max()], "--", color=line.get_color(), lw=1)
+    print(f"{v:g} V: c_ps {c_ps:.0f} N·s/m (eq. 12 limit {figure5[v]['c_ps eq. (12)']:.0f}), "
+          f"F_yield {F_yield:.0f} N (limit {figure5[v]['F_yield eq. (12)']:.0f})")
+ax.axhline(0, color="k", lw=0.6)
+ax.axvline(0, color="k", lw=0.6)
+ax.set_xlabel("velocity ẋ (m/s)")
+ax.set_ylabel("force above the preload F + k₁x₀ (N)")
+ax.grid(alpha=0.3)
+ax.legend(title="command", fontsize=8)
+ax.set_title("post-yield lines (dashed): slope c_ps, intercept F_yield")
+lab.save(fig, "figure5_parameters.png")
 
 # %% [markdown]
 # ## Task 2 — Loops against the frequency
@@ -192,7 +227,8 @@ lab.save(fig, "command_lag.png")
 # 3. c_eq falls with frequency at a high command. Explain with E = 4 f_c X + π c₀ ω X².
 # 4. Why does the force take longer than u to reach 63 % of its step? What does that mean for a controller that
 #    switches every millisecond?
-# 5. The asymmetry of the loops (peak force in compression larger than in extension): where does it come from?
+# 5. Why is c_ps smaller than c₀? What would the pre-yield slope c_pre be, and which parameters of eq. (12) set it?
+# 6. The asymmetry of the loops (peak force in compression larger than in extension): where does it come from?
 
 # %% [markdown]
 # ## Instructor's check
@@ -204,6 +240,11 @@ worst = max(max(abs(r.force[last].max() - published[v][0]), abs(r.force[last].mi
             for r, v in zip(by_command, commands))
 lab.check("peak forces at 1.5 cm / 2.5 Hz reproduce the published Spencer–Dyke check values (within 5 N)",
           worst < 5.0, f"worst difference {worst:.2f} N")
+worst_fig5 = max(max(abs(d["c_ps"] / d["c_ps eq. (12)"] - 1), abs(d["F_yield"] / d["F_yield eq. (12)"] - 1))
+                 for d in figure5.values())
+lab.check("c_ps and F_yield read from the loops match the large-velocity limit of eq. (12) (within 2 %)",
+          worst_fig5 < 0.02, f"worst relative difference {100 * worst_fig5:.2f} %")
+lab.check("F_yield grows with the command", np.all(np.diff([figure5[v]["F_yield"] for v in commands]) > 0))
 for f in frequencies:
     e = [energy[f, v] for v in commands]
     lab.check(f"energy per cycle grows with the command at {f:g} Hz", np.all(np.diff(e) > 0),
