@@ -41,8 +41,8 @@
 # **Budget.** For CI this lab trains 40 000 environment steps (about 15 s once the environment is compiled). The full-length run of the
 # project's hyperparameters is `mrd-env train --plant quarter_car --algo ppo --seeds 0 1 2` (3·10⁶ steps per
 # seed, RL Zoo's `experiments/hyperparams/ppo.yml`); set `MRD_LAB_FULL=1` to train 10⁶ steps here. Agents
-# shipped with the project, if any, are listed by `controllers.shipped_agents()`; this lab evaluates the first
-# quarter-car one next to yours.
+# shipped with the project, if any, are listed by `controllers.shipped_agents()` and loaded with
+# `controllers.load_agent(folder)`; this lab evaluates the first quarter-car one next to yours.
 
 # %%
 import numpy as np
