@@ -13,13 +13,16 @@ level on every record, so this is the maximum-likelihood fit). Per parameter: th
 bound of its relative standard deviation (:func:`mrd_env.identification.fit.sensitivity`); a parameter with a
 bound ≤ 0.5 % is counted as well identifiable.
 
-Real data: :func:`mrd_env.identification.compare.compare_models` on the record (fit on the first
---fit-fraction, errors on the rest), plus Spencer–Dyke with the command lag η fitted as well. The default
-column mapping is the NEES export's (t, D cm, Y V, F N, V cm/s).
+Real data (``--real``): :func:`mrd_env.identification.compare.compare_models` on the record (fit on the first
+--fit-fraction, errors on the rest; or fit on all of it and errors on ``--validate``): every model with its
+preset's command lag; Spencer–Dyke (every model with ``--lag-all``) with the command dynamics fitted (η_rise,
+η_fall, delay) and the force aligned with the motion; the neural forward model on the force offset that fit
+found. The default column mapping is the NEES export's (t, D cm, Y V, F N, V cm/s).
 """
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import time
 from pathlib import Path
@@ -28,8 +31,10 @@ import numpy as np
 
 from mrd_env.dampers import CommandSpec, available_dampers, make_damper
 from mrd_env.identification import DamperRecord, load_record_csv
-from mrd_env.identification.compare import compare_models, split_records, validate
-from mrd_env.identification.fit import COMMAND_ETA, fit_model, fixed_by_default, save_preset, sensitivity
+from mrd_env.identification.compare import compare_models
+from mrd_env.identification.fit import fit_model
+from mrd_env.identification.parameters import fixed_by_default
+from mrd_env.identification.sensitivity import sensitivity
 from mrd_env.rig import random_test, sinusoidal_test
 
 from mrd_env.report import write_table
@@ -65,7 +70,7 @@ def synthetic_recovery(model: str, out: Path, *, noise: float = 0.01, progress: 
     free = [k for k in d.params.names() if k not in fixed]
     start = perturbed_start(d, free)
     crb = sensitivity(d, recs, noise=sigma)["rel_std"]
-    res = fit_model(model, recs, initial=start, progress=progress, weighting="sample")
+    res = fit_model(model, recs, initial=start, search={"progress": progress}, data={"weighting": "sample"})
     rows = []
     for k in free:
         true = getattr(d.params, k)
@@ -82,46 +87,74 @@ def synthetic_recovery(model: str, out: Path, *, noise: float = 0.01, progress: 
             "well-identified parameters": " ".join(r["parameter"] for r in well)}
 
 
+LAG = ("command_eta", "command_eta_fall", "command_delay")
+
+
 def real_comparison(path: Path, out: Path, *, models, fs: float | None, fit_fraction: float, method: str,
-                    command_range: str, progress: bool) -> list[dict]:
-    rec = load_record_csv(path, {"t": "t", "x": "D", "command": "Y", "force": "F", "v": "V"},
-                          {"t": "s", "x": "cm", "command": "V", "force": "N", "v": "cm/s"})
+                    command_range: str, progress: bool, validate: Path | None = None,
+                    lag_all: bool = False) -> list[dict]:
+    """The real-data table: every model fitted as before (the preset's command lag, no alignment) on the first
+    ``fit_fraction`` of the record (or on all of it, scored on ``validate``); Spencer–Dyke with its command
+    dynamics fitted (η_rise, η_fall, delay, starting from the preset's symmetric η) and the force aligned with the
+    motion; the neural forward model on the force offset that fit found. ``lag_all``: every model the
+    Spencer–Dyke way. Faults are excluded (the default). Returns the table's rows."""
+    columns = {"t": "t", "x": "D", "command": "Y", "force": "F", "v": "V"}
+    units = {"t": "s", "x": "cm", "command": "V", "force": "N", "v": "cm/s"}
+    rec = load_record_csv(path, columns, units)
+    other = None if validate is None else [load_record_csv(validate, columns, units)]
     dt = None if fs is None else 1.0 / fs
-    # models whose command channel is a current (A) are driven by the record's voltage: the driver's V → A gain
-    # is absorbed into their per-command coefficients (same numbers, channel relabelled, range covering 0-2.25 V)
-    entries = []
-    for m in (models or available_dampers()):
-        d = make_damper(m)
-        if d.command.unit != rec.command_unit:
-            c = d.command
-            try:
-                d = type(d)(d.params, CommandSpec(rec.command_unit, min(c.v_min, 0.0), max(c.v_max, 2.25), c.eta))
-            except ValueError:  # the preset is not valid over the wider range: keep its own (commands clipped)
-                d = type(d)(d.params, CommandSpec(rec.command_unit, c.v_min, c.v_max, c.eta))
-            entries.append(d)
-        else:
-            entries.append(m)
-    res = compare_models([rec], entries, method=method, fit_fraction=fit_fraction, out=out, dt=dt,
-                         progress=progress, fit_options={"command_range": command_range})
-    rows = res.rows
-    # Spencer–Dyke with the command lag η fitted too
-    if "spencer_dyke" in (models or available_dampers()):
-        d = make_damper("spencer_dyke")
-        fixed = fixed_by_default(d, d.params)
-        free = [k for k in d.params.names() if k not in fixed] + [COMMAND_ETA]
-        whole, fits, idx = split_records([rec], fit_fraction, dt)
-        fr = fit_model("spencer_dyke", fits, free=free, method=method, dt=dt, progress=progress,
-                       command_range=command_range)
-        v_rows, v_all, _, _ = validate(fr.damper, whole, idx, dt=dt, command_range=command_range)
-        save_preset(fr, out / "spencer_dyke_eta_fitted.json")
-        rows.append({"model": "spencer_dyke + η", "free params": len(fr.free), "fit E_t %": 100 * fr.overall["E_t"],
-                     "E_t %": 100 * v_all["E_t"], "E_x %": 100 * v_all["E_x"], "E_v %": 100 * v_all["E_v"],
-                     "J2 N": v_all["J2"], "fit J2 N": fr.overall["J2"], "wall time s": fr.wall_time,
-                     "evaluations": fr.n_evaluations, "converged": "yes" if fr.converged else "no"})
+    names = [m for m in (models or available_dampers()) if m != "neural"]
+    entries = [_voltage_driven(m, rec.command_unit) for m in names]
+    search = {"method": method, "progress": progress}
+    data = {"dt": dt, "command_range": command_range}
+    common = dict(search=search, fit_fraction=fit_fraction, validation_records=other)
+
+    def lagged(d):
+        """``d`` with an asymmetric lag allowed, and its free parameters plus the command dynamics."""
+        d = type(d)(d.params, dataclasses.replace(d.command, eta_fall=d.command.eta))
+        return d, {"free": [k for k in d.params.names() if k not in fixed_by_default(d, d.params)] + list(LAG)}
+
+    rows = []  # the command-dynamics fits and the network first (a failure there shows early), the table after
+    offset = 0
+    for d in entries if lag_all else [e for e in entries if getattr(e, "name", e) == "spencer_dyke"]:
+        d, opts = lagged(make_damper(d) if isinstance(d, str) else d)
+        res = compare_models([rec], [d], data={**data, "align": True}, out=out / f"{d.name}_lag_align",
+                             model_options={d.name: opts}, **common)
+        row = dict(res.rows[0])
+        fit = res.models[0].fit
+        if fit is not None:
+            c = fit.damper.command
+            row["model"] = (f"{d.name} + lag + align (η_rise {c.eta:.0f}/s, η_fall {c.eta_down:.0f}/s, "
+                            f"τ {1e3 * c.delay:.2f} ms)")
+            if d.name == "spencer_dyke":
+                offset = fit.settings["offsets"][0]
+        rows.append(row)
+    if models is None or "neural" in models:
+        res = compare_models([rec], ["neural"], search={"method": "adam", "progress": progress},
+                             data={**data, "offset": offset}, fit_fraction=fit_fraction, validation_records=other,
+                             out=out / "neural")
+        rows.append({**res.rows[0], "model": f"neural (force offset {offset} from Spencer–Dyke)"})
+    if names:
+        rows = compare_models([rec], entries, data=data, out=out / "preset_lag", **common).rows + rows
     how = "clipped to" if command_range == "clip" else "widening"
-    write_table(rows, out / "comparison_all", title=f"{path.name}: fit on the first {100 * fit_fraction:g} %, "
-                f"errors on the rest ({method}, commands {how} the preset range)", floatfmt=".4g")
+    where = (f"fit on all of {path.name}, errors on {validate.name}" if validate is not None
+             else f"fit on the first {100 * fit_fraction:g} %, errors on the rest")
+    write_table(rows, out / "comparison_all", title=f"{path.name}: {where} ({method}, commands {how} the preset "
+                "range; faults excluded)", floatfmt=".4g")
     return rows
+
+
+def _voltage_driven(model: str, unit: str):
+    """Models whose command channel is a current (A) are driven by the record's voltage: the driver's V → A gain
+    is absorbed into their per-command coefficients (same numbers, channel relabelled, range covering 0-2.25 V)."""
+    d = make_damper(model)
+    if d.command.unit == unit:
+        return model
+    c = d.command
+    try:
+        return type(d)(d.params, CommandSpec(unit, min(c.v_min, 0.0), max(c.v_max, 2.25), c.eta))
+    except ValueError:  # the preset is not valid over the wider range: keep its own (commands clipped)
+        return type(d)(d.params, CommandSpec(unit, c.v_min, c.v_max, c.eta))
 
 
 def main(argv=None) -> int:
@@ -131,7 +164,12 @@ def main(argv=None) -> int:
     p.add_argument("--fit-fraction", type=float, default=0.6)
     p.add_argument("--method", default="least_squares")
     p.add_argument("--command-range", default="clip", choices=("clip", "widen"))
-    p.add_argument("--models", nargs="+", default=None, help="default: all registered models")
+    p.add_argument("--models", nargs="+", default=None,
+                   help="default: all registered models and the neural forward model")
+    p.add_argument("--validate", type=Path, default=None,
+                   help="with --real: fit on all of that record, report the errors on this one")
+    p.add_argument("--lag-all", action="store_true",
+                   help="with --real: fit every model with its command dynamics and the force alignment")
     p.add_argument("--skip-synthetic", action="store_true")
     p.add_argument("--propagate", type=int, default=0, metavar="N",
                    help="also propagate the default sensor errors (review Table 7) to the Spencer–Dyke parameters "
@@ -141,11 +179,11 @@ def main(argv=None) -> int:
     args = p.parse_args(argv)
     out = args.out
     out.mkdir(parents=True, exist_ok=True)
-    models = args.models or available_dampers()
+    models = args.models or available_dampers() + ["neural"]
     progress = not args.no_progress
     if not args.skip_synthetic:
         summary = []
-        for m in models:
+        for m in [m for m in models if m != "neural"]:  # the network has no true parameters to recover
             t0 = time.perf_counter()
             try:
                 summary.append(synthetic_recovery(m, out, progress=progress))
@@ -165,7 +203,8 @@ def main(argv=None) -> int:
         print(pr.files["table_md"].read_text())
     if args.real is not None:
         real_comparison(args.real, out / "real", models=models, fs=args.fs, fit_fraction=args.fit_fraction,
-                               method=args.method, command_range=args.command_range, progress=progress)
+                        method=args.method, command_range=args.command_range, progress=progress,
+                        validate=args.validate, lag_all=args.lag_all)
         print((out / "real" / "comparison_all.md").read_text())
     return 0
 

@@ -2,21 +2,31 @@
 
 The record is read with declared columns and units (SI inside), optionally cut to [--t-start, --t-end], put
 on a uniform grid (its own rate: the mean sampling interval, or --fs if given; time stamps rounded in the file
-are rebuilt as t0 + k·dt; it is resampled only when --dt asks for another step, and the command says so), split into a fit part (the first --fit-fraction) and a held-back validation part; the
-model is fitted on the first and E_t, E_x, E_v (review eq. 3) and J2 (eq. 26) are reported on both.
+are rebuilt as t0 + k·dt; it is resampled only when --dt asks for another step, and the command says so), split
+into a fit part (the first --fit-fraction) and a held-back validation part; the model is fitted on the first and
+E_t, E_x, E_v (review eq. 3) and J2 (eq. 26) are reported on both. With --validate FILE the model is fitted on
+the whole of --data and scored on FILE (another test of the same damper). Faults found in a record (saturated
+channels, spikes, gaps) are excluded from the fit and the errors, and listed; --align corrects a constant sample
+offset between the force and the motion channels; --model neural fits the neural forward model.
 """
 from __future__ import annotations
 
 import argparse
 import math
+import warnings
 from pathlib import Path
 
 import numpy as np
 
 from mrd_env.dampers import available_dampers, make_damper
-from mrd_env.identification.compare import plot_fit, split_records, validate
+from mrd_env.identification.compare import fr_data, plot_fit, split_records, validate
 from mrd_env.identification.data import DamperRecord, load_record_csv
-from mrd_env.identification.fit import COMMAND_ETA, METHODS, fit_model, save_preset
+from mrd_env.identification.faults import FaultsExcluded
+from mrd_env.identification.fit import fit_model
+from mrd_env.identification.options import METHODS, DataOptions, SearchOptions
+from mrd_env.identification.parameters import COMMAND_ETA, COMMAND_PARAMS, fixed_by_default
+from mrd_env.identification.prepare import FAULT_MODES, uniform_record
+from mrd_env.identification.presets import save_preset
 
 from mrd_env.report import write_table
 
@@ -25,7 +35,11 @@ from .records import add_column_arguments, columns_and_units
 
 def add_data_arguments(p: argparse.ArgumentParser) -> None:
     """Options shared by ``identify`` and ``compare-models``: the record and how to read it."""
-    p.add_argument("--data", type=Path, required=True, help="CSV file with a header line")
+    p.add_argument("--data", type=Path, nargs="+", required=True,
+                   help="CSV file(s) with a header line (several: one fit over all of them)")
+    p.add_argument("--validate", type=Path, nargs="+", default=None, metavar="FILE",
+                   help="score the models on these records (other tests of the same damper) after fitting on the "
+                        "whole of --data; the table shows the fit and the validation errors")
     add_column_arguments(p)
     p.add_argument("--t-start", type=float, default=None, help="keep samples from this time on (s)")
     p.add_argument("--t-end", type=float, default=None, help="keep samples up to this time (s)")
@@ -46,6 +60,13 @@ def add_data_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--command-range", default="clip", choices=("clip", "widen", "raise"),
                    help="commands outside the preset's range: clip them (default), widen the range, or refuse")
     p.add_argument("--fit-eta", action="store_true", help="also fit the command lag rate η (1/s)")
+    p.add_argument("--fit-lag", action="store_true",
+                   help="also fit the command dynamics: η on a rise, η on a fall (1/s) and a pure delay (s)")
+    p.add_argument("--align", action="store_true",
+                   help="estimate and correct a constant sample offset between the force and the motion channels")
+    p.add_argument("--faults", default="exclude", choices=FAULT_MODES,
+                   help="saturated channels, spikes and gaps: exclude them from the fit and errors (default), keep "
+                        "them, or refuse the record")
     p.add_argument("--warmup", type=float, default=0.0,
                    help="seconds at the start left out of the objective (model states start at rest)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
@@ -53,7 +74,8 @@ def add_data_arguments(p: argparse.ArgumentParser) -> None:
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_data_arguments(p)
-    p.add_argument("--model", default="spencer_dyke", help=f"damper model, one of {available_dampers()}")
+    p.add_argument("--model", default="spencer_dyke",
+                   help=f"damper model, one of {available_dampers()}, or neural (the neural forward model)")
     p.add_argument("--preset", default=None, help="preset giving the initial guess (default: the model's)")
     p.add_argument("--free", default=None,
                    help="comma-separated parameters to fit (default: all but the fixed ones, e.g. n)")
@@ -61,14 +83,18 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--save-preset", type=Path, default=None, help="write the fitted damper as a JSON preset")
 
 
-def load_data(args: argparse.Namespace) -> DamperRecord:
-    columns, units = columns_and_units(args, args.data, ("t", "x", "command", "force"))
-    rec = load_record_csv(args.data, columns, units)
-    if args.t_start is not None or args.t_end is not None:
-        t0 = rec.t[0] if args.t_start is None else args.t_start
-        t1 = rec.t[-1] if args.t_end is None else args.t_end
-        rec = rec.slice(t0, t1)
-    return rec
+def load_data(args: argparse.Namespace, paths: list[Path] | None = None) -> list[DamperRecord]:
+    """The records of ``paths`` (default --data), cut to [--t-start, --t-end]."""
+    recs = []
+    for path in paths or args.data:
+        columns, units = columns_and_units(args, path, ("t", "x", "command", "force"))
+        rec = load_record_csv(path, columns, units)
+        if args.t_start is not None or args.t_end is not None:
+            t0 = rec.t[0] if args.t_start is None else args.t_start
+            t1 = rec.t[-1] if args.t_end is None else args.t_end
+            rec = rec.slice(t0, t1)
+        recs.append(rec)
+    return recs
 
 
 def grid_dt(args: argparse.Namespace, rec: DamperRecord) -> float | None:
@@ -97,9 +123,45 @@ def on_grid(rec: DamperRecord, dt: float) -> bool:
     return bool(np.abs(rec.t - (rec.t[0] + dt * k)).max() <= 0.5 * dt)
 
 
-def fit_options(args: argparse.Namespace) -> dict:
-    return {"maxiter": args.maxiter, "popsize": args.popsize, "command_range": args.command_range,
-            "warmup": args.warmup}
+def options(args: argparse.Namespace, dt: float | None) -> tuple[SearchOptions, DataOptions]:
+    """The search and data options of the command line."""
+    search = SearchOptions(method=args.method, seed=args.seed, maxiter=args.maxiter, popsize=args.popsize,
+                           progress=not args.no_progress)
+    data = DataOptions(dt=dt, warmup=args.warmup, command_range=args.command_range, faults=args.faults,
+                       align=args.align)
+    return search, data
+
+
+def free_with_command(args: argparse.Namespace, model: str, free: list[str] | None) -> list[str] | None:
+    """``free`` (default: the model's) plus the command pseudo-parameters asked for by --fit-eta / --fit-lag."""
+    extra = list(COMMAND_PARAMS) if args.fit_lag else [COMMAND_ETA] if args.fit_eta else []
+    if not extra or model == "neural":
+        return free
+    if free is None:
+        d = make_damper(model)
+        free = [k for k in d.params.names() if k not in fixed_by_default(d, d.params)]
+    return list(free) + [k for k in extra if k not in free]
+
+
+def records_and_grid(args: argparse.Namespace):
+    """(fit records, whole records to score, first scored sample of each, dt) from --data and --validate."""
+    recs = load_data(args)
+    dt = grid_dt(args, recs[0])
+    if args.validate:
+        whole = [uniform_record(r, dt) for r in load_data(args, args.validate)]
+        return recs, whole, [0] * len(whole), dt
+    whole, fits, idx = split_records(recs, args.fit_fraction, dt)
+    return fits, whole, idx, dt
+
+
+def report_faults(caught) -> None:
+    """Print the fault warnings of a fit, one line each (never silently)."""
+    seen = []
+    for w in caught:
+        msg = str(w.message)
+        if msg not in seen:
+            seen.append(msg)
+            print(f"note: {msg}")
 
 
 def _pct(x: float) -> float:
@@ -107,51 +169,55 @@ def _pct(x: float) -> float:
 
 
 def run(args: argparse.Namespace) -> int:
-    rec = load_data(args)
-    dt = grid_dt(args, rec)
-    whole, fits, idx = split_records([rec], args.fit_fraction, dt)
-    damper0 = make_damper(args.model, args.preset)
-    free = None
-    if args.free:
-        free = [s.strip() for s in args.free.split(",") if s.strip()]
-    if args.fit_eta:
-        if free is None:
-            from mrd_env.identification.fit import fixed_by_default
-            fixed = fixed_by_default(damper0, damper0.params)
-            free = [k for k in damper0.params.names() if k not in fixed]
-        free = list(free) + [COMMAND_ETA]
-    fr = fit_model(args.model, fits, preset=args.preset, free=free, method=args.method, seed=args.seed, dt=dt,
-                   progress=not args.no_progress, **fit_options(args))
-    v_rows, v_all, forces, _ = validate(fr.damper, whole, idx, dt=dt, command_range=args.command_range)
+    fits, whole, idx, dt = records_and_grid(args)
+    free = [s.strip() for s in args.free.split(",") if s.strip()] if args.free else None
+    free = free_with_command(args, args.model, free)
+    search, data = options(args, dt)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", FaultsExcluded)
+        fr = fit_model(args.model, fits, preset=args.preset, free=free, search=search, data=data)
+        v_rows, v_all, forces, _ = validate(fr.damper, whole, idx, data=fr_data(fr, data),
+                                            offset=fr.settings["offsets"][0])
+    report_faults(caught)
     out = args.out
     out.mkdir(parents=True, exist_ok=True)
     f = fr.overall
-    rows = [{"part": "fit", "samples": fr.per_record[0]["n"], "E_t %": _pct(f["E_t"]), "E_x %": _pct(f["E_x"]),
-             "E_v %": _pct(f["E_v"]), "J2 N": f["J2"]},
-            {"part": "validation", "samples": v_rows[0]["n"], "E_t %": _pct(v_all["E_t"]),
+    part = "validation (other record)" if args.validate else "validation"
+    rows = [{"part": "fit", "samples": sum(r["n"] for r in fr.per_record), "E_t %": _pct(f["E_t"]),
+             "E_x %": _pct(f["E_x"]), "E_v %": _pct(f["E_v"]), "J2 N": f["J2"]},
+            {"part": part, "samples": sum(r["n"] for r in v_rows), "E_t %": _pct(v_all["E_t"]),
              "E_x %": _pct(v_all["E_x"]), "E_v %": _pct(v_all["E_v"]), "J2 N": v_all["J2"]}]
-    title = (f"{fr.model} fitted by {fr.method} (seed {fr.seed}) on {rec.label}: {fr.n_evaluations} evaluations, "
-             f"{fr.wall_time:.1f} s, {'converged' if fr.converged else 'not converged'}")
+    label = ", ".join(r["label"] for r in fr.records)
+    title = (f"{fr.model} fitted by {fr.method} (seed {fr.seed}) on {label}: {fr.n_evaluations} evaluations, "
+             f"{fr.wall_time:.1f} s, {'converged' if fr.converged else 'not converged'}, force offset "
+             f"{fr.settings['offsets']} samples")
     md, csv_path = write_table(rows, out / f"{fr.model}_identify", title=title, floatfmt=".4g")
-    units = fr.damper.Params.units()
-    values = fr.free_values()
-    prow = []
-    for k in list(fr.damper.params.names()) + ([COMMAND_ETA] if COMMAND_ETA in fr.free else []):
-        is_free = k in fr.free
-        init = fr.settings["initial_eta"] if k == COMMAND_ETA else fr.initial[k]
-        fitted = values[k] if is_free else fr.params[k]
-        lo, hi = fr.bounds.get(k, (float("nan"), float("nan")))
-        prow.append({"parameter": k, "unit": units.get(k, "1/s"), "initial": float(init), "fitted": float(fitted),
-                     "lower": float(lo), "upper": float(hi),
-                     "status": "free" if is_free else f"fixed ({fr.fixed.get(k, 'not in --free')})"})
-    pmd, pcsv = write_table(prow, out / f"{fr.model}_params", title=f"{fr.model}: parameters (SI)",
-                            floatfmt=".6g")
+    written = [md, csv_path]
+    if fr.free:
+        pmd, pcsv = write_table(parameter_rows(fr), out / f"{fr.model}_params", title=f"{fr.model}: parameters (SI)",
+                                floatfmt=".6g")
+        written += [pmd, pcsv]
     fig = plot_fit(whole[0], {fr.model: forces[0]}, out / f"{fr.model}_fit.png", split_index=idx[0],
-                   title=f"{fr.model} on {rec.label}, held-back part: E_t = {_pct(v_all['E_t']):.1f} %")
-    written = [md, csv_path, pmd, pcsv, fig]
+                   title=f"{fr.model} on {whole[0].label}, {part}: E_t = {_pct(v_all['E_t']):.1f} %")
+    written.append(fig)
     if args.save_preset is not None:
         written.append(save_preset(fr, args.save_preset))
-    print(md.read_text())
-    print(pmd.read_text())
+    for path in written:
+        if path.suffix == ".md":
+            print(path.read_text())
     print("wrote " + ", ".join(str(p) for p in written))
     return 0
+
+
+def parameter_rows(fr) -> list[dict]:
+    """One row per parameter (and fitted command pseudo-parameter): initial, fitted, bounds, free or why fixed."""
+    units = fr.damper.Params.units()
+    values = fr.free_values()
+    rows = []
+    for k in list(fr.damper.params.names()) + [k for k in COMMAND_PARAMS if k in fr.free]:
+        is_free = k in fr.free
+        lo, hi = fr.bounds.get(k, (float("nan"), float("nan")))
+        rows.append({"parameter": k, "unit": units.get(k) or COMMAND_PARAMS[k][1], "initial": float(fr.initial[k]),
+                     "fitted": float(values[k] if is_free else fr.params[k]), "lower": float(lo), "upper": float(hi),
+                     "status": "free" if is_free else f"fixed ({fr.fixed.get(k, 'not in --free')})"})
+    return rows

@@ -4,8 +4,8 @@ Appended to the stepping kernel of a damper model (``_kernel_template.py``) in t
 header of slot numbers (``F_<name>``, ``I_<name>``, ``S_<name>``, ``T_<name>``, ``D_<name>``) written from
 :data:`mrd_env.driver.LAYOUT`, so that the Python side and the kernel agree on one list of names.
 
-Per system b and per step of the period: the command (the held action, or a column of the input record),
-the physics (``macro_step``), the named outputs h = G·[Y, F, W] into one row, the command columns, the online
+Per system b and per step of the period: the command (the held action, or a column of the input record)
+pushed into the queue of past commands that the command delay reads, the physics (``macro_step``), the named outputs h = G·[Y, F, W] into one row, the command columns, the online
 filters (second-order sections, transposed direct form II as ``scipy.signal.sosfilt``), the quadratic reward
 terms, the limits (termination), the running statistics of chosen columns (sum of squares, peak, fourth
 power and 1 s running r.m.s. of one column); after the period: the measurement (with Gaussian noise from a
@@ -147,8 +147,12 @@ def core_reset(fc, ic, fs, is_, W, H, obs, mask):
         cmd = _state(fs, ic, b, S_CMD)
         h = _state(fs, ic, b, S_ROW)
         status = end_forces(C, D, P, Y, U, W[b, 0], Fz, Vd)
+        queue = _state(fs, ic, b, S_CMDQ).reshape((-1, nd))
         for j in range(nd):
             cmd[j] = U[j]
+            for i in range(queue.shape[0]):  # the commands before the episode: the settled effective one
+                queue[i, j] = U[j]
+        is_[b, T_CMDQ_POS] = 0
         for i in range(nH):
             h[i] = 0.0
         _row(G, Y, Fz, W[b, 0], cmd, h, nsig, nd)
@@ -211,8 +215,10 @@ def _advance_one(b, fc, ic, fs, is_, W, H, action, obs, C, D, Ainv, Bbar, Mq, PP
     U = _state(fs, ic, b, S_U)
     Fz = _state(fs, ic, b, S_F)
     P = _state(fs, ic, b, S_P).reshape((nd, npar))
-    eta = _state(fs, ic, b, S_ETA)
+    lag = _state(fs, ic, b, S_LAG).reshape((nd, 3))
     cmd = _state(fs, ic, b, S_CMD)
+    queue = _state(fs, ic, b, S_CMDQ).reshape((-1, nd))
+    Vd = workspace_views(wf, wi, C.shape[2], nd, n, D.shape[2])[1]
     zi = _state(fs, ic, b, S_ZI).reshape((sos.shape[0], 2))
     rscale = _state(fs, ic, b, S_RSCALE)
     st = _state(fs, ic, b, S_STATS)
@@ -239,7 +245,12 @@ def _advance_one(b, fc, ic, fs, is_, W, H, action, obs, C, D, Ainv, Bbar, Mq, PP
         if cmd_col >= 0:  # the commands are columns of the input record (rig, identification)
             for j in range(nd):
                 cmd[j] = W[b, r, cmd_col + j]
-        stat, used, nsub = macro_step(C, D, Ainv, Bbar, Mq, PP, P, eta, Y, U, Fz, cmd, W[b, r], W[b, r + 1], dt,
+        pos = (is_[b, T_CMDQ_POS] + 1) % queue.shape[0]
+        is_[b, T_CMDQ_POS] = pos
+        for j in range(nd):
+            queue[pos, j] = cmd[j]
+        delayed_commands(queue, pos, lag, dt, Vd)
+        stat, used, nsub = macro_step(C, D, Ainv, Bbar, Mq, PP, P, lag, Y, U, Fz, W[b, r], W[b, r + 1], dt,
                                       max_level, nsub, scal[SC_ATOL], scal[SC_RTOL], wf, wi)
         if stat != OK:
             is_[b, T_REASON] = stat

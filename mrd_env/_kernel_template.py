@@ -16,7 +16,9 @@ more than 30 arguments cannot be inlined, hence the stacking):
   Bbar (nq, nw) = hγ Ainv B_w, Mq (nq, nd) = hγ Ainv B_F, PP (2, nd, nd) = [C_x Mq, C_v Mq].
 * Jd (nd, ns + 1, ns + 2): per damper, the Jacobian of (ṡ, F) with respect to (s, x, ẋ), rows 0..ns−1 for
   g = ṡ and row ns for F, columns 0..ns−1 for s, then x, then ẋ (what ``partials`` writes).
-* scratch: Vn (7, max(n, m)) vectors of the state length (and the Newton residual), Vd (10, nd) of the damper
+* lag (nd, 3): per damper η_rise, η_fall and the delay τ (:mod:`mrd_env.command_lag`); over a step the delayed
+  command is va up to ts, then vb (va, vb, ts: rows 10-12 of Vd).
+* scratch: Vn (7, max(n, m)) vectors of the state length (and the Newton residual), Vd (13, nd) of the damper
   count, Vx (4, L) short vectors (q̄, ṡ, finite-difference work, the input inside a step), K (m, m) the Newton
   matrix, Iw (m + 1) its pivots and the level it was factorised for.
 """
@@ -28,8 +30,12 @@ import numpy as np
 from mrd_env.integrator import GAMMA, NO_CONVERGENCE, NONFINITE, OK
 from mrd_env.integrator import _lu_factor as _lu_factor_dispatcher, _lu_solve as _lu_solve_dispatcher
 
+from mrd_env.command_lag import delay_split as _delay_split_dispatcher, lag_value as _lag_value_dispatcher
+
 _lu_factor = nb.njit(inline='always')(_lu_factor_dispatcher.py_func)
 _lu_solve = nb.njit(inline='always')(_lu_solve_dispatcher.py_func)
+_lag_value = nb.njit(inline='always')(_lag_value_dispatcher.py_func)
+_delay_split = nb.njit(inline='always')(_delay_split_dispatcher.py_func)
 
 NEWTON_TOL = 1e-2  # Newton stops when its last correction is below this fraction of the error tolerance
 MAX_ITER = 12
@@ -41,7 +47,7 @@ def workspace_len(nq, nd, n, nw):
     m = max(nd * (ns + 1), 1)
     L1 = max(n, m)
     L = max(nw, 2 * ns + 2, nq, 1)
-    return 7 * L1 + 10 * nd + 4 * L + m * m + nd * (ns + 1) * (ns + 2), m + 1
+    return 7 * L1 + 13 * nd + 4 * L + m * m + nd * (ns + 1) * (ns + 2), m + 1
 
 
 @nb.njit(inline='always')
@@ -54,8 +60,8 @@ def workspace_views(wf, wi, nq, nd, n, nw):
     o = 0
     Vn = wf[o:o + 7 * L1].reshape((7, L1))
     o += 7 * L1
-    Vd = wf[o:o + 10 * nd].reshape((10, nd))
-    o += 10 * nd
+    Vd = wf[o:o + 13 * nd].reshape((13, nd))
+    o += 13 * nd
     Vx = wf[o:o + 4 * L].reshape((4, L))
     o += 4 * L
     K = wf[o:o + m * m].reshape((m, m))
@@ -219,9 +225,10 @@ def solve_stage(C, D, Ainv, Bbar, Mq, PP, P, R, u, w, hg, Z, Fz, atol, rtol, reu
 
 
 @nb.njit(cache=True)
-def sdirk_step(C, D, Ainv, Bbar, Mq, PP, P, Y, Fz, u0, v, eta, w0, w1, tau0, h, H, atol, rtol, level, wf, wi):
+def sdirk_step(C, D, Ainv, Bbar, Mq, PP, P, Y, Fz, u0, lag, w0, w1, tau0, h, H, atol, rtol, level, wf, wi):
     """One SDIRK2 step of length h = H/2^level starting at τ0 (relative to the macro step of length H), with
-    the level matrices Ainv, Bbar, Mq, PP of this h. Y and the force guess Fz are updated only on success.
+    the level matrices Ainv, Bbar, Mq, PP of this h. Y and the force guess Fz are updated only on success; the
+    effective commands at the stages follow exactly from u0 at τ = 0 and the delayed commands (Vd rows 10-12).
 
     The factorised Newton matrix of an earlier step of the same length starts the iterations (refreshed as
     soon as convergence slows). Returns (converged, error estimate in units of the tolerance)."""
@@ -240,6 +247,9 @@ def sdirk_step(C, D, Ainv, Bbar, Mq, PP, P, Y, Fz, u0, v, eta, w0, w1, tau0, h, 
     F1 = Vd[5]
     u1 = Vd[8]
     u2 = Vd[9]
+    va = Vd[10]
+    vb = Vd[11]
+    ts = Vd[12]
     for i in range(n):
         R[i] = Y[i]
         Z1[i] = Y[i]
@@ -262,7 +272,7 @@ def sdirk_step(C, D, Ainv, Bbar, Mq, PP, P, Y, Fz, u0, v, eta, w0, w1, tau0, h, 
                 R[i] = Y[i] + h * (1.0 - GAMMA) * f1[i]
                 Z2[i] = Z1[i]
         for j in range(nd):
-            u[j] = v[j] + (u0[j] - v[j]) * math.exp(-eta[j] * tau)
+            u[j] = _lag_value(u0[j], va[j], vb[j], ts[j], lag[j, 0], lag[j, 1], tau)
         w = _interpolate(w0, w1, tau / H, Vx[3])
         if not solve_stage(C, D, Ainv, Bbar, Mq, PP, P, R, u, w, hg, Z, F1, NEWTON_TOL * atol,
                            NEWTON_TOL * rtol, reuse or stage == 1, Vn, Vd, Vx, K, Iw, Jd):
@@ -335,9 +345,10 @@ def _interpolate(w0, w1, frac, out):
 
 
 @nb.njit(cache=True)
-def macro_step(C, D, Ainv, Bbar, Mq, PP, P, eta, Y, U, Fz, v, w0, w1, dt, max_level, nsub, atol, rtol, wf, wi):
-    """Advance one system by dt (commands v held, inputs w0 → w1), splitting the step into 2^k sub-steps as
-    the error estimate asks (k ≤ max_level), starting from ``nsub`` sub-steps.
+def macro_step(C, D, Ainv, Bbar, Mq, PP, P, lag, Y, U, Fz, w0, w1, dt, max_level, nsub, atol, rtol, wf, wi):
+    """Advance one system by dt (inputs w0 → w1; the delayed commands of the step in rows 10-12 of the scratch
+    Vd, see :func:`delayed_commands`), splitting the step into 2^k sub-steps as the error estimate asks
+    (k ≤ max_level), starting from ``nsub`` sub-steps.
 
     Y, U (effective commands) and Fz (forces) are updated in place. Returns (status, sub-steps used, sub-steps
     to start the next step with: half as many when the error estimate says that twice the sub-step — eight times
@@ -370,8 +381,8 @@ def macro_step(C, D, Ainv, Bbar, Mq, PP, P, eta, Y, U, Fz, v, w0, w1, dt, max_le
         if n > 0:
             for sidx in range(m):
                 # sub-steps restart the command lag from its exact value at their start
-                good, err = sdirk_step(C, D, Ainv[level], Bbar[level], Mq[level], PP[level], P, Y, Fz, u0, v,
-                                       eta, w0, w1, sidx * h, h, dt, atol, rtol, level, wf, wi)
+                good, err = sdirk_step(C, D, Ainv[level], Bbar[level], Mq[level], PP[level], P, Y, Fz, u0, lag,
+                                       w0, w1, sidx * h, h, dt, atol, rtol, level, wf, wi)
                 if not good:
                     ok = False
                     break
@@ -388,7 +399,7 @@ def macro_step(C, D, Ainv, Bbar, Mq, PP, P, eta, Y, U, Fz, v, w0, w1, dt, max_le
         level += 1
     # exact command lag over the whole step, then the forces at its end
     for j in range(nd):
-        U[j] = v[j] + (u0[j] - v[j]) * math.exp(-eta[j] * dt)
+        U[j] = _lag_value(u0[j], Vd[10, j], Vd[11, j], Vd[12, j], lag[j, 0], lag[j, 1], dt)
     status = end_forces(C, D, P, Y, U, w1, Fz, Vd)
     used = 1 << level
     return status, used, (used // 2 if (level > 0 and 8.0 * worst < 0.8) else used)
@@ -413,3 +424,15 @@ def end_forces(C, D, P, Y, U, w, Fz, Vd):
         if not math.isfinite(Y[i]):
             return NONFINITE
     return OK
+
+
+@nb.njit(inline='always')
+def delayed_commands(queue, pos, lag, dt, Vd):
+    """The commands of the step (rows 10-12 of Vd: va until ts, then vb) from each damper's queue of past
+    commands (Q, nd), the newest at ``pos``, for the delays τ = lag[j, 2] (:mod:`mrd_env.command_lag`)."""
+    Q = queue.shape[0]
+    for j in range(queue.shape[1]):
+        m, s = _delay_split(lag[j, 2], dt)
+        Vd[11, j] = queue[(pos - m) % Q, j]
+        Vd[10, j] = queue[(pos - m - 1) % Q, j]
+        Vd[12, j] = s

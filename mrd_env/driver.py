@@ -8,10 +8,11 @@ measurements — into four arrays (float and int constants, float and int per-sy
 layout is defined once, here (:data:`LAYOUT`); the kernel reads it from constants written into its source.
 
 Per-system state (one row of ``fs`` and ``is_`` per system, plus one scratch row for the kernel): the coupled
-state Y, the effective commands U, the forces F, the damper parameters P and lag rates η (so every system may
-have its own damper), the applied command, the filter states, the reward scales, the statistics, the ring of
-the running r.m.s., the delay/history FIFO, the last output row and the last reward; the step counters, the
-status, the noise generator's key and counter.
+state Y, the effective commands U, the forces F, the damper parameters P and command dynamics (η_rise, η_fall,
+delay τ; so every system may have its own damper), the queue of past commands the delay reads, the applied
+command, the filter states, the reward scales, the statistics, the ring of the running r.m.s., the
+delay/history FIFO, the last output row and the last reward; the step counters, the status, the noise
+generator's key and counter, the position in the command queue.
 """
 from __future__ import annotations
 
@@ -19,6 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .command_lag import LAG_DELAY, check_lag, queue_length
 from .integrator import ATOL, RTOL, SystemMatrices, kernel_module, max_level_of
 from .validation import check_scalar
 
@@ -29,9 +31,10 @@ LAYOUT = {
     "dims": ("N", "NH", "NPAR", "NSUB", "MAX_LEVEL", "HIST_MODE", "CMD_INPUT", "DOSE_COL", "NORMALIZED",
              "DELAY", "HISTORY", "SCRATCH"),
     "scalars": ("DT", "VMIN", "VMAX", "RTOL", "ATOL", "PEN_CONST", "PEN_STEP"),
-    "state": ("Y", "U", "F", "P", "ETA", "CMD", "ZI", "RSCALE", "STATS", "DOSE", "RING", "FIFO", "ROW", "REWARD"),
+    "state": ("Y", "U", "F", "P", "LAG", "CMDQ", "CMD", "ZI", "RSCALE", "STATS", "DOSE", "RING", "FIFO", "ROW",
+              "REWARD"),
     "int_state": ("K", "NSTEPS", "STATUS", "KEY", "COUNTER", "NSUB", "FIFO_POS", "RING_POS", "ROWS", "REASON",
-                  "FAIL_STEP", "SUBSTEPS"),
+                  "FAIL_STEP", "SUBSTEPS", "CMDQ_POS"),
     "status": ("RUNNING", "TERMINATED", "TRUNCATED", "DIVERGED", "BAD_ACTION"),
 }
 RUNNING, TERMINATED, TRUNCATED, DIVERGED, BAD_ACTION = range(5)
@@ -100,13 +103,14 @@ class Processing:
 class Driver:
     """N systems of one damper model on one plant, advanced by the compiled driver (see the module docstring).
 
-    ``P`` (N, nd, n_params) and ``eta`` (N, nd) give every system its own damper parameters (default: the
-    damper's). :meth:`reset` starts episodes (``mask``), :meth:`step` advances the running systems by
-    ``n_sub`` steps of ``dt`` and returns system 0's status.
+    ``P`` (N, nd, n_params) and ``lag`` (N, nd, 3: η_rise, η_fall, delay; :mod:`mrd_env.command_lag`) give
+    every system its own damper parameters and command dynamics (default: the damper's). :meth:`reset` starts
+    episodes (``mask``), :meth:`step` advances the running systems by ``n_sub`` steps of ``dt`` and returns
+    system 0's status.
     """
 
     def __init__(self, damper, system: SystemMatrices, N: int, processing: Processing, *, dt: float = 1e-3,
-                 n_sub: int = 1, v_range: tuple[float, float] | None = None, P=None, eta=None,
+                 n_sub: int = 1, v_range: tuple[float, float] | None = None, P=None, lag=None,
                  max_substeps: int = 8, rtol: float = RTOL, atol: float = ATOL, threads: int | None = None):
         self.damper = damper
         self.system = system
@@ -152,7 +156,11 @@ class Driver:
                 "NORMALIZED": int(pr.normalized), "DELAY": int(pr.delay), "HISTORY": int(pr.history),
                 "SCRATCH": self.threads}
         depth = pr.delay + pr.history
-        sizes = {"Y": n, "U": nd, "F": nd, "P": nd * npar, "ETA": nd, "CMD": nd, "ZI": 2 * len(sos),
+        lag = np.broadcast_to(cmd.lag_vector() if lag is None else np.asarray(lag, dtype=np.float64), (N, nd, 3))
+        check_lag(lag)
+        self.queue_length = queue_length(lag[..., LAG_DELAY], self.dt)
+        sizes = {"Y": n, "U": nd, "F": nd, "P": nd * npar, "LAG": 3 * nd, "CMDQ": self.queue_length * nd, "CMD": nd,
+                 "ZI": 2 * len(sos),
                  "RSCALE": len(pr.reward_cols), "STATS": 2 * len(pr.stat_cols), "DOSE": 3,
                  "RING": max(int(pr.dose_window), 1), "FIFO": depth * n_meas, "ROW": nH, "REWARD": 1}
         self.fc, self.ic, self._fields = _pack(floats, ints, dims, sizes)
@@ -166,7 +174,7 @@ class Driver:
         self.n_obs = pr.history * n_meas
         p = damper.params.as_array()
         self.state("P")[:] = (np.broadcast_to(p, (N, nd, npar)) if P is None else np.asarray(P, float)).reshape(N, -1)
-        self.state("ETA")[:] = cmd.eta if eta is None else np.asarray(eta, float).reshape(N, nd)
+        self.state("LAG")[:] = lag.reshape(N, 3 * nd)
         self.W = np.zeros((N, 2, nw))
         self.H = np.zeros((N, 0, nH))
         self.is_[:N, LAYOUT["int_state"].index("STATUS")] = TRUNCATED  # nothing runs before a reset

@@ -7,9 +7,10 @@ model, on a fixed grid (dt = 1 ms by default)::
     x_j  = C_x q + D_x w,  ẋ_j = C_v q + D_v w,  ẍ_j = D_a w     kinematics across damper j
     ṡ_j  = rhs(p_j, s_j, x_j, ẋ_j, u_j)            damper internal states
     F_j  = force(p_j, s_j, x_j, ẋ_j, ẍ_j, u_j)
-    u̇_j  = −η_j (u_j − v_j)                         command lag, v held over each step (zero-order hold)
+    u̇_j  = −η_j (u_j − v_j(t − τ_j))                command lag, v held over each step (zero-order hold)
 
-The command lag is integrated exactly (an exponential). The plant and damper states are advanced together
+The command dynamics (:mod:`mrd_env.command_lag`: η faster on a rise than on a fall if declared, a pure delay
+τ) are integrated exactly (exponentials). The plant and damper states are advanced together
 (no lagged coupling) by the two-stage, stiffly accurate, L-stable SDIRK method of Alexander (1977),
 γ = 1 − 1/√2, order 2: the Bouc–Wen variable's Jacobian reaches |∂ż/∂z| ≈ 2(β+γ) z_s |ẋ−ẏ| (≈ 10⁴ s⁻¹
 at 0.1 m/s for the prototype damper), which makes explicit schemes unstable at 1 ms.
@@ -145,8 +146,8 @@ def _kernel_source(model_cls) -> tuple[str, str]:
     # the key covers the template, this module (the LU helpers the kernel calls live here) and the model's own
     # modules, so an edited model never meets a stale kernel and editing one model recompiles only its kernel
     h = hashlib.sha256((header + template + footer).encode())
-    h.update(Path(__file__).read_bytes())
-    h.update((here / "driver.py").read_bytes())
+    for shared in (Path(__file__), here / "driver.py", here / "command_lag.py"):
+        h.update(shared.read_bytes())
     for module in sorted(_model_modules(model_cls)):
         h.update(Path(module).read_bytes())
     return header + template + footer, h.hexdigest()[:16]
@@ -277,7 +278,7 @@ class Stepper:
     internal buffers (copy them to keep them past the next call).
     """
 
-    def __init__(self, damper, system: SystemMatrices, N: int, n_steps: int, dt: float, *, P=None,
+    def __init__(self, damper, system: SystemMatrices, N: int, n_steps: int, dt: float, *, P=None, lag=None,
                  max_substeps: int = 8, rtol: float = RTOL, atol: float = ATOL):
         from .driver import HIST_FULL, Driver, Processing
 
@@ -295,7 +296,7 @@ class Stepper:
         G[:nd, n:n + nd] = np.eye(nd)  # rows: the forces, then the states
         G[nd:, :n] = np.eye(n)
         self.driver = Driver(damper, with_commands, N, Processing(G=G, history_mode=HIST_FULL, command_input=nw),
-                             dt=dt, n_sub=n_steps, v_range=(-math.inf, math.inf), P=P,
+                             dt=dt, n_sub=n_steps, v_range=(-math.inf, math.inf), P=P, lag=lag,
                              max_substeps=max_substeps, rtol=rtol, atol=atol)
         self.dt = self.driver.dt
         self.max_substeps = self.driver.max_substeps
@@ -307,9 +308,10 @@ class Stepper:
         self._started = False
 
     @property
-    def eta(self) -> np.ndarray:
-        """The command lag rates (N, nd), per system (assign to change them)."""
-        return self.driver.state("ETA")
+    def lag(self) -> np.ndarray:
+        """The command dynamics (N, nd, 3): η_rise, η_fall (1/s) and delay (s) per system and damper (given at
+        construction: the delay sizes the command queue)."""
+        return self.driver.state("LAG").reshape(self.N, self.nd, 3)
 
     @property
     def P(self) -> np.ndarray:
@@ -380,7 +382,8 @@ def run(damper, system: SystemMatrices, Y, U, V, W, dt: float, *, t0: float = 0.
         max_substeps: int = 8, rtol: float = RTOL, atol: float = ATOL):
     """Advance a batch once (see :class:`Stepper`), raising :class:`SimulationDivergedError` on failure.
 
-    ``damper`` is a :class:`~mrd_env.dampers.DamperModel`; Y (N, n) and U (N, nd) are updated in place;
+    ``damper`` is a :class:`~mrd_env.dampers.DamperModel`; Y (N, n) and U (N, nd) are updated in place (the
+    commands before t0 are taken as U, a settled driver);
     V (N, n_steps, nd) commands, W (N, n_steps + 1, nw) inputs; ``P`` overrides the parameter vector per
     system and damper (N, nd, n_params). Returns (F (N, n_steps, nd), Y history (N, n_steps, n), mean sub-steps
     per step (N,)).

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .command_lag import effective_command
 from .dampers import DamperModel, make_damper
 from .integrator import SystemMatrices, run
 from .validation import as_generator, check_array, check_n_samples, check_scalar
@@ -72,9 +73,11 @@ def check_test_step(dt, damper: DamperModel, f_max: float, what: str) -> float:
     if f_max * dt > 0.1:
         raise ValueError(f"dt = {dt:g} s cannot resolve {what} ({f_max:g} Hz): need at least 10 samples per cycle, "
                          f"dt <= {0.1 / f_max:g} s")
-    lag = 1.0 / damper.command.eta
+    c = damper.command
+    lag = 1.0 / max(c.eta, c.eta_down)
     if dt > lag:
-        raise ValueError(f"dt = {dt:g} s cannot resolve the damper's command lag: must be <= 1/eta = {lag:g} s")
+        raise ValueError(f"dt = {dt:g} s cannot resolve the damper's command lag: must be <= 1/eta = {lag:g} s "
+                         "(the faster of the rise and fall rates)")
     return dt
 
 
@@ -121,12 +124,7 @@ def simulate(damper: DamperModel | str, x: np.ndarray, command: np.ndarray, dt: 
     # force at t0 from the rest state (switched to the initial motion), then the integrator's end-of-step forces
     F0 = damper.force(x2[:, 0], v2[:, 0], c2[:, 0], a=a2[:, 0])
     force = np.concatenate([F0[:, None], F[:, :, 0]], axis=1)
-    eta = damper.command.eta
-    u = np.empty_like(c2)
-    u[:, 0] = c2[:, 0]
-    decay = np.exp(-eta * dt)
-    for k in range(1, n):
-        u[:, k] = c2[:, k - 1] + (u[:, k - 1] - c2[:, k - 1]) * decay
+    u = np.array([effective_command(damper.command, c, dt) for c in c2])
     t = np.arange(n) * dt
     labels = labels or [""] * n_rec
     return [RigResult(damper.name, t, x2[i], v2[i], c2[i], u[i], force[i], damper.command.unit, labels[i])

@@ -85,6 +85,8 @@ DATA_ERRORS = [  # shared by identify and compare-models
     ["--data", "{good}", "--seed", "-1"], ["--data", "{good}", "--warmup", "-1"],
     ["--data", "{good}", "--warmup", "nan"], ["--data", "{good}", "--warmup", "100"],
     ["--data", "{good}", "--command-range", "nope"],
+    ["--data", "{good}", "--faults", "nope"], ["--data", "{good}", "--validate", "{missing}"],
+    ["--data", "{good}", "--validate"], ["--data", "{good}", "{missing}"],
 ]
 
 CASES = {
@@ -137,6 +139,8 @@ CASES = {
     "identify": DATA_ERRORS + [
         ["--data", "{good}", "--model", "nope"], ["--data", "{good}", "--preset", "nope"],
         ["--data", "{good}", "--free", "nope"], ["--data", "{good}", "--model", "ali_ramaswamy"],
+        ["--data", "{good}", "--model", "neural", "--free", "c0a"],
+        ["--data", "{good}", "--model", "neural", "--method", "pso"],
     ],
     "compare-models": DATA_ERRORS + [
         ["--data", "{good}", "--models", "nope"], ["--data", "{good}", "--models", "bingham", "nope"],

@@ -18,8 +18,14 @@ import pytest
 
 from mrd_env import make_damper
 from mrd_env.identification import DamperRecord
-from mrd_env.identification.fit import (COMMAND_ETA, _simulate_batch, fit_model, fixed_by_default, load_preset,
-                                        prepare_record, read_preset, save_preset, sensitivity)
+from mrd_env.identification.fit import fit_model
+from mrd_env.identification.parameters import COMMAND_ETA, fixed_by_default
+from mrd_env.identification.prepare import prepare_record
+from mrd_env.identification.presets import load_preset, read_preset, save_preset
+from mrd_env.identification.sensitivity import sensitivity
+from mrd_env.identification.simulate import simulate_batch
+
+QUIET = {"progress": False}
 from mrd_env.rig import random_test, sinusoidal_test
 
 # Expected well-identifiable sets on the records of `synthetic` (bounds ≤ 0.5 %, asserted below)
@@ -56,7 +62,7 @@ def test_least_squares_recovers_parameters_from_noisy_synthetic_data(model):
     crb = sensitivity(d, recs, noise=sigma)["rel_std"]
     well = {k for k, s in crb.items() if s <= 0.005}
     assert WELL_IDENTIFIED[model] <= well, crb
-    res = fit_model(model, recs, initial=perturbed_start(d, free), progress=False, weighting="sample")
+    res = fit_model(model, recs, initial=perturbed_start(d, free), search=QUIET, data={"weighting": "sample"})
     assert res.converged and res.free == tuple(free)
     # at the noise floor: J2 ≈ σ on every record; E_t ≈ 1 % (σ is 1 % of the std of all forces)
     assert res.overall["E_t"] <= 0.02 and res.per_record[0]["E_t"] <= 0.02  # overall; the random record
@@ -81,14 +87,15 @@ def test_population_methods_reduce_j2_and_are_bit_reproducible(method):
     if method == "pso":
         pytest.importorskip("pymoo")
     recs, start = _small_problem()
-    kw = dict(free=list(start), initial=start, method=method, maxiter=6, popsize=5 if method != "pso" else 12,
-              seed=3, progress=False, bound_factor=3.0)
+    search = dict(method=method, maxiter=6, popsize=5 if method != "pso" else 12, seed=3, progress=False,
+                  bound_factor=3.0)
+    kw = dict(free=list(start), initial=start, search=search)
     a = fit_model("bouc_wen", recs, **kw)
     b = fit_model("bouc_wen", recs, **kw)
     assert a.objective < 0.7 * a.initial_objective
     assert a.params == b.params and a.history == b.history and a.n_evaluations == b.n_evaluations
     assert a.n_evaluations >= 6 * 12
-    c = fit_model("bouc_wen", recs, **{**kw, "seed": 4})
+    c = fit_model("bouc_wen", recs, **{**kw, "search": {**search, "seed": 4}})
     assert c.history != a.history
 
 
@@ -96,7 +103,7 @@ def test_diverging_and_infeasible_candidates_get_a_penalty():
     recs, _ = _small_problem()
     # A up to 1e200 makes most candidates diverge; β may go negative: β + γ <= 0 is infeasible (check())
     res = fit_model("bouc_wen", recs[:1], free=["A", "beta"], bounds={"A": (1.0, 1e200), "beta": (-3e7, 3e7)},
-                    method="differential_evolution", maxiter=2, popsize=4, progress=False)
+                    search={"method": "differential_evolution", "maxiter": 2, "popsize": 4, "progress": False})
     assert res.n_diverged > 0 and res.n_infeasible > 0
     assert np.isfinite(res.objective) and res.objective <= res.initial_objective
     # a diverging candidate inside a batch does not disturb the others
@@ -106,9 +113,10 @@ def test_diverging_and_infeasible_candidates_get_a_penalty():
     P = np.vstack([p, p, p])
     P[1, d.params.names().index("A")] = 1e200
     P[2, d.params.names().index("c0a")] *= 1.1
-    F, ok = _simulate_batch(type(d), d.command, prep, P, np.full(3, d.command.eta), np.zeros((3, 1)), {})
+    lag = np.tile(d.command.lag_vector(), (3, 1))
+    F, ok = simulate_batch(type(d), d.command, prep, P, lag, np.zeros((3, 1)), {})
     assert list(ok) == [True, False, True]
-    F2, _ = _simulate_batch(type(d), d.command, prep, P[2:], np.full(1, d.command.eta), np.zeros((1, 1)), {})
+    F2, _ = simulate_batch(type(d), d.command, prep, P[2:], lag[2:], np.zeros((1, 1)), {})
     assert np.array_equal(F[2], F2[0])
 
 
@@ -117,14 +125,14 @@ def test_command_eta_is_fitted_on_request():
     r = random_test(d, rms=0.004, bandwidth=8.0, duration=2.0, switch_rate=5.0, rng=2)
     rec = DamperRecord(r.t, r.x, r.command, r.force, r.v)
     res = fit_model("bingham", rec, free=["fc_b", COMMAND_ETA], initial={"fc_b": 300.0, COMMAND_ETA: 120.0},
-                    progress=False)
+                    search=QUIET)
     assert res.free_values()[COMMAND_ETA] == pytest.approx(190.0, rel=1e-3)
     assert res.damper.command.eta == res.free_values()[COMMAND_ETA]
 
 
 def test_preset_round_trip_is_exact(tmp_path):
     recs, start = _small_problem()
-    res = fit_model("bouc_wen", recs, free=["c0a"], initial={"c0a": 1800.0}, maxiter=5, progress=False)
+    res = fit_model("bouc_wen", recs, free=["c0a"], initial={"c0a": 1800.0}, search={"maxiter": 5, "progress": False})
     path = save_preset(res, tmp_path / "fitted.json")
     d = load_preset(path)
     assert type(d) is type(res.damper) and d.params == res.damper.params and d.command == res.damper.command
@@ -144,19 +152,23 @@ def test_bad_input_raises_value_error(tmp_path):
     recs, _ = _small_problem()
     rec = recs[0]
     with pytest.raises(ValueError, match="bounds of parameter 'c0a'.*exclude its initial value"):
-        fit_model("bouc_wen", rec, free=["c0a"], bounds={"c0a": (10.0, 100.0)}, progress=False)
+        fit_model("bouc_wen", rec, free=["c0a"], bounds={"c0a": (10.0, 100.0)}, search=QUIET)
     with pytest.raises(ValueError, match=r"unknown parameter name\(s\) \['c0x'\] in free"):
-        fit_model("bouc_wen", rec, free=["c0a", "c0x"], progress=False)
+        fit_model("bouc_wen", rec, free=["c0a", "c0x"], search=QUIET)
     with pytest.raises(ValueError, match=r"unknown parameter name\(s\) \['nope'\] in bounds"):
-        fit_model("bouc_wen", rec, bounds={"nope": (0, 1)}, progress=False)
+        fit_model("bouc_wen", rec, bounds={"nope": (0, 1)}, search=QUIET)
     with pytest.raises(ValueError, match="not free"):
-        fit_model("bouc_wen", rec, free=["c0a"], bounds={"c0b": (0, 1000)}, progress=False)
+        fit_model("bouc_wen", rec, free=["c0a"], bounds={"c0b": (0, 1000)}, search=QUIET)
     with pytest.raises(ValueError, match="leave the valid range"):
-        fit_model("bouc_wen", rec, free=["c0a"], bounds={"c0a": (-1.0, 5000.0)}, progress=False)
+        fit_model("bouc_wen", rec, free=["c0a"], bounds={"c0a": (-1.0, 5000.0)}, search=QUIET)
     with pytest.raises(ValueError, match="method"):
-        fit_model("bouc_wen", rec, method="simplex", progress=False)
+        fit_model("bouc_wen", rec, search={"method": "simplex"})
+    with pytest.raises(ValueError, match=r"search has unknown key\(s\) \['maxiters'\]"):
+        fit_model("bouc_wen", rec, search={"maxiters": 3})
+    with pytest.raises(ValueError, match="faults = 'drop' is invalid"):
+        fit_model("bouc_wen", rec, data={"faults": "drop"})
     with pytest.raises(ValueError, match="unknown damper model"):
-        fit_model("no_such_model", rec, progress=False)
+        fit_model("no_such_model", rec, search=QUIET)
     bad = rec.force.copy()
     bad[7] = np.nan
     with pytest.raises(ValueError, match="non-finite"):
@@ -165,12 +177,12 @@ def test_bad_input_raises_value_error(tmp_path):
     class Raw:  # not a DamperRecord: validated when converted
         t, x, command, v, force = rec.t, rec.x, rec.command, None, bad
     with pytest.raises(ValueError, match="non-finite"):
-        fit_model("bouc_wen", [Raw()], progress=False)
+        fit_model("bouc_wen", [Raw()], search=QUIET)
     high = DamperRecord(rec.t, rec.x, np.full(rec.n, 3.0), rec.force)
     with pytest.raises(ValueError, match="must stay within"):
-        fit_model("bouc_wen", high, command_range="raise", progress=False)
+        fit_model("bouc_wen", high, data={"command_range": "raise"}, search=QUIET)
     with pytest.raises(ValueError, match="give its bounds"):
-        fit_model("bouc_wen", rec, free=["k0b"], progress=False)
+        fit_model("bouc_wen", rec, free=["k0b"], search=QUIET)
 
 
 def write_nees_like(path, model="spencer_dyke", duration=2.5, fs=1000.0):
@@ -226,7 +238,7 @@ def test_compare_models_cli_writes_table_and_overlays(tmp_path):
     assert compare_models_cmd.run(args) == 0
     md = (out / "comparison.md").read_text()
     assert md.count("\n| bingham |") + md.count("\n| bouc_wen |") == 2
-    assert "| model | free params | fit E_t % | E_t % | E_x % | E_v % | J2 N |" in md
+    assert "| model | free params | offset samples | fit E_t % | E_t % | E_x % | E_v % | J2 N |" in md
     with (out / "comparison.csv").open() as fh:
         rows = list(csv.DictReader(fh))
     assert [r["model"] for r in rows] == ["bingham", "bouc_wen"]
@@ -242,7 +254,7 @@ def test_sensor_error_propagation_table(tmp_path):
     exc = default_excitation(d, duration=2.0, rng=1)
     a = propagate_sensor_errors(d, excitation=exc, n_draws=3, rng=7, free=["c0a", "alpha_b"], progress=False,
                                 out=tmp_path)
-    b = propagate_sensor_errors(d, excitation=exc, n_draws=3, rng=7, free=["c0a", "alpha_b"], progress=False)
+    b = propagate_sensor_errors(d, excitation=exc, n_draws=3, rng=7, free=["c0a", "alpha_b"], search=QUIET)
     assert a.free == ("c0a", "alpha_b") and a.mc.n_failed == 0
     for q in ("c0a", "alpha_b", "E_t", "E_t_true", "J2"):
         assert np.array_equal(a.mc.samples[q], b.mc.samples[q]) and a.mc.samples[q].size == 3

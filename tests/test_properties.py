@@ -118,7 +118,7 @@ def _presets() -> list[str]:
     return sorted({p for n in DAMPERS for p in damper_class(n).presets})
 
 
-COMMAND_KEYS = ["unit", "v_min", "v_max", "eta", "gain"]
+COMMAND_KEYS = ["unit", "v_min", "v_max", "eta", "eta_fall", "delay", "gain"]
 
 
 @SOME
@@ -139,7 +139,7 @@ def test_make_damper_preset_and_command(name, preset, command):
     assert preset is None or preset in cls.presets
     for k, v in (command or {}).items():
         assert getattr(d.command, k) == (v if k == "unit" else float(v))
-    assert all_finite([d.command.v_min, d.command.v_max, d.command.eta])
+    assert all_finite([d.command.v_min, d.command.v_max, d.command.eta, d.command.eta_down, d.command.delay])
     _check_force(d)
 
 
@@ -987,3 +987,50 @@ def test_scale_record_any_arguments(record, time_scale, amplitude_scale, dt):
         return
     _check_record(rec)
     assert rec.channels == record.channels
+
+
+# --- identification: the command dynamics and fault detection -----------------------------------------------------
+
+@SOME
+@given(v=arrays(np.float64, st.integers(2, 200), elements=st.floats(0.0, 2.0)), u0=st.floats(0.0, 2.0),
+       eta=st.floats(1.0, 1e4), eta_fall=st.one_of(st.none(), st.floats(1.0, 1e4)), delay=st.floats(0.0, 0.02),
+       dt=st.floats(1e-5, 1e-2))
+def test_effective_command_stays_between_the_commands(v, u0, eta, eta_fall, delay, dt):
+    from mrd_env.command_lag import effective_command
+    from mrd_env.dampers import CommandSpec
+
+    u = effective_command(CommandSpec("V", 0.0, 2.0, eta, eta_fall, delay), v, dt, u0)
+    lo, hi = min(v.min(), u0), max(v.max(), u0)
+    assert u.shape == v.shape and all_finite(u) and u[0] == u0
+    assert np.all(u >= lo - 1e-12) and np.all(u <= hi + 1e-12)
+
+
+@SOME
+@given(n=st.integers(3, 400), seed=st.integers(0, 2 ** 32 - 1), with_v=st.booleans(),
+       clip=st.floats(0.2, 1.0), spikes=st.integers(0, 3))
+def test_find_faults_spans_lie_in_the_record(n, seed, with_v, clip, spikes):
+    from mrd_env.identification import find_faults
+
+    g = np.random.default_rng(seed)
+    t = np.arange(n) * 1e-3
+    x = np.cumsum(g.standard_normal(n)) * 1e-4
+    F = np.minimum(g.standard_normal(n) * 100, clip * 300)
+    for k in g.integers(0, n, spikes):
+        F[k] += 1e5
+    r = DamperRecord(t, x, np.zeros(n), F, g.standard_normal(n) if with_v else None)
+    for f in find_faults(r):
+        assert f.kind in ("saturation", "spike", "gap") and f.channel in ("x", "v", "force", "t")
+        assert 0 <= f.i0 <= f.i1 < n and f.start == t[f.i0] and f.end == t[f.i1]
+
+
+@FEW
+@given(arg=st.sampled_from(["saturation_duration", "saturation_tol", "clip_samples", "spike_threshold",
+                            "gap_factor"]), value=st.one_of(NOT_POSITIVE, st.just(0.5)))
+def test_find_faults_refuses_bad_settings(arg, value):
+    from mrd_env.identification import find_faults
+
+    assume(not (arg in ("saturation_duration", "saturation_tol") and value == 0.5))
+    r = DamperRecord(np.arange(5.0), np.zeros(5), np.zeros(5), np.arange(5.0))
+    with pytest.raises(ValueError) as info:
+        find_faults(r, **{arg: value})
+    assert_names(info.value, arg)

@@ -31,7 +31,8 @@ from dataclasses import dataclass
 
 import numba as nb
 
-from .base import CommandSpec, DamperModel, DamperParams, Preset, param
+from .base import (CommandSpec, DamperModel, DamperParams, FIXED_SCALING, FIXED_SHAPE, FIXED_TEST_CONDITION, Preset,
+                   param)
 from .hysteresis import BoucWenSaturation, bouc_wen_zdot, clip_to_saturation
 from .registry import register
 
@@ -60,12 +61,13 @@ class AliRamaswamyParams(DamperParams):
     alpha4: float = _coef("α per ampere: constant term", "N/(m·A)")
     alpha5: float = _coef("α per ampere: x_a term", "N/(m²·A)")
     alpha6: float = _coef("α per ampere: x_a² term", "N/(m³·A)")
-    x_a: float = param(unit="m", lo=0.0, lo_open=True, hi=1.0, doc="stroke amplitude of the excitation")
+    x_a: float = param(unit="m", lo=0.0, lo_open=True, hi=1.0, doc="stroke amplitude of the excitation",
+                       fixed=FIXED_TEST_CONDITION)
     f0: float = param(unit="N", doc="force offset (accumulator preload)")
     gamma: float = param(unit="1/m^n", lo=0.0, doc="Bouc–Wen shape parameter γ")
     beta: float = param(unit="1/m^n", doc="Bouc–Wen shape parameter β")
-    A: float = param(unit="-", lo=0.0, lo_open=True, doc="Bouc–Wen parameter A")
-    n: float = param(unit="-", lo=1.0, hi=10.0, doc="Bouc–Wen exponent n")
+    A: float = param(unit="-", lo=0.0, lo_open=True, doc="Bouc–Wen parameter A", fixed=FIXED_SCALING)
+    n: float = param(unit="-", lo=1.0, hi=10.0, doc="Bouc–Wen exponent n", fixed=FIXED_SHAPE)
 
     def coefficients(self, i_c: float = 0.0) -> tuple[float, float, float]:
         """(c, k, α) of eq. (21) at the amplitude x_a and current i_c (N·s/m, N/m, N/m)."""
@@ -89,6 +91,11 @@ class AliRamaswamyParams(DamperParams):
                              f"x_a = {self.x_a:g} m: " + "; ".join(bad))
 
 
+# the index of each parameter in p, in field order (AliRamaswamyParams.index_constants(); tests/test_param_indices.py)
+(P_C1, P_C2, P_C3, P_C4, P_C5, P_C6, P_K1, P_K2, P_K3, P_K4, P_K5, P_K6, P_ALPHA1, P_ALPHA2, P_ALPHA3, P_ALPHA4,
+ P_ALPHA5, P_ALPHA6, P_X_A, P_F0, P_GAMMA, P_BETA, P_A, P_N) = range(24)
+
+
 @nb.njit(cache=True)
 def _quad(p, o, a, u):
     return p[o] + p[o + 1] * a + p[o + 2] * a * a + (p[o + 3] + p[o + 4] * a + p[o + 5] * a * a) * u
@@ -96,18 +103,18 @@ def _quad(p, o, a, u):
 
 @nb.njit(cache=True)
 def _rhs(p, s, x, xd, u, ds):
-    ds[0] = bouc_wen_zdot(s[0], xd, p[22], p[21], p[20], p[23])
+    ds[0] = bouc_wen_zdot(s[0], xd, p[P_A], p[P_BETA], p[P_GAMMA], p[P_N])
 
 
 @nb.njit(cache=True)
 def _force(p, s, x, xd, xdd, u):
-    a = p[18]
-    return _quad(p, 0, a, u) * xd + _quad(p, 6, a, u) * x + _quad(p, 12, a, u) * s[0] + p[19]
+    a = p[P_X_A]
+    return _quad(p, P_C1, a, u) * xd + _quad(p, P_K1, a, u) * x + _quad(p, P_ALPHA1, a, u) * s[0] + p[P_F0]
 
 
 @nb.njit(cache=True)
 def _project(p, s, x, xd, u):
-    s[0] = clip_to_saturation(s[0], p[22], p[21], p[20], p[23])
+    s[0] = clip_to_saturation(s[0], p[P_A], p[P_BETA], p[P_GAMMA], p[P_N])
 
 
 def _poly(value_at_ref: float, factor: tuple[float, float, float]) -> tuple[float, float, float]:

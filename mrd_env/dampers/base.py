@@ -5,9 +5,9 @@ A damper model is four things:
 * a frozen parameter dataclass (SI units, validated on construction),
 * internal states ``s`` advanced by ``rhs(p, s, x, xd, u, ds)`` (``ds`` = ds/dt),
 * a force law ``force_law(p, s, x, xd, xdd, u) -> F`` (N, positive when resisting extension ``x``),
-* the command dynamics: the first-order lag u̇ = −η (u − v) from the commanded current/voltage ``v``
-  to the effective one ``u``, which is common to all models and integrated exactly by the stepping
-  routine (``mrd_env.integrator``).
+* the command dynamics from the commanded current/voltage ``v`` to the effective one ``u``: a pure delay and
+  a first-order lag u̇ = −η (u − v), faster on a rise than on a fall if declared so (:class:`CommandSpec`,
+  :mod:`mrd_env.command_lag`), common to all models and integrated exactly by the stepping routine.
 
 ``rhs``, ``force_law`` and ``project(p, s, x, xd, u)`` are numba ``@njit`` functions taking the parameter
 vector ``p`` (``Params.as_array()``, fields in declaration order); ``project`` runs between integration
@@ -34,10 +34,20 @@ import numpy as np
 from ..validation import as_real, check_scalar, describe_range
 
 
+# Why a parameter is kept fixed by identification unless named free (``param(..., fixed=...)``).
+FIXED_SHAPE = "Bouc–Wen exponent: a shape choice, kept fixed (n = 2 in the presets)"
+FIXED_SCALING = ("Bouc–Wen scaling redundancy: (α, A, β, γ) → (α/s, s·A, β/sⁿ, γ/sⁿ) gives the same force, so one "
+                 "of them is fixed")
+FIXED_SMOOTHING = "smoothing scale of a sign function: a numerical regularisation, not a damper property"
+FIXED_FILTER = "time constant of an internal velocity filter: an estimator setting, not a damper property"
+FIXED_TEST_CONDITION = "a condition of the test (set it to the record's value), not a damper property"
+
+
 def param(default: float = dataclasses.MISSING, *, unit: str, lo: float = -math.inf, hi: float = math.inf,
-          lo_open: bool = False, doc: str = "") -> Any:
-    """Declare a model parameter: its SI ``unit``, valid range and meaning."""
-    meta = {"unit": unit, "lo": lo, "hi": hi, "lo_open": lo_open, "doc": doc}
+          lo_open: bool = False, doc: str = "", fixed: str = "") -> Any:
+    """Declare a model parameter: its SI ``unit``, valid range and meaning; ``fixed`` says why identification keeps
+    it fixed by default (one of the ``FIXED_*`` reasons; empty: fitted by default)."""
+    meta = {"unit": unit, "lo": lo, "hi": hi, "lo_open": lo_open, "doc": doc, "fixed": fixed}
     if default is dataclasses.MISSING:
         return field(metadata=meta)
     return field(default=default, metadata=meta)
@@ -78,6 +88,19 @@ class DamperParams:
         return {f.name: f.metadata["unit"] for f in fields(cls)}
 
     @classmethod
+    def index_constants(cls) -> str:
+        """The source line naming each parameter's index in ``p`` (``P_<NAME> = i`` in field order), as every
+        model module declares it so that force laws read ``p[P_C0A]`` instead of ``p[0]``; a test checks each
+        module's constants against this."""
+        names = ", ".join(f"P_{n.upper()}" for n in cls.names())
+        return f"{names} = range({len(cls.names())})"
+
+    @classmethod
+    def fixed_by_default(cls) -> dict[str, str]:
+        """{name: reason} of the parameters that identification keeps fixed unless named free."""
+        return {f.name: f.metadata["fixed"] for f in fields(cls) if f.metadata.get("fixed")}
+
+    @classmethod
     def bounds(cls) -> dict[str, tuple[float, float]]:
         return {f.name: (f.metadata["lo"], f.metadata["hi"]) for f in fields(cls)}
 
@@ -91,15 +114,20 @@ class DamperParams:
 
 @dataclass(frozen=True)
 class CommandSpec:
-    """The command channel: unit ('V' or 'A'), admissible range and the first-order lag rate η (1/s).
+    """The command channel: unit ('V' or 'A'), admissible range and the command dynamics
+    (:mod:`mrd_env.command_lag`).
 
-    u̇ = −η (u − v): ``u`` reaches 63.2 % of a step in v after 1/η seconds.
+    u̇ = −η (u − v(t − τ)) with η = ``eta`` (1/s) while the command rises above u and ``eta_fall`` while it
+    falls below (``None``: the same rate both ways), and a pure delay τ = ``delay`` (s): ``u`` reaches 63.2 %
+    of a step in v after τ + 1/η seconds.
     """
 
     unit: str = "V"
     v_min: float = 0.0
     v_max: float = 1.0
     eta: float = 190.0
+    eta_fall: float | None = None
+    delay: float = 0.0
 
     def __post_init__(self) -> None:
         if self.unit not in ("V", "A"):
@@ -110,6 +138,19 @@ class CommandSpec:
             raise ValueError(f"CommandSpec.v_max = {self.v_max:g} must be > CommandSpec.v_min = {self.v_min:g} "
                              f"{self.unit}")
         object.__setattr__(self, "eta", check_scalar("CommandSpec.eta", self.eta, 0.0, lo_open=True, unit="1/s"))
+        if self.eta_fall is not None:
+            object.__setattr__(self, "eta_fall", check_scalar("CommandSpec.eta_fall", self.eta_fall, 0.0,
+                                                              lo_open=True, unit="1/s"))
+        object.__setattr__(self, "delay", check_scalar("CommandSpec.delay", self.delay, 0.0, 1.0, unit="s"))
+
+    @property
+    def eta_down(self) -> float:
+        """The lag rate of a falling command (1/s): ``eta_fall``, or ``eta`` when the lag is symmetric."""
+        return self.eta if self.eta_fall is None else self.eta_fall
+
+    def lag_vector(self) -> np.ndarray:
+        """(η_rise, η_fall, τ) as the kernels take them (:data:`mrd_env.command_lag.LAG_RISE` ...)."""
+        return np.array([self.eta, self.eta_down, self.delay])
 
     def check_command(self, v: np.ndarray | float, name: str = "command") -> np.ndarray:
         """Raise ``ValueError`` if any command is non-finite or outside [v_min, v_max]."""
@@ -125,7 +166,7 @@ class CommandSpec:
 
 def command_spec(command, base: CommandSpec) -> CommandSpec:
     """``command`` as a :class:`CommandSpec`: None → ``base``; a CommandSpec; or a dict of field overrides of
-    ``base`` (``unit``, ``v_min``, ``v_max``, ``eta``). Anything else raises ``ValueError``."""
+    ``base`` (``unit``, ``v_min``, ``v_max``, ``eta``, ``eta_fall``, ``delay``). Anything else raises ``ValueError``."""
     if command is None:
         return base
     if isinstance(command, CommandSpec):

@@ -37,6 +37,10 @@ from .base import CommandSpec, DamperModel, DamperParams, Preset, no_projection,
 from .registry import register
 
 
+# the index of each parameter in p, in field order (BiViscousParams.index_constants(); tests/test_param_indices.py)
+P_FY_A, P_FY_B, P_C_PS_A, P_C_PS_B, P_C_PRE_A, P_C_PRE_B, P_F0 = range(7)
+
+
 @nb.njit(cache=True)
 def bi_viscous_curve(v, c_pre, c_ps, f_yield, v_shift):
     """c_ps v + clip((c_pre − c_ps) v − c_pre v_shift, −F_yield, F_yield).
@@ -75,7 +79,8 @@ class BiViscousParams(DamperParams):
 
 @nb.njit(cache=True)
 def _force(p, s, x, xd, xdd, u):
-    return bi_viscous_curve(xd, p[4] + p[5] * u, p[2] + p[3] * u, p[0] + p[1] * u, 0.0) + p[6]
+    return bi_viscous_curve(xd, p[P_C_PRE_A] + p[P_C_PRE_B] * u, p[P_C_PS_A] + p[P_C_PS_B] * u,
+                            p[P_FY_A] + p[P_FY_B] * u, 0.0) + p[P_F0]
 
 
 # Derived preset (not published): least-squares fit of the linear-in-command eq. (5) to the steady force

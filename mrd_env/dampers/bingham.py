@@ -10,7 +10,8 @@ from dataclasses import dataclass
 
 import numba as nb
 
-from .base import CommandSpec, DamperModel, DamperParams, Preset, no_projection, no_states_rhs, param, smooth_sign
+from .base import (CommandSpec, DamperModel, DamperParams, FIXED_SMOOTHING, Preset, no_projection, no_states_rhs,
+                   param, smooth_sign)
 from .registry import register
 
 
@@ -21,12 +22,17 @@ class BinghamParams(DamperParams):
     c0a: float = param(unit="N·s/m", lo=0.0, doc="post-yield damping c0, command-independent part")
     c0b: float = param(unit="N·s/(m·cmd)", lo=0.0, doc="c0 per unit command")
     f0: float = param(unit="N", doc="force offset (accumulator)")
-    v_s: float = param(0.01, unit="m/s", lo=0.0, doc="velocity over which sgn(ẋ) is smoothed (0 = exact sign)")
+    v_s: float = param(0.01, unit="m/s", lo=0.0, doc="velocity over which sgn(ẋ) is smoothed (0 = exact sign)",
+                       fixed=FIXED_SMOOTHING)
+
+
+# the index of each parameter in p, in field order (BinghamParams.index_constants(); tests/test_param_indices.py)
+P_FC_A, P_FC_B, P_C0A, P_C0B, P_F0, P_V_S = range(6)
 
 
 @nb.njit(cache=True)
 def _force(p, s, x, xd, xdd, u):
-    return (p[0] + p[1] * u) * smooth_sign(xd, p[5]) + (p[2] + p[3] * u) * xd + p[4]
+    return (p[P_FC_A] + p[P_FC_B] * u) * smooth_sign(xd, p[P_V_S]) + (p[P_C0A] + p[P_C0B] * u) * xd + p[P_F0]
 
 
 # Large-velocity asymptote of the Spencer–Dyke prototype: f_c = α(u) z_s with z_s = (A/(β+γ))^(1/2) =

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numba as nb
 
-from .base import CommandSpec, DamperModel, DamperParams, Preset, param
+from .base import CommandSpec, DamperModel, DamperParams, FIXED_SCALING, FIXED_SHAPE, Preset, param
 from .hysteresis import BoucWenSaturation, bouc_wen_partials, bouc_wen_zdot, clip_to_saturation
 from .registry import register
 
@@ -29,8 +29,8 @@ class BoucWenParams(DamperParams):
     alpha_b: float = param(unit="N/(m·cmd)", lo=0.0, doc="α per unit command")
     gamma: float = param(unit="1/m^n", lo=0.0, doc="shape parameter γ")
     beta: float = param(unit="1/m^n", doc="shape parameter β")
-    A: float = param(unit="-", lo=0.0, lo_open=True, doc="Bouc–Wen parameter A")
-    n: float = param(unit="-", lo=1.0, hi=10.0, doc="exponent n")
+    A: float = param(unit="-", lo=0.0, lo_open=True, doc="Bouc–Wen parameter A", fixed=FIXED_SCALING)
+    n: float = param(unit="-", lo=1.0, hi=10.0, doc="exponent n", fixed=FIXED_SHAPE)
 
     def check(self) -> None:
         if self.beta + self.gamma <= 0.0:
@@ -38,30 +38,35 @@ class BoucWenParams(DamperParams):
                              "(otherwise z has no saturation)")
 
 
+# the index of each parameter in p, in field order (BoucWenParams.index_constants(); tests/test_param_indices.py)
+P_C0A, P_C0B, P_K0A, P_K0B, P_X0, P_ALPHA_A, P_ALPHA_B, P_GAMMA, P_BETA, P_A, P_N = range(11)
+
+
 @nb.njit(cache=True)
 def _rhs(p, s, x, xd, u, ds):
-    ds[0] = bouc_wen_zdot(s[0], xd, p[9], p[8], p[7], p[10])
+    ds[0] = bouc_wen_zdot(s[0], xd, p[P_A], p[P_BETA], p[P_GAMMA], p[P_N])
 
 
 @nb.njit(cache=True)
 def _force(p, s, x, xd, xdd, u):
-    return (p[0] + p[1] * u) * xd + (p[2] + p[3] * u) * (x - p[4]) + (p[5] + p[6] * u) * s[0]
+    return ((p[P_C0A] + p[P_C0B] * u) * xd + (p[P_K0A] + p[P_K0B] * u) * (x - p[P_X0])
+            + (p[P_ALPHA_A] + p[P_ALPHA_B] * u) * s[0])
 
 
 @nb.njit(cache=True)
 def _partials(p, s, x, xd, xdd, u, J, work):
-    dz, dv = bouc_wen_partials(s[0], xd, p[9], p[8], p[7], p[10])
+    dz, dv = bouc_wen_partials(s[0], xd, p[P_A], p[P_BETA], p[P_GAMMA], p[P_N])
     J[0, 0] = dz
     J[0, 1] = 0.0
     J[0, 2] = dv
-    J[1, 0] = p[5] + p[6] * u
-    J[1, 1] = p[2] + p[3] * u
-    J[1, 2] = p[0] + p[1] * u
+    J[1, 0] = p[P_ALPHA_A] + p[P_ALPHA_B] * u
+    J[1, 1] = p[P_K0A] + p[P_K0B] * u
+    J[1, 2] = p[P_C0A] + p[P_C0B] * u
 
 
 @nb.njit(cache=True)
 def _project(p, s, x, xd, u):
-    s[0] = clip_to_saturation(s[0], p[9], p[8], p[7], p[10])
+    s[0] = clip_to_saturation(s[0], p[P_A], p[P_BETA], p[P_GAMMA], p[P_N])
 
 
 # Prototype scale (derived, not published): the Spencer–Dyke prototype's hysteretic part (α(u), A, β, γ,

@@ -43,20 +43,24 @@ class DahlParams(DamperParams):
     f0: float = param(unit="N", doc="force offset")
 
 
+# the index of each parameter in p, in field order (DahlParams.index_constants(); tests/test_param_indices.py)
+P_C0A, P_C0B, P_K0, P_FD_A, P_FD_B, P_SIGMA, P_F0 = range(7)
+
+
 @nb.njit(cache=True)
 def _rhs(p, s, x, xd, u, ds):
     # ż = σ(ẋ − |ẋ| z): eq. (8) with A = γ = σ, β = 0, n = 1
-    ds[0] = bouc_wen_zdot(s[0], xd, p[5], 0.0, p[5], 1.0)
+    ds[0] = bouc_wen_zdot(s[0], xd, p[P_SIGMA], 0.0, p[P_SIGMA], 1.0)
 
 
 @nb.njit(cache=True)
 def _force(p, s, x, xd, xdd, u):
-    return (p[0] + p[1] * u) * xd + p[2] * x + (p[3] + p[4] * u) * s[0] + p[6]
+    return (p[P_C0A] + p[P_C0B] * u) * xd + p[P_K0] * x + (p[P_FD_A] + p[P_FD_B] * u) * s[0] + p[P_F0]
 
 
 @nb.njit(cache=True)
 def _project(p, s, x, xd, u):
-    s[0] = clip_to_saturation(s[0], p[5], 0.0, p[5], 1.0)
+    s[0] = clip_to_saturation(s[0], p[P_SIGMA], 0.0, p[P_SIGMA], 1.0)
 
 
 PROTOTYPE = DahlParams(c0a=1839.0, c0b=831.9, k0=3303.0, fd_a=109.2, fd_b=305.3, sigma=1.1e5, f0=-72.01)

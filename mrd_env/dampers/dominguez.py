@@ -54,7 +54,8 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
-from .base import CommandSpec, DamperParams, Preset, no_projection, no_states_rhs, param, smooth_sign
+from .base import (CommandSpec, DamperParams, FIXED_SMOOTHING, FIXED_TEST_CONDITION, Preset, no_projection,
+                   no_states_rhs, param, smooth_sign)
 from .bi_viscous import CommandRangeChecked, command_grid
 from .registry import register
 
@@ -82,9 +83,17 @@ class DominguezParams(DamperParams):
     d2: float = param(unit="-", doc="frequency exponent, eq. (14)")
     d3: float = param(unit="m^-d4", lo=0.0, lo_open=True, doc="amplitude factor d3 x_max^d4, eq. (14)")
     d4: float = param(unit="-", doc="amplitude exponent, eq. (14)")
-    omega: float = param(unit="rad/s", lo=0.0, lo_open=True, doc="excitation frequency ω (known a priori)")
-    x_max: float = param(unit="m", lo=0.0, lo_open=True, doc="excitation amplitude x_max (known a priori)")
-    x_s: float = param(1e-4, unit="m", lo=0.0, doc="displacement over which the branch sgn(x) is smoothed")
+    omega: float = param(unit="rad/s", lo=0.0, lo_open=True, doc="excitation frequency ω (known a priori)",
+                         fixed=FIXED_TEST_CONDITION)
+    x_max: float = param(unit="m", lo=0.0, lo_open=True, doc="excitation amplitude x_max (known a priori)",
+                         fixed=FIXED_TEST_CONDITION)
+    x_s: float = param(1e-4, unit="m", lo=0.0, doc="displacement over which the branch sgn(x) is smoothed",
+                       fixed=FIXED_SMOOTHING)
+
+
+# the index of each parameter in p, in field order (DominguezParams.index_constants(); tests/test_param_indices.py)
+(P_C1, P_C2, P_C3, P_C4, P_K1, P_K2, P_ALPHA1, P_ALPHA2, P_ALPHA3, P_ALPHA4, P_GAMMA1, P_GAMMA2, P_FZ01, P_FZ02,
+ P_FZ03, P_FZ04, P_I_C, P_D1, P_D2, P_D3, P_D4, P_OMEGA, P_X_MAX, P_X_S) = range(24)
 
 
 @nb.njit(cache=True)
@@ -99,20 +108,20 @@ def current_law(I, p1, p2, p3, p4, i_c):
 @nb.njit(cache=True)
 def scaling_factor(p):
     """(d1 ω^d2)(d3 x_max^d4) of eq. (14)."""
-    return p[17] * p[21] ** p[18] * p[19] * p[22] ** p[20]
+    return p[P_D1] * p[P_OMEGA] ** p[P_D2] * p[P_D3] * p[P_X_MAX] ** p[P_D4]
 
 
 @nb.njit(cache=True)
 def _force(p, s, x, xd, xdd, u):
-    i_c = p[16]
-    c0 = current_law(u, p[0], p[1], p[2], p[3], i_c)
-    k0 = p[4] + p[5] * u
-    alpha = current_law(u, p[6], p[7], p[8], p[9], i_c)
-    gamma = p[10] - p[11] * u
-    fz0 = current_law(u, p[12], p[13], p[14], p[15], i_c)
+    i_c = p[P_I_C]
+    c0 = current_law(u, p[P_C1], p[P_C2], p[P_C3], p[P_C4], i_c)
+    k0 = p[P_K1] + p[P_K2] * u
+    alpha = current_law(u, p[P_ALPHA1], p[P_ALPHA2], p[P_ALPHA3], p[P_ALPHA4], i_c)
+    gamma = p[P_GAMMA1] - p[P_GAMMA2] * u
+    fz0 = current_law(u, p[P_FZ01], p[P_FZ02], p[P_FZ03], p[P_FZ04], i_c)
     sg = math.sqrt(gamma)
     r = min(sg * fz0 / alpha, 1.0 - 1e-12)  # the range check keeps it below 1; guard the artanh anyway
-    z = math.tanh(sg * xd + smooth_sign(x, p[23]) * math.atanh(r)) / sg
+    z = math.tanh(sg * xd + smooth_sign(x, p[P_X_S]) * math.atanh(r)) / sg
     return scaling_factor(p) * (c0 * xd + k0 * x + alpha * z)
 
 

@@ -61,6 +61,10 @@ class GamotaFiliskoParams(DamperParams):
     f0: float = param(unit="N", doc="force offset (accumulator)")
 
 
+# the index of each parameter in p, in field order (GamotaFiliskoParams.index_constants(); tests/test_param_indices.py)
+P_FC_A, P_FC_B, P_C0A, P_C0B, P_K1A, P_K1B, P_C1, P_K2A, P_K2B, P_F0 = range(10)
+
+
 @nb.njit(cache=True)
 def bingham_element_velocity(P, f_c, c0):
     """Velocity of a Bingham element (f_c, c0 > 0) carrying the force P: the exact inverse of
@@ -74,15 +78,15 @@ def bingham_element_velocity(P, f_c, c0):
 
 @nb.njit(cache=True)
 def _rhs(p, s, x, xd, u, ds):
-    v1 = bingham_element_velocity(s[1], p[0] + p[1] * u, p[2] + p[3] * u)
-    kelvin = (s[1] - s[0]) / p[6]  # ẋ2 − ẋ1
-    ds[0] = (p[4] + p[5] * u) * kelvin
-    ds[1] = (p[7] + p[8] * u) * (xd - v1 - kelvin)
+    v1 = bingham_element_velocity(s[1], p[P_FC_A] + p[P_FC_B] * u, p[P_C0A] + p[P_C0B] * u)
+    kelvin = (s[1] - s[0]) / p[P_C1]  # ẋ2 − ẋ1
+    ds[0] = (p[P_K1A] + p[P_K1B] * u) * kelvin
+    ds[1] = (p[P_K2A] + p[P_K2B] * u) * (xd - v1 - kelvin)
 
 
 @nb.njit(cache=True)
 def _force(p, s, x, xd, xdd, u):
-    return s[1] + p[9]
+    return s[1] + p[P_F0]
 
 
 # Derived preset (not published), mapped from the Spencer–Dyke prototype set, whose Bouc–Wen element is

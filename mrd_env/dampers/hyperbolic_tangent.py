@@ -29,7 +29,8 @@ from dataclasses import dataclass
 
 import numba as nb
 
-from .base import CommandSpec, DamperModel, DamperParams, Preset, no_projection, no_states_rhs, param, smooth_sign
+from .base import (CommandSpec, DamperModel, DamperParams, FIXED_SMOOTHING, Preset, no_projection, no_states_rhs,
+                   param, smooth_sign)
 from .registry import register
 
 
@@ -43,13 +44,19 @@ class HyperbolicTangentParams(DamperParams):
     beta: float = param(unit="s/m", lo=0.0, lo_open=True, doc="velocity scale of the tanh (its slope at 0 is αβ)")
     delta: float = param(unit="-", lo=0.0, doc="hysteresis shift δ (loop half-width in velocity δ/β)")
     f0: float = param(unit="N", doc="force offset")
-    x_s: float = param(0.001, unit="m", lo=0.0, doc="displacement over which sgn(x) is smoothed (0 = exact)")
+    x_s: float = param(0.001, unit="m", lo=0.0, doc="displacement over which sgn(x) is smoothed (0 = exact)",
+                       fixed=FIXED_SMOOTHING)
+
+
+# the index of each parameter in p, in field order (checked by tests/test_param_indices.py)
+P_C_A, P_C_B, P_K, P_ALPHA_A, P_ALPHA_B, P_BETA, P_DELTA, P_F0, P_X_S = range(9)
 
 
 @nb.njit(cache=True)
 def _force(p, s, x, xd, xdd, u):
-    return ((p[0] + p[1] * u) * xd + p[2] * x
-            + (p[3] + p[4] * u) * math.tanh(p[5] * xd + p[6] * smooth_sign(x, p[8])) + p[7])
+    return ((p[P_C_A] + p[P_C_B] * u) * xd + p[P_K] * x
+            + (p[P_ALPHA_A] + p[P_ALPHA_B] * u) * math.tanh(p[P_BETA] * xd + p[P_DELTA] * smooth_sign(x, p[P_X_S]))
+            + p[P_F0])
 
 
 PROTOTYPE = HyperbolicTangentParams(c_a=1811.0, c_b=337.2, k=4230.0, alpha_a=114.9, alpha_b=398.8, beta=37.92,

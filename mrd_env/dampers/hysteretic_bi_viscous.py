@@ -46,7 +46,7 @@ import numba as nb
 import numpy as np
 
 from .acceleration_branch import branch, filter_rhs
-from .base import CommandSpec, DamperParams, Preset, param
+from .base import CommandSpec, DamperParams, FIXED_FILTER, FIXED_SMOOTHING, Preset, param
 from .bi_viscous import CommandRangeChecked, bi_viscous_curve, command_grid
 from .registry import register
 
@@ -89,8 +89,14 @@ class HystereticBiViscousParams(DamperParams):
     v0_4: float = _coef("v0", 4, 0.0)
     f0: float = param(0.0, unit="N", doc="force offset (accumulator); 0 in the review's model")
     tau: float = param(1e-3, unit="s", lo=0.0, lo_open=True, hi=0.1,
-                       doc="time constant of the velocity filter that estimates the acceleration")
-    a_s: float = param(0.02, unit="m/s^2", lo=0.0, doc="acceleration over which sgn(ẍ) is smoothed (0 = exact)")
+                       doc="time constant of the velocity filter that estimates the acceleration", fixed=FIXED_FILTER)
+    a_s: float = param(0.02, unit="m/s^2", lo=0.0, doc="acceleration over which sgn(ẍ) is smoothed (0 = exact)",
+                       fixed=FIXED_SMOOTHING)
+
+
+# the index of each parameter in p, in field order (checked by tests/test_param_indices.py)
+(P_FY_0, P_FY_1, P_FY_2, P_FY_3, P_FY_4, P_C_PS_0, P_C_PS_1, P_C_PS_2, P_C_PS_3, P_C_PS_4, P_C_PRE_0, P_C_PRE_1,
+ P_C_PRE_2, P_C_PRE_3, P_C_PRE_4, P_V0_0, P_V0_1, P_V0_2, P_V0_3, P_V0_4, P_F0, P_TAU, P_A_S) = range(23)
 
 
 @nb.njit(cache=True)
@@ -101,18 +107,19 @@ def _poly(p, i, u):
 
 @nb.njit(cache=True)
 def _rhs(p, s, x, xd, u, ds):
-    ds[0] = filter_rhs(xd, s[0], p[21])
+    ds[0] = filter_rhs(xd, s[0], p[P_TAU])
     ds[1] = 0.0  # the branch is held over the step
 
 
 @nb.njit(cache=True)
 def _force(p, s, x, xd, xdd, u):
-    return bi_viscous_curve(xd, _poly(p, 10, u), _poly(p, 5, u), _poly(p, 0, u), _poly(p, 15, u) * s[1]) + p[20]
+    return (bi_viscous_curve(xd, _poly(p, P_C_PRE_0, u), _poly(p, P_C_PS_0, u), _poly(p, P_FY_0, u),
+                             _poly(p, P_V0_0, u) * s[1]) + p[P_F0])
 
 
 @nb.njit(cache=True)
 def _project(p, s, x, xd, u):
-    s[1] = branch(xd, s[0], p[21], p[22])
+    s[1] = branch(xd, s[0], p[P_TAU], p[P_A_S])
 
 
 # Derived preset (not published): least-squares fit of the model with quadratic command laws (exact sgn ẍ)

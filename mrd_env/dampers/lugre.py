@@ -44,10 +44,14 @@ class LuGreParams(DamperParams):
     f0: float = param(unit="N", doc="force offset")
 
 
+# the index of each parameter in p, in field order (LuGreParams.index_constants(); tests/test_param_indices.py)
+P_SIGMA0, P_SIGMA0B, P_A0, P_SIGMA1, P_SIGMA2A, P_SIGMA2B, P_F0 = range(7)
+
+
 @nb.njit(cache=True)
 def _zdot(p, z, xd):
     # ż = ẋ − σ0 a0 |ẋ| z: eq. (8) with A = 1, β = 0, γ = σ0 a0, n = 1
-    return bouc_wen_zdot(z, xd, 1.0, 0.0, p[0] * p[2], 1.0)
+    return bouc_wen_zdot(z, xd, 1.0, 0.0, p[P_SIGMA0] * p[P_A0], 1.0)
 
 
 @nb.njit(cache=True)
@@ -57,12 +61,13 @@ def _rhs(p, s, x, xd, u, ds):
 
 @nb.njit(cache=True)
 def _force(p, s, x, xd, xdd, u):
-    return (p[0] + p[1] * u) * s[0] + p[3] * _zdot(p, s[0], xd) + (p[4] + p[5] * u) * xd + p[6]
+    return ((p[P_SIGMA0] + p[P_SIGMA0B] * u) * s[0] + p[P_SIGMA1] * _zdot(p, s[0], xd)
+            + (p[P_SIGMA2A] + p[P_SIGMA2B] * u) * xd + p[P_F0])
 
 
 @nb.njit(cache=True)
 def _project(p, s, x, xd, u):
-    s[0] = clip_to_saturation(s[0], 1.0, 0.0, p[0] * p[2], 1.0)
+    s[0] = clip_to_saturation(s[0], 1.0, 0.0, p[P_SIGMA0] * p[P_A0], 1.0)
 
 
 PROTOTYPE = LuGreParams(sigma0=5.39e6, sigma0b=1.388e7, a0=8.363e-3, sigma1=14040.0, sigma2a=1782.0, sigma2b=819.5,

@@ -41,7 +41,7 @@ from dataclasses import dataclass
 
 import numba as nb
 
-from .base import CommandSpec, DamperModel, DamperParams, Preset, param
+from .base import CommandSpec, DamperModel, DamperParams, FIXED_SCALING, FIXED_SHAPE, Preset, param
 from .hysteresis import BoucWenSaturation, bouc_wen_zdot, clip_to_saturation
 from .registry import register
 
@@ -60,13 +60,17 @@ class ModifiedBoucWenParams(DamperParams):
     alpha_b: float = param(unit="N/(m·cmd)", lo=0.0, doc="α per unit command")
     gamma: float = param(unit="1/m^n", lo=0.0, doc="Bouc–Wen shape parameter γ")
     beta: float = param(unit="1/m^n", doc="Bouc–Wen shape parameter β")
-    A: float = param(unit="-", lo=0.0, lo_open=True, doc="Bouc–Wen parameter A")
-    n: float = param(unit="-", lo=1.0, hi=10.0, doc="Bouc–Wen exponent n")
+    A: float = param(unit="-", lo=0.0, lo_open=True, doc="Bouc–Wen parameter A", fixed=FIXED_SCALING)
+    n: float = param(unit="-", lo=1.0, hi=10.0, doc="Bouc–Wen exponent n", fixed=FIXED_SHAPE)
 
     def check(self) -> None:
         if self.beta + self.gamma <= 0.0:
             raise ValueError(f"ModifiedBoucWenParams: beta + gamma = {self.beta + self.gamma:g} must be > 0 "
                              "(otherwise z has no saturation)")
+
+
+# the index of each parameter in p, in field order (checked by tests/test_param_indices.py)
+P_M, P_A1A, P_A1B, P_A2, P_P, P_KA, P_KB, P_X0, P_ALPHA_A, P_ALPHA_B, P_GAMMA, P_BETA, P_A, P_N = range(14)
 
 
 @nb.njit(cache=True)
@@ -77,18 +81,18 @@ def shear_thinning_damping(a1, a2, p, v):
 
 @nb.njit(cache=True)
 def _rhs(p, s, x, xd, u, ds):
-    ds[0] = bouc_wen_zdot(s[0], xd, p[12], p[11], p[10], p[13])
+    ds[0] = bouc_wen_zdot(s[0], xd, p[P_A], p[P_BETA], p[P_GAMMA], p[P_N])
 
 
 @nb.njit(cache=True)
 def _force(p, s, x, xd, xdd, u):
-    c = shear_thinning_damping(p[1] + p[2] * u, p[3], p[4], xd)
-    return p[0] * xdd + c * xd + (p[5] + p[6] * u) * (x - p[7]) + (p[8] + p[9] * u) * s[0]
+    c = shear_thinning_damping(p[P_A1A] + p[P_A1B] * u, p[P_A2], p[P_P], xd)
+    return p[P_M] * xdd + c * xd + (p[P_KA] + p[P_KB] * u) * (x - p[P_X0]) + (p[P_ALPHA_A] + p[P_ALPHA_B] * u) * s[0]
 
 
 @nb.njit(cache=True)
 def _project(p, s, x, xd, u):
-    s[0] = clip_to_saturation(s[0], p[12], p[11], p[10], p[13])
+    s[0] = clip_to_saturation(s[0], p[P_A], p[P_BETA], p[P_GAMMA], p[P_N])
 
 
 _A2, _P = 0.5, 0.6

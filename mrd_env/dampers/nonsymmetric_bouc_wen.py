@@ -35,7 +35,7 @@ from dataclasses import dataclass
 
 import numba as nb
 
-from .base import CommandSpec, DamperModel, Preset, param, smooth_sign
+from .base import CommandSpec, DamperModel, FIXED_SMOOTHING, Preset, param, smooth_sign
 from .hysteresis import BoucWenSaturation, bouc_wen_zdot
 from .bouc_wen import BoucWenParams
 from .bouc_wen import _force as bouc_wen_force
@@ -48,14 +48,19 @@ class NonsymmetricBoucWenParams(BoucWenParams):
     """The Bouc–Wen parameters of eqs. (7)–(9) plus the velocity shift of eq. (24)."""
 
     mu: float = param(unit="m/s", doc="velocity shift μ of eq. (24): z reverses at ẋ = μ sgn(x)")
-    x_s: float = param(0.001, unit="m", lo=0.0, doc="displacement over which sgn(x) is smoothed (0 = exact)")
+    x_s: float = param(0.001, unit="m", lo=0.0, doc="displacement over which sgn(x) is smoothed (0 = exact)",
+                       fixed=FIXED_SMOOTHING)
 
+
+
+# the index of each parameter in p, in field order (checked by tests/test_param_indices.py)
+P_C0A, P_C0B, P_K0A, P_K0B, P_X0, P_ALPHA_A, P_ALPHA_B, P_GAMMA, P_BETA, P_A, P_N, P_MU, P_X_S = range(13)
 
 
 @nb.njit(cache=True)
 def _rhs(p, s, x, xd, u, ds):
-    v = xd - p[11] * smooth_sign(x, p[12])
-    ds[0] = bouc_wen_zdot(s[0], v, p[9], p[8], p[7], p[10])
+    v = xd - p[P_MU] * smooth_sign(x, p[P_X_S])
+    ds[0] = bouc_wen_zdot(s[0], v, p[P_A], p[P_BETA], p[P_GAMMA], p[P_N])
 
 
 # force law (eq. 7) and saturation of z are those of the plain Bouc–Wen model

@@ -37,7 +37,7 @@ from dataclasses import dataclass
 import numba as nb
 
 from .acceleration_branch import branch, filter_rhs
-from .base import CommandSpec, DamperModel, DamperParams, Preset, param
+from .base import CommandSpec, DamperModel, DamperParams, FIXED_FILTER, FIXED_SMOOTHING, Preset, param
 from .registry import register
 
 
@@ -50,8 +50,14 @@ class SigmoidParams(DamperParams):
     beta: float = param(unit="s/m", lo=0.0, lo_open=True, doc="steepness of the sigmoid (slope at 0: F_y β/2)")
     v_h: float = param(unit="m/s", lo=0.0, doc="hysteresis half-width in velocity")
     f0: float = param(unit="N", doc="force offset")
-    tau: float = param(0.002, unit="s", lo=0.0, lo_open=True, doc="time constant of the velocity filter")
-    a_s: float = param(0.5, unit="m/s^2", lo=0.0, doc="acceleration over which sgn(ẍ) is smoothed (0 = exact)")
+    tau: float = param(0.002, unit="s", lo=0.0, lo_open=True, doc="time constant of the velocity filter",
+                       fixed=FIXED_FILTER)
+    a_s: float = param(0.5, unit="m/s^2", lo=0.0, doc="acceleration over which sgn(ẍ) is smoothed (0 = exact)",
+                       fixed=FIXED_SMOOTHING)
+
+
+# the index of each parameter in p, in field order (SigmoidParams.index_constants(); tests/test_param_indices.py)
+P_FY_A, P_FY_B, P_C_A, P_C_B, P_BETA, P_V_H, P_F0, P_TAU, P_A_S = range(9)
 
 
 @nb.njit(cache=True)
@@ -62,18 +68,19 @@ def sigmoid(y):
 
 @nb.njit(cache=True)
 def _rhs(p, s, x, xd, u, ds):
-    ds[0] = filter_rhs(xd, s[0], p[7])
+    ds[0] = filter_rhs(xd, s[0], p[P_TAU])
     ds[1] = 0.0  # the branch is held over the step
 
 
 @nb.njit(cache=True)
 def _force(p, s, x, xd, xdd, u):
-    return (p[0] + p[1] * u) * sigmoid(p[4] * (xd - p[5] * s[1])) + (p[2] + p[3] * u) * xd + p[6]
+    return ((p[P_FY_A] + p[P_FY_B] * u) * sigmoid(p[P_BETA] * (xd - p[P_V_H] * s[1]))
+            + (p[P_C_A] + p[P_C_B] * u) * xd + p[P_F0])
 
 
 @nb.njit(cache=True)
 def _project(p, s, x, xd, u):
-    s[1] = branch(xd, s[0], p[7], p[8])
+    s[1] = branch(xd, s[0], p[P_TAU], p[P_A_S])
 
 
 PROTOTYPE = SigmoidParams(Fy_a=123.3, Fy_b=398.3, c_a=1766.0, c_b=340.6, beta=73.85, v_h=0.00464, f0=-71.94,

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numba as nb
 
-from .base import CommandSpec, DamperModel, DamperParams, Preset, param
+from .base import CommandSpec, DamperModel, DamperParams, FIXED_SCALING, FIXED_SHAPE, Preset, param
 from .hysteresis import BoucWenSaturation, bouc_wen_partials, bouc_wen_zdot, clip_to_saturation
 from .registry import register
 
@@ -34,8 +34,8 @@ class SpencerDykeParams(DamperParams):
     alpha_b: float = param(unit="N/(m·cmd)", lo=0.0, doc="α per unit command")
     gamma: float = param(unit="1/m^n", lo=0.0, doc="Bouc–Wen shape parameter γ")
     beta: float = param(unit="1/m^n", doc="Bouc–Wen shape parameter β")
-    A: float = param(unit="-", lo=0.0, lo_open=True, doc="Bouc–Wen parameter A (the review's δ)")
-    n: float = param(unit="-", lo=1.0, hi=10.0, doc="Bouc–Wen exponent n")
+    A: float = param(unit="-", lo=0.0, lo_open=True, doc="Bouc–Wen parameter A (the review's δ)", fixed=FIXED_SCALING)
+    n: float = param(unit="-", lo=1.0, hi=10.0, doc="Bouc–Wen exponent n", fixed=FIXED_SHAPE)
 
     def check(self) -> None:
         if self.beta + self.gamma <= 0.0:
@@ -43,53 +43,57 @@ class SpencerDykeParams(DamperParams):
                              "(otherwise z has no saturation)")
 
 
+# the index of each parameter in p, in field order (SpencerDykeParams.index_constants(); tests/test_param_indices.py)
+P_C0A, P_C0B, P_K0, P_C1A, P_C1B, P_K1, P_X0, P_ALPHA_A, P_ALPHA_B, P_GAMMA, P_BETA, P_A, P_N = range(13)
+
+
 @nb.njit(cache=True)
 def _ydot(p, s, x, xd, u):
-    c0 = p[0] + p[1] * u
-    c1 = p[3] + p[4] * u
-    alpha = p[7] + p[8] * u
-    return (alpha * s[1] + c0 * xd + p[2] * (x - s[0])) / (c0 + c1)
+    c0 = p[P_C0A] + p[P_C0B] * u
+    c1 = p[P_C1A] + p[P_C1B] * u
+    alpha = p[P_ALPHA_A] + p[P_ALPHA_B] * u
+    return (alpha * s[1] + c0 * xd + p[P_K0] * (x - s[0])) / (c0 + c1)
 
 
 @nb.njit(cache=True)
 def _rhs(p, s, x, xd, u, ds):
     yd = _ydot(p, s, x, xd, u)
     ds[0] = yd
-    ds[1] = bouc_wen_zdot(s[1], xd - yd, p[11], p[10], p[9], p[12])
+    ds[1] = bouc_wen_zdot(s[1], xd - yd, p[P_A], p[P_BETA], p[P_GAMMA], p[P_N])
 
 
 @nb.njit(cache=True)
 def _force(p, s, x, xd, xdd, u):
-    return (p[3] + p[4] * u) * _ydot(p, s, x, xd, u) + p[5] * (x - p[6])
+    return (p[P_C1A] + p[P_C1B] * u) * _ydot(p, s, x, xd, u) + p[P_K1] * (x - p[P_X0])
 
 
 @nb.njit(cache=True)
 def _partials(p, s, x, xd, xdd, u, J, work):
-    c0 = p[0] + p[1] * u
-    c1 = p[3] + p[4] * u
-    alpha = p[7] + p[8] * u
+    c0 = p[P_C0A] + p[P_C0B] * u
+    c1 = p[P_C1A] + p[P_C1B] * u
+    alpha = p[P_ALPHA_A] + p[P_ALPHA_B] * u
     den = c0 + c1
-    yd = (alpha * s[1] + c0 * xd + p[2] * (x - s[0])) / den
+    yd = (alpha * s[1] + c0 * xd + p[P_K0] * (x - s[0])) / den
     # ẏ and its derivatives in (y, z, x, ẋ); F = c1 ẏ + k1 (x − x0); ż = BW(z, ẋ − ẏ)
-    dy, dz, dx, dv = -p[2] / den, alpha / den, p[2] / den, c0 / den
+    dy, dz, dx, dv = -p[P_K0] / den, alpha / den, p[P_K0] / den, c0 / den
     J[0, 0] = dy
     J[0, 1] = dz
     J[0, 2] = dx
     J[0, 3] = dv
-    bz, bw = bouc_wen_partials(s[1], xd - yd, p[11], p[10], p[9], p[12])
+    bz, bw = bouc_wen_partials(s[1], xd - yd, p[P_A], p[P_BETA], p[P_GAMMA], p[P_N])
     J[1, 0] = -bw * dy
     J[1, 1] = bz - bw * dz
     J[1, 2] = -bw * dx
     J[1, 3] = bw * (1.0 - dv)
     J[2, 0] = c1 * dy
     J[2, 1] = c1 * dz
-    J[2, 2] = c1 * dx + p[5]
+    J[2, 2] = c1 * dx + p[P_K1]
     J[2, 3] = c1 * dv
 
 
 @nb.njit(cache=True)
 def _project(p, s, x, xd, u):
-    s[1] = clip_to_saturation(s[1], p[11], p[10], p[9], p[12])
+    s[1] = clip_to_saturation(s[1], p[P_A], p[P_BETA], p[P_GAMMA], p[P_N])
 
 
 PROTOTYPE = SpencerDykeParams(

@@ -3,13 +3,23 @@
 - :mod:`.measures` — E_t, E_x, E_v (review eq. 3), J1, J2 (eqs. 25-26).
 - :mod:`.data` — :class:`DamperRecord` and :func:`load_record_csv` (declared units, SI inside).
 - :mod:`.uncertainty` — sensors of Table 7, the RSS budget of Table 8, Monte-Carlo propagation.
-- :mod:`.fit` — least squares, differential evolution and particle swarm fits; JSON presets.
-- :mod:`.compare` — several models fitted on one part of the records, scored on the rest.
+- :mod:`.prepare`, :mod:`.faults`, :mod:`.align` — records made ready for a fit: uniform grid, faults
+  (saturation, spikes, gaps) found and excluded, the force aligned with the motion.
+- :mod:`.fit` — :func:`fit_model` (least squares, differential evolution, particle swarm; :mod:`.options`,
+  :mod:`.parameters`, :mod:`.problem`, :mod:`.optimisers`, :mod:`.result`); :mod:`.neural` — the neural
+  forward model; :mod:`.presets` — JSON presets; :mod:`.sensitivity` — Cramér–Rao bounds.
+- :mod:`.compare` — several models fitted on one part of the records (or on other records), scored on the rest.
 - :mod:`.propagate` — sensor errors propagated to identified parameters and error measures.
 """
 from .data import UNITS, DamperRecord, load_record_csv
 from .compare import compare_models
-from .fit import FitResult, fit_model, load_preset, save_preset
+from .faults import Fault, FaultsExcluded, find_faults
+from .fit import fit_model
+from .neural import NeuralForwardModel, NeuralOptions
+from .options import DataOptions, SearchOptions
+from .presets import load_preset, save_preset
+from .result import FitResult
+from .simulate import predict
 from .measures import error_displacement, error_measures, error_time, error_velocity, j1, j2
 from .propagate import propagate_sensor_errors
 from .uncertainty import (TABLE8_DEFAULTS, Contribution, DisplacementSensor, LoadCell, MonteCarloResult,
@@ -22,5 +32,7 @@ __all__ = [
     "LoadCell", "DisplacementSensor", "SensorSet", "SensorReadout", "apply_sensors",
     "Contribution", "UncertaintyBudget", "rss_budget", "table8_contributions", "TABLE8_DEFAULTS",
     "MonteCarloResult", "monte_carlo", "as_generator",
-    "FitResult", "fit_model", "save_preset", "load_preset", "compare_models", "propagate_sensor_errors",
+    "FitResult", "fit_model", "SearchOptions", "DataOptions", "NeuralOptions", "NeuralForwardModel", "predict",
+    "find_faults", "Fault", "FaultsExcluded", "save_preset", "load_preset", "compare_models",
+    "propagate_sensor_errors",
 ]

@@ -10,6 +10,7 @@ loops of the held-back part (PNG, :mod:`mrd_env.report`).
 """
 from __future__ import annotations
 
+import dataclasses
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -21,14 +22,19 @@ from ..dampers import DamperModel, available_dampers, damper_class
 from ..errors import SimulationDivergedError
 from ..validation import check_scalar
 from .data import DamperRecord
-from .fit import (FitResult, PreparedRecord, _as_record, _measures, check_fit_options, fit_model, pooled_measures,
-                  predict, save_preset, uniform_record)
+from .fit import fit_model
+from .neural import NAME as NEURAL
+from .options import DataOptions, SearchOptions, as_options
+from .prepare import PreparedRecord, as_records, uniform_record
+from .presets import save_preset
+from .result import FitResult, _measures, pooled_measures
+from .simulate import predict
 
 __all__ = ["ModelComparison", "ComparisonResult", "compare_models", "split_records", "validate", "plot_fit",
            "COLUMNS"]
 
-COLUMNS = ("model", "free params", "fit E_t %", "E_t %", "E_x %", "E_v %", "J2 N", "fit J2 N", "wall time s",
-           "evaluations", "converged")
+COLUMNS = ("model", "free params", "offset samples", "fit E_t %", "E_t %", "E_x %", "E_v %", "J2 N", "fit J2 N",
+           "wall time s", "evaluations", "converged")
 
 
 @dataclass(frozen=True, eq=False)
@@ -46,11 +52,13 @@ class ModelComparison:
     def row(self) -> dict:
         nan = float("nan")
         if self.fit is None:
-            return {"model": self.model, "free params": 0, "fit E_t %": nan, "E_t %": nan, "E_x %": nan,
+            return {"model": self.model, "free params": 0, "offset samples": nan, "fit E_t %": nan, "E_t %": nan,
+                    "E_x %": nan,
                     "E_v %": nan, "J2 N": nan, "fit J2 N": nan, "wall time s": nan, "evaluations": 0,
                     "converged": f"failed: {self.error}"}
         v, f = self.validation_overall, self.fit.overall
-        return {"model": self.model, "free params": len(self.fit.free), "fit E_t %": 100 * f["E_t"],
+        return {"model": self.model, "free params": self.fit.n_free,
+                "offset samples": self.fit.settings.get("offsets", [0])[0], "fit E_t %": 100 * f["E_t"],
                 "E_t %": 100 * v["E_t"], "E_x %": 100 * v["E_x"], "E_v %": 100 * v["E_v"], "J2 N": v["J2"],
                 "fit J2 N": f["J2"], "wall time s": self.fit.wall_time, "evaluations": self.fit.n_evaluations,
                 "converged": "yes" if self.fit.converged else "no"}
@@ -66,6 +74,7 @@ class ComparisonResult:
     method: str
     fit_fraction: float
     files: dict[str, Path] = field(default_factory=dict)
+    cross_record: bool = False       # validated on other records (the whole of each)
 
     @property
     def rows(self) -> list[dict]:
@@ -81,11 +90,7 @@ class ComparisonResult:
 def split_records(records, fit_fraction: float, dt: float | None = None
                   ) -> tuple[list[DamperRecord], list[DamperRecord], list[int]]:
     """(uniform whole records, their fit parts, index of the first held-back sample of each)."""
-    if isinstance(records, DamperRecord) or not isinstance(records, (list, tuple)):
-        records = [records]
-    if not records:
-        raise ValueError("records must not be empty")
-    whole = [uniform_record(_as_record(r, i), dt) for i, r in enumerate(records)]
+    whole = [uniform_record(r, dt) for r in as_records(records)]
     f = float(fit_fraction)
     if not (0.0 < f < 1.0):
         raise ValueError(f"fit_fraction = {fit_fraction!r} is invalid: must be in (0, 1)")
@@ -97,44 +102,46 @@ def split_records(records, fit_fraction: float, dt: float | None = None
     return whole, fits, idx
 
 
-def validate(damper, whole: Sequence[DamperRecord], split_index: Sequence[int], *, dt: float | None = None,
-             command_range: str = "clip", **integrator_options) -> tuple[list[dict], dict, list[np.ndarray],
-                                                                           list[PreparedRecord]]:
-    """Measures of ``damper`` on the held-back part of each record (simulated over the whole record)."""
+def validate(damper, whole: Sequence[DamperRecord], split_index: Sequence[int], *, data: DataOptions | None = None,
+             offset: int = 0, **integrator_options) -> tuple[list[dict], dict, list[np.ndarray], list[PreparedRecord]]:
+    """Measures of ``damper`` on the held-back part of each record (simulated over the whole record; samples
+    with faults, or without a partner after the ``offset``, left out)."""
+    data = as_options(DataOptions, data, "data")
     rows, forces, preps = [], [], []
     for r, k in zip(whole, split_index):
-        prep, F = predict(damper, r, dt=dt, command_range=command_range, **integrator_options)
-        sl = np.zeros(prep.n, dtype=bool)
-        sl[k:] = True
+        prep, F = predict(damper, r, dt=data.dt, command_range=data.command_range, faults=data.faults, offset=offset,
+                          **integrator_options)
+        sl = prep.mask.copy()
+        sl[:k] = False
         rows.append(_measures(prep, F, sl))
         forces.append(F)
         preps.append(prep)
     return rows, pooled_measures(rows), forces, preps
 
 
-def compare_models(records, models: Sequence[str | DamperModel] | None = None, *, method: str = "least_squares",
-                   fit_fraction: float = 0.6, out: str | Path | None = None, seed: int = 0,
-                   dt: float | None = None, presets: Mapping[str, str] | None = None, progress: bool = True,
-                   title: str = "", plot_window: float = 1.0, fit_options: Mapping | None = None,
+def compare_models(records, models: Sequence[str | DamperModel] | None = None, *,
+                   search: SearchOptions | Mapping | None = None, data: DataOptions | Mapping | None = None,
+                   fit_fraction: float = 0.6, validation_records=None, out: str | Path | None = None,
+                   presets: Mapping[str, str] | None = None, title: str = "", plot_window: float = 1.0,
                    model_options: Mapping[str, Mapping] | None = None,
                    stop_on_error: bool = False) -> ComparisonResult:
     """Fit each model (default: all registered) on the first ``fit_fraction`` of ``records`` and validate it on
-    the rest; see the module docstring. ``models`` holds model names (initial guess: their preset) or
-    configured ``DamperModel`` instances (initial guess and command channel: theirs).
+    the rest; see the module docstring. ``models`` holds model names (initial guess: their preset; ``"neural"``
+    for the forward network) or configured ``DamperModel`` instances (initial guess and command channel: theirs).
 
-    ``presets``: {model: preset name} for the initial guesses (default: each model's default preset).
-    ``fit_options``: extra keyword arguments of :func:`fit_model` for every model (maxiter, command_range,
-    warmup, ...); ``model_options``: {model: {keyword: value}} for one model (free, bounds, initial, ...).
-    ``out``: folder for the table (``comparison.md``/``.csv``), the presets (``<model>_fitted.json``) and the
-    figures; None writes nothing.
-    A model whose fit fails (bad input for that model, a diverging initial guess) gets a row marked failed
-    unless ``stop_on_error``.
+    ``validation_records``: other records (e.g. another test of the same damper): the models are fitted on the
+    whole of ``records`` and scored on these (cross-record validation); ``fit_fraction`` is then not used.
+    ``search``/``data``: the options of every fit (:mod:`.options`); ``model_options``: {model: {keyword:
+    value}} of :func:`fit_model` for one model (free, bounds, initial, search, ...). ``presets``: {model: preset
+    name} for the initial guesses. ``out``: folder for the table (``comparison.md``/``.csv``), the presets
+    (``<model>_fitted.json``) and the figures; None writes nothing. A model whose fit fails (bad input for that
+    model, a diverging initial guess) gets a row marked failed unless ``stop_on_error``.
     """
     models = list(models) if models is not None else available_dampers()
     if not models:
         raise ValueError("models must not be empty")
     for m in models:
-        if not isinstance(m, DamperModel):
+        if not isinstance(m, DamperModel) and m != NEURAL:
             damper_class(m)  # an unknown name is the caller's error, not a failed fit: refuse it before fitting
     names = [m.name if isinstance(m, DamperModel) else str(m) for m in models]
     if len(set(names)) != len(names):
@@ -142,29 +149,40 @@ def compare_models(records, models: Sequence[str | DamperModel] | None = None, *
     if plot_window is not None:
         check_scalar("plot_window", plot_window, 0.0, lo_open=True, unit="s")
     presets = dict(presets or {})
-    opts = dict(fit_options or {})
     # options shared by every fit are refused once, here: a bad one would fail every model's fit alike
-    check_fit_options(method, seed, **{k: opts[k] for k in ("maxiter", "popsize", "warmup", "command_range")
-                                       if k in opts})
-    whole, fits, idx = split_records(records, fit_fraction, dt)
-    integ = opts.get("integrator_options") or {}
+    search = as_options(SearchOptions, search, "search")
+    data = as_options(DataOptions, data, "data")
+    if validation_records is None:
+        whole, fits, idx = split_records(records, fit_fraction, data.dt)
+    else:
+        fits = [uniform_record(r, data.dt) for r in as_records(records)]
+        whole = [uniform_record(r, data.dt) for r in as_records(validation_records)]
+        idx = [0] * len(whole)
+    integ = {}
     results = []
     for name, model in zip(names, models):
-        o = {**opts, **dict((model_options or {}).get(name, {}))}
+        o = dict((model_options or {}).get(name, {}))
+        integ = o.get("integrator_options") or {}
         try:
-            fr = fit_model(model, fits, preset=None if isinstance(model, DamperModel) else presets.get(name),
-                           method=method, seed=seed, dt=dt, progress=progress, **o)
-            v_rows, v_all, forces, _ = validate(fr.damper, whole, idx, dt=dt,
-                                                command_range=fr.settings["command_range"], **integ)
+            preset = None if (isinstance(model, DamperModel) or name == NEURAL) else presets.get(name)
+            fr = fit_model(model, fits, preset=preset, **{"search": search, "data": data, **o})
+            v_rows, v_all, forces, _ = validate(fr.damper, whole, idx, data=fr_data(fr, data),
+                                                offset=fr.settings.get("offsets", [0])[0], **integ)
             results.append(ModelComparison(name, fr, v_rows, v_all, forces))
         except (ValueError, SimulationDivergedError, ImportError) as exc:
             if stop_on_error:
                 raise
             results.append(ModelComparison(name, None, error=str(exc)))
-    res = ComparisonResult(results, whole, idx, method, float(fit_fraction))
+    res = ComparisonResult(results, whole, idx, search.method, 1.0 if validation_records is not None
+                           else float(fit_fraction), cross_record=validation_records is not None)
     if out is not None:
         res.files.update(write_comparison(res, out, title=title, plot_window=plot_window))
     return res
+
+
+def fr_data(fr: FitResult, data: DataOptions) -> DataOptions:
+    """The data options a fitted model is scored with: the fit's, with its command range."""
+    return dataclasses.replace(data, command_range=fr.settings.get("command_range", data.command_range))
 
 
 def _slug(s: str) -> str:
@@ -180,8 +198,10 @@ def write_comparison(res: ComparisonResult, out: str | Path, *, title: str = "",
     out.mkdir(parents=True, exist_ok=True)
     files: dict[str, Path] = {}
     labels = ", ".join(r.label or f"record {i}" for i, r in enumerate(res.records))
-    title = title or (f"Model comparison ({res.method}): fit on the first {100 * res.fit_fraction:g} % of "
-                      f"{labels}, errors on the held-back rest")
+    fitted = ", ".join(m.fit.records[0]["label"] for m in res.models[:1] if m.fit is not None)
+    title = title or (f"Model comparison: fit on {fitted}, validation (E_t ... J2) on {labels}" if res.cross_record
+                      else f"Model comparison ({res.method}): fit on the first {100 * res.fit_fraction:g} % of "
+                           f"{labels}, errors on the held-back rest")
     md, csv_path = write_table(res.rows, out / "comparison", title=title, floatfmt=".4g")
     files["table_md"], files["table_csv"] = md, csv_path
     for m in res.models:

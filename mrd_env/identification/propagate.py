@@ -10,6 +10,7 @@ summarises the draws: mean, standard deviation, and the central percentile inter
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Mapping, Sequence
@@ -19,7 +20,11 @@ import numpy as np
 from ..dampers import DamperModel, make_damper
 from ..rig import RigResult, random_test
 from .data import DamperRecord
-from .fit import COMMAND_ETA, FitResult, fit_model, pooled_measures, predict, _measures
+from .fit import fit_model
+from .parameters import COMMAND_PARAMS, initial_values
+from .result import FitResult, _measures, pooled_measures
+from .simulate import predict
+from .options import SearchOptions, as_options
 from .uncertainty import MonteCarloResult, SensorSet, apply_sensors, as_generator, monte_carlo
 
 __all__ = ["PropagationResult", "propagate_sensor_errors", "default_excitation"]
@@ -84,8 +89,8 @@ class PropagationResult:
 def propagate_sensor_errors(damper: DamperModel | str = "spencer_dyke", *,
                             excitation: Sequence[RigResult] | None = None, sensors: SensorSet | None = None,
                             n_draws: int = 20, rng=0,
-                            method: str = "least_squares", free: Sequence[str] | None = None,
-                            initial: Mapping[str, float] | None = None, fit_options: Mapping | None = None,
+                            search=None, data=None, free: Sequence[str] | None = None,
+                            initial: Mapping[str, float] | None = None, integrator_options: Mapping | None = None,
                             confidence: float = 0.95, progress: bool = True, on_error: str = "skip",
                             overrange: str = "raise", out: str | Path | None = None) -> PropagationResult:
     """Propagate sensor errors to the parameters fitted to ``damper`` (a configured damper or a model name
@@ -107,10 +112,11 @@ def propagate_sensor_errors(damper: DamperModel | str = "spencer_dyke", *,
         raise ValueError("excitation must not be empty")
     truth = [DamperRecord(r.t, r.x, r.command, r.force, r.v, r.command_unit, r.label or f"true {i}")
              for i, r in enumerate(true_recs)]
-    opts = dict(fit_options or {})
-    opts.setdefault("progress", False)
-    units = {**damper.Params.units(), COMMAND_ETA: "1/s", "E_t": "-", "E_x": "-", "E_v": "-", "J2": "N",
-             "E_t_true": "-", "E_x_true": "-", "E_v_true": "-", "J2_true": "N"}
+    search = as_options(SearchOptions, search, "search")
+    if search == SearchOptions():  # no progress bar per draw unless asked
+        search = dataclasses.replace(search, progress=False)
+    units = {**damper.Params.units(), **{k: v[1] for k, v in COMMAND_PARAMS.items()}, "E_t": "-", "E_x": "-",
+             "E_v": "-", "J2": "N", "E_t_true": "-", "E_x_true": "-", "E_v_true": "-", "J2_true": "N"}
     free_holder: list[tuple[str, ...]] = []
 
     def one_draw(child: np.random.Generator) -> dict[str, float]:
@@ -120,7 +126,8 @@ def propagate_sensor_errors(damper: DamperModel | str = "spencer_dyke", *,
             ro = apply_sensors(r.t, r.x, r.force, sensors, g, command=r.command, command_unit=r.command_unit,
                                overrange=overrange)
             readouts.append(ro.to_record(label=f"{r.label} (measured)"))
-        fr: FitResult = fit_model(damper, readouts, free=free, method=method, initial=initial, **opts)
+        fr: FitResult = fit_model(damper, readouts, free=free, initial=initial, search=search, data=data,
+                                  integrator_options=integrator_options)
         if not free_holder:
             free_holder.append(fr.free)
         out = dict(fr.free_values())
@@ -128,7 +135,7 @@ def propagate_sensor_errors(damper: DamperModel | str = "spencer_dyke", *,
             out[k] = fr.overall[k]
         rows = []
         for r in truth:
-            prep, F = predict(fr.damper, r, **(opts.get("integrator_options") or {}))
+            prep, F = predict(fr.damper, r, **(integrator_options or {}))
             rows.append(_measures(prep, F))
         pooled = pooled_measures(rows)
         for k in _MEASURES:
@@ -137,7 +144,7 @@ def propagate_sensor_errors(damper: DamperModel | str = "spencer_dyke", *,
 
     mc = monte_carlo(one_draw, n_draws, as_generator(rng), confidence=confidence, progress=progress,
                      on_error=on_error, desc=f"propagate {damper.name}")
-    true_params = {**damper.params.to_dict(), COMMAND_ETA: damper.command.eta}
+    true_params = initial_values(damper.params, damper.command)
     free_t = free_holder[0] if free_holder else tuple(free or ())
     res = PropagationResult(damper.name, {k: true_params[k] for k in free_t}, free_t, mc, units, sensors)
     if out is not None:

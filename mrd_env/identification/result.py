@@ -1,0 +1,109 @@
+"""The outcome of a fit and the error measures of a model on prepared records."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import numpy as np
+
+from ..dampers import CommandSpec, DamperModel
+from .measures import error_measures
+from .parameters import COMMAND_PARAMS, initial_values
+from .prepare import PreparedRecord
+
+
+@dataclass(frozen=True, eq=False)
+class FitResult:
+    """Outcome of :func:`fit_model` (SI units throughout).
+
+    ``per_record``: one dict per record with its label, samples and the measures E_t, E_x, E_v (ratios), J1
+    (N²), J2 (N) of the fitted model; ``overall``: J1 summed, J2 pooled over all samples, E_* as the
+    duration-weighted RMS of the per-record values. ``objective`` / ``initial_objective``: Σ_r w_r J2_r at the
+    fitted parameters and at the initial guess. ``n_evaluations`` counts candidate parameter vectors simulated
+    (every Jacobian column and population member counts one); ``history`` the best objective after each
+    iteration (generation). For the neural model (``model == "neural"``, ``damper`` a
+    :class:`~.neural.NeuralForwardModel`) ``params``/``free`` are empty, the objectives are the training loss
+    (mean squared standardised force error) per epoch, and ``n_evaluations`` counts sample presentations.
+    ``settings["offsets"]``: the force offset (samples) used on each record.
+    """
+
+    model: str
+    damper: DamperModel
+    params: dict[str, float]
+    initial: dict[str, float]
+    free: tuple[str, ...]
+    bounds: dict[str, tuple[float, float]]
+    fixed: dict[str, str]
+    method: str
+    seed: int
+    objective: float
+    initial_objective: float
+    per_record: list[dict]
+    overall: dict[str, float]
+    wall_time: float
+    n_evaluations: int
+    n_iterations: int
+    converged: bool
+    message: str
+    history: tuple[float, ...] = ()
+    n_infeasible: int = 0
+    n_diverged: int = 0
+    records: tuple[dict, ...] = ()
+    settings: dict = field(default_factory=dict)
+
+    @property
+    def n_free(self) -> int:
+        """Free parameters of a parametric model; weights of a network."""
+        return int(self.settings.get("n_weights", len(self.free)))
+
+    @property
+    def command(self) -> CommandSpec:
+        return self.damper.command
+
+    def free_values(self) -> dict[str, float]:
+        d = initial_values(self.damper.params, self.damper.command) if self.params else {}
+        return {k: d[k] for k in self.free}
+
+    def summary(self) -> str:
+        o = self.overall
+        lines = [f"{self.model} fitted by {self.method} (seed {self.seed}) on {len(self.per_record)} record(s): "
+                 f"E_t = {100 * o['E_t']:.2f} %, E_x = {100 * o['E_x']:.2f} %, E_v = {100 * o['E_v']:.2f} %, "
+                 f"J2 = {o['J2']:.4g} N; objective {self.initial_objective:.4g} → {self.objective:.4g}; "
+                 f"{self.n_evaluations} evaluations, {self.wall_time:.1f} s; {self.message}"]
+        units = self.damper.Params.units() if self.free else {}
+        for k in self.free:
+            v = self.free_values()[k]
+            unit = units.get(k) or COMMAND_PARAMS[k][1]
+            lines.append(f"  {k:10s} = {v:.6g} {unit}  (initial {self._initial_of(k):.6g})")
+        return "\n".join(lines)
+
+    def _initial_of(self, k):
+        return self.initial.get(k, float("nan"))
+
+
+def _measures(prep: PreparedRecord, F_model: np.ndarray, sl=None) -> dict:
+    m = prep.mask if sl is None else sl
+    t = prep.record.t[m]
+    em = error_measures(prep.force[m], F_model[m], t, v=prep.v[m])
+    return {"record": prep.label, "n": int(t.size), "duration_s": float(t[-1] - t[0]), **em}
+
+
+def pooled_measures(rows: Sequence[dict]) -> dict[str, float]:
+    """Overall measures of several records' rows (see :class:`FitResult`)."""
+    T = np.array([r["duration_s"] for r in rows])
+    n = np.array([r["n"] for r in rows])
+    out = {}
+    for k in ("E_t", "E_x", "E_v"):
+        e = np.array([r[k] for r in rows])
+        out[k] = float(np.sqrt(np.sum(T * e ** 2) / np.sum(T))) if T.sum() > 0 else float(e.mean())
+    out["J1"] = float(sum(r["J1"] for r in rows))
+    out["J2"] = float(math.sqrt(out["J1"] / n.sum()))
+    return out
+
+
+def record_info(preps: list[PreparedRecord]) -> tuple[dict, ...]:
+    """What a fit result keeps about each record: label, size, grid, clipped commands, faults and offset."""
+    return tuple({"label": p.label, "n": p.n, "dt_s": p.dt, "t0_s": float(p.record.t[0]),
+                  "duration_s": p.record.duration, "commands_clipped": p.n_clipped, "offset_samples": p.offset,
+                  "faults": [str(f) for f in p.faults], "samples_scored": int(p.mask.sum())} for p in preps)
