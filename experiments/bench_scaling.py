@@ -1,6 +1,7 @@
 """Wall time of the sweeps serially, on a local process pool (1 and 2 workers) and on a local Ray instance (2
-workers), on this machine: the benchmark (both plants, every law and scenario), training several seeds, and a
-model comparison on a synthetic record. Each configuration's result is checked to equal the serial one.
+workers), on this machine: the benchmark (both plants, every law and scenario), training several seeds, a model
+comparison on a synthetic record, and a Monte-Carlo sensor-error propagation. Each configuration's result is
+checked to equal the serial one.
 
     python -m experiments.bench_scaling [--train-steps 50000] [--out results/scaling]
 """
@@ -39,30 +40,40 @@ def _train(backend, jobs, steps):
                 .tobytes() for f in folders]
 
 
-def _compare(backend, jobs):
+def _record():
     from mrd_env.dampers import make_damper
-    from mrd_env.identification import compare_models
-    from mrd_env.identification.data import DamperRecord
     from mrd_env.rig import random_test
 
-    res = random_test(make_damper("spencer_dyke", "spencer1997"), rms=0.004, bandwidth=8.0, duration=4.0,
-                      switch_rate=2.0, dt=1e-3, rng=0)
-    rec = DamperRecord(res.t, res.x, res.command, res.force, command_unit="V")
-    out = compare_models(rec, ["bingham", "bouc_wen", "spencer_dyke", "hyperbolic_tangent"], maxiter=20,
-                         backend=backend, jobs=jobs, progress=False)
-    return [(m.model, None if m.fit is None else m.fit.measures.get("E_t")) for m in out.models]
+    return random_test(make_damper("spencer_dyke", "spencer1997"), 0.004, 8.0, 4.0, switch_rate=2.0, rng=0)
+
+
+def _compare(backend, jobs):
+    from mrd_env.identification import compare_models
+
+    out = compare_models([_record()], ["bingham", "bouc_wen", "spencer_dyke", "hyperbolic_tangent"],
+                         search={"maxiter": 20, "progress": False}, plot_window=None, backend=backend, jobs=jobs)
+    return [(m.model, None if m.fit is None else m.validation_overall.get("E_t")) for m in out.models]
+
+
+def _propagate(backend, jobs):
+    from mrd_env.identification.propagate import propagate_sensor_errors
+
+    res = propagate_sensor_errors("bouc_wen", n_draws=8, rng=0, free=["c0a", "alpha_b", "gamma", "beta"],
+                                  search={"maxiter": 20, "progress": False}, progress=False, backend=backend,
+                                  jobs=jobs)
+    return {k: v.tobytes() for k, v in res.mc.samples.items()}
 
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--train-steps", type=int, default=50_000)
     p.add_argument("--out", type=Path, default=Path("results/scaling"))
-    p.add_argument("--sweeps", nargs="+", default=["benchmark", "train", "compare-models"])
+    p.add_argument("--sweeps", nargs="+", default=["benchmark", "train", "compare-models", "propagate"])
     args = p.parse_args(argv)
     import mrd_env  # noqa: F401
 
     sweeps = {"benchmark": _benchmark, "train": lambda b, j: _train(b, j, args.train_steps),
-              "compare-models": _compare}
+              "compare-models": _compare, "propagate": _propagate}
     rows = []
     for name in args.sweeps:
         ref = None

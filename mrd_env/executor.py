@@ -85,7 +85,7 @@ def run_tasks(tasks: Sequence[Task], *, backend: str = "auto", jobs: int | None 
         return []
     from tqdm.auto import tqdm
 
-    bar = tqdm(total=len(tasks), desc=desc, disable=not progress)
+    bar = tqdm(total=len(tasks), desc=desc, disable=not progress or len(tasks) < 2)  # one task: its own bar
     try:
         run = {"serial": _serial, "pool": _pool, "ray": _ray}[backend]
         return run(tasks, jobs, address, bar)

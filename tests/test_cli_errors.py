@@ -145,7 +145,8 @@ CASES = {
     "compare-models": DATA_ERRORS + [
         ["--data", "{good}", "--models", "nope"], ["--data", "{good}", "--models", "bingham", "nope"],
         ["--data", "{good}", "--models", "bingham", "bingham"], ["--data", "{good}", "--plot-window", "0"],
-        ["--data", "{good}", "--plot-window", "nan"],
+        ["--data", "{good}", "--plot-window", "nan"], ["--data", "{good}", "--backend", "gpu"],
+        ["--data", "{good}", "--jobs", "0"], ["--data", "{good}", "--address", "ray://x:1"],
     ],
 }
 

@@ -110,3 +110,29 @@ def test_tune_runs_trials_prunes_and_writes_the_best_hyperparameters(tmp_path):
                  "--eval-episodes", "1", "--hyperparams", str(base), "--backend", "serial", "--out",
                  str(tmp_path / "t"), "--no-progress"]) == 0
     assert len((tmp_path / "t" / "quarter_car_ppo_trials.csv").read_text().splitlines()) == 1 + 3
+
+
+def test_model_comparison_and_sensor_propagation_on_a_pool_equal_serial_ones():
+    """compare-models and the Monte-Carlo propagation run their fits as tasks: the same numbers on a pool."""
+    from mrd_env.dampers import make_damper
+    from mrd_env.identification import compare_models
+    from mrd_env.identification.propagate import default_excitation, propagate_sensor_errors
+    from mrd_env.rig import random_test
+
+    d = make_damper("bouc_wen")
+    rec = random_test(d, 0.004, 5.0, 2.0, switch_rate=2.0, rng=3)
+    quiet = {"maxiter": 5, "progress": False}
+    kw = dict(search=quiet, plot_window=None)
+    a = compare_models([rec], ["bingham", "bouc_wen"], backend="serial", **kw)
+    b = compare_models([rec], ["bingham", "bouc_wen"], backend="pool", jobs=2, **kw)
+    assert [m.model for m in b.models] == ["bingham", "bouc_wen"] and all(m.fit is not None for m in b.models)
+    for ma, mb in zip(a.models, b.models):
+        assert ma.fit.params == mb.fit.params and ma.validation_overall == mb.validation_overall
+
+    exc = default_excitation(d, duration=1.0, rng=1)
+    kw = dict(excitation=exc, n_draws=2, rng=7, free=["c0a", "alpha_b"], progress=False, search=quiet)
+    p = propagate_sensor_errors(d, backend="serial", **kw)
+    q = propagate_sensor_errors(d, backend="pool", jobs=2, **kw)
+    assert q.free == ("c0a", "alpha_b")
+    for k in p.mc.samples:
+        assert np.array_equal(p.mc.samples[k], q.mc.samples[k])
