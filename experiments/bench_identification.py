@@ -199,7 +199,7 @@ def main(argv=None) -> int:
     if args.propagate:
         from mrd_env.identification.propagate import propagate_sensor_errors
         pr = propagate_sensor_errors("spencer_dyke", n_draws=args.propagate, rng=0, progress=progress,
-                                     out=out / "propagation")
+                                     backend="auto", out=out / "propagation")
         print(pr.files["table_md"].read_text())
     if args.real is not None:
         real_comparison(args.real, out / "real", models=models, fs=args.fs, fit_fraction=args.fit_fraction,

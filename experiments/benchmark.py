@@ -17,7 +17,8 @@ import numpy as np
 
 from mrd_env.report import markdown_table, write_table
 
-from .evaluation import Episode, evaluate, evaluate_batch  # noqa: F401  (evaluate: the scalar loop, re-exported)
+from . import sweep
+from .evaluation import Episode, controller_episodes, evaluate, evaluate_batch  # noqa: F401  (re-exported)
 from .scenarios import Scenario, held_out_scenarios
 
 QC_CONTROLLERS = ("passive_off", "passive_on", "skyhook_on_off", "skyhook_continuous", "groundhook", "hybrid",
@@ -33,62 +34,34 @@ BUILDING_METRICS = ("J1", "J2", "J3", "J4", "J5", "J6", "drift_peak", "acc_peak"
 
 def run_benchmark(plant: str, controllers=None, scenarios=None, *, damper: str = "spencer_dyke",
                   out: Path | None = None, progress: bool = True, quick: bool = False,
-                  reference_passive: bool = True, agents=()) -> list[Episode]:
-    """Every controller on every scenario (all seeds of a scenario in one vector environment); for the quarter
-    car also the conventional passive car (the MR damper replaced by the preset's reference dashpot, e.g.
+                  reference_passive: bool = True, agents=(), backend: str = "serial", jobs: int | None = None,
+                  address: str | None = None) -> list[Episode]:
+    """Every controller on every scenario (all seeds of a scenario in one vector environment), one task each on
+    the chosen backend (:mod:`mrd_env.executor`; the episodes are the same on all of them); for the quarter car
+    also the conventional passive car (the MR damper replaced by the preset's reference dashpot, e.g.
     1500 N·s/m for set A) as a baseline."""
-    import mrd_env  # noqa: F401  (registers the environments)
-    from controllers import make_controller
+    from mrd_env.executor import Task, run_tasks
 
     controllers = list(controllers or (QC_CONTROLLERS if plant == "quarter_car" else BUILDING_CONTROLLERS))
+    controllers += [Path(a) for a in agents]
+    if plant == "quarter_car" and reference_passive:
+        controllers.append("passive_ref")
     scenarios = scenarios or held_out_scenarios(plant, quick=quick)
     response = "sprung_acc" if plant == "quarter_car" else "drift"
-    agents = [Path(a) for a in agents]
-    jobs = [(s, c) for s in scenarios for c in list(controllers) + agents]
-    from tqdm.auto import tqdm
-    bar = tqdm(total=len(jobs), desc=f"benchmark {plant}", disable=not progress)
+    tasks = [Task(controller_episodes, (c, sc, response), {"damper": damper}, label=f"{sc.name} / {c}")
+             for sc in scenarios for c in controllers]
+    results = iter(run_tasks(tasks, backend=backend, jobs=jobs, address=address, progress=progress,
+                             desc=f"benchmark {plant}"))
     by_scenario: dict[str, list[Episode]] = {}
     for sc in scenarios:
-        eps = []
-        for name in controllers:
-            bar.set_postfix_str(f"{sc.name} / {name}")
-            eps.append(evaluate_batch(lambda v, n=name: make_controller(n, v), sc, response, damper=damper))
-            bar.update()
-        for path in agents:
-            eps.append(_agent_episodes(path, sc, damper, response))
-            bar.update()
-        if plant == "quarter_car" and reference_passive:
-            eps.append(_reference_passive(sc, response))
+        eps = [next(results) for _ in controllers]
         # rows: per seed, every controller (the table's order)
         for k in range(len(sc.seeds)):
             by_scenario.setdefault(sc.label(sc.seeds[k]), []).extend(e[k] for e in eps)
-    bar.close()
     episodes = [e for group in by_scenario.values() for e in group]
     if out is not None:
         write_reports(plant, episodes, Path(out))
     return episodes
-
-
-def _agent_episodes(path: Path, sc: Scenario, damper: str, response: str) -> list[Episode]:
-    """A saved agent on the scenario: the scenario's disturbance, the agent's sensors, history, control rate and
-    action mode (the observation it was trained on)."""
-    from controllers import load_agent
-
-    agent = load_agent(path)
-    return evaluate_batch(lambda v: agent.bind(v), sc, response, name=agent.name, damper=damper,
-                          **agent.observation_kwargs)
-
-
-def _reference_passive(sc: Scenario, response) -> list[Episode]:
-    from controllers import PassiveOff
-    from mrd_env.plants import quarter_car
-
-    c = quarter_car(sc.options.get("plant_preset", "set_a")).passive_c
-    eps = evaluate_batch(PassiveOff, sc, response, damper="bingham",
-                         damper_params=dict(fc_a=0.0, fc_b=0.0, c0a=c, c0b=0.0, f0=0.0))
-    for e in eps:
-        e.controller = f"passive_ref (c={c:g})"
-    return eps
 
 
 def _rows(plant: str, episodes: list[Episode]) -> list[dict]:
@@ -191,6 +164,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--agent", type=Path, nargs="*", default=[],
                    help="saved agents (a folder, .zip or .json written by mrd-env train) to score too")
     p.add_argument("--no-progress", action="store_true")
+    sweep.add_arguments(p)
 
 
 def scenario_rows(scenarios) -> list[dict]:
@@ -217,10 +191,12 @@ def run(args: argparse.Namespace) -> int:
     if unknown:
         raise ValueError(f"--controllers: unknown controller(s) {unknown}; available: {available_controllers()}")
     damper_class(args.damper)
+    executor = sweep.options(args)
     for plant in plants:
         scen = held_out_scenarios(plant, seeds=args.seeds, quick=args.quick)
         eps = run_benchmark(plant, args.controllers, scen, damper=args.damper, out=args.out,
-                            progress=not args.no_progress, agents=[p for p, pl in agents.items() if pl == plant])
+                            progress=not args.no_progress, agents=[p for p, pl in agents.items() if pl == plant],
+                            **executor)
         settings = markdown_table(scenario_rows(scen), title=f"{plant}: scenario settings")
         (args.out / f"{plant}_scenarios.md").write_text(settings)
         print(settings)

@@ -20,6 +20,7 @@ COMMANDS = {
     "train": ("experiments.train", "train agents (Stable-Baselines3, RL Zoo conventions): curves, best agent, "
                                    "checkpoints"),
     "evaluate": ("experiments.evaluate_cmd", "agents and classical laws side by side on the held-out scenarios"),
+    "tune": ("experiments.tune", "hyperparameter search for train (Optuna; pool or Ray workers)"),
     "identify": ("experiments.identify_cmd",
                  "fit a damper model to a measured record: errors table, figure, JSON preset"),
     "compare-models": ("experiments.compare_models_cmd",

@@ -11,6 +11,7 @@ from mrd_env.dampers import available_dampers
 from mrd_env.identification.compare import compare_models
 from mrd_env.identification.faults import FaultsExcluded
 
+from . import sweep
 from .identify_cmd import add_data_arguments, free_with_command, options, grid_dt, load_data, report_faults
 
 
@@ -22,9 +23,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--plot-window", type=float, default=1.0,
                    help="seconds of the held-back part shown over time in the figures (default 1)")
     p.add_argument("--out", type=Path, default=Path("results/compare"), help="output folder")
+    sweep.add_arguments(p)
 
 
 def run(args: argparse.Namespace) -> int:
+    executor = sweep.options(args)
     recs = load_data(args)
     others = load_data(args, args.validate) if args.validate else None
     search, data = options(args, grid_dt(args, recs[0]))
@@ -35,7 +38,8 @@ def run(args: argparse.Namespace) -> int:
         warnings.simplefilter("always", FaultsExcluded)
         res = compare_models(recs, models, search=search, data=data, fit_fraction=args.fit_fraction,
                              validation_records=others, out=args.out, plot_window=args.plot_window,
-                             model_options=model_options)
+                             model_options=model_options, progress=not args.no_progress,
+                             **executor)
     report_faults(caught)
     failed = [m.model for m in res.models if m.fit is None]
     if len(failed) == len(res.models):  # nothing to compare: an error, whatever the table says

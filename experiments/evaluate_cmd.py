@@ -19,7 +19,8 @@ import numpy as np
 
 from mrd_env.report import figure, save_figure, write_table
 
-from .evaluation import Episode, evaluate_batch, mean_ci
+from . import sweep
+from .evaluation import Episode, controller_episodes, mean_ci
 from .scenarios import held_out_scenarios
 
 METRICS = {"quarter_car": ("acc_weighted_rms", "travel_peak", "tyre_load_ratio"),
@@ -31,12 +32,13 @@ LAWS = {"quarter_car": ("random", "passive_off", "passive_on", "skyhook_on_off",
 
 
 def evaluate(plant: str, agents=(), laws=None, *, seeds: int = 3, control_dt: float | None = None,
-             laws_at_1ms: bool = True, progress: bool = True, quick: bool = False) -> dict[str, list[Episode]]:
+             laws_at_1ms: bool = True, progress: bool = True, quick: bool = False, backend: str = "serial",
+             jobs: int | None = None, address: str | None = None) -> dict[str, list[Episode]]:
     """{controller name: episodes on every test scenario}. Agents with the same name (an algorithm trained on
-    several seeds) are pooled under one row."""
-    import mrd_env  # noqa: F401
-    from controllers import load_agent, make_controller
-    from tqdm.auto import tqdm
+    several seeds) are pooled under one row. One task per controller and scenario (:mod:`mrd_env.executor`)."""
+    from controllers import load_agent
+
+    from mrd_env.executor import Task, run_tasks
 
     loaded = [load_agent(a) for a in agents]
     for a in loaded:
@@ -47,27 +49,22 @@ def evaluate(plant: str, agents=(), laws=None, *, seeds: int = 3, control_dt: fl
         obs_kw["control_dt"] = float(control_dt)
     # the laws keep their own memory (filters, observers): the same sensors, without the agent's stacked history
     law_kw = {**{k: v for k, v in obs_kw.items() if k != "action_mode"}, "history": 1}
-    scenarios = held_out_scenarios(plant, seeds=seeds, quick=quick)
+    dt = law_kw.get("control_dt", 1e-3)
     laws = LAWS[plant] if laws is None else laws
-    jobs = len(scenarios) * (len(loaded) + len(laws) * (2 if laws_at_1ms else 1))
-    bar = tqdm(total=jobs, desc=f"evaluate {plant}", disable=not progress)
-    out: dict[str, list[Episode]] = defaultdict(list)
+    rows = [(f"agent {a.name.split(' s')[0]}", Path(a.folder), {}) for a in loaded]
+    rows += [(f"{name} @ {dt * 1e3:g} ms", name, law_kw) for name in laws]
+    if laws_at_1ms and abs(dt - 1e-3) > 1e-12:
+        rows += [(f"{name} @ 1 ms", name, {**law_kw, "control_dt": 1e-3}) for name in laws]
     response = "sprung_acc" if plant == "quarter_car" else "drift"
-    for sc in scenarios:
-        for a in loaded:
-            out[f"agent {a.name.split(' s')[0]}"] += evaluate_batch(lambda v, a=a: a.bind(v), sc, response,
-                                                                    **a.observation_kwargs)
-            bar.update()
-        for name in laws:
-            dt = law_kw.get("control_dt", 1e-3)
-            out[f"{name} @ {dt * 1e3:g} ms"] += evaluate_batch(lambda v, n=name: make_controller(n, v), sc, response,
-                                                               **law_kw)
-            bar.update()
-            if laws_at_1ms and abs(dt - 1e-3) > 1e-12:
-                kw = {**law_kw, "control_dt": 1e-3, "history": 1}
-                out[f"{name} @ 1 ms"] += evaluate_batch(lambda v, n=name: make_controller(n, v), sc, response, **kw)
-                bar.update()
-    bar.close()
+    scenarios = held_out_scenarios(plant, seeds=seeds, quick=quick)
+    tasks = [Task(controller_episodes, (ctrl, sc, response), kw, label=f"{sc.name} / {label}")
+             for sc in scenarios for label, ctrl, kw in rows]
+    results = iter(run_tasks(tasks, backend=backend, jobs=jobs, address=address, progress=progress,
+                             desc=f"evaluate {plant}"))
+    out: dict[str, list[Episode]] = defaultdict(list)
+    for _sc in scenarios:
+        for label, _, _ in rows:
+            out[label] += next(results)
     return dict(out)
 
 
@@ -139,6 +136,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--quick", action="store_true", help="short scenarios (a smoke run)")
     p.add_argument("--out", type=Path, default=Path("results/evaluate"))
     p.add_argument("--no-progress", action="store_true")
+    sweep.add_arguments(p)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -151,6 +149,7 @@ def run(args: argparse.Namespace) -> int:
     if unknown:
         raise ValueError(f"--laws: unknown controller(s) {unknown}; available: {sorted(CONTROLLERS)}")
     plants = ["building", "quarter_car"] if args.plant == "both" else [args.plant]
+    executor = sweep.options(args)
     args.out.mkdir(parents=True, exist_ok=True)
     if args.control_dt is not None:  # checked by the environment itself, before any episode runs
         import gymnasium as gym
@@ -171,7 +170,7 @@ def run(args: argparse.Namespace) -> int:
             chosen[meta["plant"]].append(a)
     for p in plants:
         res = evaluate(p, chosen[p], args.laws, seeds=args.seeds, control_dt=args.control_dt,
-                       laws_at_1ms=not args.no_1ms, progress=not args.no_progress, quick=args.quick)
+                       laws_at_1ms=not args.no_1ms, progress=not args.no_progress, quick=args.quick, **executor)
         rows = summarise(p, res)
         md, csv_path = write_table(rows, args.out / f"{p}_evaluation", floatfmt=".4g",
                                    title=f"{p}: return and metrics on the held-out test scenarios (mean, 95 % interval)")

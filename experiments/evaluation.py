@@ -109,6 +109,31 @@ def evaluate_batch(make, scenario: Scenario, response: str, name: str | None = N
             for b, seed in enumerate(scenario.seeds)]
 
 
+def controller_episodes(controller, scenario: Scenario, response: str = "", **env_options) -> list[Episode]:
+    """One episode per seed of ``scenario`` for ``controller``: a law's name (``controllers.CONTROLLERS``), an
+    agent folder (a ``pathlib.Path``; evaluated with the observation options it was trained with), or
+    ``"passive_ref"`` (the conventional passive car: the MR damper replaced by the set's dashpot). A plain
+    function of picklable inputs, so that sweeps run it on any backend (:mod:`mrd_env.executor`)."""
+    import mrd_env  # noqa: F401  (registers the environments, also in a fresh worker)
+    from pathlib import Path
+
+    from controllers import PassiveOff, load_agent, make_controller
+
+    if isinstance(controller, Path):
+        agent = load_agent(controller)
+        return evaluate_batch(lambda v: agent.bind(v), scenario, response, name=agent.name,
+                              **{**env_options, **agent.observation_kwargs})
+    if controller == "passive_ref":
+        from mrd_env.plants import quarter_car
+
+        c = quarter_car(scenario.options.get("plant_preset", "set_a")).passive_c
+        opts = {**env_options, "damper": "bingham", "damper_params": dict(fc_a=0.0, fc_b=0.0, c0a=c, c0b=0.0,
+                                                                          f0=0.0)}
+        return evaluate_batch(PassiveOff, scenario, response, name=f"passive_ref (c={c:g})", **opts)
+    return evaluate_batch(lambda v: make_controller(controller, v), scenario, response, name=controller,
+                          **env_options)
+
+
 def mean_ci(values, confidence: float = 0.95) -> tuple[float, float, float]:
     """(mean, lower, upper): Student-t interval of the mean; a single value (or identical values) gives a
     zero-width interval."""

@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import sweep
 from .scenarios import ENV_IDS, TRAINING, Scenario, validation
 
 ALGOS = {"ppo": "PPO", "sac": "SAC", "td3": "TD3", "a2c": "A2C", "recurrentppo": "RecurrentPPO", "tqc": "TQC"}
@@ -147,8 +148,10 @@ class _Live:
 
 
 def _callbacks(run_dir: Path, model_saver, vecnorm, scenarios: list[Scenario], obs_kwargs: dict, eval_freq: int,
-               checkpoint_freq: int, timesteps: int, progress: bool):
-    """Validation with best-agent saving, checkpoints and a progress bar (SB3 callbacks)."""
+               checkpoint_freq: int, timesteps: int, progress: bool, report=None):
+    """Validation with best-agent saving, checkpoints and a progress bar (SB3 callbacks); ``report(timesteps,
+    validation_return) -> bool`` is told every validation and stops the training when it returns False (a
+    hyperparameter search's pruning)."""
     from stable_baselines3.common.callbacks import BaseCallback
 
     from controllers.base import AgentController
@@ -176,12 +179,14 @@ def _callbacks(run_dir: Path, model_saver, vecnorm, scenarios: list[Scenario], o
             if mean > self.best:
                 self.best = mean
                 model_saver(run_dir / "best", {"validation_return": mean, "timesteps": self.num_timesteps})
+            return report is None or report(self.num_timesteps, mean)
 
         def _on_step(self) -> bool:
             if eval_freq and self.num_timesteps >= self.next_eval:
                 while self.next_eval <= self.num_timesteps:  # once, however many steps a vector step adds
                     self.next_eval += eval_freq
-                self._evaluate()
+                if not self._evaluate():
+                    return False
             if checkpoint_freq and self.num_timesteps >= self.next_ckpt:
                 while self.next_ckpt <= self.num_timesteps:
                     self.next_ckpt += checkpoint_freq
@@ -189,7 +194,7 @@ def _callbacks(run_dir: Path, model_saver, vecnorm, scenarios: list[Scenario], o
             return True
 
         def _on_training_end(self) -> None:
-            if eval_freq:
+            if eval_freq:  # the model after the last update (the last validation may precede it)
                 self._evaluate()
 
     class Progress(BaseCallback):
@@ -219,8 +224,8 @@ def _write_csv(path: Path, rows: list[dict]) -> None:
 def train_one(plant: str, algo: str, seed: int, *, out: Path, timesteps: int | None = None,
               hyper: dict | None = None, env_kwargs: dict | None = None, eval_freq: int = 20_000,
               eval_episodes: int = 8, checkpoint_freq: int = 0, tensorboard: bool = False, progress: bool = False,
-              command: str = "") -> Path:
-    """Train one agent (see the module docstring); return its folder."""
+              command: str = "", report=None) -> Path:
+    """Train one agent (see the module docstring); return its folder. ``report``: see :func:`_callbacks`."""
     import torch
     from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
 
@@ -273,7 +278,7 @@ def train_one(plant: str, algo: str, seed: int, *, out: Path, timesteps: int | N
     disturbance = {k: v for k, v in env_kwargs.items() if k not in OBSERVATION_OPTIONS}
     scenarios = [Scenario("validation", env_id, disturbance, validation(plant, eval_episodes)[0].seeds)]
     callbacks = _callbacks(run_dir, save, vecnorm, scenarios, obs_kwargs, eval_freq, checkpoint_freq, timesteps,
-                           progress)
+                           progress, report)
     model.learn(total_timesteps=timesteps, callback=list(callbacks), tb_log_name=run_dir.name)
     save(run_dir, {"timesteps_done": int(model.num_timesteps)})
     plot_learning_curve(run_dir)
@@ -352,10 +357,20 @@ def plot_seed_curves(run_dirs, path: Path, references: dict[str, float] | None =
     return save_figure(fig, path)
 
 
-def train(plant: str, algo: str, seeds, **kw) -> list[Path]:
-    """One agent per seed (sequentially); their folders, and with several seeds a figure of their validation
-    curves (``<out>/<plant>_<algo>_learning_curves.png``)."""
-    folders = [train_one(plant, algo, int(s), **kw) for s in seeds]
+def train(plant: str, algo: str, seeds, *, backend: str = "serial", jobs: int | None = None,
+          address: str | None = None, **kw) -> list[Path]:
+    """One agent per seed, one task each (:mod:`mrd_env.executor`: serially, on a process pool or on Ray; each
+    seed's agent is the same on all of them); their folders, and with several seeds a figure of their
+    validation curves (``<out>/<plant>_<algo>_learning_curves.png``)."""
+    from mrd_env.executor import Task, resolve_backend, run_tasks
+
+    seeds = [int(s) for s in seeds]
+    parallel = resolve_backend(backend, len(seeds), jobs) != "serial"
+    # in parallel, one progress bar over the seeds instead of one per run
+    tasks = [Task(train_one, (plant, algo, s), {**kw, "progress": kw.get("progress", False) and not parallel},
+                  label=f"{plant} {algo} seed {s}") for s in seeds]
+    folders = run_tasks(tasks, backend=backend, jobs=jobs, address=address,
+                        progress=kw.get("progress", False) and parallel, desc=f"train {plant} {algo}")
     if len(folders) > 1:
         plot_seed_curves(folders, Path(kw["out"]) / f"{plant}_{algo}_learning_curves.png")
     return folders
@@ -383,9 +398,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--tensorboard", action="store_true", help="TensorBoard logs in <out>/tensorboard")
     p.add_argument("--out", type=Path, default=Path("results/agents"))
     p.add_argument("--no-progress", action="store_true")
+    sweep.add_arguments(p)
 
 
 def run(args: argparse.Namespace) -> int:
+    executor = sweep.options(args)
     if any(s < 0 for s in args.seeds):
         raise ValueError(f"--seeds must be >= 0, got {args.seeds}")
     if args.timesteps is not None and args.timesteps < 1:
@@ -417,7 +434,7 @@ def run(args: argparse.Namespace) -> int:
     folders = train(args.plant, args.algo, args.seeds, out=args.out, timesteps=args.timesteps, hyper=hyper,
                     env_kwargs=env_kwargs, eval_freq=args.eval_freq, eval_episodes=args.eval_episodes,
                     checkpoint_freq=args.checkpoint_freq, tensorboard=args.tensorboard,
-                    progress=not args.no_progress, command=command)
+                    progress=not args.no_progress, command=command, **executor)
     for f in folders:
         print(f"saved {f} (evaluate with: mrd-env evaluate --plant {args.plant} --agents {f})")
     return 0

@@ -113,8 +113,10 @@ CASES = {
         ["--agent", "{missing}"], ["--agent", "{folder}"], ["--agent", "{agent_no_meta}"],
         ["--agent", "{agent_bad_json}"], ["--agent", "{agent_foreign}"], ["--agent", "{agent_no_keys}"],
         ["--agent", "{agent_env}"], ["--agent", "{agent_no_model}"], ["--plant", "building", "--agent", "{agent_qc}"],
+        ["--backend", "gpu"], ["--jobs", "0"], ["--address", "ray://x:1"],
     ],
     "train": [
+        ["--backend", "gpu"], ["--jobs", "0"], ["--jobs", "-2"], ["--address", "ray://x:1"],
         ["--nope"], ["--algo", "nope"], ["--plant", "nope"], ["--timesteps", "0"], ["--timesteps", "x"],
         ["--timesteps", "-5"], ["--control-dt", "0"], ["--control-dt", "0.0015"], ["--control-dt", "nan"],
         ["--seeds", "-1"], ["--seeds", "x"], ["--history", "0"], ["--sensors", "nope"],
@@ -122,6 +124,11 @@ CASES = {
         ["--set", "n_envs"], ["--set", "n_envs=0"], ["--set", "nope=1"], ["--hyperparams", "{missing}"],
         ["--hyperparams", "{binary}"], ["--algo", "sac", "--hyperparams", "{empty}"], ["--eval-freq", "-1"],
         ["--eval-episodes", "0"], ["--checkpoint-freq", "-1"], ["--plant", "building", "--set", "n_envs=2.5"],
+    ],
+    "tune": [
+        ["--nope"], ["--plant", "nope"], ["--algo", "nope"], ["--algo", "a2c"], ["--trials", "0"],
+        ["--timesteps", "0"], ["--eval-freq", "0"], ["--eval-episodes", "0"], ["--seed", "-1"],
+        ["--hyperparams", "{missing}"], ["--backend", "gpu"], ["--jobs", "0"], ["--address", "ray://x:1"],
     ],
     "evaluate": [
         ["--nope"], ["--plant", "nope"], ["--agents", "{missing}"], ["--agents", "{agent_bad_json}"],
@@ -138,7 +145,8 @@ CASES = {
     "compare-models": DATA_ERRORS + [
         ["--data", "{good}", "--models", "nope"], ["--data", "{good}", "--models", "bingham", "nope"],
         ["--data", "{good}", "--models", "bingham", "bingham"], ["--data", "{good}", "--plot-window", "0"],
-        ["--data", "{good}", "--plot-window", "nan"],
+        ["--data", "{good}", "--plot-window", "nan"], ["--data", "{good}", "--backend", "gpu"],
+        ["--data", "{good}", "--jobs", "0"], ["--data", "{good}", "--address", "ray://x:1"],
     ],
     "inverse": [
         [], ["nope"], ["achievable", "--nope"], ["achievable", "--inverses", "nope"], ["achievable", "--plants", "nope"],
@@ -163,6 +171,7 @@ def test_bad_input_is_one_line_and_exit_2(command, argv, files, capsys, tmp_path
     # safety nets: should a case pass its checks after all, it stays short instead of running for minutes
     extra = {"benchmark": ["--seeds", "1", "--quick", None], "train": ["--timesteps", "1", "--eval-freq", "0"],
              "evaluate": ["--seeds", "1", "--quick", None, "--agents", None, "--no-1ms", None],
+             "tune": ["--trials", "1", "--timesteps", "1"],
              "identify": ["--maxiter", "1"], "compare-models": ["--maxiter", "1", "--models", "bingham"]}
     for opt, val in zip(extra.get(command, [])[::2], extra.get(command, [])[1::2]):
         if opt not in argv:

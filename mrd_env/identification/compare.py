@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import re
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Mapping, Sequence
@@ -20,6 +21,7 @@ import numpy as np
 
 from ..dampers import DamperModel, available_dampers, damper_class
 from ..errors import SimulationDivergedError
+from ..executor import Task, TaskFailed, resolve_backend, run_tasks
 from ..validation import check_scalar
 from .data import DamperRecord
 from .fit import fit_model
@@ -124,7 +126,8 @@ def compare_models(records, models: Sequence[str | DamperModel] | None = None, *
                    fit_fraction: float = 0.6, validation_records=None, out: str | Path | None = None,
                    presets: Mapping[str, str] | None = None, title: str = "", plot_window: float = 1.0,
                    model_options: Mapping[str, Mapping] | None = None,
-                   stop_on_error: bool = False) -> ComparisonResult:
+                   stop_on_error: bool = False, backend: str = "serial", jobs: int | None = None,
+                   address: str | None = None, progress: bool = False) -> ComparisonResult:
     """Fit each model (default: all registered) on the first ``fit_fraction`` of ``records`` and validate it on
     the rest; see the module docstring. ``models`` holds model names (initial guess: their preset; ``"neural"``
     for the forward network) or configured ``DamperModel`` instances (initial guess and command channel: theirs).
@@ -136,6 +139,10 @@ def compare_models(records, models: Sequence[str | DamperModel] | None = None, *
     name} for the initial guesses. ``out``: folder for the table (``comparison.md``/``.csv``), the presets
     (``<model>_fitted.json``) and the figures; None writes nothing. A model whose fit fails (bad input for that
     model, a diverging initial guess) gets a row marked failed unless ``stop_on_error``.
+
+    The models are fitted as independent tasks of :func:`mrd_env.executor.run_tasks` (``backend``: "serial",
+    "pool", "ray" or "auto", with ``jobs`` workers, Ray at ``address``; ``progress``: one bar over the models):
+    the table is the same on every backend; warnings of a fit (e.g. faults excluded) reach the caller.
     """
     models = list(models) if models is not None else available_dampers()
     if not models:
@@ -158,26 +165,47 @@ def compare_models(records, models: Sequence[str | DamperModel] | None = None, *
         fits = [uniform_record(r, data.dt) for r in as_records(records)]
         whole = [uniform_record(r, data.dt) for r in as_records(validation_records)]
         idx = [0] * len(whole)
-    integ = {}
-    results = []
+    if resolve_backend(backend, len(models), jobs) != "serial":
+        search = dataclasses.replace(search, progress=False)  # one bar over the models, not one per worker
+    tasks = []
     for name, model in zip(names, models):
-        o = dict((model_options or {}).get(name, {}))
-        integ = o.get("integrator_options") or {}
-        try:
-            preset = None if (isinstance(model, DamperModel) or name == NEURAL) else presets.get(name)
-            fr = fit_model(model, fits, preset=preset, **{"search": search, "data": data, **o})
-            v_rows, v_all, forces, _ = validate(fr.damper, whole, idx, data=fr_data(fr, data),
-                                                offset=fr.settings.get("offsets", [0])[0], **integ)
-            results.append(ModelComparison(name, fr, v_rows, v_all, forces))
-        except (ValueError, SimulationDivergedError, ImportError) as exc:
-            if stop_on_error:
-                raise
-            results.append(ModelComparison(name, None, error=str(exc)))
+        preset = None if (isinstance(model, DamperModel) or name == NEURAL) else presets.get(name)
+        options = {"search": search, "data": data, **dict((model_options or {}).get(name, {}))}
+        tasks.append(Task(_fit_and_validate, (name, model, fits, whole, idx, preset, options, stop_on_error),
+                          label=f"fit {name}"))
+    try:
+        done = run_tasks(tasks, backend=backend, jobs=jobs, address=address, progress=progress,
+                         desc="compare models")
+    except TaskFailed as exc:  # only with stop_on_error: the fit's own error, as a serial loop would raise it
+        raise exc.error from None
+    results = []
+    for comparison, caught in done:
+        for category, message in caught:  # raised in the task, maybe in another process
+            warnings.warn(message, category, stacklevel=2)
+        results.append(comparison)
     res = ComparisonResult(results, whole, idx, search.method, 1.0 if validation_records is not None
                            else float(fit_fraction), cross_record=validation_records is not None)
     if out is not None:
         res.files.update(write_comparison(res, out, title=title, plot_window=plot_window))
     return res
+
+
+def _fit_and_validate(name: str, model, fits, whole, idx, preset, options: dict, stop_on_error: bool):
+    """One row of the comparison (a task of :func:`compare_models`): the fit, its validation, and the warnings
+    they raised as (category, message) pairs."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            fr = fit_model(model, fits, preset=preset, **options)
+            v_rows, v_all, forces, _ = validate(fr.damper, whole, idx, data=fr_data(fr, options["data"]),
+                                                offset=fr.settings.get("offsets", [0])[0],
+                                                **(options.get("integrator_options") or {}))
+            row = ModelComparison(name, fr, v_rows, v_all, forces)
+        except (ValueError, SimulationDivergedError, ImportError) as exc:
+            if stop_on_error:
+                raise
+            row = ModelComparison(name, None, error=str(exc))
+    return row, [(w.category, str(w.message)) for w in caught]
 
 
 def fr_data(fr: FitResult, data: DataOptions) -> DataOptions:

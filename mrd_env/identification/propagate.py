@@ -86,13 +86,47 @@ class PropagationResult:
         return dict(self.files)
 
 
+@dataclass(frozen=True, eq=False)
+class _Draw:
+    """One Monte-Carlo draw of :func:`propagate_sensor_errors` (picklable, so draws run on any backend): the true
+    records read through the sensors with the draw's generator, the fit, its measures against the readout and
+    against the truth."""
+
+    damper: DamperModel
+    truth: tuple
+    sensors: SensorSet
+    overrange: str
+    free: tuple | None
+    initial: dict | None
+    search: SearchOptions
+    data: object
+    integrator_options: dict
+
+    def __call__(self, child: np.random.Generator) -> dict[str, float]:
+        readouts = []
+        for r, g in zip(self.truth, child.spawn(len(self.truth))):
+            ro = apply_sensors(r.t, r.x, r.force, self.sensors, g, command=r.command, command_unit=r.command_unit,
+                               overrange=self.overrange)
+            readouts.append(ro.to_record(label=f"{r.label} (measured)"))
+        fr: FitResult = fit_model(self.damper, readouts, free=self.free, initial=self.initial, search=self.search,
+                                  data=self.data, integrator_options=self.integrator_options)
+        out = dict(fr.free_values())
+        for k in _MEASURES:
+            out[k] = fr.overall[k]
+        pooled = pooled_measures([_measures(*predict(fr.damper, r, **self.integrator_options)) for r in self.truth])
+        for k in _MEASURES:
+            out[f"{k}_true"] = pooled[k]
+        return out
+
+
 def propagate_sensor_errors(damper: DamperModel | str = "spencer_dyke", *,
                             excitation: Sequence[RigResult] | None = None, sensors: SensorSet | None = None,
                             n_draws: int = 20, rng=0,
                             search=None, data=None, free: Sequence[str] | None = None,
                             initial: Mapping[str, float] | None = None, integrator_options: Mapping | None = None,
                             confidence: float = 0.95, progress: bool = True, on_error: str = "skip",
-                            overrange: str = "raise", out: str | Path | None = None) -> PropagationResult:
+                            overrange: str = "raise", out: str | Path | None = None, backend: str = "serial",
+                            jobs: int | None = None, address: str | None = None) -> PropagationResult:
     """Propagate sensor errors to the parameters fitted to ``damper`` (a configured damper or a model name
     with its default preset, the "truth"), by Monte Carlo over ``n_draws`` independent sensor draws.
 
@@ -101,6 +135,7 @@ def propagate_sensor_errors(damper: DamperModel | str = "spencer_dyke", *,
     parameters (``initial`` overrides some of them), so the spread is that of the optimum, not of the search.
     ``rng``: int seed or Generator; draw i uses child i of it (:func:`monte_carlo`). ``on_error="skip"`` drops
     (and counts) draws whose fit fails. ``out``: folder for the table ``<model>_propagation.md/.csv``.
+    ``backend``/``jobs``/``address``: where the draws run (:mod:`mrd_env.executor`; the same result on each).
     """
     if isinstance(damper, str):
         damper = make_damper(damper)
@@ -117,35 +152,14 @@ def propagate_sensor_errors(damper: DamperModel | str = "spencer_dyke", *,
         search = dataclasses.replace(search, progress=False)
     units = {**damper.Params.units(), **{k: v[1] for k, v in COMMAND_PARAMS.items()}, "E_t": "-", "E_x": "-",
              "E_v": "-", "J2": "N", "E_t_true": "-", "E_x_true": "-", "E_v_true": "-", "J2_true": "N"}
-    free_holder: list[tuple[str, ...]] = []
-
-    def one_draw(child: np.random.Generator) -> dict[str, float]:
-        streams = child.spawn(len(truth))
-        readouts = []
-        for r, g in zip(truth, streams):
-            ro = apply_sensors(r.t, r.x, r.force, sensors, g, command=r.command, command_unit=r.command_unit,
-                               overrange=overrange)
-            readouts.append(ro.to_record(label=f"{r.label} (measured)"))
-        fr: FitResult = fit_model(damper, readouts, free=free, initial=initial, search=search, data=data,
-                                  integrator_options=integrator_options)
-        if not free_holder:
-            free_holder.append(fr.free)
-        out = dict(fr.free_values())
-        for k in _MEASURES:
-            out[k] = fr.overall[k]
-        rows = []
-        for r in truth:
-            prep, F = predict(fr.damper, r, **(integrator_options or {}))
-            rows.append(_measures(prep, F))
-        pooled = pooled_measures(rows)
-        for k in _MEASURES:
-            out[f"{k}_true"] = pooled[k]
-        return out
-
-    mc = monte_carlo(one_draw, n_draws, as_generator(rng), confidence=confidence, progress=progress,
-                     on_error=on_error, desc=f"propagate {damper.name}")
+    draw = _Draw(damper, tuple(truth), sensors, overrange, None if free is None else tuple(free),
+                 None if initial is None else dict(initial), search, data, dict(integrator_options or {}))
+    mc = monte_carlo(draw, n_draws, as_generator(rng), confidence=confidence, progress=progress,
+                     on_error=on_error, desc=f"propagate {damper.name}", backend=backend, jobs=jobs,
+                     address=address)
     true_params = initial_values(damper.params, damper.command)
-    free_t = free_holder[0] if free_holder else tuple(free or ())
+    # the fitted free parameters are the draws' keys before the measures (fit_model's choice when free is None)
+    free_t = tuple(k for k in mc.samples if k not in _MEASURES and not k.endswith("_true"))
     res = PropagationResult(damper.name, {k: true_params[k] for k in free_t}, free_t, mc, units, sensors)
     if out is not None:
         res.write(out)

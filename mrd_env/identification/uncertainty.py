@@ -16,6 +16,7 @@ from typing import Callable, Iterable, Mapping
 
 import numpy as np
 
+from ..executor import Task, TaskFailed, run_tasks
 from .data import DamperRecord, hold_previous, lowpass_zero_phase
 from .measures import _check_signal, _check_time
 
@@ -398,13 +399,16 @@ class MonteCarloResult:
 
 def monte_carlo(func: Callable[[np.random.Generator], Mapping[str, float] | float], n_draws: int, rng, *,
                 confidence: float = 0.95, progress: bool = False, on_error: str = "raise",
-                desc: str = "Monte Carlo") -> MonteCarloResult:
+                desc: str = "Monte Carlo", backend: str = "serial", jobs: int | None = None,
+                address: str | None = None) -> MonteCarloResult:
     """Call ``func(rng_i)`` for ``n_draws`` independent child generators and summarise the results.
 
     ``func`` returns a dict of floats (a bare float is stored as "value"). The children come from
     ``SeedSequence.spawn`` of ``rng`` (Generator or int seed), so draw i is the same whatever the number of
     draws or the order they run in. ``on_error="skip"`` drops draws whose ``func`` raises (e.g. a fit that
-    diverges) and counts them in ``n_failed``; ``progress`` shows a tqdm bar.
+    diverges) and counts them in ``n_failed``; ``progress`` shows a tqdm bar. The draws are tasks of
+    :func:`mrd_env.executor.run_tasks` (``backend``, ``jobs``, ``address``; a pool or Ray needs a picklable
+    ``func``): the result is the same on every backend.
     """
     if isinstance(n_draws, bool) or not isinstance(n_draws, (int, np.integer)) or n_draws < 2:
         raise ValueError(f"n_draws = {n_draws!r} is invalid: must be an int >= 2")
@@ -414,15 +418,16 @@ def monte_carlo(func: Callable[[np.random.Generator], Mapping[str, float] | floa
     if on_error not in ("raise", "skip"):
         raise ValueError(f"on_error = {on_error!r} is invalid: must be 'raise' or 'skip'")
     children = as_generator(rng).spawn(int(n_draws))
-    from tqdm import tqdm
+    tasks = [Task(_draw, (func, child, on_error == "skip"), label=f"{desc} draw {i}")
+             for i, child in enumerate(children)]
+    try:
+        outcomes = run_tasks(tasks, backend=backend, jobs=jobs, address=address, progress=progress, desc=desc)
+    except TaskFailed as exc:  # on_error="raise": the draw's own error
+        raise exc.error from None
     values: dict[str, list[float]] | None = None
     failed = 0
-    for i, child in enumerate(tqdm(children, desc=desc, disable=not progress)):
-        try:
-            out = func(child)
-        except Exception:
-            if on_error == "raise":
-                raise
+    for i, (ok, out) in enumerate(outcomes):
+        if not ok:
             failed += 1
             continue
         out = {"value": out} if not isinstance(out, Mapping) else out
@@ -436,3 +441,13 @@ def monte_carlo(func: Callable[[np.random.Generator], Mapping[str, float] | floa
     if values is None or n_ok < 2:
         raise ValueError(f"only {n_ok} of {n_draws} draws succeeded; need at least 2")
     return MonteCarloResult({k: np.asarray(v) for k, v in values.items()}, c, failed)
+
+
+def _draw(func, child: np.random.Generator, skip_errors: bool):
+    """One Monte-Carlo draw: (True, result), or (False, the error) when errors are skipped."""
+    try:
+        return True, func(child)
+    except Exception as exc:  # noqa: BLE001 — counted as a failed draw by monte_carlo
+        if not skip_errors:
+            raise
+        return False, f"{type(exc).__name__}: {exc}"

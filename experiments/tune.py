@@ -1,0 +1,176 @@
+"""``mrd-env tune``: hyperparameter search for ``mrd-env train`` with Optuna.
+
+Each trial draws hyperparameters (RL Zoo's search spaces for PPO and SAC), trains one agent for ``--timesteps``
+on the plant's training distribution and reports its validation returns (unseen seeds, never the test
+scenarios) as it goes; Optuna's TPE sampler proposes the next trial and its median pruner stops trials whose
+validation falls behind. The study lives in a journal file (``<out>/<study>.log``), so several workers — the
+processes of a local pool or the tasks of a Ray cluster (``--backend``, ``--jobs``, ``--address``) — add
+trials to the same study; rerunning the command resumes it. Writes ``<out>/<study>_trials.md``/``.csv`` and
+``<out>/<study>_best.yml`` (the best trial's hyperparameters in the layout of ``experiments/hyperparams``).
+
+Why Optuna rather than Ray Tune: a search of RL hyperparameters here is a few dozen trials of minutes each,
+which Optuna runs on one machine with no service, resumes from a file, and prunes through the validation the
+trainer already does (RL Zoo itself tunes with Optuna); for a cluster, the same study's workers run as Ray
+tasks through the project's one executor.
+"""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from . import sweep
+from .scenarios import ENV_IDS
+from .train import ALGOS, env_options, hyperparameters
+
+
+SEARCHABLE = ("ppo", "recurrentppo", "sac", "tqc", "td3")
+
+
+def sample(trial, algo: str, base: dict) -> dict:
+    """Hyperparameters of a trial: ``base`` (the YAML entry) with the searched keys drawn (RL Zoo's spaces)."""
+    h = dict(base)
+    if algo in ("ppo", "recurrentppo"):
+        h["n_steps"] = trial.suggest_categorical("n_steps", [64, 128, 256, 512])
+        h["batch_size"] = trial.suggest_categorical("batch_size", [64, 128, 256, 512])
+        h["gamma"] = trial.suggest_categorical("gamma", [0.9, 0.95, 0.98, 0.99, 0.995])
+        h["gae_lambda"] = trial.suggest_categorical("gae_lambda", [0.8, 0.9, 0.95, 0.98])
+        h["learning_rate"] = trial.suggest_float("learning_rate", 1e-5, 1e-3, log=True)
+        h["ent_coef"] = trial.suggest_float("ent_coef", 1e-8, 1e-2, log=True)
+        h["clip_range"] = trial.suggest_categorical("clip_range", [0.1, 0.2, 0.3])
+        h["n_epochs"] = trial.suggest_categorical("n_epochs", [5, 10, 20])
+        kw = dict(h.get("policy_kwargs") or {})
+        kw["log_std_init"] = trial.suggest_float("log_std_init", -3.0, 0.0)
+        h["policy_kwargs"] = kw
+    elif algo in ("sac", "tqc", "td3"):
+        h["learning_rate"] = trial.suggest_float("learning_rate", 1e-5, 1e-2, log=True)
+        h["batch_size"] = trial.suggest_categorical("batch_size", [64, 128, 256, 512])
+        h["gamma"] = trial.suggest_categorical("gamma", [0.9, 0.95, 0.98, 0.99, 0.995])
+        h["tau"] = trial.suggest_categorical("tau", [0.005, 0.01, 0.02, 0.05])
+        h["train_freq"] = trial.suggest_categorical("train_freq", [1, 4, 8, 16])
+    else:
+        raise ValueError(f"no search space for {algo!r}; searchable: {', '.join(SEARCHABLE)}")
+    return h
+
+
+def _storage(path: Path):
+    import optuna
+    from optuna.storages.journal import JournalFileBackend
+
+    return optuna.storages.JournalStorage(JournalFileBackend(str(path)))
+
+
+def worker(plant: str, algo: str, study: str, out: Path, n_trials: int, timesteps: int, eval_freq: int,
+           eval_episodes: int, seed: int, hyperparams: Path | None = None) -> int:
+    """Add ``n_trials`` trials to the study (one worker; several run side by side on one journal)."""
+    import optuna
+
+    from .train import train_one
+
+    env_id = ENV_IDS[plant]
+    base = hyperparameters(algo, env_id, hyperparams)
+    st = optuna.load_study(study_name=study, storage=_storage(out / f"{study}.log"),
+                           sampler=optuna.samplers.TPESampler(seed=seed))
+
+    def objective(trial):
+        h = sample(trial, algo, base)
+
+        def report(step, value):
+            trial.report(value, step)
+            return not trial.should_prune()
+
+        run = train_one(plant, algo, seed, out=out / "trials" / f"trial_{trial.number}", timesteps=timesteps,
+                        hyper=h, env_kwargs=env_options(plant), eval_freq=eval_freq, eval_episodes=eval_episodes,
+                        report=report)
+        if trial.should_prune():
+            raise optuna.TrialPruned()
+        import csv
+        rows = list(csv.DictReader((run / "validation.csv").open()))
+        return max(float(r["validation_return"]) for r in rows)
+
+    st.optimize(objective, n_trials=n_trials)
+    return n_trials
+
+
+def tune(plant: str, algo: str, *, trials: int, timesteps: int, out: Path, study: str | None = None,
+         eval_freq: int = 50_000, eval_episodes: int = 4, seed: int = 0, hyperparams: Path | None = None,
+         backend: str = "serial", jobs: int | None = None, address: str | None = None, progress: bool = True):
+    """Run the search (``trials`` in all, split over the workers); the study."""
+    import optuna
+
+    from mrd_env.executor import Task, default_jobs, resolve_backend, run_tasks
+
+    study = study or f"{plant}_{algo}"
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    st = optuna.create_study(study_name=study, storage=_storage(out / f"{study}.log"), direction="maximize",
+                             pruner=optuna.pruners.MedianPruner(n_startup_trials=3, n_warmup_steps=2 * eval_freq),
+                             load_if_exists=True)
+    workers = 1 if resolve_backend(backend, trials, jobs) == "serial" else min(trials, jobs or default_jobs())
+    split = [trials // workers + (1 if i < trials % workers else 0) for i in range(workers)]
+    tasks = [Task(worker, (plant, algo, study, out, n, timesteps, eval_freq, eval_episodes, seed + i, hyperparams),
+                  label=f"tune worker {i}") for i, n in enumerate(split)]
+    run_tasks(tasks, backend=backend, jobs=jobs, address=address, progress=progress, desc=f"tune {study}")
+    return st
+
+
+def report_study(st, algo: str, env_id: str, out: Path, hyperparams: Path | None = None) -> tuple[Path, Path]:
+    import yaml
+
+    from mrd_env.report import write_table
+
+    rows = [{"trial": t.number, "state": t.state.name, "value": t.value if t.value is not None else float("nan"),
+             **t.params} for t in st.trials]
+    md, _ = write_table(rows, out / f"{st.study_name}_trials", floatfmt=".4g",
+                        title=f"{st.study_name}: trials (value = best validation return)")
+    best = hyperparameters(algo, env_id, hyperparams)
+    best_trial = st.best_trial
+    for k, v in best_trial.params.items():
+        if k == "log_std_init":
+            best.setdefault("policy_kwargs", {})["log_std_init"] = v
+        else:
+            best[k] = v
+    path = out / f"{st.study_name}_best.yml"
+    path.write_text(f"# best of {len(st.trials)} trials (validation return {best_trial.value:.4g}); mrd-env tune\n"
+                    + yaml.safe_dump({env_id: best}, sort_keys=False))
+    return md, path
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--plant", choices=sorted(ENV_IDS), default="quarter_car")
+    p.add_argument("--algo", choices=sorted(ALGOS), default="ppo")
+    p.add_argument("--trials", type=int, default=20, help="trials in all (default 20)")
+    p.add_argument("--timesteps", type=int, default=300_000, help="environment steps per trial")
+    p.add_argument("--eval-freq", type=int, default=50_000, help="validation (and pruning) every so many steps")
+    p.add_argument("--eval-episodes", type=int, default=4)
+    p.add_argument("--study", default=None, help="study name (default <plant>_<algo>); rerun to resume")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--hyperparams", type=Path, default=None,
+                   help="YAML of the fixed hyperparameters (default experiments/hyperparams/<algo>.yml)")
+    p.add_argument("--out", type=Path, default=Path("results/tune"))
+    p.add_argument("--no-progress", action="store_true")
+    sweep.add_arguments(p)
+
+
+def run(args: argparse.Namespace) -> int:
+    executor = sweep.options(args)
+    if args.algo not in SEARCHABLE:
+        raise ValueError(f"--algo {args.algo}: no search space; searchable: {', '.join(SEARCHABLE)}")
+    for name, v, lo in (("--trials", args.trials, 1), ("--timesteps", args.timesteps, 1),
+                        ("--eval-freq", args.eval_freq, 1), ("--eval-episodes", args.eval_episodes, 1),
+                        ("--seed", args.seed, 0)):
+        if v < lo:
+            raise ValueError(f"{name} must be >= {lo}, got {v}")
+    try:
+        import optuna  # noqa: F401
+    except ImportError:
+        raise ImportError("mrd-env tune needs Optuna (pip install 'mrd-env[tune]')") from None
+    env_id = ENV_IDS[args.plant]
+    hyperparameters(args.algo, env_id, args.hyperparams)  # the base entry exists and is valid
+    st = tune(args.plant, args.algo, trials=args.trials, timesteps=args.timesteps, out=args.out, study=args.study,
+              eval_freq=args.eval_freq, eval_episodes=args.eval_episodes, seed=args.seed,
+              hyperparams=args.hyperparams, progress=not args.no_progress, **executor)
+    md, best = report_study(st, args.algo, env_id, args.out, args.hyperparams)
+    print(md.read_text())
+    print(f"best trial {st.best_trial.number}: validation return {st.best_value:.4g}; hyperparameters in {best} "
+          f"(train with: mrd-env train --plant {args.plant} --algo {args.algo} --hyperparams {best})")
+    return 0

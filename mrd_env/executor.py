@@ -1,0 +1,159 @@
+"""One executor for every sweep — benchmark grids, model comparisons, Monte-Carlo draws, training seeds: serially,
+on a local process pool, or on Ray.
+
+A sweep is a list of :class:`Task` (a picklable function, its arguments, a label). Tasks are independent, carry
+their own seeds and return plain results, so the results — returned in the order of the tasks — are the same,
+bit for bit, whatever the backend and the number of workers. A task that raises is retried once; if it fails
+again :class:`TaskFailed` names it, its inputs and the error (never dropped silently). One progress bar over the
+whole sweep.
+
+Backends: ``"serial"`` (in this process); ``"pool"`` (``concurrent.futures.ProcessPoolExecutor`` with ``jobs``
+workers, spawned processes so that numba's and torch's threads are never forked); ``"ray"`` (``ray.init`` on
+``address``, a running cluster, or a local instance when ``address`` is None; the ``ray`` extra). ``"auto"``:
+the pool when there is more than one task and more than one core, else serial.
+"""
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+BACKENDS = ("auto", "serial", "pool", "ray")
+
+
+@dataclass(frozen=True)
+class Task:
+    """``fn(*args, **kwargs)``; ``label`` names it in progress and error messages."""
+
+    fn: Callable
+    args: tuple = ()
+    kwargs: dict = field(default_factory=dict)
+    label: str = ""
+
+    def __call__(self):
+        return self.fn(*self.args, **self.kwargs)
+
+    def describe(self) -> str:
+        inputs = ", ".join([*map(_short, self.args), *(f"{k}={_short(v)}" for k, v in self.kwargs.items())])
+        return f"{self.label or getattr(self.fn, '__name__', 'task')}({inputs})"
+
+
+class TaskFailed(RuntimeError):
+    """A task failed twice (its first try and one retry)."""
+
+    def __init__(self, task: Task, error: BaseException):
+        self.task, self.error = task, error
+        super().__init__(f"task {task.describe()} failed twice: {type(error).__name__}: {error}")
+
+
+def _short(v: Any, n: int = 60) -> str:
+    s = repr(v)
+    return s if len(s) <= n else s[: n - 3] + "..."
+
+
+def _call(task: Task):
+    """Run a task (in a worker); exceptions come back as values so that the caller decides on the retry."""
+    try:
+        return True, task()
+    except Exception as exc:  # noqa: BLE001 — reported with the task's inputs by the caller
+        return False, exc
+
+
+def default_jobs() -> int:
+    return max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1))
+
+
+def resolve_backend(backend: str, n_tasks: int, jobs: int | None) -> str:
+    if backend not in BACKENDS:
+        raise ValueError(f"backend must be one of {list(BACKENDS)}, got {backend!r}")
+    if jobs is not None and (isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1):
+        raise ValueError(f"jobs must be an integer >= 1, got {jobs!r}")
+    if backend == "auto":
+        workers = jobs if jobs is not None else default_jobs()
+        return "pool" if n_tasks > 1 and workers > 1 else "serial"
+    return backend
+
+
+def run_tasks(tasks: Sequence[Task], *, backend: str = "auto", jobs: int | None = None, address: str | None = None,
+              progress: bool = True, desc: str = "sweep") -> list:
+    """The results of ``tasks``, in their order (see the module docstring)."""
+    tasks = list(tasks)
+    backend = resolve_backend(backend, len(tasks), jobs)
+    if not tasks:
+        return []
+    from tqdm.auto import tqdm
+
+    bar = tqdm(total=len(tasks), desc=desc, disable=not progress or len(tasks) < 2)  # one task: its own bar
+    try:
+        run = {"serial": _serial, "pool": _pool, "ray": _ray}[backend]
+        return run(tasks, jobs, address, bar)
+    finally:
+        bar.close()
+
+
+def _finish(task: Task, outcome, retry: Callable[[], tuple]):
+    ok, value = outcome
+    if ok:
+        return value
+    ok, value2 = retry()
+    if ok:
+        return value2
+    raise TaskFailed(task, value2) from value2
+
+
+def _serial(tasks, jobs, address, bar):
+    out = []
+    for t in tasks:
+        out.append(_finish(t, _call(t), lambda t=t: _call(t)))
+        bar.update()
+    return out
+
+
+def _pool(tasks, jobs, address, bar):
+    import multiprocessing as mp
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    workers = min(jobs or default_jobs(), len(tasks))
+    results: list = [None] * len(tasks)
+    with ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn")) as ex:
+        futures = {ex.submit(_call, t): i for i, t in enumerate(tasks)}
+        for fut in as_completed(futures):
+            i = futures[fut]
+            results[i] = _finish(tasks[i], fut.result(), lambda i=i: ex.submit(_call, tasks[i]).result())
+            bar.update()
+    return results
+
+
+def _ray(tasks, jobs, address, bar):
+    try:
+        import ray
+    except ImportError:
+        raise ImportError("--backend ray needs Ray (pip install 'mrd-env[ray]')") from None
+    started = False
+    if not ray.is_initialized():
+        kw = {"address": address} if address else {"num_cpus": jobs or default_jobs()}
+        ray.init(ignore_reinit_error=True, include_dashboard=False, log_to_driver=False, **kw)
+        started = True
+    try:
+        remote = ray.remote(num_cpus=1)(_call)
+        refs = {remote.remote(t): i for i, t in enumerate(tasks)}
+        results: list = [None] * len(tasks)
+        pending = list(refs)
+        while pending:
+            done, pending = ray.wait(pending, num_returns=1)
+            i = refs[done[0]]
+            results[i] = _finish(tasks[i], ray.get(done[0]), lambda i=i: ray.get(remote.remote(tasks[i])))
+            bar.update()
+        return results
+    finally:
+        if started:
+            ray.shutdown()
+
+
+def timed(fn: Callable, *args, **kwargs) -> tuple[Any, float]:
+    """(result, wall seconds) of a call — for the scaling tables."""
+    t0 = time.perf_counter()
+    out = fn(*args, **kwargs)
+    return out, time.perf_counter() - t0

@@ -1,0 +1,138 @@
+"""The sweep executor: the same results in the same order on every backend, one retry, failures named."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mrd_env.executor import Task, TaskFailed, resolve_backend, run_tasks
+
+
+def draw(seed: int, n: int = 5) -> np.ndarray:
+    return np.random.default_rng(seed).normal(size=n)
+
+
+def flaky(marker: str, value: int) -> int:
+    """Fails on its first call (a marker file records it), succeeds on the retry."""
+    p = Path(marker)
+    if not p.exists():
+        p.write_text("failed once")
+        raise OSError("transient failure")
+    return value * 2
+
+
+def broken(x: int) -> int:
+    raise ValueError(f"bad input {x}")
+
+
+TASKS = [Task(draw, (s,), label=f"seed {s}") for s in range(6)]
+
+
+def test_serial_and_pool_give_identical_results_in_task_order():
+    serial = run_tasks(TASKS, backend="serial", progress=False)
+    pool = run_tasks(TASKS, backend="pool", jobs=2, progress=False)
+    assert len(serial) == len(pool) == 6
+    for a, b, s in zip(serial, pool, range(6)):
+        np.testing.assert_array_equal(a, b)
+        np.testing.assert_array_equal(a, draw(s))
+
+
+@pytest.mark.parametrize("backend", ["serial", "pool"])
+def test_a_failed_task_is_retried_once(tmp_path, backend):
+    out = run_tasks([Task(flaky, (str(tmp_path / "m"), 21))], backend=backend, jobs=1, progress=False)
+    assert out == [42]
+
+
+@pytest.mark.parametrize("backend", ["serial", "pool"])
+def test_a_task_that_fails_twice_is_reported_with_its_inputs(backend):
+    with pytest.raises(TaskFailed, match=r"task broken\(7\) failed twice: ValueError: bad input 7"):
+        run_tasks([Task(draw, (1,)), Task(broken, (7,))], backend=backend, jobs=2, progress=False)
+
+
+def test_backend_and_jobs_are_checked():
+    with pytest.raises(ValueError, match="backend must be one of"):
+        run_tasks(TASKS, backend="gpu")
+    for bad in (0, -1, 1.5, True):
+        with pytest.raises(ValueError, match="jobs must be an integer >= 1"):
+            run_tasks(TASKS, jobs=bad)
+    assert resolve_backend("auto", 1, 4) == "serial" and resolve_backend("auto", 3, 2) == "pool"
+    assert resolve_backend("auto", 3, 1) == "serial"
+
+
+# --- the sweeps on the executor ---------------------------------------------------------------------------------
+
+def test_benchmark_on_a_local_ray_instance_equals_the_serial_table(tmp_path):
+    pytest.importorskip("ray")
+    from experiments.cli import main
+
+    for backend in ("serial", "ray"):
+        assert main(["benchmark", "--plant", "building", "--quick", "--seeds", "1", "--controllers", "passive_on",
+                     "clipped_optimal", "--backend", backend, "--jobs", "2", "--out", str(tmp_path / backend),
+                     "--no-progress"]) == 0
+    assert (tmp_path / "serial" / "building_benchmark.csv").read_text() == \
+        (tmp_path / "ray" / "building_benchmark.csv").read_text()
+
+
+def test_training_seeds_on_a_pool_equal_serial_ones(tmp_path):
+    from experiments.cli import main
+    from controllers import load_agent
+
+    tiny = ["--timesteps", "128", "--eval-freq", "0", "--no-progress", "--set", "n_envs=2", "n_steps=64",
+            "batch_size=64", "n_epochs=1"]
+    for backend in ("serial", "pool"):
+        assert main(["train", "--plant", "quarter_car", "--seeds", "0", "1", "--backend", backend, "--jobs", "2",
+                     "--out", str(tmp_path / backend), *tiny]) == 0
+    for s in (0, 1):
+        a, b = (load_agent(tmp_path / bk / f"quarter_car_ppo_s{s}") for bk in ("serial", "pool"))
+        for va, vb in zip(a.model.policy.state_dict().values(), b.model.policy.state_dict().values()):
+            assert np.array_equal(va.numpy(), vb.numpy())
+
+
+def test_tune_runs_trials_prunes_and_writes_the_best_hyperparameters(tmp_path):
+    pytest.importorskip("optuna")
+    import yaml
+
+    from experiments.cli import main
+
+    base = tmp_path / "base.yml"
+    base.write_text(yaml.safe_dump({"mrd_env/QuarterCar-v0": {"n_envs": 2, "policy": "MlpPolicy", "normalize": True,
+                                                              "n_epochs": 1}}))
+    assert main(["tune", "--plant", "quarter_car", "--trials", "2", "--timesteps", "128", "--eval-freq", "64",
+                 "--eval-episodes", "1", "--hyperparams", str(base), "--backend", "serial", "--out",
+                 str(tmp_path / "t"), "--no-progress"]) == 0
+    best = yaml.safe_load((tmp_path / "t" / "quarter_car_ppo_best.yml").read_text())["mrd_env/QuarterCar-v0"]
+    assert best["n_envs"] == 2 and best["n_steps"] in (64, 128, 256, 512) and 1e-5 <= best["learning_rate"] <= 1e-3
+    rows = (tmp_path / "t" / "quarter_car_ppo_trials.csv").read_text().splitlines()
+    assert len(rows) == 1 + 2
+    # rerunning the command resumes the study
+    assert main(["tune", "--plant", "quarter_car", "--trials", "1", "--timesteps", "128", "--eval-freq", "64",
+                 "--eval-episodes", "1", "--hyperparams", str(base), "--backend", "serial", "--out",
+                 str(tmp_path / "t"), "--no-progress"]) == 0
+    assert len((tmp_path / "t" / "quarter_car_ppo_trials.csv").read_text().splitlines()) == 1 + 3
+
+
+def test_model_comparison_and_sensor_propagation_on_a_pool_equal_serial_ones():
+    """compare-models and the Monte-Carlo propagation run their fits as tasks: the same numbers on a pool."""
+    from mrd_env.dampers import make_damper
+    from mrd_env.identification import compare_models
+    from mrd_env.identification.propagate import default_excitation, propagate_sensor_errors
+    from mrd_env.rig import random_test
+
+    d = make_damper("bouc_wen")
+    rec = random_test(d, 0.004, 5.0, 2.0, switch_rate=2.0, rng=3)
+    quiet = {"maxiter": 5, "progress": False}
+    kw = dict(search=quiet, plot_window=None)
+    a = compare_models([rec], ["bingham", "bouc_wen"], backend="serial", **kw)
+    b = compare_models([rec], ["bingham", "bouc_wen"], backend="pool", jobs=2, **kw)
+    assert [m.model for m in b.models] == ["bingham", "bouc_wen"] and all(m.fit is not None for m in b.models)
+    for ma, mb in zip(a.models, b.models):
+        assert ma.fit.params == mb.fit.params and ma.validation_overall == mb.validation_overall
+
+    exc = default_excitation(d, duration=1.0, rng=1)
+    kw = dict(excitation=exc, n_draws=2, rng=7, free=["c0a", "alpha_b"], progress=False, search=quiet)
+    p = propagate_sensor_errors(d, backend="serial", **kw)
+    q = propagate_sensor_errors(d, backend="pool", jobs=2, **kw)
+    assert q.free == ("c0a", "alpha_b")
+    for k in p.mc.samples:
+        assert np.array_equal(p.mc.samples[k], q.mc.samples[k])
