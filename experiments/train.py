@@ -194,7 +194,8 @@ def _callbacks(run_dir: Path, model_saver, vecnorm, scenarios: list[Scenario], o
             return True
 
         def _on_training_end(self) -> None:
-            if eval_freq:  # the model after the last update (the last validation may precede it)
+            # the model after the last update, unless the last validation already scored it
+            if eval_freq and (not self.rows or self.rows[-1]["timesteps"] != self.num_timesteps):
                 self._evaluate()
 
     class Progress(BaseCallback):
