@@ -44,22 +44,23 @@ def _record():
     from mrd_env.dampers import make_damper
     from mrd_env.rig import random_test
 
-    return random_test(make_damper("spencer_dyke", "spencer1997"), 0.004, 8.0, 4.0, switch_rate=2.0, rng=0)
+    return random_test(make_damper("spencer_dyke", "spencer1997"), 0.004, 8.0, 20.0, switch_rate=2.0, rng=0)
 
 
 def _compare(backend, jobs):
     from mrd_env.identification import compare_models
 
-    out = compare_models([_record()], ["bingham", "bouc_wen", "spencer_dyke", "hyperbolic_tangent"],
-                         search={"maxiter": 20, "progress": False}, plot_window=None, backend=backend, jobs=jobs)
+    out = compare_models([_record()], ["bingham", "bouc_wen", "spencer_dyke", "hyperbolic_tangent", "dahl", "lugre",
+                                       "sigmoid", "bi_viscous"],
+                         search={"maxiter": 100, "progress": False}, plot_window=None, backend=backend, jobs=jobs)
     return [(m.model, None if m.fit is None else m.validation_overall.get("E_t")) for m in out.models]
 
 
 def _propagate(backend, jobs):
     from mrd_env.identification.propagate import propagate_sensor_errors
 
-    res = propagate_sensor_errors("bouc_wen", n_draws=8, rng=0, free=["c0a", "alpha_b", "gamma", "beta"],
-                                  search={"maxiter": 20, "progress": False}, progress=False, backend=backend,
+    res = propagate_sensor_errors("bouc_wen", n_draws=16, rng=0, free=["c0a", "alpha_b", "gamma", "beta"],
+                                  search={"maxiter": 100, "progress": False}, progress=False, backend=backend,
                                   jobs=jobs)
     return {k: v.tobytes() for k, v in res.mc.samples.items()}
 
