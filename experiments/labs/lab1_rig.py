@@ -64,16 +64,22 @@ commands = [0.0, 0.75, 1.5, 2.25]  # V
 by_command = sinusoidal_test(damper, amplitude=X, frequency=f0, commands=commands, cycles=3)
 last = by_command[0].steady_cycles(f0)
 
+
+def label_loops(ax_x, ax_v, legend_title):
+    """Axis labels, grid and legend of a pair of loop plots (force–displacement, force–velocity)."""
+    ax_x.set_xlabel("displacement x (mm)")
+    ax_v.set_xlabel("velocity ẋ (m/s)")
+    for ax in (ax_x, ax_v):
+        ax.set_ylabel("force F (N)")
+        ax.grid(alpha=0.3)
+    ax_v.legend(title=legend_title)
+
+
 fig, (ax_x, ax_v) = figure(1, 2, figsize=(10, 4))
 for r in by_command:
     ax_x.plot(r.x[last] * 1e3, r.force[last], label=r.label)
     ax_v.plot(r.v[last], r.force[last], label=r.label)
-ax_x.set_xlabel("displacement x (mm)")
-ax_v.set_xlabel("velocity ẋ (m/s)")
-for ax in (ax_x, ax_v):
-    ax.set_ylabel("force F (N)")
-    ax.grid(alpha=0.3)
-ax_v.legend(title="command")
+label_loops(ax_x, ax_v, "command")
 fig.suptitle(f"Spencer–Dyke prototype damper, X = {X * 1e3:g} mm, f = {f0:g} Hz: loops against the command")
 lab.save(fig, "loops_command.png")
 
@@ -125,12 +131,7 @@ for f, r in zip(frequencies, by_frequency):
     sl = r.steady_cycles(f)
     ax_x.plot(r.x[sl] * 1e3, r.force[sl], label=f"{f:g} Hz")
     ax_v.plot(r.v[sl], r.force[sl], label=f"{f:g} Hz")
-ax_x.set_xlabel("displacement x (mm)")
-ax_v.set_xlabel("velocity ẋ (m/s)")
-for ax in (ax_x, ax_v):
-    ax.set_ylabel("force F (N)")
-    ax.grid(alpha=0.3)
-ax_v.legend(title="frequency")
+label_loops(ax_x, ax_v, "frequency")
 fig.suptitle("loops against the frequency at 1 V")
 lab.save(fig, "loops_frequency.png")
 
