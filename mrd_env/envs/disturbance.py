@@ -8,6 +8,7 @@ distribution over several sources).
 """
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from typing import Callable, Sequence
 
 import numpy as np
@@ -15,14 +16,15 @@ import numpy as np
 from ..disturbances import Record
 
 
-class Disturbance:
+class Disturbance(ABC):
     """Base class: ``sample(rng, dt)`` returns the next episode's record (see the module docstring)."""
 
     channels: tuple[str, ...] = ()
     random: bool = False
 
-    def sample(self, rng: np.random.Generator, dt: float) -> Record:  # pragma: no cover - interface
-        raise NotImplementedError
+    @abstractmethod
+    def sample(self, rng: np.random.Generator, dt: float) -> Record:
+        """The next episode's record on the grid ``dt`` with exactly ``channels``."""
 
     def describe(self) -> str:
         return type(self).__name__
