@@ -192,6 +192,9 @@ def run_record(args: argparse.Namespace) -> int:
     if args.epochs < 1:
         raise ValueError(f"--epochs must be >= 1, got {args.epochs}")
     plant = load_preset(args.plant_preset) if args.plant_preset is not None else None
+    if getattr(args, "validate", None):
+        raise ValueError("--validate: inverse record tracks the held-back part of its one record; cross-record "
+                         "validation belongs to identify and compare-models")
     recs = load_data(args)
     if len(recs) != 1:
         raise ValueError(f"--data: inverse record takes one record, got {len(recs)}")

@@ -13,7 +13,7 @@ several seeds in one command (``--seeds 0 1 2``); a progress bar.
 
 Each run writes a folder ``<out>/<plant>_<algo>_s<seed>/`` holding the final agent (``agent.json``, ``model.zip``,
 ``normalization.npz``: :func:`controllers.load_agent` reads it), ``best/`` (the best validation agent), the
-checkpoints, ``training.csv``, ``validation.csv`` and ``learning_curve.png``. ``agent.json`` records the plant,
+checkpoints, ``training.monitor.csv``, ``validation.csv`` and ``learning_curve.png``. ``agent.json`` records the plant,
 the algorithm, the seed and budget, the environment options (``env_kwargs``), the hyperparameters, the wall
 time and the command that reproduces the run.
 """
@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import shlex
 import sys
 import time
@@ -94,7 +95,9 @@ def schedule(value):
         try:
             start = float(value[4:])
         except ValueError:
-            raise ValueError(f"a linear schedule is lin_<number>, got {value!r}") from None
+            start = math.nan
+        if not start > 0:
+            raise ValueError(f"a linear schedule is lin_<x> with a number x > 0, got {value!r}")
         return lambda progress_remaining: progress_remaining * start
     return value
 

@@ -14,6 +14,7 @@ the pool when there is more than one task and more than one core, else serial.
 """
 from __future__ import annotations
 
+import copy
 import os
 import time
 from collections.abc import Callable, Sequence
@@ -41,11 +42,12 @@ class Task:
 
 
 class TaskFailed(RuntimeError):
-    """A task failed twice (its first try and one retry)."""
+    """A task failed on its first try and its one retry (or on its only try, without retries)."""
 
-    def __init__(self, task: Task, error: BaseException):
+    def __init__(self, task: Task, error: BaseException, tries: int = 2):
         self.task, self.error = task, error
-        super().__init__(f"task {task.describe()} failed twice: {type(error).__name__}: {error}")
+        times = "twice" if tries == 2 else "on its only try"
+        super().__init__(f"task {task.describe()} failed {times}: {type(error).__name__}: {error}")
 
 
 def _short(v: Any, n: int = 60) -> str:
@@ -77,8 +79,9 @@ def resolve_backend(backend: str, n_tasks: int, jobs: int | None) -> str:
 
 
 def run_tasks(tasks: Sequence[Task], *, backend: str = "auto", jobs: int | None = None, address: str | None = None,
-              progress: bool = True, desc: str = "sweep") -> list:
-    """The results of ``tasks``, in their order (see the module docstring)."""
+              progress: bool = True, desc: str = "sweep", retry: bool = True) -> list:
+    """The results of ``tasks``, in their order (see the module docstring). ``retry=False``: a failed task is
+    reported at once (for callers whose failures are the user's errors, not transient ones)."""
     tasks = list(tasks)
     backend = resolve_backend(backend, len(tasks), jobs)
     if not tasks:
@@ -88,30 +91,34 @@ def run_tasks(tasks: Sequence[Task], *, backend: str = "auto", jobs: int | None 
     bar = tqdm(total=len(tasks), desc=desc, disable=not progress or len(tasks) < 2)  # one task: its own bar
     try:
         run = {"serial": _serial, "pool": _pool, "ray": _ray}[backend]
-        return run(tasks, jobs, address, bar)
+        return run(tasks, jobs, address, bar, retry)
     finally:
         bar.close()
 
 
-def _finish(task: Task, outcome, retry: Callable[[], tuple]):
+def _finish(task: Task, outcome, retry: Callable[[], tuple] | None):
     ok, value = outcome
     if ok:
         return value
+    if retry is None:
+        raise TaskFailed(task, value, tries=1) from value
     ok, value2 = retry()
     if ok:
         return value2
     raise TaskFailed(task, value2) from value2
 
 
-def _serial(tasks, jobs, address, bar):
+def _serial(tasks, jobs, address, bar, retry):
     out = []
     for t in tasks:
-        out.append(_finish(t, _call(t), lambda t=t: _call(t)))
+        # the first try runs on a copy, so that a retry starts from the task's own inputs (a generator it
+        # draws from, say), as it does on a pool or Ray, which send the task again
+        out.append(_finish(t, _call(copy.deepcopy(t)), (lambda t=t: _call(t)) if retry else None))
         bar.update()
     return out
 
 
-def _pool(tasks, jobs, address, bar):
+def _pool(tasks, jobs, address, bar, retry):
     import multiprocessing as mp
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
@@ -121,12 +128,13 @@ def _pool(tasks, jobs, address, bar):
         futures = {ex.submit(_call, t): i for i, t in enumerate(tasks)}
         for fut in as_completed(futures):
             i = futures[fut]
-            results[i] = _finish(tasks[i], fut.result(), lambda i=i: ex.submit(_call, tasks[i]).result())
+            results[i] = _finish(tasks[i], fut.result(),
+                                 (lambda i=i: ex.submit(_call, tasks[i]).result()) if retry else None)
             bar.update()
     return results
 
 
-def _ray(tasks, jobs, address, bar):
+def _ray(tasks, jobs, address, bar, retry):
     try:
         import ray
     except ImportError:
@@ -144,7 +152,8 @@ def _ray(tasks, jobs, address, bar):
         while pending:
             done, pending = ray.wait(pending, num_returns=1)
             i = refs[done[0]]
-            results[i] = _finish(tasks[i], ray.get(done[0]), lambda i=i: ray.get(remote.remote(tasks[i])))
+            results[i] = _finish(tasks[i], ray.get(done[0]),
+                                 (lambda i=i: ray.get(remote.remote(tasks[i]))) if retry else None)
             bar.update()
         return results
     finally:

@@ -153,7 +153,7 @@ CASES = {
         ["achievable", "--preset", "nope"], ["achievable", "--duration", "0"], ["achievable", "--rms", "-1"],
         ["achievable", "--seed", "-1"], ["achievable", "--mismatch", "bouc_wen"],
         ["achievable", "--network", "{missing}"], ["achievable", "--network", "{binary}"],
-        ["record"], ["record", "--data", "{missing}"], ["record", "--data", "{good}", "--model", "nope"],
+        ["record"], ["record", "--data", "{missing}"], ["record", "--data", "{good}", "--validate", "{good}"], ["record", "--data", "{good}", "--model", "nope"],
         ["record", "--data", "{good}", "--inverses", "nope"], ["record", "--data", "{good}", "--plant-preset",
                                                                 "{missing}"],
         ["record", "--data", "{good}", "--epochs", "0"], ["record", "--data", "{good}", "--fs", "500"],

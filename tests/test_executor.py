@@ -22,6 +22,13 @@ def flaky(marker: str, value: int) -> int:
     return value * 2
 
 
+def draw_then_fail_once(marker: str, rng: np.random.Generator) -> float:
+    """Draws from its generator, then fails on its first call."""
+    x = rng.random()
+    flaky(marker, 0)
+    return x
+
+
 def broken(x: int) -> int:
     raise ValueError(f"bad input {x}")
 
@@ -136,3 +143,16 @@ def test_model_comparison_and_sensor_propagation_on_a_pool_equal_serial_ones():
     assert q.free == ("c0a", "alpha_b")
     for k in p.mc.samples:
         assert np.array_equal(p.mc.samples[k], q.mc.samples[k])
+
+
+@pytest.mark.parametrize("backend", ["serial", "pool"])
+def test_a_retry_starts_from_the_task_s_own_inputs(tmp_path, backend):
+    """The retried task draws what its first try drew (a generator among its inputs is not left advanced)."""
+    task = Task(draw_then_fail_once, (str(tmp_path / "marker"), np.random.default_rng(5)))
+    assert run_tasks([task], backend=backend, jobs=1, progress=False) == [np.random.default_rng(5).random()]
+
+
+def test_without_retries_a_failure_is_reported_at_once(tmp_path):
+    with pytest.raises(TaskFailed, match="only try") as err:
+        run_tasks([Task(flaky, (str(tmp_path / "m"), 3))], backend="serial", progress=False, retry=False)
+    assert isinstance(err.value.error, OSError)

@@ -571,3 +571,15 @@ def test_inverses_follow_an_asymmetric_command_lag():
     symmetric = make_damper("bouc_wen", command={"eta": 300.0})  # the inverse assumes the rise rate both ways
     wrong = track(make_inverse("sid", symmetric), d, rec.x, rec.v, rec.force, DT).nrmse[0]
     assert sid <= 0.10 and sid < wrong
+
+
+def test_a_network_refuses_a_damper_with_another_command_lag(tmp_path):
+    from mrd_env.inverse.neural import load_network, shipped_network
+
+    d = make_damper("bouc_wen")
+    net = load_network(shipped_network(d))
+    net.meta["command"] = {**net.meta["command"], "eta_fall": net.meta["command"]["eta"]}  # as training writes now
+    make_inverse("neural", d, network=net)  # the lag it was trained on
+    slower = make_damper("bouc_wen", command={"eta": d.command.eta, "eta_fall": 80.0})
+    with pytest.raises(ValueError, match="command lag"):
+        make_inverse("neural", slower, network=net)

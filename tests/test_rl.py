@@ -181,5 +181,7 @@ def test_linear_schedules_follow_rl_zoo():
     lr = schedule("lin_3e-4")
     assert lr(1.0) == pytest.approx(3e-4) and lr(0.5) == pytest.approx(1.5e-4) and lr(0.0) == 0.0
     assert schedule(0.2) == 0.2 and schedule("MlpPolicy") == "MlpPolicy"
-    with pytest.raises(ValueError, match="lin_<number>"):
+    with pytest.raises(ValueError, match="lin_<x> with a number x > 0"):
         check_hyperparameters("ppo", {"learning_rate": "lin_fast"})
+    with pytest.raises(ValueError, match="x > 0"):
+        check_hyperparameters("ppo", {"learning_rate": "lin_-3e-4"})

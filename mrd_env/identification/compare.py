@@ -175,7 +175,7 @@ def compare_models(records, models: Sequence[str | DamperModel] | None = None, *
                           label=f"fit {name}"))
     try:
         done = run_tasks(tasks, backend=backend, jobs=jobs, address=address, progress=progress,
-                         desc="compare models")
+                         desc="compare models", retry=not stop_on_error)
     except TaskFailed as exc:  # only with stop_on_error: the fit's own error, as a serial loop would raise it
         raise exc.error from None
     results = []
@@ -201,10 +201,11 @@ def _fit_and_validate(name: str, model, fits, whole, idx, preset, options: dict,
                                                 offset=fr.settings.get("offsets", [0])[0],
                                                 **(options.get("integrator_options") or {}))
             row = ModelComparison(name, fr, v_rows, v_all, forces)
-        except (ValueError, SimulationDivergedError, ImportError) as exc:
+        except Exception as exc:  # noqa: BLE001 — a failed fit is a failed row, whatever its cause
             if stop_on_error:
                 raise
-            row = ModelComparison(name, None, error=str(exc))
+            expected = isinstance(exc, (ValueError, SimulationDivergedError, ImportError))  # the user's input
+            row = ModelComparison(name, None, error=str(exc) if expected else f"{type(exc).__name__}: {exc}")
     return row, [(w.category, str(w.message)) for w in caught]
 
 

@@ -421,7 +421,8 @@ def monte_carlo(func: Callable[[np.random.Generator], Mapping[str, float] | floa
     tasks = [Task(_draw, (func, child, on_error == "skip"), label=f"{desc} draw {i}")
              for i, child in enumerate(children)]
     try:
-        outcomes = run_tasks(tasks, backend=backend, jobs=jobs, address=address, progress=progress, desc=desc)
+        outcomes = run_tasks(tasks, backend=backend, jobs=jobs, address=address, progress=progress, desc=desc,
+                             retry=False)  # a draw's error is deterministic: counted ("skip") or raised at once
     except TaskFailed as exc:  # on_error="raise": the draw's own error
         raise exc.error from None
     values: dict[str, list[float]] | None = None

@@ -231,6 +231,10 @@ class NeuralInverse(Inverse):
         if (trained.get("unit"), trained.get("v_min"), trained.get("v_max")) != (c.unit, c.v_min, c.v_max):
             raise ValueError(f"network was trained for commands {trained.get('v_min')}..{trained.get('v_max')} "
                              f"{trained.get('unit')}, the damper's are {c.v_min:g}..{c.v_max:g} {c.unit}")
+        lag = (trained.get("eta"), trained.get("eta_fall"))
+        if lag[1] is not None and not np.allclose(lag, (c.eta, c.eta_down), rtol=1e-9):
+            raise ValueError(f"network was trained for a command lag eta = {lag[0]:g}, eta_fall = {lag[1]:g} 1/s, "
+                             f"the damper's is {c.eta:g}, {c.eta_down:g} 1/s: it inverts the lag it was trained on")
         if abs(float(meta.get("dt", math.nan)) - self.dt) > 1e-9 * self.dt:
             raise ValueError(f"network was trained at dt = {meta.get('dt')} s, the inverse's dt = {self.dt:g} s: "
                              "its input history is sampled at the training step")

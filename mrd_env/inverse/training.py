@@ -19,6 +19,7 @@ torch thread; everything seeded (same seed, same network, bit for bit).
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from typing import Sequence
@@ -104,7 +105,9 @@ def features(records: Sequence, damper, history: int, dt: float, *, rng=None) ->
                              f"history + 1 = {history + 1} samples (resample it first)")
         v = np.asarray(r.v if getattr(r, "v", None) is not None else np.gradient(r.x, t), dtype=np.float64)
         cmd = np.clip(np.asarray(r.command, dtype=np.float64), c.v_min, c.v_max)
-        u = np.asarray(r.u, dtype=np.float64) if hasattr(r, "u") else effective_command(c, cmd, dt)
+        # the effective command as the inverse models it: the lag without the pure delay
+        u = (np.asarray(r.u, dtype=np.float64) if hasattr(r, "u")
+             else effective_command(dataclasses.replace(c, delay=0.0), cmd, dt))
         rows.append((np.asarray(r.force, dtype=np.float64), np.asarray(r.x, dtype=np.float64), v, u))
 
     def std(fn):
@@ -208,7 +211,8 @@ def train_neural_inverse(damper, records: Sequence | None = None, *, dt: float =
         torch.set_num_threads(threads)
     c = damper.command
     meta = {"model": damper.name, "parameters": damper.params.to_dict(),
-            "command": {"unit": c.unit, "v_min": c.v_min, "v_max": c.v_max, "eta": c.eta}, "dt": dt,
+            "command": {"unit": c.unit, "v_min": c.v_min, "v_max": c.v_max, "eta": c.eta, "eta_fall": c.eta_down,
+                         "delay": c.delay}, "dt": dt,
             "hidden": hidden, "source": source, "n_samples": int(X.shape[0]), "epochs": epochs,
             "batch_size": batch_size, "learning_rate": learning_rate, "seed": int(seed),
             "train_rms_u": math.sqrt(t_loss), "validation_rms_u": math.sqrt(v_loss), "wall_time_s": wall,
