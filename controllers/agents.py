@@ -1,6 +1,6 @@
 """Trained agents behind the controllers' interface: ``load_agent(path)`` reads an agent saved by
 ``mrd-env train`` — a folder holding ``agent.json`` (the metadata), ``model.zip`` (the Stable-Baselines3 or
-sb3-contrib policy) and ``normalization.npz`` (the observation statistics it was trained with) — and returns a
+sb3-contrib policy; ``policy.npz`` for a CMA-ES policy network, :mod:`controllers.mlp_policy`) and ``normalization.npz`` (the observation statistics it was trained with) — and returns a
 :class:`TrainedAgent`: ``predict(obs)`` on raw observations of one environment or a batch, the options of the
 environment it was trained in (``env_kwargs``: ``gym.make(agent.env_id, **agent.env_kwargs)`` rebuilds it) and
 the options that define its observation and action (``observation_kwargs``: sensors, history, control step,
@@ -19,7 +19,7 @@ import numpy as np
 AGENT_FORMAT = "mrd-env-agent"
 #: Options of the environment that define what an agent sees and does (kept whatever the scenario).
 OBSERVATION_OPTIONS = ("sensors", "sensor_noise", "sensor_delay", "history", "control_dt", "dt", "action_mode",
-                       "damper", "damper_preset", "damper_params", "plant_preset", "plant_params")
+                       "damper", "damper_preset", "damper_params", "plant_preset", "plant_params", "damper_floors")
 SHIPPED = Path(__file__).with_name("agents")
 
 
@@ -77,7 +77,11 @@ class TrainedAgent:
         self.env_kwargs = dict(meta["env_kwargs"])
         self.observation_kwargs = {k: v for k, v in self.env_kwargs.items() if k in OBSERVATION_OPTIONS}
         self.name = meta.get("name") or f"{meta['algo']} s{meta.get('seed', 0)}"
-        self.model = _algorithm(meta["algo"]).load(folder / meta["model"], device="cpu")
+        if meta["algo"] == "CMA-ES":  # a NumPy policy network (experiments/evolution.py)
+            from .mlp_policy import MLPPolicy
+            self.model = MLPPolicy.load(folder / meta["model"])
+        else:
+            self.model = _algorithm(meta["algo"]).load(folder / meta["model"], device="cpu")
         norm = meta.get("normalization")
         if norm:
             with np.load(folder / norm) as z:

@@ -6,7 +6,8 @@ there too, and once more at 1 ms (their own best rate) as extra rows. For each c
 environment's return and the field's metrics (quarter car: Wk-weighted r.m.s. acceleration, travel, tyre load;
 building: J1–J6), mean and 95 % interval over seeds and episodes (for agents, over their training seeds too);
 then the mean over all test scenarios. Writes ``<out>/<plant>_evaluation.md``/``.csv`` and
-``<out>/<plant>_evaluation.png`` (returns with their intervals). By default the agents shipped with the project
+``<out>/<plant>_evaluation.png`` (returns with their intervals), and ``<out>/<plant>_paired.md``/``.csv``: each
+agent minus the best law at each control step on the same episodes (:func:`paired`). By default the agents shipped with the project
 (``controllers/agents/``) are evaluated.
 """
 from __future__ import annotations
@@ -85,6 +86,36 @@ def summarise(plant: str, results: dict[str, list[Episode]]) -> list[dict]:
                 row[k] = mean_ci([e.metrics.get(k, np.nan) for e in mine])[0]
             row["terminated"] = sum(1 for e in mine if "terminated" in e.metrics)
             rows.append(row)
+    return rows
+
+
+def paired(results: dict[str, list[Episode]]) -> list[dict]:
+    """Each agent against the best law (by mean return over the test scenarios; random commands excluded) at each
+    control step, episode by episode — the same roads or ground motions, so their variation cancels: the mean
+    difference of return (positive: the agent is better) and its 95 % interval, per scenario and over all. An
+    agent trained on several seeds counts with its mean over the seeds on each episode."""
+    def per_episode(ctrl: str) -> dict[str, float]:
+        by_label = defaultdict(list)
+        for e in results[ctrl]:
+            by_label[e.scenario].append(e.episode_return)
+        return {k: float(np.mean(v)) for k, v in by_label.items()}
+
+    agents = [c for c in results if c.startswith("agent ")]
+    laws = [c for c in results if not c.startswith("agent ") and not c.startswith("random ")]
+    rows = []
+    for a in agents:
+        mine = per_episode(a)
+        for rate in dict.fromkeys(c.split(" @ ")[-1] for c in laws):
+            at_rate = [c for c in laws if c.endswith(f"@ {rate}")]
+            best = max(at_rate, key=lambda c: np.mean([e.episode_return for e in results[c]]))
+            law = per_episode(best)
+            labels = [k for k in mine if k in law]
+            scen = list(dict.fromkeys(_base(k) for k in labels))
+            for s in scen + ["all test scenarios"]:
+                diff = [mine[k] - law[k] for k in labels if s == "all test scenarios" or _base(k) == s]
+                m, lo, hi = mean_ci(diff)
+                rows.append({"comparison": f"{a} − {best}", "scenario": s, "episodes": len(diff),
+                             "difference": m, "difference_lo95": lo, "difference_hi95": hi})
     return rows
 
 
@@ -177,4 +208,10 @@ def run(args: argparse.Namespace) -> int:
         fig = plot(p, [r for r in rows if r["scenario"] != "all test scenarios"], args.out / f"{p}_evaluation.png")
         print(md.read_text())
         print(f"wrote {md}, {csv_path}, {fig}")
+        pairs = paired(res)
+        if pairs:
+            md, _ = write_table(pairs, args.out / f"{p}_paired", floatfmt=".4g",
+                                title=f"{p}: agent minus the best law at each control step, on the same episodes "
+                                      "(mean, 95 % interval; positive: the agent is better)")
+            print(md.read_text())
     return 0

@@ -32,7 +32,8 @@ import numpy as np
 from . import sweep
 from .scenarios import ENV_IDS, TRAINING, Scenario, validation
 
-ALGOS = {"ppo": "PPO", "sac": "SAC", "td3": "TD3", "a2c": "A2C", "recurrentppo": "RecurrentPPO", "tqc": "TQC"}
+ALGOS = {"ppo": "PPO", "sac": "SAC", "td3": "TD3", "a2c": "A2C", "recurrentppo": "RecurrentPPO", "tqc": "TQC",
+         "cmaes": "CMA-ES"}
 HYPERPARAMS = Path(__file__).with_name("hyperparams")
 #: Keys of a hyperparameter entry that are not the algorithm's keyword arguments (RL Zoo's conventions).
 _ZOO_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "env_kwargs")
@@ -74,6 +75,10 @@ def check_hyperparameters(algo: str, hyper: dict) -> dict:
 
     if algo not in ALGOS:
         raise ValueError(f"algo must be one of {sorted(ALGOS)}, got {algo!r}")
+    if algo == "cmaes":
+        from .evolution import check
+        check(hyper)
+        return hyper
     accepted = set(inspect.signature(_algorithm(ALGOS[algo]).__init__).parameters) - {"self", "env", "policy"}
     unknown = sorted(k for k in hyper if k not in _ZOO_KEYS and k not in accepted)
     if unknown:
@@ -184,6 +189,10 @@ def _callbacks(run_dir: Path, model_saver, vecnorm, scenarios: list[Scenario], o
                 model_saver(run_dir / "best", {"validation_return": mean, "timesteps": self.num_timesteps})
             return report is None or report(self.num_timesteps, mean)
 
+        def _on_training_start(self) -> None:
+            if eval_freq:  # the curve starts from the untrained (or warm-started) policy
+                self._evaluate()
+
         def _on_step(self) -> bool:
             if eval_freq and self.num_timesteps >= self.next_eval:
                 while self.next_eval <= self.num_timesteps:  # once, however many steps a vector step adds
@@ -228,8 +237,18 @@ def _write_csv(path: Path, rows: list[dict]) -> None:
 def train_one(plant: str, algo: str, seed: int, *, out: Path, timesteps: int | None = None,
               hyper: dict | None = None, env_kwargs: dict | None = None, eval_freq: int = 20_000,
               eval_episodes: int = 8, checkpoint_freq: int = 0, tensorboard: bool = False, progress: bool = False,
-              command: str = "", report=None) -> Path:
-    """Train one agent (see the module docstring); return its folder. ``report``: see :func:`_callbacks`."""
+              command: str = "", report=None, warm_start: str | None = None) -> Path:
+    """Train one agent (see the module docstring); return its folder. ``report``: see :func:`_callbacks`;
+    ``warm_start`` (CMA-ES): a law's name, which the policy imitates before training (:mod:`.warm_start`)."""
+    if algo == "cmaes":
+        if report is not None or checkpoint_freq or tensorboard:
+            raise ValueError("CMA-ES training has no pruning, checkpoints or TensorBoard logs")
+        from .evolution import train_cmaes
+        return train_cmaes(plant, seed, out=out, timesteps=timesteps, hyper=hyper, env_kwargs=env_kwargs,
+                           eval_freq=eval_freq, eval_episodes=eval_episodes, progress=progress, command=command,
+                           warm_start=warm_start)
+    if warm_start is not None:
+        raise ValueError("--warm-start applies to --algo cmaes")
     import torch
     from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
 
@@ -376,8 +395,35 @@ def train(plant: str, algo: str, seeds, *, backend: str = "serial", jobs: int | 
     folders = run_tasks(tasks, backend=backend, jobs=jobs, address=address,
                         progress=kw.get("progress", False) and parallel, desc=f"train {plant} {algo}")
     if len(folders) > 1:
-        plot_seed_curves(folders, Path(kw["out"]) / f"{plant}_{algo}_learning_curves.png")
+        env_kwargs = {**(kw.get("env_kwargs") or env_options(plant)),
+                      **((kw.get("hyper") or {}).get("env_kwargs") or {})}
+        refs = law_references(plant, env_kwargs, kw.get("eval_episodes", 8)) if kw.get("eval_freq") else None
+        plot_seed_curves(folders, Path(kw["out"]) / f"{plant}_{algo}_learning_curves.png", refs)
     return folders
+
+
+#: The laws drawn next to the agents' validation curves: the best law at the agents' 10 ms, and a passive one.
+REFERENCE_LAWS = {"quarter_car": ("skyhook_continuous", "passive_off"), "building": ("clipped_optimal", "passive_on")}
+
+
+def law_references(plant: str, env_kwargs: dict | None = None, eval_episodes: int = 8) -> dict[str, float]:
+    """The validation return of each of ``REFERENCE_LAWS[plant]`` on the agents' validation episodes, sensors
+    and control step."""
+    from controllers import make_controller
+    from controllers.agents import OBSERVATION_OPTIONS
+
+    from .evaluation import evaluate_batch
+
+    env_kwargs = dict(env_kwargs if env_kwargs is not None else env_options(plant))
+    obs_kwargs = {k: v for k, v in env_kwargs.items() if k in OBSERVATION_OPTIONS}
+    disturbance = {k: v for k, v in env_kwargs.items() if k not in OBSERVATION_OPTIONS}
+    sc = Scenario("validation", ENV_IDS[plant], disturbance, validation(plant, eval_episodes)[0].seeds)
+    out = {}
+    for law in REFERENCE_LAWS[plant]:
+        eps = evaluate_batch(lambda v, n=law: make_controller(n, v), sc, "", **obs_kwargs)
+        out[f"{law} @ {1000 * float(env_kwargs.get('control_dt', 1e-3)):g} ms"] = \
+            float(np.mean([e.episode_return for e in eps]))
+    return out
 
 
 # --- CLI ----------------------------------------------------------------------------------------------------------
@@ -396,6 +442,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--disturbance", default=None,
                    help="training disturbance as JSON (default: the plant's training distribution), e.g. "
                         "'{\"kind\": \"iso8608\", \"road_class\": \"C\"}'")
+    p.add_argument("--warm-start", default=None, metavar="LAW",
+                   help="cmaes: begin as this classical law (behaviour cloning; default: the YAML's warm_start)")
     p.add_argument("--eval-freq", type=int, default=20_000, help="validation every so many steps (0: never)")
     p.add_argument("--eval-episodes", type=int, default=8, help="validation episodes (unseen seeds)")
     p.add_argument("--checkpoint-freq", type=int, default=0, help="checkpoint every so many steps (0: never)")
@@ -422,6 +470,12 @@ def run(args: argparse.Namespace) -> int:
             disturbance = json.loads(args.disturbance)
         except json.JSONDecodeError:
             disturbance = args.disturbance  # a kind's name
+    if args.warm_start is not None:
+        from controllers import available_controllers
+        if args.algo != "cmaes":
+            raise ValueError("--warm-start applies to --algo cmaes")
+        if args.warm_start not in available_controllers():
+            raise ValueError(f"--warm-start must be a law of {available_controllers()}, got {args.warm_start!r}")
     env_kwargs = env_options(args.plant, args.control_dt, args.sensors, args.history, disturbance)
     env_id = ENV_IDS[args.plant]
     hyper = hyperparameters(args.algo, env_id, args.hyperparams, _parse_overrides(args.set))
@@ -438,7 +492,7 @@ def run(args: argparse.Namespace) -> int:
     folders = train(args.plant, args.algo, args.seeds, out=args.out, timesteps=args.timesteps, hyper=hyper,
                     env_kwargs=env_kwargs, eval_freq=args.eval_freq, eval_episodes=args.eval_episodes,
                     checkpoint_freq=args.checkpoint_freq, tensorboard=args.tensorboard,
-                    progress=not args.no_progress, command=command, **executor)
+                    progress=not args.no_progress, command=command, warm_start=args.warm_start, **executor)
     for f in folders:
         print(f"saved {f} (evaluate with: mrd-env evaluate --plant {args.plant} --agents {f})")
     return 0
