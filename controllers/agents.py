@@ -1,6 +1,7 @@
 """Trained agents behind the controllers' interface: ``load_agent(path)`` reads an agent saved by
 ``mrd-env train`` — a folder holding ``agent.json`` (the metadata), ``model.zip`` (the Stable-Baselines3 or
-sb3-contrib policy; ``policy.npz`` for a CMA-ES policy network, :mod:`controllers.mlp_policy`) and ``normalization.npz`` (the observation statistics it was trained with) — and returns a
+sb3-contrib policy; ``policy.npz`` for a CMA-ES policy network, :mod:`controllers.mlp_policy`) and
+``normalization.npz`` (the observation statistics it was trained with) — and returns a
 :class:`TrainedAgent`: ``predict(obs)`` on raw observations of one environment or a batch, the options of the
 environment it was trained in (``env_kwargs``: ``gym.make(agent.env_id, **agent.env_kwargs)`` rebuilds it) and
 the options that define its observation and action (``observation_kwargs``: sensors, history, control step,

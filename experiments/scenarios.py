@@ -24,8 +24,8 @@ HELD_OUT_SEED = 1_000_000
 #: building's damper sits in storey 2 (between floors 1 and 2). In storey 1 — the lab model's own place and the
 #: environment's default — passive-on is within 0.5 % of the best law at any control rate on the test records
 #: (El Centro N-S: passive-on −0.392, clipped-optimal at 1 ms −0.391), so no command policy can be told apart
-#: from passive-on; in storey 2 clipped-optimal at 1 ms is 13–18 % better than passive-on
-#: (``python -m experiments.bench_reward_separation``).
+#: from passive-on; in storey 2 clipped-optimal at 1 ms is 15–18 % better than passive-on on the test records
+#: (``tests/test_evolution.py`` checks El Centro N-S).
 PLANT = {"quarter_car": {}, "building": {"damper_floors": (2,)}}
 
 

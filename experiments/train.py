@@ -9,7 +9,8 @@ the SB3 bridge, with observations (and rewards) normalised by ``VecNormalize``. 
 every ``--eval-freq`` steps on the validation scenarios (the training distribution on seeds training never
 draws; the test scenarios are never seen), and the best agent is kept; checkpoints every ``--checkpoint-freq``
 steps; learning curves as CSV (training episodes, validation) and PNG; TensorBoard logs with ``--tensorboard``;
-several seeds in one command (``--seeds 0 1 2``); a progress bar.
+several seeds in one command (``--seeds 0 1 2``); a progress bar. ``--algo cmaes`` trains a policy network with an
+evolution strategy instead, on the same scenarios and with the same outputs (:mod:`.evolution`).
 
 Each run writes a folder ``<out>/<plant>_<algo>_s<seed>/`` holding the final agent (``agent.json``, ``model.zip``,
 ``normalization.npz``: :func:`controllers.load_agent` reads it), ``best/`` (the best validation agent), the
