@@ -122,13 +122,13 @@ def train_cmaes(plant: str, seed: int, *, out: Path, timesteps: int | None = Non
     import cma
     import gymnasium as gym
 
-    from controllers.agents import AGENT_FORMAT, OBSERVATION_OPTIONS
+    from controllers.agents import AGENT_FORMAT
     from controllers.base import AgentController
     from controllers.mlp_policy import MLPPolicy
 
     from .evaluation import evaluate_batch
-    from .scenarios import ENV_IDS, HELD_OUT_SEED, Scenario, validation
-    from .train import _jsonable, _write_csv, env_options, plot_learning_curve
+    from .scenarios import ENV_IDS, HELD_OUT_SEED
+    from .train import _jsonable, _write_csv, env_options, plot_learning_curve, validation_split
 
     import mrd_env  # noqa: F401
     h = check(dict(hyper or {}))
@@ -151,9 +151,7 @@ def train_cmaes(plant: str, seed: int, *, out: Path, timesteps: int | None = Non
                                   {"popsize": P, "seed": seed + 1, "CMA_diagonal": True, "verbose": -9})
     rng = np.random.default_rng(seed)
 
-    obs_kwargs = {k: v for k, v in env_kwargs.items() if k in OBSERVATION_OPTIONS}
-    disturbance = {k: v for k, v in env_kwargs.items() if k not in OBSERVATION_OPTIONS}
-    val = Scenario("validation", env_id, disturbance, validation(plant, eval_episodes)[0].seeds)
+    val, obs_kwargs = validation_split(plant, env_kwargs, eval_episodes)
 
     def save(folder: Path, theta: np.ndarray, extra: dict) -> None:
         folder.mkdir(parents=True, exist_ok=True)

@@ -142,6 +142,16 @@ def env_options(plant: str, control_dt: float = 0.01, sensors=None, history: int
     return kw
 
 
+def validation_split(plant: str, env_kwargs: dict, episodes: int) -> tuple[Scenario, dict]:
+    """The validation scenario of a training environment (its disturbance options on seeds training never
+    draws) and the options that define what the agent sees and does (kept when the scenario changes)."""
+    from controllers.agents import OBSERVATION_OPTIONS
+
+    obs_kwargs = {k: v for k, v in env_kwargs.items() if k in OBSERVATION_OPTIONS}
+    disturbance = {k: v for k, v in env_kwargs.items() if k not in OBSERVATION_OPTIONS}
+    return Scenario("validation", ENV_IDS[plant], disturbance, validation(plant, episodes)[0].seeds), obs_kwargs
+
+
 class _Live:
     """The agent being trained, as a predict on raw observations (the running normalisation of VecNormalize)."""
 
@@ -253,7 +263,7 @@ def train_one(plant: str, algo: str, seed: int, *, out: Path, timesteps: int | N
     import torch
     from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
 
-    from controllers.agents import AGENT_FORMAT, OBSERVATION_OPTIONS, _algorithm
+    from controllers.agents import AGENT_FORMAT, _algorithm
 
     from mrd_env.envs.sb3 import make_sb3_vec_env
 
@@ -281,7 +291,6 @@ def train_one(plant: str, algo: str, seed: int, *, out: Path, timesteps: int | N
     kwargs = {k: schedule(v) for k, v in hyper.items() if k not in _ZOO_KEYS}
     model = _algorithm(ALGOS[algo])(hyper.get("policy", "MlpPolicy"), train_env, seed=seed, device="cpu", verbose=0,
                                     tensorboard_log=str(Path(out) / "tensorboard") if tensorboard else None, **kwargs)
-    obs_kwargs = {k: v for k, v in env_kwargs.items() if k in OBSERVATION_OPTIONS}
     t_start = time.perf_counter()
 
     def save(folder: Path, extra: dict) -> None:
@@ -299,8 +308,8 @@ def train_one(plant: str, algo: str, seed: int, *, out: Path, timesteps: int | N
         (folder / "agent.json").write_text(json.dumps(meta, indent=2, default=_jsonable), encoding="utf-8")
 
     # validation: the training distribution itself on seeds training never draws
-    disturbance = {k: v for k, v in env_kwargs.items() if k not in OBSERVATION_OPTIONS}
-    scenarios = [Scenario("validation", env_id, disturbance, validation(plant, eval_episodes)[0].seeds)]
+    val, obs_kwargs = validation_split(plant, env_kwargs, eval_episodes)
+    scenarios = [val]
     callbacks = _callbacks(run_dir, save, vecnorm, scenarios, obs_kwargs, eval_freq, checkpoint_freq, timesteps,
                            progress, report)
     model.learn(total_timesteps=timesteps, callback=list(callbacks), tb_log_name=run_dir.name)
@@ -411,14 +420,11 @@ def law_references(plant: str, env_kwargs: dict | None = None, eval_episodes: in
     """The validation return of each of ``REFERENCE_LAWS[plant]`` on the agents' validation episodes, sensors
     and control step."""
     from controllers import make_controller
-    from controllers.agents import OBSERVATION_OPTIONS
 
     from .evaluation import evaluate_batch
 
     env_kwargs = dict(env_kwargs if env_kwargs is not None else env_options(plant))
-    obs_kwargs = {k: v for k, v in env_kwargs.items() if k in OBSERVATION_OPTIONS}
-    disturbance = {k: v for k, v in env_kwargs.items() if k not in OBSERVATION_OPTIONS}
-    sc = Scenario("validation", ENV_IDS[plant], disturbance, validation(plant, eval_episodes)[0].seeds)
+    sc, obs_kwargs = validation_split(plant, env_kwargs, eval_episodes)
     out = {}
     for law in REFERENCE_LAWS[plant]:
         eps = evaluate_batch(lambda v, n=law: make_controller(n, v), sc, "", **obs_kwargs)
