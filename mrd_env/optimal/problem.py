@@ -17,6 +17,10 @@ facts about one seeded episode, taken from the environment itself so that they c
 
 :meth:`EpisodeProblem.replay` re-simulates a command sequence in a fresh environment: the only return a
 yardstick reports is the one the environment gives.
+
+Layering: ``mrd_env`` never imports ``controllers`` or ``experiments``. A solver here takes its warm starts as
+command arrays, ``{name: (n_steps, nd)}``; the caller (``experiments.yardstick``) gets them from the laws and
+agents with :meth:`EpisodeProblem.commands_of` and a factory ``env → controller``.
 """
 from __future__ import annotations
 
