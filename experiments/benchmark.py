@@ -17,7 +17,7 @@ import numpy as np
 
 from mrd_env.report import markdown_table, write_table
 
-from . import sweep
+from . import sweep, yardstick
 from .evaluation import Episode, controller_episodes, evaluate, evaluate_batch  # noqa: F401  (re-exported)
 from .scenarios import Scenario, held_out_scenarios
 
@@ -164,6 +164,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--agent", type=Path, nargs="*", default=[],
                    help="saved agents (a folder, .zip or .json written by mrd-env train) to score too")
     p.add_argument("--no-progress", action="store_true")
+    yardstick.add_mode_argument(p)
     sweep.add_arguments(p)
 
 
@@ -201,5 +202,12 @@ def run(args: argparse.Namespace) -> int:
         (args.out / f"{plant}_scenarios.md").write_text(settings)
         print(settings)
         print((args.out / f"{plant}_benchmark_worst.md").read_text())
+        by_controller: dict[str, list[Episode]] = {}
+        for e in eps:
+            by_controller.setdefault(e.controller, []).append(e)
+        text = yardstick.report(plant, by_controller, scen, args.out, args.yardstick,
+                                progress=not args.no_progress, **executor)
+        if text:
+            print(text)
         print(f"wrote {args.out}/{plant}_benchmark.md/.csv, {plant}_scenarios.md and figures ({len(eps)} episodes)")
     return 0

@@ -20,9 +20,9 @@ import numpy as np
 
 from mrd_env.report import figure, save_figure, write_table
 
-from . import sweep
+from . import sweep, yardstick
 from .evaluation import Episode, controller_episodes, mean_ci
-from .scenarios import held_out_scenarios
+from .scenarios import held_out_scenarios, preview_options
 
 METRICS = {"quarter_car": ("acc_weighted_rms", "travel_peak", "tyre_load_ratio"),
            "building": ("J1", "J2", "J3", "J4", "J5", "J6")}
@@ -30,10 +30,15 @@ LAWS = {"quarter_car": ("random", "passive_off", "passive_on", "skyhook_on_off",
                         "clipped_optimal"),
         "building": ("random", "passive_off", "passive_on", "clipped_optimal", "lyapunov", "max_energy_dissipation",
                      "modulated_friction")}
+#: Model predictive control at the comparison's control step (not at 1 ms, where its horizon would span a few
+#: milliseconds): row label → (controller, extra environment options). The car's preview row also measures the
+#: road ahead (``scenarios.PREVIEW``): the only row with information the others lack.
+MPC = {"quarter_car": {"mpc": ("mpc", {}), "mpc+preview": ("mpc", "preview")},
+       "building": {"mpc": ("mpc", {})}}
 
 
 def evaluate(plant: str, agents=(), laws=None, *, seeds: int = 3, control_dt: float | None = None,
-             laws_at_1ms: bool = True, progress: bool = True, quick: bool = False, backend: str = "serial",
+             laws_at_1ms: bool = True, mpc: bool = True, progress: bool = True, quick: bool = False, backend: str = "serial",
              jobs: int | None = None, address: str | None = None) -> dict[str, list[Episode]]:
     """{controller name: episodes on every test scenario}. Agents with the same name (an algorithm trained on
     several seeds) are pooled under one row. One task per controller and scenario (:mod:`mrd_env.executor`)."""
@@ -56,6 +61,10 @@ def evaluate(plant: str, agents=(), laws=None, *, seeds: int = 3, control_dt: fl
     rows += [(f"{name} @ {dt * 1e3:g} ms", name, law_kw) for name in laws]
     if laws_at_1ms and abs(dt - 1e-3) > 1e-12:
         rows += [(f"{name} @ 1 ms", name, {**law_kw, "control_dt": 1e-3}) for name in laws]
+    if mpc:
+        for label, (name, extra) in MPC[plant].items():
+            rows.append((f"{label} @ {dt * 1e3:g} ms", name, {**law_kw, **(preview_options(plant, law_kw)
+                                                                            if extra == "preview" else extra)}))
     response = "sprung_acc" if plant == "quarter_car" else "drift"
     scenarios = held_out_scenarios(plant, seeds=seeds, quick=quick)
     tasks = [Task(controller_episodes, (ctrl, sc, response), kw, label=f"{sc.name} / {label}")
@@ -101,7 +110,8 @@ def paired(results: dict[str, list[Episode]]) -> list[dict]:
         return {k: float(np.mean(v)) for k, v in by_label.items()}
 
     agents = [c for c in results if c.startswith("agent ")]
-    laws = [c for c in results if not c.startswith("agent ") and not c.startswith("random ")]
+    # the best law on equal information: random commands and the preview rows (which see the road ahead) excluded
+    laws = [c for c in results if not c.startswith(("agent ", "random ")) and "preview" not in c]
     rows = []
     for a in agents:
         mine = per_episode(a)
@@ -164,9 +174,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--control-dt", type=float, default=None,
                    help="control step of the comparison (default: the agents'; 1 ms without agents)")
     p.add_argument("--no-1ms", action="store_true", help="do not add the laws at their own 1 ms rate")
+    p.add_argument("--no-mpc", action="store_true", help="leave out model predictive control (and its preview row)")
     p.add_argument("--quick", action="store_true", help="short scenarios (a smoke run)")
     p.add_argument("--out", type=Path, default=Path("results/evaluate"))
     p.add_argument("--no-progress", action="store_true")
+    yardstick.add_mode_argument(p)
     sweep.add_arguments(p)
 
 
@@ -201,7 +213,8 @@ def run(args: argparse.Namespace) -> int:
             chosen[meta["plant"]].append(a)
     for p in plants:
         res = evaluate(p, chosen[p], args.laws, seeds=args.seeds, control_dt=args.control_dt,
-                       laws_at_1ms=not args.no_1ms, progress=not args.no_progress, quick=args.quick, **executor)
+                       laws_at_1ms=not args.no_1ms, mpc=not args.no_mpc, progress=not args.no_progress,
+                       quick=args.quick, **executor)
         rows = summarise(p, res)
         md, csv_path = write_table(rows, args.out / f"{p}_evaluation", floatfmt=".4g",
                                    title=f"{p}: return and metrics on the held-out test scenarios (mean, 95 % interval)")
@@ -214,4 +227,8 @@ def run(args: argparse.Namespace) -> int:
                                 title=f"{p}: agent minus the best law at each control step, on the same episodes "
                                       "(mean, 95 % interval; positive: the agent is better)")
             print(md.read_text())
+        text = yardstick.report(p, res, held_out_scenarios(p, seeds=args.seeds, quick=args.quick), args.out,
+                                args.yardstick, progress=not args.no_progress, **executor)
+        if text:
+            print(text)
     return 0

@@ -27,6 +27,19 @@ HELD_OUT_SEED = 1_000_000
 #: from passive-on; in storey 2 clipped-optimal at 1 ms is 15–18 % better than passive-on on the test records
 #: (``tests/test_evolution.py`` checks El Centro N-S).
 PLANT = {"quarter_car": {}, "building": {"damper_floors": (2,)}}
+#: The car's road-preview sensor where a comparison grants it (MPC with preview): the road height 10, 20, ..., 100 ms
+#: ahead of the wheel (0.2–2 m at 20 m/s, what a camera or lidar preview suspension measures).
+PREVIEW = tuple(round(0.01 * k, 2) for k in range(1, 11))
+
+
+def preview_options(plant: str, options: dict) -> dict:
+    """``options`` with the road-preview sensor added to its sensors (the car only)."""
+    if plant != "quarter_car":
+        raise ValueError(f"road preview is a sensor of the quarter car, not of the {plant}")
+    from mrd_env.envs.quarter_car import DEFAULT_SENSORS
+
+    sensors = tuple(options.get("sensors") or DEFAULT_SENSORS)
+    return {**options, "sensors": (*sensors, "road_preview"), "preview": PREVIEW}
 
 
 @dataclass(frozen=True)

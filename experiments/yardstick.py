@@ -1,0 +1,298 @@
+"""``mrd-env yardstick``: the best any controller could do on each held-out test episode, and every controller
+scored by the share of that achievable gain it captures.
+
+Per episode (a scenario and a seed):
+
+* **best passive** R_p — the best constant command (a grid of 9 from v_min to v_max, passive-off and passive-on
+  included), re-simulated in the environment;
+* **clairvoyant** R_c — the full-knowledge optimal command sequence at 1 ms (:func:`mrd_env.optimal.clairvoyant`:
+  CasADi + IPOPT on the smoothed model, warm-started from every law's and every shipped agent's own commands on
+  the episode), re-simulated in the environment: an achievable return, so the true semi-active optimum is ≥ R_c;
+* **active bound** R_b — the same episode with an ideal actuator of force up to the damper's largest force in the
+  episode (:func:`mrd_env.optimal.active_bound`, a convex QP): no semi-active controller whose force stays within
+  it scores more, so the true optimum lies in [R_c, R_b];
+* the **share of the achievable gain** a controller captures, (R − R_p) / (R_c − R_p): 0 is the best passive
+  setting, 1 the clairvoyant optimum; negative is worse than the best passive setting.
+
+Savaresi & Spelta (2007) use the full-knowledge optimum as the bound of semi-active performance; the active bound
+is the customary ideal-actuator reference of the structural literature (Dyke et al. 1996).
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .evaluation import Episode, mean_ci
+from .scenarios import Scenario, held_out_scenarios
+
+#: The clairvoyant's control step: every controller's rate (1 ms, 10 ms) is a multiple of it, so its command
+#: sequences are candidate solutions and the optimum at 1 ms dominates them all.
+YARDSTICK_DT = 1e-3
+#: Constant commands tried for the best passive setting (fractions of the command range).
+PASSIVE_GRID = np.linspace(0.0, 1.0, 9)
+#: The laws whose commands warm-start the clairvoyant (their own 1 ms rate), per plant.
+WARM_LAWS = {"quarter_car": ("passive_off", "passive_on", "skyhook_on_off", "skyhook_continuous", "groundhook",
+                             "hybrid", "clipped_optimal"),
+             "building": ("passive_off", "passive_on", "clipped_optimal", "lyapunov", "max_energy_dissipation",
+                          "modulated_friction")}
+
+
+@dataclass
+class EpisodeYardstick:
+    """The yardstick of one episode (returns as the environment pays them; see the module docstring)."""
+
+    scenario: str
+    seed: int
+    passive: float
+    passive_command: float
+    clairvoyant: float
+    source: str
+    clairvoyant_seconds: float
+    bound: float = math.nan
+    f_max: float = math.nan
+    bound_seconds: float = math.nan
+    warm_starts: dict = field(default_factory=dict)
+
+    @property
+    def label(self) -> str:
+        return self.scenario
+
+    def share(self, ret: float) -> float:
+        """(R − R_p) / (R_c − R_p): the share of the achievable gain a return captures."""
+        gap = self.clairvoyant - self.passive
+        return (ret - self.passive) / gap if gap > 0 else math.nan
+
+    @property
+    def bracket(self) -> float:
+        """(R_b − R_c) / (R_b − R_p): the width of the bracket on the true optimum, as a share of the range from
+        the best passive setting to the bound (0: the clairvoyant is the optimum)."""
+        span = self.bound - self.passive
+        return (self.bound - self.clairvoyant) / span if span > 0 else math.nan
+
+
+def warm_starts(problem, plant: str, agents=()) -> dict[str, np.ndarray]:
+    """{name: commands (n_steps, nd) at the problem's step}: every law of ``WARM_LAWS[plant]`` at 1 ms and every
+    agent at its own control step, observation and action options, on the problem's episode."""
+    from controllers import load_agent, make_controller
+
+    out = {}
+    for name in WARM_LAWS[plant]:
+        out[name] = problem.commands_of(lambda env, n=name: make_controller(n, env))
+    for path in agents:
+        agent = load_agent(path)
+        kw = dict(agent.observation_kwargs)
+        cdt = kw.pop("control_dt", problem.control_dt)
+        out[f"agent {agent.name}"] = problem.commands_of(agent.bind, control_dt=cdt, **kw)
+    return out
+
+
+def best_passive(problem) -> tuple[float, float]:
+    """(return, command) of the best constant command on the problem's episode."""
+    best = (-math.inf, math.nan)
+    for f in PASSIVE_GRID:
+        v = problem.v_min + f * (problem.v_max - problem.v_min)
+        r = problem.replay(np.full((problem.n_steps, problem.nd), v)).ret
+        best = max(best, (r, v))
+    return best
+
+
+def episode_yardstick(scenario: Scenario, seed: int, plant: str, *, agents=(), bound: bool = True,
+                      cache: bool = True, solve: bool = True, progress: bool = False) -> EpisodeYardstick | None:
+    """The yardstick of ``scenario`` with ``seed`` (a plain function of picklable inputs: sweeps run it anywhere).
+
+    Cached per episode, plant, damper, options and warm-start agents (:mod:`mrd_env.optimal.cache`); with
+    ``solve=False`` only a cached yardstick is returned (None if there is none)."""
+    from mrd_env.optimal import cache as store, episode_problem
+
+    problem = episode_problem(scenario.env_id, seed=int(seed), control_dt=YARDSTICK_DT, **scenario.options)
+    key = {**problem.key(), "scenario": scenario.label(seed), "agents": [str(Path(a).name) for a in agents],
+           "passive_grid": PASSIVE_GRID.tolist()}
+    hit = store.load("yardstick", key) if cache else None
+    if hit is not None and (hit.get("bound") is not None or not bound):
+        return EpisodeYardstick(**{k: (math.nan if v is None else v) for k, v in hit.items()})
+    if not solve:
+        return None
+    if hit is not None:
+        y = EpisodeYardstick(**{k: (math.nan if v is None else v) for k, v in hit.items()})
+    else:
+        from mrd_env.optimal import clairvoyant
+
+        rp, vp = best_passive(problem)
+        starts = warm_starts(problem, plant, agents)
+        t0 = time.perf_counter()
+        cv = clairvoyant(problem, warm_starts=starts, cache=cache, progress=progress)
+        wall = getattr(cv, "wall_time", time.perf_counter() - t0)
+        y = EpisodeYardstick(scenario.label(seed), int(seed), rp, vp, float(cv.ret), str(cv.source), float(wall),
+                             warm_starts={k: float(v) for k, v in getattr(cv, "warm_returns", {}).items()})
+    if bound:
+        from mrd_env.optimal import active_bound
+
+        t0 = time.perf_counter()
+        b = active_bound(problem)
+        y.bound, y.f_max, y.bound_seconds = float(b.bound), float(b.f_max), time.perf_counter() - t0
+    if cache:
+        store.store("yardstick", key, {k: (None if isinstance(v, float) and math.isnan(v) else v)
+                                       for k, v in asdict(y).items()})
+    return y
+
+
+def yardsticks(plant: str, scenarios: list[Scenario], *, agents=(), bound: bool = True, cache: bool = True,
+               solve: bool = True, progress: bool = True, backend: str = "serial", jobs: int | None = None,
+               address: str | None = None) -> list[EpisodeYardstick]:
+    """The yardstick of every episode of ``scenarios`` (one task each, on the chosen backend); with
+    ``solve=False`` the cached ones only."""
+    from mrd_env.executor import Task, run_tasks
+
+    tasks = [Task(episode_yardstick, (sc, seed, plant), {"agents": tuple(agents), "bound": bound, "cache": cache,
+                                                         "solve": solve}, label=f"{sc.label(seed)}")
+             for sc in scenarios for seed in sc.seeds]
+    out = run_tasks(tasks, backend=backend, jobs=jobs, address=address, progress=progress and solve,
+                    desc=f"yardstick {plant}")
+    return [y for y in out if y is not None]
+
+
+def yardstick_rows(ys: list[EpisodeYardstick]) -> list[dict]:
+    """One row per episode: the three reference returns, the bracket and the wall times."""
+    return [{"episode": y.label, "best passive return": y.passive,
+             "best passive command": y.passive_command, "clairvoyant return": y.clairvoyant,
+             "clairvoyant from": y.source, "active bound": y.bound, "bound f_max (N)": y.f_max,
+             "bracket (share of bound − passive)": y.bracket, "clairvoyant solve (s)": y.clairvoyant_seconds,
+             "bound solve (s)": y.bound_seconds} for y in ys]
+
+
+def share_rows(results: dict[str, list[Episode]], ys: list[EpisodeYardstick], scenario_of) -> list[dict]:
+    """Per scenario (and over all), per controller: the mean share of the achievable gain and its 95 % interval
+    over the episodes (an interval only where there are at least two episodes). ``scenario_of(label)`` maps an
+    episode label to its scenario."""
+    by_label = {y.label: y for y in ys}
+    rows = []
+    scen = list(dict.fromkeys(scenario_of(y.label) for y in ys))
+    for s in scen + ["all test scenarios"]:
+        for ctrl, eps in results.items():
+            shares = [by_label[e.scenario].share(e.episode_return) for e in eps
+                      if e.scenario in by_label and (s == "all test scenarios" or scenario_of(e.scenario) == s)]
+            if not shares:
+                continue
+            m, lo, hi = mean_ci(shares)
+            row = {"scenario": s, "controller": ctrl, "episodes": len(shares), "share of achievable gain": m}
+            row["share lo95"], row["share hi95"] = (lo, hi) if len(shares) > 1 else (math.nan, math.nan)
+            rows.append(row)
+    return rows
+
+
+def plot_shares(plant: str, rows: list[dict], path: Path) -> Path:
+    """Bars of the share of the achievable gain per controller, one group per scenario (intervals where there
+    are repeats)."""
+    import matplotlib
+
+    from mrd_env.report import figure, save_figure
+
+    scen = list(dict.fromkeys(r["scenario"] for r in rows))
+    ctrls = list(dict.fromkeys(r["controller"] for r in rows))
+    fig, ax = figure(figsize=(max(8.0, 0.35 * len(scen) * len(ctrls)), 4.8))
+    width = 0.8 / max(len(ctrls), 1)
+    cmap = matplotlib.colormaps["tab20"]
+    for i, c in enumerate(ctrls):
+        for j, s in enumerate(scen):
+            r = next((r for r in rows if r["scenario"] == s and r["controller"] == c), None)
+            if r is None:
+                continue
+            m = r["share of achievable gain"]
+            ax.bar(j + i * width, m, width, color=cmap(i % 20), label=c if j == 0 else None)
+            if np.isfinite(r["share lo95"]):
+                ax.errorbar(j + i * width, m, yerr=[[m - r["share lo95"]], [r["share hi95"] - m]], color="k", lw=0.8)
+    ax.axhline(0.0, color="k", lw=0.8)
+    ax.axhline(1.0, color="k", lw=0.8, ls="--")
+    ax.set_xticks(np.arange(len(scen)) + 0.4 - width / 2, scen, fontsize=8)
+    ax.set_ylabel("share of the achievable gain (1)")
+    ax.set_title(f"{plant}: (R − R_best passive) / (R_clairvoyant − R_best passive); dashed: clairvoyant")
+    ax.legend(fontsize=7, ncol=3)
+    ax.grid(axis="y", alpha=0.3)
+    return save_figure(fig, path)
+
+
+def report(plant: str, results: dict[str, list[Episode]], scenarios: list[Scenario], out: Path, mode: str,
+           *, progress: bool = True, **executor) -> str:
+    """Score ``results`` ({controller: episodes}) against the yardstick of their episodes and write
+    ``<plant>_yardstick.md/.csv`` (the references per episode), ``<plant>_shares.md/.csv`` and
+    ``<plant>_shares.png``. ``mode``: "auto" (cached yardsticks only), "solve" (solve the missing ones) or
+    "off". Returns the text to print."""
+    from controllers import shipped_agents
+
+    if mode == "off":
+        return ""
+    ys = yardsticks(plant, scenarios, agents=shipped_agents(plant), solve=mode == "solve", progress=progress,
+                    **executor)
+    n_eps = sum(len(sc.seeds) for sc in scenarios)
+    if not ys:
+        return (f"{plant}: no yardstick cached for these {n_eps} test episodes: run `mrd-env yardstick --plant "
+                f"{plant}` (or add --yardstick solve) to score every controller against the clairvoyant optimum")
+    return write_report(plant, results, ys, out, n_eps)
+
+
+def write_report(plant: str, results: dict[str, list[Episode]], ys: list[EpisodeYardstick], out: Path,
+                 n_eps: int) -> str:
+    """Write the yardstick table, the shares table and their figure (see :func:`report`); the text to print."""
+    from mrd_env.report import write_table
+
+    from .evaluate_cmd import _base
+
+    md, _ = write_table(yardstick_rows(ys), out / f"{plant}_yardstick", floatfmt=".4g",
+                        title=f"{plant}: the yardstick per test episode (returns; solve times in s)")
+    rows = share_rows(results, ys, _base)
+    smd, _ = write_table(rows, out / f"{plant}_shares", floatfmt=".3g",
+                         title=f"{plant}: share of the achievable gain, (R − R_best passive) / (R_clairvoyant − "
+                               "R_best passive) (mean; 95 % interval over episodes where there are several)")
+    plot_shares(plant, [r for r in rows if r["scenario"] != "all test scenarios"], out / f"{plant}_shares.png")
+    missing = f"\n({n_eps - len(ys)} of {n_eps} episodes without a yardstick)\n" if len(ys) < n_eps else ""
+    return md.read_text() + "\n" + smd.read_text() + missing
+
+
+def add_mode_argument(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--yardstick", choices=["auto", "solve", "off"], default="auto",
+                   help="score every controller against the clairvoyant optimum: auto (cached yardsticks, see "
+                        "mrd-env yardstick), solve (solve the missing ones: minutes per episode), off")
+
+
+# ---------------------------------------------------------------------------- CLI
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    from . import sweep
+
+    p.add_argument("--plant", choices=["building", "quarter_car", "both"], default="both")
+    p.add_argument("--seeds", type=int, default=3, help="episodes per random test scenario (default 3)")
+    p.add_argument("--quick", action="store_true", help="short scenarios (a smoke run)")
+    p.add_argument("--no-bound", action="store_true", help="skip the active-actuator bound")
+    p.add_argument("--no-cache", action="store_true", help="solve again even where a cached result exists")
+    p.add_argument("--out", type=Path, default=Path("results/yardstick"))
+    p.add_argument("--no-progress", action="store_true")
+    sweep.add_arguments(p)
+
+
+def run(args: argparse.Namespace) -> int:
+    from controllers import shipped_agents
+
+    from . import sweep
+    from .evaluate_cmd import evaluate
+
+    if args.seeds < 1:
+        raise ValueError(f"--seeds must be >= 1, got {args.seeds}")
+    executor = sweep.options(args)
+    args.out.mkdir(parents=True, exist_ok=True)
+    for plant in (["building", "quarter_car"] if args.plant == "both" else [args.plant]):
+        scen = held_out_scenarios(plant, seeds=args.seeds, quick=args.quick)
+        agents = shipped_agents(plant)
+        t0 = time.perf_counter()
+        ys = yardsticks(plant, scen, agents=agents, bound=not args.no_bound, cache=not args.no_cache,
+                        progress=not args.no_progress, **executor)
+        print(f"{plant}: {len(ys)} yardsticks in {time.perf_counter() - t0:.0f} s")
+        # every controller on the same episodes: the laws at the agents' step and at 1 ms, MPC, the agents
+        res = evaluate(plant, agents, seeds=args.seeds, progress=not args.no_progress, quick=args.quick,
+                       **executor)
+        print(write_report(plant, res, ys, args.out, len(ys)))
+        print(f"wrote {args.out}/{plant}_yardstick.md/.csv, {plant}_shares.md/.csv/.png")
+    return 0

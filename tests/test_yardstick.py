@@ -1,0 +1,61 @@
+"""The yardstick's bookkeeping: shares of the achievable gain, the cache, the report without solving."""
+import math
+
+import numpy as np
+import pytest
+
+from experiments.evaluation import Episode
+from experiments.yardstick import EpisodeYardstick, share_rows
+from mrd_env.optimal import cache
+
+
+def _ep(ctrl, label, ret):
+    e = np.zeros(0)
+    return Episode(ctrl, label, {}, e, e, e, e, 0.0, ret)
+
+
+def test_share_of_the_achievable_gain():
+    y = EpisodeYardstick("ISO-C s1", 1, passive=-10.0, passive_command=2.0, clairvoyant=-6.0, source="ipopt",
+                         clairvoyant_seconds=1.0, bound=-5.0)
+    assert y.share(-10.0) == 0.0 and y.share(-6.0) == 1.0 and y.share(-9.0) == pytest.approx(0.25)
+    assert y.share(-12.0) < 0                         # worse than the best passive setting
+    assert y.bracket == pytest.approx(1.0 / 5.0)      # (−5 + 6) / (−5 + 10)
+    flat = EpisodeYardstick("x", 0, -1.0, 0.0, -1.0, "passive", 0.0)
+    assert math.isnan(flat.share(-1.0))               # no gain to share: not a number, not a division by zero
+
+
+def test_share_rows_pool_episodes_and_give_intervals_only_with_repeats():
+    ys = [EpisodeYardstick(f"ISO-C s{i}", i, -10.0, 2.0, -6.0, "ipopt", 1.0) for i in (1, 2)]
+    ys.append(EpisodeYardstick("bump", 0, -2.0, 2.0, -1.0, "ipopt", 1.0))
+    res = {"sky": [_ep("sky", "ISO-C s1", -9.0), _ep("sky", "ISO-C s2", -8.0), _ep("sky", "bump", -1.5)]}
+    rows = share_rows(res, ys, lambda label: label.rsplit(" s", 1)[0] if " s" in label else label)
+    by = {r["scenario"]: r for r in rows}
+    assert by["ISO-C"]["share of achievable gain"] == pytest.approx(0.375) and by["ISO-C"]["episodes"] == 2
+    assert by["ISO-C"]["share lo95"] < 0.375 < by["ISO-C"]["share hi95"]
+    assert by["bump"]["share of achievable gain"] == pytest.approx(0.5) and math.isnan(by["bump"]["share lo95"])
+    assert by["all test scenarios"]["episodes"] == 3
+
+
+def test_cache_returns_only_the_exact_key(tmp_path, monkeypatch):
+    monkeypatch.setenv("MRD_ENV_CACHE_DIR", str(tmp_path))
+    key = {"env_id": "mrd_env/QuarterCar-v0", "seed": 1, "damper_params": {"c0a": 1.0}}
+    assert cache.load("clairvoyant", key) is None
+    path = cache.store("clairvoyant", key, {"ret": -3.5})
+    assert path.parent == tmp_path / "optimal" and cache.load("clairvoyant", key) == {"ret": -3.5}
+    assert cache.load("clairvoyant", {**key, "damper_params": {"c0a": 2.0}}) is None   # another damper
+    assert cache.load("bound", key) is None                                            # another kind
+    # a file whose stored key is not the one asked for (edited, or a hash collision) is refused
+    text = path.read_text().replace('"seed": 1', '"seed": 2')
+    path.write_text(text)
+    assert cache.load("clairvoyant", key) is None
+
+
+def test_report_without_a_cached_yardstick_says_how_to_get_one(tmp_path, monkeypatch):
+    from experiments.scenarios import held_out_scenarios
+    from experiments.yardstick import report
+
+    monkeypatch.setenv("MRD_ENV_CACHE_DIR", str(tmp_path))
+    scen = held_out_scenarios("quarter_car", quick=True)[:1]
+    text = report("quarter_car", {}, scen, tmp_path, "auto", progress=False)
+    assert "mrd-env yardstick --plant quarter_car" in text
+    assert report("quarter_car", {}, scen, tmp_path, "off") == ""
