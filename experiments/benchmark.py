@@ -1,8 +1,10 @@
 """``mrd-env benchmark``: a controller × scenario matrix on the same environments, one evaluation loop.
 
-Writes ``<out>/<plant>_benchmark.md`` and ``.csv`` (per scenario and controller, and the worst case over
-the scenarios), time histories of the key responses for every controller on one plot per scenario, bar
-charts of the normalised metrics, and damper force–velocity loops.
+Writes ``<out>/<plant>_benchmark.md`` and ``.csv`` (per scenario and controller, the mean over the scenario's
+seeds, then the worst case over the scenarios; headers with units), ``<plant>_benchmark_episodes.csv`` (every
+episode), time histories of the key response (the car's sprung acceleration, the drift of the damper's storey)
+for passive-off, passive-on and the best controllers by return, one plot per scenario, bar charts of the
+normalised metrics (ratios only), and damper force–velocity loops.
 
 Quarter car: Wk-weighted RMS sprung acceleration, RMS and peak suspension travel, RMS dynamic tyre load,
 each also normalised by the passive-off damper. Building: peak and RMS interstorey drift, peak absolute
@@ -18,7 +20,7 @@ import numpy as np
 from mrd_env.report import markdown_table, write_table
 
 from . import sweep, yardstick
-from .evaluation import Episode, controller_episodes, evaluate, evaluate_batch  # noqa: F401  (re-exported)
+from .evaluation import Episode, controller_episodes, evaluate, evaluate_batch, response_of  # noqa: F401
 from .scenarios import Scenario, held_out_scenarios
 
 QC_CONTROLLERS = ("passive_off", "passive_on", "skyhook_on_off", "skyhook_continuous", "groundhook", "hybrid",
@@ -47,9 +49,8 @@ def run_benchmark(plant: str, controllers=None, scenarios=None, *, damper: str =
     if plant == "quarter_car" and reference_passive:
         controllers.append("passive_ref")
     scenarios = scenarios or held_out_scenarios(plant, quick=quick)
-    response = "sprung_acc" if plant == "quarter_car" else "drift"
-    tasks = [Task(controller_episodes, (c, sc, response), {"damper": damper}, label=f"{sc.name} / {c}")
-             for sc in scenarios for c in controllers]
+    tasks = [Task(controller_episodes, (c, sc, response_of(sc.options, plant)), {"damper": damper},
+                  label=f"{sc.name} / {c}") for sc in scenarios for c in controllers]
     results = iter(run_tasks(tasks, backend=backend, jobs=jobs, address=address, progress=progress,
                              desc=f"benchmark {plant}"))
     by_scenario: dict[str, list[Episode]] = {}
@@ -60,25 +61,52 @@ def run_benchmark(plant: str, controllers=None, scenarios=None, *, damper: str =
             by_scenario.setdefault(sc.label(sc.seeds[k]), []).extend(e[k] for e in eps)
     episodes = [e for group in by_scenario.values() for e in group]
     if out is not None:
-        write_reports(plant, episodes, Path(out))
+        write_reports(plant, episodes, Path(out), response_of(scenarios[0].options, plant))
     return episodes
 
 
+#: Units of the metric columns (the headers carry them); J1–J6 and "/off" columns are ratios.
+UNITS = {"acc_weighted_rms": "m/s²", "travel_rms": "m", "travel_peak": "m", "tyre_load_rms": "N",
+         "drift_peak": "m", "acc_peak": "m/s²", "damper_force_peak": "N"}
+
+
+def _header(k: str) -> str:
+    return f"{k} ({UNITS[k]})" if k in UNITS else k
+
+
 def _rows(plant: str, episodes: list[Episode]) -> list[dict]:
+    """One row per episode (scenario label, controller): the return and the metrics, the car's also over
+    passive-off on the same episode."""
     keys = QC_METRICS if plant == "quarter_car" else BUILDING_METRICS
     rows = []
     for ep in episodes:
         row = {"scenario": ep.scenario, "controller": ep.controller, "return": float(ep.episode_return)}
         for k in keys:
             row[k] = float(ep.metrics.get(k, float("nan")))
-        if plant == "quarter_car":  # normalise by passive-off on the same scenario
+        if plant == "quarter_car":  # normalise by passive-off on the same episode
             ref = next((e for e in episodes if e.scenario == ep.scenario and e.controller == "passive_off"), None)
-            for k in ("acc_weighted_rms", "tyre_load_rms"):
+            for k in QC_METRICS:
                 if ref is not None and ref.metrics.get(k):
                     row[f"{k}/off"] = row[k] / ref.metrics[k]
         row["terminated"] = ep.metrics.get("terminated", "")
         rows.append(row)
     return rows
+
+
+def scenario_means(rows: list[dict], scenario_of) -> list[dict]:
+    """Per scenario and controller, the mean of every numeric column over the scenario's seeds (``episodes``:
+    how many)."""
+    out = []
+    keys = list(dict.fromkeys((scenario_of(r["scenario"]), r["controller"]) for r in rows))
+    for scen, ctrl in keys:
+        mine = [r for r in rows if scenario_of(r["scenario"]) == scen and r["controller"] == ctrl]
+        row = {"scenario": scen, "controller": ctrl, "episodes": len(mine)}
+        for k, v in mine[0].items():
+            if isinstance(v, float):
+                row[k] = float(np.nanmean([m[k] for m in mine]))
+        row["terminated"] = sum(1 for m in mine if m.get("terminated"))
+        out.append(row)
+    return out
 
 
 def worst_case(rows: list[dict]) -> list[dict]:
@@ -87,7 +115,7 @@ def worst_case(rows: list[dict]) -> list[dict]:
     out = []
     for ctrl in dict.fromkeys(r["controller"] for r in rows):
         mine = [r for r in rows if r["controller"] == ctrl]
-        row = {"scenario": "max over scenarios", "controller": ctrl}
+        row = {"scenario": "worst over scenarios", "controller": ctrl}
         for k, v in mine[0].items():
             if isinstance(v, float):
                 row[k] = float((np.nanmin if k == "return" else np.nanmax)([m[k] for m in mine]))
@@ -95,31 +123,58 @@ def worst_case(rows: list[dict]) -> list[dict]:
     return out
 
 
-def write_reports(plant: str, episodes: list[Episode], out: Path) -> dict:
+def _with_units(rows: list[dict]) -> list[dict]:
+    return [{_header(k): v for k, v in r.items()} for r in rows]
+
+
+#: At most this many controllers in a history or loop figure: passive-off, passive-on and the best by return.
+HISTORY_LINES = 4
+
+
+def history_selection(eps: list[Episode]) -> list[Episode]:
+    """The controllers a readable history shows: passive-off and passive-on (the bounds of any fixed setting),
+    then the best others by return."""
+    fixed = [e for e in eps if e.controller in ("passive_off", "passive_on")]
+    others = sorted((e for e in eps if e not in fixed), key=lambda e: -e.episode_return)
+    return fixed + others[:HISTORY_LINES - len(fixed)]
+
+
+def write_reports(plant: str, episodes: list[Episode], out: Path, response: str = "") -> dict:
     from mrd_env.report import figure, save_figure
+
+    from .evaluate_cmd import _base
 
     out.mkdir(parents=True, exist_ok=True)
     rows = _rows(plant, episodes)
-    worst = worst_case(rows)
-    md, csv_path = write_table(rows + worst, out / f"{plant}_benchmark", floatfmt=".4g",
-                               title=f"{plant}: controller × scenario")
-    (out / f"{plant}_benchmark_worst.md").write_text(markdown_table(worst, floatfmt=".4g",
+    means = scenario_means(rows, _base)
+    worst = worst_case(means)
+    md, csv_path = write_table(_with_units(means + worst), out / f"{plant}_benchmark", floatfmt=".4g",
+                               title=f"{plant}: controller × scenario (mean over each scenario's seeds; metrics "
+                                     "in SI, /off: over passive-off on the same episode)")
+    write_table(_with_units(rows), out / f"{plant}_benchmark_episodes", floatfmt=".4g",
+                title=f"{plant}: every episode (scenario and seed) and controller")
+    (out / f"{plant}_benchmark_worst.md").write_text(markdown_table(_with_units(worst), floatfmt=".4g",
                                                                     title=f"{plant}: worst case over scenarios"))
     figs = []
-    ylabel = "sprung acceleration (m/s²)" if plant == "quarter_car" else "first-storey drift (m)"
+    if plant == "quarter_car":
+        ylabel = "sprung acceleration (m/s²)"
+    else:
+        storey = int(response.partition("[")[2].rstrip("]") or 0) + 1
+        ylabel = f"storey-{storey} drift (mm)"
+    scale = 1.0 if plant == "quarter_car" else 1e3
     for sc in dict.fromkeys(e.scenario for e in episodes):
-        eps = [e for e in episodes if e.scenario == sc and e.t.size]  # histories: a scenario's first seed
+        eps = history_selection([e for e in episodes if e.scenario == sc and e.t.size])  # a scenario's first seed
         if not eps:
             continue
         fig, (a1, a2) = figure(2, 1, figsize=(10, 6), sharex=True)
         for e in eps:
-            a1.plot(e.t, e.response, lw=0.8, label=e.controller)
+            a1.plot(e.t, e.response * scale, lw=0.8, label=e.controller)
             a2.plot(e.t, e.force / 1e3, lw=0.8, label=e.controller)
         a1.set_ylabel(ylabel)
         a2.set_ylabel("damper force (kN)")
         a2.set_xlabel("time (s)")
-        a1.legend(fontsize=7, ncol=4)
-        a1.set_title(sc)
+        a1.legend(fontsize=8, ncol=4)
+        a1.set_title(f"{sc}: passive settings and the best controllers by return")
         for a in (a1, a2):
             a.grid(alpha=0.3)
         figs.append(save_figure(fig, out / f"{plant}_history_{_slug(sc)}.png"))
@@ -129,11 +184,11 @@ def write_reports(plant: str, episodes: list[Episode], out: Path) -> dict:
         ax.set_xlabel("damper velocity (m/s)")
         ax.set_ylabel("damper force (kN)")
         ax.set_title(f"force–velocity: {sc}")
-        ax.legend(fontsize=7)
+        ax.legend(fontsize=8)
         ax.grid(alpha=0.3)
         figs.append(save_figure(fig, out / f"{plant}_loops_{_slug(sc)}.png"))
-    keys = ([k for k in rows[0] if k.endswith("/off")] + ["travel_peak"]) if plant == "quarter_car" \
-        else ["J1", "J2", "J3", "J4", "J5"]
+    # one quantity on the axis: every bar is a ratio (car: over passive-off; building: over the uncontrolled)
+    keys = [f"{k}/off" for k in QC_METRICS] if plant == "quarter_car" else ["J1", "J2", "J3", "J4", "J5", "J6"]
     fig, ax = figure(figsize=(10, 4.5))
     ctrls = [r["controller"] for r in worst]
     width = 0.8 / max(len(keys), 1)
@@ -141,8 +196,9 @@ def write_reports(plant: str, episodes: list[Episode], out: Path) -> dict:
         ax.bar(np.arange(len(ctrls)) + i * width, [r.get(k, np.nan) for r in worst], width, label=k)
     ax.set_xticks(np.arange(len(ctrls)) + 0.4 - width / 2, ctrls, rotation=20, fontsize=8)
     ax.axhline(1.0, color="k", lw=0.8)
-    ax.set_ylabel("normalised (worst case over scenarios)")
-    ax.legend(fontsize=8)
+    ax.set_ylabel("ratio to passive-off (1)" if plant == "quarter_car" else "ratio to the uncontrolled building (1)")
+    ax.set_title(f"{plant}: worst case over the test scenarios (smaller is better)")
+    ax.legend(fontsize=8, ncol=3 if plant == "building" else 4)
     figs.append(save_figure(fig, out / f"{plant}_bars.png"))
     return {"markdown": md, "csv": csv_path, "figures": figs}
 

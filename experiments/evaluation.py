@@ -16,13 +16,29 @@ import numpy as np
 from .scenarios import Scenario
 
 
+def response_channel(layout: dict, response: str) -> tuple[slice | None, int]:
+    """(slice of the sensor, channel) of a response ``"name"`` (its first channel) or ``"name[i]"``."""
+    name, _, rest = response.partition("[")
+    k = int(rest.rstrip("]")) if rest else 0
+    return layout.get(name), k
+
+
+def response_of(scenario_options: dict, plant: str) -> str:
+    """The key response of a plant's histories: the car's sprung acceleration; the drift of the storey that holds
+    the (first) damper."""
+    if plant == "quarter_car":
+        return "sprung_acc"
+    floors = scenario_options.get("damper_floors") or (1,)
+    return f"drift[{int(floors[0]) - 1}]"
+
+
 @dataclass
 class Episode:
     controller: str
     scenario: str
     metrics: dict
     t: np.ndarray
-    response: np.ndarray   # key response history (sprung acceleration or first-storey drift)
+    response: np.ndarray   # key response history (sprung acceleration, or the drift of the damper's storey)
     force: np.ndarray
     velocity: np.ndarray   # damper velocity
     wall_time: float
@@ -37,8 +53,9 @@ def evaluate(controller, env, seed: int, response: str) -> Episode:
     rate = base.roles.get("damper_velocity", "")
 
     def first(o, name):
-        v = o[layout[name]] if name in layout else np.zeros(0)
-        return float(v[0]) if v.size else float("nan")
+        sl, k = response_channel(layout, name)
+        v = o[sl] if sl is not None else np.zeros(0)
+        return float(v[k]) if v.size > k else float("nan")
 
     obs, _ = env.reset(seed=seed)
     controller.reset()
@@ -75,7 +92,8 @@ def evaluate_batch(make, scenario: Scenario, response: str, name: str | None = N
     rate = venv.roles.get("damper_velocity", "")
 
     def first(o, key):
-        return float(o[layout[key]][0]) if key in layout else float("nan")
+        sl, k = response_channel(layout, key)
+        return float(o[sl][k]) if sl is not None else float("nan")
 
     obs, _ = venv.reset(seed=list(scenario.seeds))
     ctrl.reset()

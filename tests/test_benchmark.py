@@ -58,7 +58,40 @@ def test_quarter_car_benchmark_with_seeded_roads(tmp_path):
         rows = list(csv.DictReader(fh))
     off = [r for r in rows if r["controller"] == "passive_off"][0]
     assert float(off["acc_weighted_rms/off"]) == pytest.approx(1.0)
-    assert all(float(r["acc_weighted_rms"]) > 0 for r in rows)
+    assert all(float(r["acc_weighted_rms (m/s²)"]) > 0 for r in rows)   # headers carry their units
+    assert rows[-1]["scenario"] == "worst over scenarios"
+
+
+def test_benchmark_tables_hold_means_over_seeds_and_figures_only_ratios(tmp_path):
+    """Issue 22: the table a report quotes is the mean over a scenario's seeds (every episode in its own CSV); the
+    bar chart draws ratios only; a history shows at most four controllers."""
+    from experiments.benchmark import HISTORY_LINES
+
+    sc = [Scenario("ISO-C 1 s", "mrd_env/QuarterCar-v0",
+                   dict(road="iso8608", road_params={"road_class": "C", "speed": 20.0}, episode_seconds=0.5),
+                   seeds=(3, 4))]
+    ctrls = ["passive_off", "passive_on", "skyhook_on_off", "groundhook", "hybrid"]
+    eps = run_benchmark("quarter_car", ctrls, sc, out=tmp_path, progress=False, reference_passive=False)
+    with (tmp_path / "quarter_car_benchmark.csv").open() as fh:
+        means = list(csv.DictReader(fh))
+    with (tmp_path / "quarter_car_benchmark_episodes.csv").open() as fh:
+        per_episode = list(csv.DictReader(fh))
+    assert len(per_episode) == 2 * len(ctrls) and len(means) == 2 * len(ctrls)  # means, then the worst case
+    sky = [float(r["return"]) for r in per_episode if r["controller"] == "skyhook_on_off"]
+    row = next(r for r in means if r["controller"] == "skyhook_on_off" and r["scenario"] == "ISO-C 1 s")
+    assert float(row["return"]) == pytest.approx(np.mean(sky)) and row["episodes"] == "2"
+    from experiments.benchmark import history_selection
+
+    shown = history_selection([e for e in eps if e.scenario == eps[0].scenario])
+    assert len(shown) == HISTORY_LINES and {"passive_off", "passive_on"} <= {e.controller for e in shown}
+
+
+def test_building_history_follows_the_damper_storey():
+    from experiments.evaluation import response_of
+
+    assert response_of({"damper_floors": (2,)}, "building") == "drift[1]"
+    assert response_of({}, "building") == "drift[0]"
+    assert response_of({}, "quarter_car") == "sprung_acc"
 
 
 def test_agent_and_classical_controllers_share_the_loop():
