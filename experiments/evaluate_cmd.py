@@ -88,7 +88,7 @@ def summarise(plant: str, results: dict[str, list[Episode]]) -> list[dict]:
             mine = [e for e in eps if s == "all test scenarios" or _base(e.scenario) == s]
             if not mine:
                 continue
-            m, lo, hi = mean_ci([e.episode_return for e in mine])
+            m, lo, hi = mean_ci([e.episode_return for e in mine], upper=0.0)
             row = {"scenario": s, "controller": ctrl, "episodes": len(mine), "return": m, "return_lo95": lo,
                    "return_hi95": hi}
             for k in METRICS[plant]:

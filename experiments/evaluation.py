@@ -152,16 +152,19 @@ def controller_episodes(controller, scenario: Scenario, response: str = "", **en
                           **env_options)
 
 
-def mean_ci(values, confidence: float = 0.95) -> tuple[float, float, float]:
-    """(mean, lower, upper): Student-t interval of the mean; a single value (or identical values) gives a
-    zero-width interval."""
+def mean_ci(values, confidence: float = 0.95, upper: float = math.inf) -> tuple[float, float, float]:
+    """(mean, lower, upper): Student-t interval of the mean. One value has no interval (NaN bounds, not a
+    zero-width one); identical values give a zero-width interval. ``upper``: the largest value the quantity can
+    take (returns are ≤ 0): the interval is truncated there rather than claim impossible values."""
     from scipy import stats
 
     x = np.asarray([v for v in values if np.isfinite(v)], dtype=float)
     if x.size == 0:
         return math.nan, math.nan, math.nan
     m = float(x.mean())
-    if x.size == 1 or np.all(x == x[0]):
+    if x.size == 1:
+        return m, math.nan, math.nan
+    if np.all(x == x[0]):
         return m, m, m
     h = float(stats.sem(x) * stats.t.ppf(0.5 + confidence / 2, x.size - 1))
-    return m, m - h, m + h
+    return m, m - h, min(m + h, upper)

@@ -179,9 +179,8 @@ def share_rows(results: dict[str, list[Episode]], ys: list[EpisodeYardstick], sc
             if not shares:
                 continue
             m, lo, hi = mean_ci(shares)
-            row = {"scenario": s, "controller": ctrl, "episodes": len(shares), "share of achievable gain": m}
-            row["share lo95"], row["share hi95"] = (lo, hi) if len(shares) > 1 else (math.nan, math.nan)
-            rows.append(row)
+            rows.append({"scenario": s, "controller": ctrl, "episodes": len(shares), "share of achievable gain": m,
+                         "share lo95": lo, "share hi95": hi})
     return rows
 
 

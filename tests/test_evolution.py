@@ -124,7 +124,7 @@ def test_cmaes_training_writes_an_agent_the_tooling_loads(es_runs, tmp_path):
     eps = evaluate_batch(lambda v: agent.bind(v), val, "", **agent.observation_kwargs)
     assert np.mean([e.episode_return for e in eps]) == pytest.approx(agent.meta["validation_return"], rel=1e-6)
     assert main(["evaluate", "--plant", "quarter_car", "--agents", str(run), "--laws", "skyhook_continuous",
-                 "--quick", "--seeds", "1", "--out", str(tmp_path), "--no-progress"]) == 0
+                 "--quick", "--seeds", "1", "--no-mpc", "--out", str(tmp_path), "--no-progress"]) == 0
     assert "agent CMA-ES" in (tmp_path / "quarter_car_evaluation.md").read_text()
 
 

@@ -59,3 +59,14 @@ def test_report_without_a_cached_yardstick_says_how_to_get_one(tmp_path, monkeyp
     text = report("quarter_car", {}, scen, tmp_path, "auto", progress=False)
     assert "mrd-env yardstick --plant quarter_car" in text
     assert report("quarter_car", {}, scen, tmp_path, "off") == ""
+
+
+def test_intervals_only_where_there_are_repeats_and_never_beyond_the_possible():
+    """Issue 22: one episode has no interval; a return (≤ 0) never gets an interval reaching above zero."""
+    from experiments.evaluation import mean_ci
+
+    m, lo, hi = mean_ci([-2.0])
+    assert m == -2.0 and math.isnan(lo) and math.isnan(hi)
+    m, lo, hi = mean_ci([-0.1, -0.2, -5.0], upper=0.0)
+    assert lo < m < hi == 0.0
+    assert mean_ci([-1.0, -1.0]) == (-1.0, -1.0, -1.0)
