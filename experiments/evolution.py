@@ -22,6 +22,7 @@ row per generation (the population's mean return, its environment steps).
 from __future__ import annotations
 
 import json
+import sys
 import time
 from pathlib import Path
 
@@ -128,7 +129,7 @@ def train_cmaes(plant: str, seed: int, *, out: Path, timesteps: int | None = Non
 
     from .evaluation import evaluate_batch
     from .scenarios import ENV_IDS, HELD_OUT_SEED
-    from .train import _jsonable, _write_csv, env_options, plot_learning_curve, validation_split
+    from .train import _jsonable, _write_csv, env_options, plot_learning_curve, say_validation, validation_split
 
     import mrd_env  # noqa: F401
     h = check(dict(hyper or {}))
@@ -177,25 +178,33 @@ def train_cmaes(plant: str, seed: int, *, out: Path, timesteps: int | None = Non
         if r.mean() > best:
             best = float(r.mean())
             save(run_dir / "best", theta, {"validation_return": best, "timesteps": steps})
+        say_validation(run_dir.name, steps, float(r.mean()), best, progress)
 
     from tqdm.auto import tqdm
     bar = tqdm(total=timesteps, desc=f"train {run_dir.name}", unit="step", disable=not progress)
     monitor = run_dir / "training.monitor.csv"
     monitor.write_text(f'#{{"t_start": {time.time()}, "env_id": "{env_id}"}}\nr,l,t\n', encoding="utf-8")
     steps, next_eval = 0, 0
-    while steps < timesteps:
-        if eval_freq and steps >= next_eval:
-            validate(es.mean, steps)
-            next_eval = steps + eval_freq
-        thetas = np.asarray(es.ask())
-        # common random numbers: every candidate meets the same disturbances (seeds never used by validation)
-        seeds = [int(s) for s in rng.integers(0, HELD_OUT_SEED, size=E)]
-        returns, n = _returns(venv, policy, norm, thetas, seeds)
-        es.tell(list(thetas), list(-returns))
-        steps += n
-        bar.update(n)
-        with monitor.open("a", encoding="utf-8") as fh:
-            fh.write(f"{returns.mean():.6g},{n},{time.perf_counter() - t_start:.3f}\n")
+    try:
+        while steps < timesteps:
+            if eval_freq and steps >= next_eval:
+                validate(es.mean, steps)
+                next_eval = steps + eval_freq
+            thetas = np.asarray(es.ask())
+            # common random numbers: every candidate meets the same disturbances (seeds never used by validation)
+            seeds = [int(s) for s in rng.integers(0, HELD_OUT_SEED, size=E)]
+            returns, n = _returns(venv, policy, norm, thetas, seeds)
+            es.tell(list(thetas), list(-returns))
+            steps += n
+            bar.update(n)
+            with monitor.open("a", encoding="utf-8") as fh:
+                fh.write(f"{returns.mean():.6g},{n},{time.perf_counter() - t_start:.3f}\n")
+    except KeyboardInterrupt:  # the search so far is an agent: evaluate takes the folder
+        bar.close()
+        save(run_dir, es.mean, {"timesteps_done": steps, "interrupted": True})
+        plot_learning_curve(run_dir)
+        print(f"interrupted at {steps} steps: saved the agent so far in {run_dir}", file=sys.stderr)
+        raise
     bar.close()
     if eval_freq:
         validate(es.mean, steps)

@@ -36,6 +36,11 @@ from .scenarios import ENV_IDS, TRAINING, Scenario, validation
 ALGOS = {"ppo": "PPO", "sac": "SAC", "td3": "TD3", "a2c": "A2C", "recurrentppo": "RecurrentPPO", "tqc": "TQC",
          "cmaes": "CMA-ES"}
 HYPERPARAMS = Path(__file__).with_name("hyperparams")
+
+
+def available_algos() -> list[str]:
+    """The algorithms ``--algo`` offers: those with a shipped hyperparameter file (others need ``--hyperparams``)."""
+    return sorted(a for a in ALGOS if (HYPERPARAMS / f"{a}.yml").exists())
 #: Keys of a hyperparameter entry that are not the algorithm's keyword arguments (RL Zoo's conventions).
 _ZOO_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "env_kwargs")
 
@@ -92,6 +97,41 @@ def check_hyperparameters(algo: str, hyper: dict) -> dict:
         if isinstance(v, bool) or not isinstance(v, (int, float)) or v < 1 or float(v) != int(v):
             raise ValueError(f"hyperparameter {key} must be an integer >= 1, got {v!r}")
     return hyper
+
+
+def check_with_sb3(algo: str, hyper: dict, env_id: str, env_kwargs: dict) -> None:
+    """Build the model once on a one-environment copy of the set-up, so that a value SB3 refuses (e.g.
+    ``learning_rate=banana``) is a ``ValueError`` naming the hyperparameter before any training starts."""
+    from controllers.agents import _algorithm
+
+    from mrd_env.envs.sb3 import make_sb3_vec_env
+
+    kwargs = {k: schedule(v) for k, v in hyper.items() if k not in _ZOO_KEYS}
+    cls = _algorithm(ALGOS[algo])
+    venv = make_sb3_vec_env(env_id, n_envs=1, seed=0, **env_kwargs)
+    policy = hyper.get("policy", "MlpPolicy")
+
+    def builds(kw: dict) -> Exception | None:
+        import warnings
+
+        try:
+            with warnings.catch_warnings():  # e.g. a batch size meant for the real number of environments
+                warnings.simplefilter("ignore")
+                cls(policy, venv, device="cpu", verbose=0, **kw)
+        except Exception as exc:  # noqa: BLE001  (whatever SB3 raises for a bad value)
+            return exc
+        return None
+
+    try:
+        error = builds(kwargs)
+        if error is None:
+            return
+        culprits = [k for k in kwargs if builds({k: kwargs[k]}) is not None] or sorted(kwargs)
+        detail = " ".join(str(error).split())[:160] or type(error).__name__
+        raise ValueError(f"{ALGOS[algo]} rejects hyperparameter(s) "
+                         f"{', '.join(f'{k}={hyper[k]!r}' for k in culprits)}: {detail}")
+    finally:
+        venv.close()
 
 
 def schedule(value):
@@ -198,6 +238,7 @@ def _callbacks(run_dir: Path, model_saver, vecnorm, scenarios: list[Scenario], o
             if mean > self.best:
                 self.best = mean
                 model_saver(run_dir / "best", {"validation_return": mean, "timesteps": self.num_timesteps})
+            say_validation(run_dir.name, self.num_timesteps, mean, self.best, progress)
             return report is None or report(self.num_timesteps, mean)
 
         def _on_training_start(self) -> None:
@@ -234,6 +275,14 @@ def _callbacks(run_dir: Path, model_saver, vecnorm, scenarios: list[Scenario], o
             self.bar.close()
 
     return Validation(), Progress()
+
+
+def say_validation(run: str, steps: int, value: float, best: float, progress: bool) -> None:
+    """One console line per validation (above the progress bar): the return now and the best so far."""
+    if progress:
+        from tqdm.auto import tqdm
+
+        tqdm.write(f"{run}: validation return {value:.4g} at {steps} steps (best so far {best:.4g})")
 
 
 def _write_csv(path: Path, rows: list[dict]) -> None:
@@ -312,7 +361,14 @@ def train_one(plant: str, algo: str, seed: int, *, out: Path, timesteps: int | N
     scenarios = [val]
     callbacks = _callbacks(run_dir, save, vecnorm, scenarios, obs_kwargs, eval_freq, checkpoint_freq, timesteps,
                            progress, report)
-    model.learn(total_timesteps=timesteps, callback=list(callbacks), tb_log_name=run_dir.name)
+    try:
+        model.learn(total_timesteps=timesteps, callback=list(callbacks), tb_log_name=run_dir.name)
+    except KeyboardInterrupt:  # the run so far is an agent: evaluate takes the folder
+        save(run_dir, {"timesteps_done": int(model.num_timesteps), "interrupted": True})
+        plot_learning_curve(run_dir)
+        print(f"interrupted at {model.num_timesteps} steps: saved the agent so far in {run_dir} (the best "
+              f"validated one in {run_dir / 'best'})", file=sys.stderr)
+        raise
     save(run_dir, {"timesteps_done": int(model.num_timesteps)})
     plot_learning_curve(run_dir)
     train_env.close()
@@ -342,7 +398,10 @@ def plot_learning_curve(run_dir: Path) -> Path | None:
             r = np.array([float(x[0]) for x in rows])
             steps = np.cumsum([int(x[1]) for x in rows])
             k = min(20, r.size)
-            ax.plot(steps[k - 1:], np.convolve(r, np.ones(k) / k, mode="valid"), lw=1, label="training episodes")
+            y = np.convolve(r, np.ones(k) / k, mode="valid")
+            # a short run has a handful of points: markers, so that one point is still seen
+            ax.plot(steps[k - 1:], y, "s-" if y.size < 20 else "-", ms=3, lw=1,
+                    label=f"training episodes (mean of {k})")
             drawn = True
     val = run_dir / "validation.csv"
     if val.exists():
@@ -437,7 +496,9 @@ def law_references(plant: str, env_kwargs: dict | None = None, eval_episodes: in
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--plant", choices=sorted(ENV_IDS), default="quarter_car")
-    p.add_argument("--algo", choices=sorted(ALGOS), default="ppo")
+    p.add_argument("--algo", default="ppo", help=f"one of {', '.join(available_algos())} (shipped hyperparameters); "
+                                                 f"{', '.join(sorted(set(ALGOS) - set(available_algos())))} with "
+                                                 "--hyperparams")
     p.add_argument("--seeds", type=int, nargs="+", default=[0], help="one agent per seed (default 0)")
     p.add_argument("--timesteps", type=int, default=None, help="environment steps (default: the YAML's n_timesteps)")
     p.add_argument("--hyperparams", type=Path, default=None, help="YAML file (default experiments/hyperparams/<algo>.yml)")
@@ -462,6 +523,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     executor = sweep.options(args)
+    if args.algo not in ALGOS:
+        raise ValueError(f"--algo must be one of {sorted(ALGOS)}, got {args.algo!r}")
+    if args.hyperparams is None and args.algo not in available_algos():
+        raise ValueError(f"--algo {args.algo} has no shipped hyperparameters (shipped: {available_algos()}); give "
+                         "a YAML file in RL Zoo's format with --hyperparams")
     if any(s < 0 for s in args.seeds):
         raise ValueError(f"--seeds must be >= 0, got {args.seeds}")
     if args.timesteps is not None and args.timesteps < 1:
@@ -486,6 +552,8 @@ def run(args: argparse.Namespace) -> int:
     env_kwargs = env_options(args.plant, args.control_dt, args.sensors, args.history, disturbance)
     env_id = ENV_IDS[args.plant]
     hyper = hyperparameters(args.algo, env_id, args.hyperparams, _parse_overrides(args.set))
+    if args.algo != "cmaes":
+        check_with_sb3(args.algo, hyper, env_id, {**env_kwargs, **(hyper.get("env_kwargs") or {})})
     if args.tensorboard:
         import importlib.util
         if importlib.util.find_spec("tensorboard") is None:

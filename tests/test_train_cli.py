@@ -1,0 +1,47 @@
+"""Training a user can watch and interrupt (issue 22): offered algorithms, bad hyperparameters refused before
+training, an interrupted run leaves a usable agent, the console reports the best validation so far."""
+import json
+
+import pytest
+
+from experiments.cli import main
+from experiments.train import available_algos, env_options, train_one
+
+
+def test_only_algorithms_with_hyperparameters_are_offered(capsys):
+    assert "ppo" in available_algos() and "cmaes" in available_algos()
+    assert main(["train", "--algo", "banana"]) == 2
+    assert "--algo must be one of" in capsys.readouterr().err
+    missing = sorted({"a2c", "td3", "tqc"} - set(available_algos()))
+    if missing:
+        assert main(["train", "--algo", missing[0]]) == 2
+        err = capsys.readouterr().err
+        assert "--hyperparams" in err and "Traceback" not in err
+
+
+def test_a_value_sb3_rejects_is_a_bad_option_named_before_training(capsys, tmp_path):
+    assert main(["train", "--algo", "ppo", "--set", "learning_rate=banana", "--out", str(tmp_path),
+                 "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "learning_rate='banana'" in err and err.count("\n") == 1
+    assert not any(tmp_path.iterdir())                     # nothing trained, nothing written
+
+
+def test_an_interrupted_run_leaves_an_agent_evaluate_accepts(tmp_path, capsys):
+    from controllers import load_agent
+
+    kw = {**env_options("quarter_car"), "episode_seconds": 0.2}
+
+    def interrupt(steps, value):  # Ctrl-C at the first validation
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        train_one("quarter_car", "ppo", 0, out=tmp_path, timesteps=64, env_kwargs=kw, eval_episodes=1,
+                  hyper={"n_steps": 32, "batch_size": 32, "n_envs": 1}, report=interrupt, progress=True)
+    run = tmp_path / "quarter_car_ppo_s0"
+    meta = json.loads((run / "agent.json").read_text())
+    assert meta["interrupted"] is True and meta["timesteps_done"] == 0
+    assert load_agent(run).name == "PPO s0"
+    cap = capsys.readouterr()
+    assert "saved the agent so far" in cap.err
+    assert "validation return" in cap.out and "best so far" in cap.out   # the console line of each validation
