@@ -80,6 +80,7 @@ class Assembly:
     dose_window: float = 1.0                           # s (ISO 2631 running r.m.s.)
     renderer: Callable | None = None
     options: dict = field(default_factory=dict)        # the user's options, as given (for records and agents)
+    preview_times: tuple[float, ...] = ()              # s ahead of the disturbance a preview sensor reads
 
     @property
     def n_sub(self) -> int:
@@ -144,6 +145,11 @@ class PlantDeclarations:
     @property
     def action_mode(self) -> str:
         return self.assembly.action_mode
+
+    @property
+    def preview_times(self) -> tuple[float, ...]:
+        """The times ahead (s) at which the ``road_preview`` sensor reads the road (empty: no preview)."""
+        return self.assembly.preview_times
 
     def signal_matrices(self, name: str) -> dict[str, np.ndarray]:
         """The linear map of signal ``name``: s = C·[q, q̇] + D_F·F + D_w·w + d0 (q, q̇ the ``linear_plant``

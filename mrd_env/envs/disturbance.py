@@ -30,6 +30,16 @@ class Disturbance(ABC):
         return type(self).__name__
 
 
+def with_preview(record: Record, channel: str, steps: Sequence[int], names: Sequence[str], unit: str) -> Record:
+    """``record`` with one more channel per preview: ``channel`` shifted ``steps[j]`` samples ahead (the value at
+    t + steps[j]·dt), the last sample held beyond the end of the record."""
+    x = record.channel(channel)
+    idx = np.arange(x.size)
+    ahead = [x[np.minimum(idx + k, x.size - 1)] for k in steps]
+    return Record(record.dt, np.column_stack([record.data, *ahead]), (*record.channels, *names),
+                  (*record.units, *[unit] * len(names)), record.name)
+
+
 def on_grid(record: Record, channels: Sequence[str], units: Sequence[str], dt: float) -> Record:
     """``record`` with exactly ``channels`` (in that order) on the grid dt (resampled if needed)."""
     missing = [c for c in channels if c not in record.channels]

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
+import numpy as np
+
 from ..dampers import DamperModel, damper_class, make_damper
 from ..validation import check_n_samples, check_scalar
 from .build import as_options
@@ -118,3 +120,32 @@ def weights(given, defaults: Mapping[str, float]) -> dict[str, float]:
     for k, v in given.items():
         out[k] = check_scalar(f"reward_weights[{k!r}]", v, 0.0)
     return out
+
+
+
+MAX_PREVIEW = 10.0  # s: a look-ahead sensor sees metres to tens of metres of road, well under 10 s
+
+
+def preview_times(preview, dt: float) -> tuple[float, ...]:
+    """``preview``: None (no preview), or one time or a sequence of times ahead (s), each a multiple of ``dt``
+    in [dt, MAX_PREVIEW], no time twice; as a tuple of floats on the dt grid."""
+    if preview is None:
+        return ()
+    if isinstance(preview, (str, bytes, bool, Mapping)):
+        raise ValueError(f"preview must be a time ahead in s or a sequence of them (e.g. (0.05, 0.1)), got {preview!r}")
+    values = list(preview) if isinstance(preview, (list, tuple, np.ndarray)) else [preview]
+    if not values:
+        raise ValueError("preview must hold at least one time ahead (s); use None for no preview")
+    out = []
+    for v in values:
+        if isinstance(v, bool):
+            raise ValueError(f"preview times must be real numbers (s), got {v!r}")
+        t = check_scalar("preview", v, 0.0, MAX_PREVIEW, lo_open=True, unit="s")
+        k = int(round(t / dt))
+        if k < 1 or abs(k * dt - t) > 1e-9 * t:
+            raise ValueError(f"preview times must be multiples of dt = {dt:g} s (e.g. {dt:g}, {10 * dt:g}, "
+                             f"{50 * dt:g} s), got {v!r}")
+        out.append(k * dt)
+    if len(set(out)) != len(out):
+        raise ValueError(f"preview must not repeat a time, got {tuple(values)!r}")
+    return tuple(out)

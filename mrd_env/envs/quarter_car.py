@@ -1,18 +1,20 @@
 """Quarter car with an MR damper between the sprung and unsprung masses (``mrd_env/QuarterCar-v0``)."""
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from ..disturbances import Record, bump, iso8608_road, road_from_csv, sine_sweep
 from ..metrics import weighting_sos
-from ..plants import CoupledPlant, QuarterCarParams, quarter_car
+from ..plants import CoupledPlant, LinearPlant, QuarterCarParams, quarter_car
 from ..plants.response import foh_response
 from . import options as opt
 from . import randomize
 from .base import MRDamperEnv
 from .build import as_options, build
 from .core import Assembly, Episode, EpisodeStats
-from .disturbance import Disturbance, FixedRecord, Generated
+from .disturbance import Disturbance, FixedRecord, Generated, with_preview
 from .reward import CallableReward, QuadraticReward
 from .signals import SignalMap
 from .termination import Limits
@@ -26,7 +28,7 @@ ROAD_CHANNELS = ("z_r", "zdot_r")
 ROAD_UNITS = ("m", "m/s")
 SENSOR_UNITS = {"sprung_acc": "m/s^2", "unsprung_acc": "m/s^2", "travel": "m", "travel_rate": "m/s",
                 "sprung_vel": "m/s", "unsprung_vel": "m/s", "damper_force": "N", "command": "cmd", "road": "m",
-                "damper_states": "model"}
+                "road_preview": "m", "damper_states": "model"}
 #: What a test car measures (and what every controller and agent gets by default, for a fair comparison): body and
 #: wheel accelerometers, their integrals (the absolute velocities), a suspension displacement sensor and its
 #: derivative, the damper's load cell and the command the controller itself sent.
@@ -104,9 +106,24 @@ def _plant_params(plant_preset, plant_params) -> QuarterCarParams:
     return quarter_car(plant_preset, **opt.named_options("plant_params", plant_params))
 
 
+def preview_channels(times: tuple[float, ...]) -> tuple[str, ...]:
+    """The input channels of the road ahead: z_r at t + τ for each preview time τ (s)."""
+    return tuple(f"z_r(t+{t:g}s)" for t in times)
+
+
+def with_preview_inputs(lp: LinearPlant, times: tuple[float, ...]) -> LinearPlant:
+    """``lp`` with one more input per preview time, which the plant ignores (zero columns of E): the road ahead
+    rides along in the input record so that a sensor can read it, and the dynamics do not change."""
+    if not times:
+        return lp
+    return dataclasses.replace(lp, E=np.hstack([lp.E, np.zeros((lp.n_dof, len(times)))]),
+                               input_names=(*lp.input_names, *preview_channels(times)))
+
+
 def signals(coupled: CoupledPlant, p: QuarterCarParams, command_unit: str) -> SignalMap:
     """The quarter car's named signals (see :class:`QuarterCarEnv`)."""
     sm = SignalMap(coupled)
+    n_preview = len(coupled.plant.input_names) - len(ROAD_CHANNELS)
     sm.add("sprung_acc", sm.acc([1.0, 0.0]), "m/s^2")
     sm.add("unsprung_acc", sm.acc([0.0, 1.0]), "m/s^2")
     sm.add("travel", sm.disp([1.0, -1.0]), "m")
@@ -115,6 +132,8 @@ def signals(coupled: CoupledPlant, p: QuarterCarParams, command_unit: str) -> Si
     sm.add("unsprung_vel", sm.vel([0.0, 1.0]), "m/s")
     sm.add("damper_force", sm.force(), "N")
     sm.add("road", sm.inp([[1.0, 0.0]]), "m")
+    if n_preview:
+        sm.add("road_preview", sm.inp(np.hstack([np.zeros((n_preview, 2)), np.eye(n_preview)])), "m")
     sm.add("damper_states", sm.damper_states(), "model")
     sm.add("_z", sm.disp(np.eye(2)), "m")
     # dynamic tyre load k_t (z_r − z_u) + c_t (ż_r − ż_u), positive = more load than static
@@ -165,13 +184,18 @@ def assembly(*, plant_preset: str = "set_a", plant_params=None, road="iso8608", 
              control_dt: float = 1e-3, episode_seconds: float | None = None, sensors=None, sensor_noise=None,
              sensor_delay: int = 0, history: int = 1, action_mode: str = "physical", inverse=None,
              force_range: float | None = None, reward=None, reward_weights=None,
-             stroke_limit: float | None = None) -> Assembly:
+             stroke_limit: float | None = None, preview=None) -> Assembly:
     """The quarter-car environment's parts from its options (see :class:`QuarterCarEnv`)."""
     given = {k: v for k, v in locals().items()}
     dt, control_dt, episode_seconds = opt.time_steps(dt, control_dt, episode_seconds)
     p = _plant_params(plant_preset, plant_params)
     d = opt.make_env_damper(damper, damper_preset, damper_params, "automotive")
-    lp = p.plant()
+    ahead = opt.preview_times(preview, dt)
+    sensor_part = opt.sensors(sensors, sensor_noise, sensor_delay, history, DEFAULT_SENSORS)
+    if "road_preview" in sensor_part.names and not ahead:
+        raise ValueError("the sensor 'road_preview' needs the preview option: the times ahead in s, e.g. "
+                         "preview=(0.05, 0.1, 0.2)")
+    lp = with_preview_inputs(p.plant(), ahead)
     coupled = CoupledPlant(lp, d)
     sm = signals(coupled, p, d.command.unit)
     w = opt.weights(reward_weights, DEFAULT_REWARD_WEIGHTS)
@@ -198,6 +222,8 @@ def assembly(*, plant_preset: str = "set_a", plant_params=None, road="iso8608", 
         rows = rec.n_samples if episode_seconds is None else min(rec.n_samples,
                                                                   int(round(episode_seconds / dt)) + 1)
         ref = passive_reference(p, rec, q0, rows, dt) if p.passive_c > 0 else _absolute_reference(p)
+        if ahead:
+            rec = with_preview(rec, "z_r", [int(round(t / dt)) for t in ahead], preview_channels(ahead), "m")
         return Episode(rec, q0, {"reference": {k: max(v, 1e-12) for k, v in ref.items()}})
 
     from .render import QuarterCarRenderer
@@ -205,8 +231,7 @@ def assembly(*, plant_preset: str = "set_a", plant_params=None, road="iso8608", 
     return Assembly(
         kind="quarter_car", damper=d, plant_params=p, linear_plant=lp, coupled=coupled, signals=sm,
         sensor_names=tuple(SENSOR_UNITS),
-        sensors=opt.sensors(sensors, sensor_noise, sensor_delay, history, DEFAULT_SENSORS),
-        disturbance=source, reward=reward,
+        sensors=sensor_part, disturbance=source, reward=reward,
         limits=Limits({"travel": limit}, penalty=0.0, penalty_rate=w["termination"]),
         new_episode=new_episode, metrics=lambda st, ep: metrics(st, ep, static),
         roles={"body_velocity": "sprung_vel", "wheel_velocity": "unsprung_vel", "damper_velocity": "travel_rate",
@@ -216,7 +241,8 @@ def assembly(*, plant_preset: str = "set_a", plant_params=None, road="iso8608", 
         **opt.actuation(action_mode, inverse, force_range),
         filters=[("sprung_acc", "sprung_acc_wk", weighting_sos("Wk", dt))],
         stat_signals=("sprung_acc_wk", "sprung_acc", "travel", "_tyre_load", "damper_force"),
-        dose_signal="sprung_acc_wk", dose_window=1.0, renderer=QuarterCarRenderer, options=given)
+        dose_signal="sprung_acc_wk", dose_window=1.0, renderer=QuarterCarRenderer, options=given,
+        preview_times=ahead)
 
 
 class QuarterCarEnv(MRDamperEnv):
@@ -251,13 +277,23 @@ class QuarterCarEnv(MRDamperEnv):
       ``reward``: a :class:`~mrd_env.envs.reward.QuadraticReward`, or any callable of the period's signals
       (``{name: (n_sub, width)}`` → float; one Python call per step).
     * ``stroke_limit`` (default 0.1 m on |z_s − z_u|), ``render_mode`` ("rgb_array", "human").
+    * ``preview``: None (default: no preview), or the times ahead τ (s; one or a sequence, each a multiple of
+      ``dt`` in [dt, 10 s]) at which the ``road_preview`` sensor reads the road; ``env.unwrapped.preview_times``
+      gives them (a tuple in s, empty without preview).
 
     Sensors (SI): ``sprung_acc`` z̈_s (m/s², gravity removed), ``unsprung_acc`` z̈_u, ``travel`` z_s − z_u (m),
     ``travel_rate`` (m/s), ``sprung_vel`` ż_s and ``unsprung_vel`` ż_u (m/s, absolute — on a car these come
     from integrated accelerometers), ``damper_force`` (N, load cell, includes the static preload), ``command``
-    (applied, V or A), ``road`` z_r (m), ``damper_states`` (the model's internal states, hidden unless asked).
-    Default (what a test car measures; every controller and agent gets the same): sprung_acc, unsprung_acc,
-    travel, travel_rate, sprung_vel, unsprung_vel, damper_force, command.
+    (applied, V or A), ``road`` z_r (m), ``damper_states`` (the model's internal states, hidden unless asked),
+    ``road_preview`` (m, one channel per preview time: z_r(t + τ), the road height τ seconds ahead of the wheel
+    as a camera or lidar preview suspension measures it; beyond the end of the record the last height is held;
+    noise, delay and history apply as to any sensor). Default (what a test car measures; every controller and
+    agent gets the same): sprung_acc, unsprung_acc, travel, travel_rate, sprung_vel, unsprung_vel, damper_force,
+    command. Preview is never in the default: a controller that uses it must be compared as one that had it
+    (``sensors=(*DEFAULT_SENSORS, "road_preview")`` with ``preview=...``). With preview, the plant has one
+    more input per preview time, which it ignores (``linear_plant.input_names`` ends with ``z_r(t+τs)``; zero
+    columns of E) and ``env.record`` carries those channels; the dynamics are those without preview, bit for
+    bit.
 
     Reward: the cost integrated over the control period (so returns do not depend on the control rate)::
 
