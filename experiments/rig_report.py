@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -28,8 +29,11 @@ def replay(damper, args: argparse.Namespace):
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--model", default="spencer_dyke", help=f"damper model, one of {available_dampers()}")
-    p.add_argument("--preset", default=None, help="parameter preset of the model (default: the model's default)")
+    p.add_argument("--model", default="spencer_dyke",
+                   help=f"damper model, one of {available_dampers()}, or a preset file (fitted.json)")
+    p.add_argument("--preset", default=None,
+                   help="parameter preset of the model (default: the model's default), or a preset file written by "
+                        "mrd-env identify --save-preset")
     p.add_argument("--amplitude", type=float, default=0.015, help="stroke amplitude X in m (default 0.015)")
     p.add_argument("--frequency", type=float, default=2.5, help="frequency in Hz (default 2.5)")
     p.add_argument("--commands", type=float, nargs="+", default=None,
@@ -44,7 +48,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    damper = make_damper(args.model, args.preset)
+    from mrd_env.dampers import is_preset_file
+
+    damper = make_damper(args.preset) if is_preset_file(args.preset) else make_damper(args.model, args.preset)
     c = damper.command
     if args.record is not None:
         results = [replay(damper, args)]
@@ -55,17 +61,27 @@ def run(args: argparse.Namespace) -> int:
         last = results[0].steady_cycles(args.frequency)
     out = args.out
     out.mkdir(parents=True, exist_ok=True)
+    # a record's files are named after it, so that replaying a record never replaces the sinusoidal test's
+    stem = damper.name if args.record is None else f"{damper.name}_{args.record.stem}"
+    earlier = [p for p in out.glob(f"{stem}_*") if p.suffix in (".csv", ".md", ".png")]
     rows = []
     for r in results:
         sl = last or slice(None)
         name = (r.label or "record").replace(" ", "")
-        r.to_csv(out / f"{damper.name}_{name}.csv")
-        rows.append({"command": r.label, "F_max_N": float(r.force[sl].max()), "F_min_N": float(r.force[sl].min()),
-                     "energy_per_cycle_J": r.dissipated_energy(sl) if last else float("nan")})
+        r.to_csv(out / f"{stem}_{name}.csv")
+        row = {"command": r.label, "F_max (N)": float(r.force[sl].max()), "F_min (N)": float(r.force[sl].min())}
+        if last:
+            row["energy per cycle (J)"] = r.dissipated_energy(sl)
+        else:  # a record has no cycles: the energy it dissipated in all
+            row["energy dissipated (J)"] = r.dissipated_energy(sl)
+        rows.append(row)
     title = (f"{damper.name}: X = {args.amplitude * 1e3:g} mm, f = {args.frequency:g} Hz"
              if args.record is None else f"{damper.name}: record {args.record.name}")
-    md, csv_path = write_table(rows, out / f"{damper.name}_summary", title=title, floatfmt=".1f")
-    fig = plot_loops(results, out / f"{damper.name}_loops.png", last_cycles=last, title=title)
+    md, csv_path = write_table(rows, out / f"{stem}_summary", title=title, floatfmt=".1f")
+    fig = plot_loops(results, out / f"{stem}_loops.png", last_cycles=last, title=title)
     print(md.read_text())
+    if earlier:
+        print(f"note: replaced {len(earlier)} file(s) of an earlier run in {out} (use --out to keep both)",
+              file=sys.stderr)
     print(f"wrote {md}, {csv_path}, {fig} and {len(results)} record CSV(s) in {out}")
     return 0

@@ -43,10 +43,10 @@ def test_cli_rig_writes_table_csv_and_figure(tmp_path, capsys):
     assert main(["rig", "--model", "bouc_wen", "--cycles", "2", "--out", str(tmp_path)]) == 0
     assert (tmp_path / "bouc_wen_loops.png").stat().st_size > 10_000
     md = (tmp_path / "bouc_wen_summary.md").read_text()
-    assert "| command | F_max_N | F_min_N | energy_per_cycle_J |" in md
+    assert "| command | F_max (N) | F_min (N) | energy per cycle (J) |" in md
     with (tmp_path / "bouc_wen_summary.csv").open() as fh:
         rows = list(csv.DictReader(fh))
-    assert len(rows) == 4 and all(float(r["energy_per_cycle_J"]) > 0 for r in rows)
+    assert len(rows) == 4 and all(float(r["energy per cycle (J)"]) > 0 for r in rows)
     with (tmp_path / "bouc_wen_2.25V.csv").open() as fh:
         head = next(csv.reader(fh))
     assert head == ["t_s", "x_m", "v_m_per_s", "command_V", "u_V", "force_N"]
@@ -58,7 +58,39 @@ def test_cli_rig_replays_a_user_record(tmp_path):
     np.savetxt(path, np.c_[t, 0.005 * np.sin(2 * np.pi * 3 * t), np.where(t < 0.5, 0.0, 2.0)],
                delimiter=",", header="t_s,x_m,command_V", comments="")
     assert main(["rig", "--record", str(path), "--out", str(tmp_path / "o")]) == 0
-    assert (tmp_path / "o" / "spencer_dyke_record.csv").exists()
+    assert (tmp_path / "o" / "spencer_dyke_rec_record.csv").exists()
+    # a record has no cycles: the table gives the energy it dissipated, a number (issue 22: it printed nan)
+    with (tmp_path / "o" / "spencer_dyke_rec_summary.csv").open() as fh:
+        row = next(csv.DictReader(fh))
+    assert float(row["energy dissipated (J)"]) > 0
+
+
+def test_cli_rig_says_when_it_replaces_an_earlier_run(tmp_path, capsys):
+    assert main(["rig", "--model", "bingham", "--cycles", "1", "--out", str(tmp_path)]) == 0
+    assert "replaced" not in capsys.readouterr().err
+    assert main(["rig", "--model", "bingham", "--cycles", "1", "--out", str(tmp_path)]) == 0
+    assert "replaced" in capsys.readouterr().err
+
+
+def test_a_fitted_preset_file_drives_the_rig_and_the_environments(tmp_path):
+    """Issue 22: a preset file written by identify is accepted wherever a model or preset name is."""
+    from mrd_env.dampers import make_damper
+    from mrd_env.identification import save_preset
+
+    fitted = make_damper("bouc_wen", "spencer1997", alpha_b=2 * 69_500.0)
+    path = save_preset(fitted, tmp_path / "fitted.json")
+    for argv in (["--preset", str(path)], ["--model", str(path)]):
+        assert main(["rig", *argv, "--cycles", "1", "--out", str(tmp_path / "o")]) == 0
+    with (tmp_path / "o" / "bouc_wen_summary.csv").open() as fh:
+        ours = [float(r["F_max (N)"]) for r in csv.DictReader(fh)]
+    assert main(["rig", "--model", "bouc_wen", "--preset", "spencer1997", "--cycles", "1",
+                 "--out", str(tmp_path / "p")]) == 0
+    with (tmp_path / "p" / "bouc_wen_summary.csv").open() as fh:
+        published = [float(r["F_max (N)"]) for r in csv.DictReader(fh)]
+    assert ours[-1] > published[-1]            # the fitted α_b, not the preset's, drives the rig
+    assert make_damper(str(path)).params == fitted.params
+    with pytest.raises(ValueError, match="preset file"):
+        make_damper(str(path), "spencer1997")
 
 
 def test_cli_rig_replays_its_own_output_and_any_csv_with_declared_columns(tmp_path):
@@ -66,7 +98,7 @@ def test_cli_rig_replays_its_own_output_and_any_csv_with_declared_columns(tmp_pa
     assert main(["rig", "--model", "bouc_wen", "--commands", "1.0", "--out", str(tmp_path / "a")]) == 0
     own = tmp_path / "a" / "bouc_wen_1V.csv"
     assert main(["rig", "--model", "bouc_wen", "--record", str(own), "--out", str(tmp_path / "b")]) == 0
-    replayed = np.genfromtxt(tmp_path / "b" / "bouc_wen_record.csv", delimiter=",", names=True)
+    replayed = np.genfromtxt(tmp_path / "b" / "bouc_wen_bouc_wen_1V_record.csv", delimiter=",", names=True)
     original = np.genfromtxt(own, delimiter=",", names=True)
     # the same stroke, velocity and command give the same force (the file holds 9 significant digits, so an
     # error-controlled step may split where the original did not: differences far below the integrator's error)
@@ -80,7 +112,7 @@ def test_cli_rig_replays_its_own_output_and_any_csv_with_declared_columns(tmp_pa
                header="time;D;Y", comments="")
     assert main(["rig", "--record", str(path), "--columns", "t=time,x=D,command=Y", "--units", "t=ms,x=cm,command=V",
                  "--out", str(tmp_path / "c")]) == 0
-    out = np.genfromtxt(tmp_path / "c" / "spencer_dyke_record.csv", delimiter=",", names=True)
+    out = np.genfromtxt(tmp_path / "c" / "spencer_dyke_lab_record.csv", delimiter=",", names=True)
     assert out["x_m"].max() == pytest.approx(0.005, rel=1e-3) and out["t_s"][-1] == pytest.approx(0.499)
 
 

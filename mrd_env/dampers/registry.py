@@ -29,14 +29,20 @@ def available_dampers() -> list[str]:
 
 
 def damper_class(name: str):
+    """The model class of a name, or of the model a preset file holds (``"fitted.json"``)."""
+    from .preset_file import is_preset_file, preset_model
+
     _load_all()
+    if is_preset_file(name):
+        return damper_class(preset_model(name))
     if not isinstance(name, str) or name not in _MODELS:
         raise ValueError(f"unknown damper model {name!r}; available: {sorted(_MODELS)}")
     return _MODELS[name]
 
 
 def make_damper(name: str = "spencer_dyke", preset: str | None = None, *, command=None, **overrides):
-    """A damper by model name and preset, with optional parameter overrides in SI units.
+    """A damper by model name and preset, with optional parameter overrides in SI units; ``name`` may also be a
+    preset file (``"fitted.json"``, as ``mrd-env identify --save-preset`` writes: no ``preset`` then).
 
     ``command``: the command channel — a :class:`~mrd_env.dampers.CommandSpec`, or a dict of overrides of the
     preset's channel (``{"v_max": 3.0}``, keys ``unit``, ``v_min``, ``v_max``, ``eta``).
@@ -44,7 +50,14 @@ def make_damper(name: str = "spencer_dyke", preset: str | None = None, *, comman
     >>> d = make_damper("spencer_dyke", preset="spencer1997", c0a=2000.0, command={"eta": 100.0})
     """
     from .base import command_spec
+    from .preset_file import is_preset_file, load_damper_preset
 
+    if is_preset_file(name):
+        if preset is not None:
+            raise ValueError(f"preset {preset!r} applies to a model name; {name} is a preset file already")
+        base = load_damper_preset(name)
+        params = base.params.replace(**overrides) if overrides else base.params
+        return type(base)(params, command_spec(command, base.command))
     cls = damper_class(name)
     base = cls.preset(preset)
     params = base.params.replace(**overrides) if overrides else base.params

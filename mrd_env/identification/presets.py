@@ -5,11 +5,10 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from ..dampers import CommandSpec, DamperModel, damper_class
+from ..dampers import DamperModel
+from ..dampers.preset_file import PRESET_FORMAT, load_damper_preset, read_preset  # noqa: F401  (re-exported)
 from .neural import NeuralForwardModel
 from .result import FitResult
-
-PRESET_FORMAT = "mrd-env-preset"
 
 
 def save_preset(result: FitResult | DamperModel, path: str | Path, *, source: str = "") -> Path:
@@ -63,45 +62,15 @@ def _jsonable(v) -> bool:
         return False
 
 
-def read_preset(path: str | Path) -> dict:
-    """The JSON document of a preset file (checked for the format marker)."""
-    path = Path(path)
-    try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"{path}: not a JSON preset ({exc})") from None
-    if not isinstance(doc, dict) or doc.get("format") != PRESET_FORMAT:
-        raise ValueError(f"{path}: not an mrd-env preset file (missing \"format\": \"{PRESET_FORMAT}\")")
-    return doc
-
-
 def load_preset(path: str | Path) -> DamperModel | NeuralForwardModel:
-    """The damper of a preset written by :func:`save_preset` (parameters exactly as saved).
+    """The damper of a preset written by :func:`save_preset` (parameters exactly as saved): a parametric
+    :class:`~mrd_env.dampers.DamperModel` (:func:`mrd_env.dampers.load_damper_preset`) or a
+    :class:`~.neural.NeuralForwardModel`.
 
     Raises ``ValueError`` for an unknown model, missing or extra parameters, or a unit that differs from the
     model's declared SI unit.
     """
-    path = Path(path)
     doc = read_preset(path)
     if doc.get("model") == NeuralForwardModel.name:
         return NeuralForwardModel.from_dict(doc.get("network", {}))
-    cls = damper_class(doc.get("model", ""))
-    units = cls.Params.units()
-    pars = doc.get("parameters", {})
-    missing = [k for k in units if k not in pars]
-    extra = [k for k in pars if k not in units]
-    if missing or extra:
-        raise ValueError(f"{path}: parameters of {cls.name!r} do not match (missing {missing}, unknown {extra})")
-    values = {}
-    for k, entry in pars.items():
-        if entry.get("unit") != units[k]:
-            raise ValueError(f"{path}: parameter {k!r} is in {entry.get('unit')!r}, expected {units[k]!r} (SI)")
-        values[k] = float(entry["value"])
-    c = doc.get("command", {})
-    try:
-        fall = c.get("eta_fall")
-        command = CommandSpec(c["unit"], float(c["v_min"]), float(c["v_max"]), float(c["eta"]),
-                              None if fall is None else float(fall), float(c.get("delay_s", 0.0)))
-    except KeyError as exc:
-        raise ValueError(f"{path}: command channel lacks {exc}") from None
-    return cls(cls.Params(**values), command)
+    return load_damper_preset(path)
