@@ -38,7 +38,7 @@ MPC = {"quarter_car": {"mpc": ("mpc", {}), "mpc+preview": ("mpc", "preview")},
 
 
 def evaluate(plant: str, agents=(), laws=None, *, seeds: int = 3, control_dt: float | None = None,
-             laws_at_1ms: bool = True, mpc: bool = True, progress: bool = True, quick: bool = False, backend: str = "serial",
+             laws_at_1ms: bool = True, mpc: bool = True, damper: str | None = None, progress: bool = True, quick: bool = False, backend: str = "serial",
              jobs: int | None = None, address: str | None = None) -> dict[str, list[Episode]]:
     """{controller name: episodes on every test scenario}. Agents with the same name (an algorithm trained on
     several seeds) are pooled under one row. One task per controller and scenario (:mod:`mrd_env.executor`)."""
@@ -53,11 +53,19 @@ def evaluate(plant: str, agents=(), laws=None, *, seeds: int = 3, control_dt: fl
     obs_kw = dict(loaded[0].observation_kwargs) if loaded else {}
     if control_dt is not None:
         obs_kw["control_dt"] = float(control_dt)
+    # the damper: the one asked for, else the one the agents were trained with (a fitted preset file, say)
+    trained_on = {str(a.env_kwargs.get("damper")) for a in loaded if a.env_kwargs.get("damper") is not None}
+    if damper is None and trained_on:
+        if len(trained_on) > 1:
+            raise ValueError(f"the agents were trained on different dampers {sorted(trained_on)}: choose one with "
+                             "--damper")
+        damper = trained_on.pop()
+    extra = {} if damper is None else {"damper": damper}
     # the laws keep their own memory (filters, observers): the same sensors, without the agent's stacked history
-    law_kw = {**{k: v for k, v in obs_kw.items() if k != "action_mode"}, "history": 1}
+    law_kw = {**{k: v for k, v in obs_kw.items() if k != "action_mode"}, "history": 1, **extra}
     dt = law_kw.get("control_dt", 1e-3)
     laws = LAWS[plant] if laws is None else laws
-    rows = [(f"agent {a.name.split(' s')[0]}", Path(a.folder), {}) for a in loaded]
+    rows = [(f"agent {a.name.split(' s')[0]}", Path(a.folder), dict(extra)) for a in loaded]
     rows += [(f"{name} @ {dt * 1e3:g} ms", name, law_kw) for name in laws]
     if laws_at_1ms and abs(dt - 1e-3) > 1e-12:
         rows += [(f"{name} @ 1 ms", name, {**law_kw, "control_dt": 1e-3}) for name in laws]
@@ -175,6 +183,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="control step of the comparison (default: the agents'; 1 ms without agents)")
     p.add_argument("--no-1ms", action="store_true", help="do not add the laws at their own 1 ms rate")
     p.add_argument("--no-mpc", action="store_true", help="leave out model predictive control (and its preview row)")
+    p.add_argument("--damper", default=None,
+                   help="damper model name or preset file (fitted.json) of every row (default: the agents' own, "
+                        "else the plant's)")
     p.add_argument("--quick", action="store_true", help="short scenarios (a smoke run)")
     p.add_argument("--out", type=Path, default=Path("results/evaluate"))
     p.add_argument("--no-progress", action="store_true")
@@ -193,6 +204,9 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"--laws: unknown controller(s) {unknown}; available: {sorted(CONTROLLERS)}")
     plants = ["building", "quarter_car"] if args.plant == "both" else [args.plant]
     executor = sweep.options(args)
+    if args.damper is not None:
+        from mrd_env.dampers import damper_class
+        damper_class(args.damper)  # ValueError naming the models, or the preset file's problem
     args.out.mkdir(parents=True, exist_ok=True)
     if args.control_dt is not None:  # checked by the environment itself, before any episode runs
         import gymnasium as gym
@@ -212,7 +226,7 @@ def run(args: argparse.Namespace) -> int:
                 raise ValueError(f"agent {a} was trained on the {meta['plant']} plant; add --plant {meta['plant']}")
             chosen[meta["plant"]].append(a)
     for p in plants:
-        res = evaluate(p, chosen[p], args.laws, seeds=args.seeds, control_dt=args.control_dt,
+        res = evaluate(p, chosen[p], args.laws, seeds=args.seeds, control_dt=args.control_dt, damper=args.damper,
                        laws_at_1ms=not args.no_1ms, mpc=not args.no_mpc, progress=not args.no_progress,
                        quick=args.quick, **executor)
         rows = summarise(p, res)

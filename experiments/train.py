@@ -507,6 +507,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--control-dt", type=float, default=0.01, help="agent step in s (a multiple of 1 ms; default 0.01)")
     p.add_argument("--sensors", nargs="+", default=None, help="sensor names (default: the plant's measured set)")
     p.add_argument("--history", type=int, default=1, help="control steps stacked in the observation (default 1)")
+    p.add_argument("--damper", default=None,
+                   help="damper model name or preset file (fitted.json from mrd-env identify; default: the plant's)")
     p.add_argument("--disturbance", default=None,
                    help="training disturbance as JSON (default: the plant's training distribution), e.g. "
                         "'{\"kind\": \"iso8608\", \"road_class\": \"C\"}'")
@@ -550,6 +552,12 @@ def run(args: argparse.Namespace) -> int:
         if args.warm_start not in available_controllers():
             raise ValueError(f"--warm-start must be a law of {available_controllers()}, got {args.warm_start!r}")
     env_kwargs = env_options(args.plant, args.control_dt, args.sensors, args.history, disturbance)
+    if args.damper is not None:
+        from mrd_env.dampers import damper_class, is_preset_file
+
+        damper_class(args.damper)  # ValueError naming the models, or the preset file's problem
+        # a preset file by its absolute path, so that the agent's record finds it from anywhere
+        env_kwargs["damper"] = str(Path(args.damper).resolve()) if is_preset_file(args.damper) else args.damper
     env_id = ENV_IDS[args.plant]
     hyper = hyperparameters(args.algo, env_id, args.hyperparams, _parse_overrides(args.set))
     if args.algo != "cmaes":
