@@ -1,17 +1,19 @@
 """Semi-active control laws behind one interface (``predict``/``reset``, as Stable-Baselines3 agents).
 
 Build a controller from the environment it drives: ``SkyhookOnOff(env)``; ``make_controller(name, env)``
-by name. ``CONTROLLERS`` lists the names; ``VARIANTS`` names laws with options (clipped-optimal control with each
-inverse model: ``"clipped_optimal+model"`` is ``ClippedOptimal(env, inverse="model")``).
+by name (``"mpc"``: linear model-predictive control, :mod:`.mpc`, needs OSQP). ``CONTROLLERS`` lists the names;
+``VARIANTS`` names laws with options (clipped-optimal control with each inverse model: ``"clipped_optimal+model"``
+is ``ClippedOptimal(env, inverse="model")``).
 """
 from .agents import TrainedAgent, load_agent, shipped_agents
 from .base import AgentController, Controller, PassiveOff, PassiveOn, RandomCommand
 from .friction_laws import MaximumEnergyDissipation, ModulatedHomogeneousFriction
 from .model_based import ClippedOptimal, KalmanEstimator, LinearDesign, Lyapunov
+from .mpc import MPC
 from .velocity_laws import Groundhook, Hybrid, SkyhookContinuous, SkyhookOnOff, force_gain
 
 CONTROLLERS = {c.name: c for c in (RandomCommand, PassiveOff, PassiveOn, SkyhookOnOff, SkyhookContinuous, Groundhook, Hybrid,
-                                   ClippedOptimal, Lyapunov, MaximumEnergyDissipation,
+                                   ClippedOptimal, MPC, Lyapunov, MaximumEnergyDissipation,
                                    ModulatedHomogeneousFriction)}
 
 
@@ -35,7 +37,7 @@ def make_controller(name: str, env, **options) -> Controller:
 
 
 __all__ = ["AgentController", "CONTROLLERS", "ClippedOptimal", "Controller", "Groundhook", "Hybrid",
-           "KalmanEstimator", "LinearDesign", "Lyapunov", "MaximumEnergyDissipation",
+           "KalmanEstimator", "LinearDesign", "Lyapunov", "MPC", "MaximumEnergyDissipation",
            "ModulatedHomogeneousFriction", "PassiveOff", "PassiveOn", "RandomCommand", "SkyhookContinuous", "SkyhookOnOff",
            "TrainedAgent", "VARIANTS", "available_controllers", "force_gain", "load_agent", "make_controller",
            "shipped_agents"]

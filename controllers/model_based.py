@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import control
 import numpy as np
-from scipy.linalg import expm
+from scipy.linalg import expm, solve_discrete_are
 
 from .base import Controller
 
@@ -55,6 +55,44 @@ class LinearDesign:
             Cs.append(np.sqrt(w) * out[0])
             Ds.append(np.sqrt(w) * out[1])
         return np.vstack(Cs), np.vstack(Ds)
+
+
+def van_loan(Ac: np.ndarray, Qc: np.ndarray, T: float) -> tuple[np.ndarray, np.ndarray]:
+    """(Φ, Q_d) with Φ = e^{A_c T} and Q_d = ∫₀ᵀ e^{A_cᵀt} Q_c e^{A_c t} dt, from one matrix exponential
+    (Van Loan 1978, "Computing integrals involving the matrix exponential", IEEE TAC 23(3), theorem 1):
+    expm([[−A_cᵀ, Q_c], [0, A_c]]·T) = [[·, G], [0, Φ]], Q_d = Φᵀ G."""
+    n = Ac.shape[0]
+    M = np.zeros((2 * n, 2 * n))
+    M[:n, :n] = -Ac.T
+    M[:n, n:] = Qc
+    M[n:, n:] = Ac
+    E = expm(M * T)
+    Phi = E[n:, n:]
+    Qd = Phi.T @ E[:n, n:]
+    return Phi, 0.5 * (Qd + Qd.T)
+
+
+def sampled_lq(A, B, Q, R, N, T: float):
+    """The sampled-data LQ problem of ẋ = A x + B u, J = ∫ xᵀQx + 2xᵀNu + uᵀRu dt with u held over each period T
+    (zero-order hold), exactly: J = Σ_k x_kᵀ Q_d x_k + 2 x_kᵀ N_d u_k + u_kᵀ R_d u_k, x_{k+1} = Φ x_k + Γ u_k
+    (Van Loan 1978; Franklin, Powell & Workman, Digital Control of Dynamic Systems, 3rd ed., §9.4.4).
+
+    Returns (Φ, Γ, Q_d, R_d, N_d)."""
+    n, m = B.shape
+    Ac = np.zeros((n + m, n + m))
+    Ac[:n, :n], Ac[:n, n:] = A, B
+    Qc = np.block([[Q, N], [N.T, R]])
+    E, Qd = van_loan(Ac, Qc, T)
+    return E[:n, :n], E[:n, n:], Qd[:n, :n], Qd[n:, n:], Qd[:n, n:]
+
+
+def dlqr(Phi, Gamma, Q, R, N):
+    """Infinite-horizon discrete LQR with a cross term: P from the discrete algebraic Riccati equation,
+    K = (R + ΓᵀPΓ)⁻¹(ΓᵀPΦ + Nᵀ), u_k = −K x_k. Returns (K, P)."""
+    P = solve_discrete_are(Phi, Gamma, Q, R, s=N)
+    P = 0.5 * (P + P.T)
+    K = np.linalg.solve(R + Gamma.T @ P @ Gamma, Gamma.T @ P @ Phi + N.T)
+    return K, P
 
 
 class KalmanEstimator:
@@ -156,6 +194,12 @@ class ClippedOptimal(_ObserverLaw):
     1/(5 cm)²). R = 1/(force_ref)² per damper with force_ref = 3000 N (the prototype damper's force scale;
     with these the El Centro lab ranking of Dyke et al. 1996 is reproduced, see the README).
 
+    ``design``: "continuous" (default) the continuous-time LQR above; "sampled" the LQR of the same cost for the
+    force held over each control period ``control_dt`` — the sampled-data problem solved exactly
+    (:func:`sampled_lq`, Van Loan 1978) and its discrete Riccati equation (:func:`dlqr`): f_c[k] = −K_d x̂[k]. It
+    tends to the continuous design as control_dt → 0 and is what the controller can actually do at a coarse
+    control rate (the horizon-1 unconstrained :class:`~controllers.mpc.MPC`).
+
     ``inverse``: None (the on–off law above), or an inverse model that turns f_c into the command instead — a
     name of :func:`mrd_env.inverse.make_inverse` ("heaviside", "sid", "model", "neural") or an
     :class:`~mrd_env.inverse.Inverse` — through :class:`mrd_env.envs.actuation.ForceActuation` (the inverses
@@ -164,7 +208,10 @@ class ClippedOptimal(_ObserverLaw):
 
     name = "clipped_optimal"
 
-    def __init__(self, env, weights: dict | None = None, force_ref: float = 3000.0, inverse=None, **observer):
+    def __init__(self, env, weights: dict | None = None, force_ref: float = 3000.0, inverse=None,
+                 design: str = "continuous", **observer):
+        if design not in ("continuous", "sampled"):
+            raise ValueError(f"design must be 'continuous' or 'sampled', got {design!r}")
         super().__init__(env, **observer)
         if inverse is None:
             self.actuation = None
@@ -180,9 +227,15 @@ class ClippedOptimal(_ObserverLaw):
         Q = Cz.T @ Cz
         R = Dz.T @ Dz + np.eye(self.design.nd) / force_ref ** 2
         N = Cz.T @ Dz
-        self.weights = weights
-        self.K, self.S_riccati, self.closed_loop_poles = control.lqr(self.design.A, self.design.Bf, Q, R, N)
-        self.K = np.asarray(self.K)
+        self.weights, self.force_ref, self.design_kind = weights, float(force_ref), design
+        self.lq = (Q, R, N)  # the continuous cost ∫ xᵀQx + 2xᵀNf + fᵀRf dt
+        if design == "continuous":
+            self.K, self.S_riccati, self.closed_loop_poles = control.lqr(self.design.A, self.design.Bf, Q, R, N)
+            self.K = np.asarray(self.K)
+        else:
+            Phi, Gamma, Qd, Rd, Nd = sampled_lq(self.design.A, self.design.Bf, Q, R, N, self.control_dt)
+            self.K, self.S_riccati = dlqr(Phi, Gamma, Qd, Rd, Nd)
+            self.closed_loop_poles = np.linalg.eigvals(Phi - Gamma @ self.K)
 
     def desired_force(self, x_hat):
         """f_c = −K x̂ per row, (N, nd)."""
@@ -191,6 +244,11 @@ class ClippedOptimal(_ObserverLaw):
     def command(self, obs):
         x_hat, f = self.estimate(obs)
         fc = self.last_desired = self.desired_force(x_hat)
+        return self.actuate(fc, f, obs)
+
+    def actuate(self, fc, f, obs):
+        """The command for desired forces f_c and measured forces f beyond the preload: the clipped on–off law
+        u = u_max·H((f_c − f)·f), or the inverse model's command."""
         if self.actuation is not None:
             return self.actuation.from_observation(fc, obs)
         return self.on_off((fc - f) * f > 0.0)
