@@ -4,15 +4,15 @@ time), with overlay figures and one fitted preset per model."""
 from __future__ import annotations
 
 import argparse
-import warnings
 from pathlib import Path
 
 from mrd_env.dampers import available_dampers
-from mrd_env.identification.compare import compare_models
-from mrd_env.identification.faults import FaultsExcluded
+from mrd_env.identification.compare import compare_models, split_records
+from mrd_env.identification.neural import NAME as NEURAL
 
 from . import sweep
-from .identify_cmd import add_data_arguments, free_with_command, options, grid_dt, load_data, report_faults
+from .identify_cmd import (add_data_arguments, free_with_command, grid_dt, load_data, neural_data, options,
+                           reported_warnings)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -33,14 +33,15 @@ def run(args: argparse.Namespace) -> int:
     search, data = options(args, grid_dt(args, recs[0]))
     models = args.models or available_dampers()
     model_options = {m: {"free": free_with_command(args, m, None)} for m in models
-                     if m != "neural" and (args.fit_eta or args.fit_lag)}
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", FaultsExcluded)
+                     if m != NEURAL and (args.fit_eta or args.fit_lag)}
+    with reported_warnings():
+        if NEURAL in models and data.align:  # the network is given the offset a reference fit finds
+            fits = recs if others else split_records(recs, args.fit_fraction, data.dt)[1]
+            model_options[NEURAL] = {"data": neural_data(args, fits, data)}
         res = compare_models(recs, models, search=search, data=data, fit_fraction=args.fit_fraction,
                              validation_records=others, out=args.out, plot_window=args.plot_window,
                              model_options=model_options, progress=not args.no_progress,
                              **executor)
-    report_faults(caught)
     failed = [m.model for m in res.models if m.fit is None]
     if len(failed) == len(res.models):  # nothing to compare: an error, whatever the table says
         raise ValueError(f"no model could be fitted (table in {args.out}); {res.models[0].model}: "

@@ -12,6 +12,8 @@ offset between the force and the motion channels; --model neural fits the neural
 from __future__ import annotations
 
 import argparse
+import contextlib
+import dataclasses
 import math
 import warnings
 from pathlib import Path
@@ -22,15 +24,17 @@ from mrd_env.dampers import available_dampers, make_damper
 from mrd_env.identification.compare import fr_data, plot_fit, split_records, validate
 from mrd_env.identification.data import DamperRecord, load_record_csv
 from mrd_env.identification.faults import FaultsExcluded
-from mrd_env.identification.fit import fit_model
+from mrd_env.identification.fit import OFFSET_REFERENCE, fit_model, reference_offset
+from mrd_env.identification.neural import NAME as NEURAL
 from mrd_env.identification.options import METHODS, DataOptions, SearchOptions
 from mrd_env.identification.parameters import COMMAND_ETA, COMMAND_PARAMS, fixed_by_default
 from mrd_env.identification.prepare import FAULT_MODES, uniform_record
 from mrd_env.identification.presets import save_preset
+from mrd_env.identification.result import ParameterAtBound
 
 from mrd_env.report import write_table
 
-from .records import add_column_arguments, columns_and_units
+from .records import add_column_arguments, columns_and_units, parse_pairs
 
 
 def add_data_arguments(p: argparse.ArgumentParser) -> None:
@@ -63,7 +67,13 @@ def add_data_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--fit-lag", action="store_true",
                    help="also fit the command dynamics: η on a rise, η on a fall (1/s) and a pure delay (s)")
     p.add_argument("--align", action="store_true",
-                   help="estimate and correct a constant sample offset between the force and the motion channels")
+                   help="estimate and correct a constant sample offset between the force and the motion channels "
+                        "(the same as --force-offset auto)")
+    p.add_argument("--force-offset", default=None, metavar="SAMPLES|auto",
+                   help="the force channel's lag behind the stroke and velocity channels, in whole samples "
+                        "(positive: the force lags; a time shift, not a force), imposed on every model; auto: "
+                        "estimated — by each parametric model's own fit, and for the neural model (which cannot "
+                        f"find it) by a {OFFSET_REFERENCE} fit with its command lag first. Default: 0")
     p.add_argument("--faults", default="exclude", choices=FAULT_MODES,
                    help="saturated channels, spikes and gaps: exclude them from the fit and errors (default), keep "
                         "them, or refuse the record")
@@ -79,6 +89,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--preset", default=None, help="preset giving the initial guess (default: the model's)")
     p.add_argument("--free", default=None,
                    help="comma-separated parameters to fit (default: all but the fixed ones, e.g. n)")
+    p.add_argument("--bounds", default=None, metavar="NAME=LO:HI,...",
+                   help="bounds of free parameters in SI units, e.g. k0=1:2000,c0a=100:1e5 (default: a tenth to "
+                        "ten times the initial value, inside the valid range)")
     p.add_argument("--out", type=Path, default=Path("results/identify"), help="output folder")
     p.add_argument("--save-preset", type=Path, default=None, help="write the fitted damper as a JSON preset")
 
@@ -123,13 +136,57 @@ def on_grid(rec: DamperRecord, dt: float) -> bool:
     return bool(np.abs(rec.t - (rec.t[0] + dt * k)).max() <= 0.5 * dt)
 
 
+def force_offset(args: argparse.Namespace) -> int | str:
+    """--force-offset (and --align) as a number of samples or "auto"."""
+    text = getattr(args, "force_offset", None)
+    if text is None:
+        return "auto" if args.align else 0
+    if text.strip().lower() == "auto":
+        return "auto"
+    try:
+        k = int(text)
+    except ValueError:
+        raise ValueError(f"--force-offset {text!r} is invalid: give a whole number of samples (the force channel's "
+                         "lag behind the motion channels, e.g. -1 or 2; a time shift, not a force) or auto") from None
+    if args.align:
+        raise ValueError(f"--align estimates the force offset and --force-offset {k} imposes one: give one of them")
+    return k
+
+
 def options(args: argparse.Namespace, dt: float | None) -> tuple[SearchOptions, DataOptions]:
     """The search and data options of the command line."""
     search = SearchOptions(method=args.method, seed=args.seed, maxiter=args.maxiter, popsize=args.popsize,
                            progress=not args.no_progress)
+    offset = force_offset(args)
     data = DataOptions(dt=dt, warmup=args.warmup, command_range=args.command_range, faults=args.faults,
-                       align=args.align)
+                       align=offset == "auto", offset=None if offset == "auto" else offset)
     return search, data
+
+
+def neural_data(args: argparse.Namespace, fits, data: DataOptions) -> DataOptions:
+    """The neural model's data options: with --force-offset auto the offset that a reference fit finds on the fit
+    records (the network cannot find it, see mrd_env.identification.align), announced on the console."""
+    if not data.align:
+        return data
+    print(f"finding the force offset for the neural model: a {OFFSET_REFERENCE} fit with its command lag ...")
+    k, ref = reference_offset(fits, search=SearchOptions(seed=args.seed, progress=not args.no_progress), data=data)
+    print(f"note: force offset {k} samples, found by the {ref.model} fit ({ref.wall_time:.0f} s; "
+          f"--force-offset {k} skips that fit next time)")
+    return dataclasses.replace(data, align=False, offset=k)
+
+
+def parse_bounds(text: str | None) -> dict[str, tuple[float, float]] | None:
+    """--bounds "k0=1:2000,c0a=100:1e5" as {name: (lo, hi)}."""
+    if text is None:
+        return None
+    out = {}
+    for name, span in parse_pairs(text, "--bounds").items():
+        try:
+            lo, hi = (float(v) for v in span.split(":"))
+        except ValueError:
+            raise ValueError(f"--bounds: expected NAME=LO:HI (numbers in SI units), got {name}={span}") from None
+        out[name] = (lo, hi)
+    return out
 
 
 def free_with_command(args: argparse.Namespace, model: str, free: list[str] | None) -> list[str] | None:
@@ -154,14 +211,23 @@ def records_and_grid(args: argparse.Namespace):
     return fits, whole, idx, dt
 
 
-def report_faults(caught) -> None:
-    """Print the fault warnings of a fit, one line each (never silently)."""
+#: The warnings of a fit that the commands print, one line each (never silently), and their prefix.
+REPORTED = {FaultsExcluded: "note", ParameterAtBound: "warning"}
+
+
+@contextlib.contextmanager
+def reported_warnings():
+    """Record the :data:`REPORTED` warnings raised inside the block and print them on leaving it, each once."""
+    with warnings.catch_warnings(record=True) as caught:
+        for category in REPORTED:
+            warnings.simplefilter("always", category)
+        yield
     seen = []
     for w in caught:
         msg = str(w.message)
-        if msg not in seen:
+        if w.category in REPORTED and msg not in seen:
             seen.append(msg)
-            print(f"note: {msg}")
+            print(f"{REPORTED[w.category]}: {msg}")
 
 
 def _pct(x: float) -> float:
@@ -173,12 +239,13 @@ def run(args: argparse.Namespace) -> int:
     free = [s.strip() for s in args.free.split(",") if s.strip()] if args.free else None
     free = free_with_command(args, args.model, free)
     search, data = options(args, dt)
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", FaultsExcluded)
-        fr = fit_model(args.model, fits, preset=args.preset, free=free, search=search, data=data)
+    bounds = parse_bounds(args.bounds)
+    with reported_warnings():
+        if args.model == NEURAL:
+            data = neural_data(args, fits, data)
+        fr = fit_model(args.model, fits, preset=args.preset, free=free, bounds=bounds, search=search, data=data)
         v_rows, v_all, forces, _ = validate(fr.damper, whole, idx, data=fr_data(fr, data),
                                             offset=fr.settings["offsets"][0])
-    report_faults(caught)
     out = args.out
     out.mkdir(parents=True, exist_ok=True)
     f = fr.overall
@@ -210,14 +277,19 @@ def run(args: argparse.Namespace) -> int:
 
 
 def parameter_rows(fr) -> list[dict]:
-    """One row per parameter (and fitted command pseudo-parameter): initial, fitted, bounds, free or why fixed."""
+    """One row per parameter (and fitted command pseudo-parameter): initial, fitted, bounds (empty when fixed),
+    and its status: free, at its lower or upper bound, or fixed and why."""
     units = fr.damper.Params.units()
     values = fr.free_values()
+    at_bound = fr.bound_status()
     rows = []
     for k in list(fr.damper.params.names()) + [k for k in COMMAND_PARAMS if k in fr.free]:
-        is_free = k in fr.free
-        lo, hi = fr.bounds.get(k, (float("nan"), float("nan")))
-        rows.append({"parameter": k, "unit": units.get(k) or COMMAND_PARAMS[k][1], "initial": float(fr.initial[k]),
-                     "fitted": float(values[k] if is_free else fr.params[k]), "lower": float(lo), "upper": float(hi),
-                     "status": "free" if is_free else f"fixed ({fr.fixed.get(k, 'not in --free')})"})
+        row = {"parameter": k, "unit": units.get(k) or COMMAND_PARAMS[k][1], "initial": float(fr.initial[k])}
+        if k in fr.free:
+            lo, hi = fr.bounds[k]
+            row.update(fitted=float(values[k]), lower=float(lo), upper=float(hi), status=at_bound.get(k, "free"))
+        else:
+            row.update(fitted=float(fr.params[k]), lower="", upper="",
+                       status=f"fixed ({fr.fixed.get(k, 'not in --free')})")
+        rows.append(row)
     return rows

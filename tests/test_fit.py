@@ -264,3 +264,23 @@ def test_sensor_error_propagation_table(tmp_path):
     assert rows["E_t"]["mean"] < 0.05
     md = (tmp_path / "bouc_wen_propagation.md").read_text()
     assert "| quantity | unit | true | mean | std | CI95 low | CI95 high | bias % | std % |" in md
+
+
+def test_a_parameter_fitted_onto_its_bound_is_flagged_and_fixed_ones_show_no_bounds(tmp_path, capsys):
+    """A Bingham damper with c0a = 3000 N·s/m fitted with c0a bounded to 1000–2500: c0a ends on its upper bound,
+    and the table says so (not "free"), the console warns; the fixed v_s has empty bound cells, never nan."""
+    from experiments.cli import main
+    truth = make_damper("bingham", c0a=3000.0)
+    r = random_test(truth, rms=0.004, bandwidth=8.0, duration=1.0, switch_rate=4.0, rng=2, dt=1e-3)
+    data = DamperRecord(r.t, r.x, r.command, r.force, r.v).to_csv(tmp_path / "rec.csv")
+    out = tmp_path / "out"
+    assert main(["identify", "--data", str(data), "--model", "bingham", "--bounds", "c0a=1000:2500",
+                 "--maxiter", "60", "--no-progress", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    with (out / "bingham_params.csv").open() as fh:
+        rows = {row["parameter"]: row for row in csv.DictReader(fh)}
+    assert rows["c0a"]["status"] == "at upper bound" and float(rows["c0a"]["fitted"]) == pytest.approx(2500, rel=1e-3)
+    assert rows["fc_a"]["status"] == "free"
+    assert "warning: bingham: c0a = 2500 N·s/m is at upper bound (2500 N·s/m)" in printed
+    assert rows["v_s"]["lower"] == rows["v_s"]["upper"] == "" and rows["v_s"]["status"].startswith("fixed")
+    assert "nan" not in (out / "bingham_params.md").read_text()

@@ -164,3 +164,44 @@ def test_identify_cli_validate_and_align(tmp_path, capsys):
         names = [r["parameter"] for r in csv.DictReader(fh)]
     assert {"command_eta", "command_eta_fall", "command_delay"} <= set(names)
     assert "force offset [0] samples" in capsys.readouterr().out
+
+
+def test_identify_cli_gives_the_neural_model_its_force_offset(tmp_path, capsys):
+    """--force-offset SAMPLES imposes the offset on the neural model; auto has a Spencer–Dyke fit find it first
+    (the network cannot) and says so; a value that is not whole samples is refused in one line naming the option."""
+    from experiments.cli import main
+    _, rec = _record("spencer_dyke", command=None, duration=0.5, noise=0.005)
+    path = _shifted(rec, 3).to_csv(tmp_path / "shifted.csv")
+    base = ["identify", "--data", str(path), "--model", "neural", "--maxiter", "2", "--no-progress"]
+    assert main(base + ["--force-offset", "3", "--out", str(tmp_path / "given")]) == 0
+    out = capsys.readouterr().out
+    assert "force offset [3] samples" in out and "spencer_dyke fit" not in out
+    assert main(base + ["--force-offset", "auto", "--out", str(tmp_path / "auto")]) == 0
+    out = capsys.readouterr().out
+    assert "note: force offset 3 samples, found by the spencer_dyke fit" in out and "force offset [3] samples" in out
+    for bad in ("12.5", "one"):
+        assert main(base + ["--force-offset", bad]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and f"--force-offset {bad!r} is invalid: give a whole number of samples" in err
+    assert main(["identify", "--help"]) == 0
+    assert "--force-offset SAMPLES|auto" in capsys.readouterr().out
+
+
+def test_neural_model_takes_records_of_one_rate_whose_time_stamps_round_differently():
+    """Two tests at 3004.8 Hz with time stamps written to 0.1 µs (as the NEES export does) have mean intervals that
+    differ in the 10th digit: one rate. A record at another rate is refused, naming both rates."""
+    fs = 3004.8
+    d = make_damper("bingham")
+    recs = []
+    for rng, duration in ((1, 0.6), (2, 0.8)):
+        r = random_test(d, rms=0.004, bandwidth=8.0, duration=duration, switch_rate=8.0, dt=1 / fs, rng=rng)
+        recs.append(DamperRecord(np.round(r.t, 7), r.x, r.command, r.force, r.v, label=f"test {rng}"))
+    assert recs[0].dt != recs[1].dt
+    res = fit_model("neural", recs, search={"maxiter": 2, "progress": False})
+    assert [r["label"] for r in res.records] == ["test 1", "test 2"]
+    r = random_test(d, rms=0.004, bandwidth=8.0, duration=0.6, switch_rate=8.0, dt=1e-3, rng=3)
+    slow = DamperRecord(r.t, r.x, r.command, r.force, r.v, label="slow")
+    with pytest.raises(ValueError, match=r"one sampling rate: 'test 1' is sampled at 3004.8 Hz .*'slow' at 1000 Hz"):
+        fit_model("neural", [recs[0], slow], search={"maxiter": 2, "progress": False})
+    with pytest.raises(ValueError, match=r"trained at 3004.8 Hz .*'slow' is sampled at 1000 Hz"):
+        predict(res.damper, slow)

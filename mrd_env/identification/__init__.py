@@ -14,11 +14,11 @@
 from .data import UNITS, DamperRecord, load_record_csv
 from .compare import compare_models
 from .faults import Fault, FaultsExcluded, find_faults
-from .fit import fit_model
+from .fit import fit_model, reference_offset
 from .neural import NeuralForwardModel, NeuralOptions
 from .options import DataOptions, SearchOptions
 from .presets import load_preset, save_preset
-from .result import FitResult
+from .result import FitResult, ParameterAtBound
 from .simulate import predict
 from .measures import error_displacement, error_measures, error_time, error_velocity, j1, j2
 from .propagate import propagate_sensor_errors
@@ -32,7 +32,8 @@ __all__ = [
     "LoadCell", "DisplacementSensor", "SensorSet", "SensorReadout", "apply_sensors",
     "Contribution", "UncertaintyBudget", "rss_budget", "table8_contributions", "TABLE8_DEFAULTS",
     "MonteCarloResult", "monte_carlo", "as_generator",
-    "FitResult", "fit_model", "SearchOptions", "DataOptions", "NeuralOptions", "NeuralForwardModel", "predict",
+    "FitResult", "ParameterAtBound", "fit_model", "reference_offset", "SearchOptions", "DataOptions",
+    "NeuralOptions", "NeuralForwardModel", "predict",
     "find_faults", "Fault", "FaultsExcluded", "save_preset", "load_preset", "compare_models",
     "propagate_sensor_errors",
 ]

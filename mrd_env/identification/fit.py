@@ -41,6 +41,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
+import warnings
 from typing import Iterable, Mapping
 
 from ..dampers import DamperModel, damper_class
@@ -53,12 +54,16 @@ from .parameters import (COMMAND_PARAMS, _make_params, _valid_range, command_wit
                          fixed_by_default, initial_values)
 from .prepare import as_records, prepare_record
 from .problem import Problem
-from .result import FitResult, _measures, pooled_measures, record_info
+from .result import FitResult, ParameterAtBound, _measures, pooled_measures, record_info
 from .simulate import predict
 
-__all__ = ["fit_model", "SearchOptions", "DataOptions"]
+__all__ = ["fit_model", "reference_offset", "SearchOptions", "DataOptions"]
 
 ALIGN_ROUNDS = 3  # refits at most when the fitted model prefers another force offset
+#: The model whose fit (command dynamics free, align=True) gives the neural model its force offset: the offset a
+#: model finds depends on what it can explain (on the NEES record Bingham prefers +2 samples, the hyperbolic
+#: tangent +1, Spencer–Dyke with its fitted lag −1), so the best-fitting one is asked.
+OFFSET_REFERENCE = "spencer_dyke"
 
 
 def fit_model(model: str | DamperModel, records, *, preset: str | None = None, free: Iterable[str] | None = None,
@@ -148,11 +153,36 @@ def fit_model(model: str | DamperModel, records, *, preset: str | None = None, f
     per = [_measures(p, predict(damper, p, **opts)[1]) for p in preps]
     settings = {"preset": preset_name, **dataclasses.asdict(search), **dataclasses.asdict(data),
                 "maxiter": search.iterations, "offsets": offsets, "integrator_options": opts}
-    return FitResult(cls.name, damper, damper.params.to_dict(), init_vals, free_t, bnd,
-                     {k: v for k, v in fixed_by_default(cls, params0).items() if k not in free_t}, search.method,
-                     int(search.seed), J, J0, per, pooled_measures(per), time.perf_counter() - t_start,
-                     n_evaluations, nit, bool(converged), str(message), tuple(history), prob.n_infeasible,
-                     prob.n_diverged, record_info(preps), settings)
+    fr = FitResult(cls.name, damper, damper.params.to_dict(), init_vals, free_t, bnd,
+                   {k: v for k, v in fixed_by_default(cls, params0).items() if k not in free_t}, search.method,
+                   int(search.seed), J, J0, per, pooled_measures(per), time.perf_counter() - t_start,
+                   n_evaluations, nit, bool(converged), str(message), tuple(history), prob.n_infeasible,
+                   prob.n_diverged, record_info(preps), settings)
+    for msg in fr.bound_messages():  # a parameter held by its bound is not a fitted value: never silently
+        warnings.warn(msg, ParameterAtBound, stacklevel=2)
+    return fr
+
+
+def reference_offset(records, *, model: str = OFFSET_REFERENCE, search: SearchOptions | Mapping | None = None,
+                     data: DataOptions | Mapping | None = None) -> tuple[int, FitResult]:
+    """(force offset in samples, the fit that found it): ``model`` fitted by least squares with its command
+    dynamics free and ``align=True`` on ``records`` — the offset to give the neural model, which cannot find it
+    (:mod:`.align`). ``search``: its seed and progress are used; ``data``: the records' preparation."""
+    search = as_options(SearchOptions, search, "search")
+    data = as_options(DataOptions, data, "data")
+    cls = damper_class(model)
+    base = cls.preset(None)
+    free = [k for k in cls.Params.names() if k not in fixed_by_default(cls, base.params)] + list(COMMAND_PARAMS)
+    with warnings.catch_warnings():  # its parameters are not reported: only its offset is used
+        warnings.simplefilter("ignore", ParameterAtBound)
+        fr = fit_model(model, records, free=free,
+                       search=SearchOptions(seed=search.seed, progress=search.progress),
+                       data=dataclasses.replace(data, align=True, offset=None))
+    offsets = sorted(set(fr.settings["offsets"]))
+    if len(offsets) != 1:
+        raise ValueError(f"the records' force offsets differ ({fr.settings['offsets']} samples, found by a "
+                         f"{model} fit): the neural model takes one offset; fit the records one at a time")
+    return int(offsets[0]), fr
 
 
 def _initial_guess(model, preset, initial):

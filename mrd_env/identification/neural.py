@@ -30,6 +30,18 @@ __all__ = ["NeuralOptions", "NeuralForwardModel", "fit_neural", "LAGS"]
 
 LAGS = (0, 1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64)
 NAME = "neural"
+# records whose sampling rates agree this closely are on one grid: files of one rate round their time stamps
+# differently (a few 1e-6 of the mean interval), a real change of rate is far larger
+RATE_RTOL = 1e-4
+
+
+def same_rate(dt_a: float, dt_b: float) -> bool:
+    """Whether two sampling intervals (s) are the same rate within :data:`RATE_RTOL`."""
+    return abs(dt_a - dt_b) <= RATE_RTOL * max(dt_a, dt_b)
+
+
+def _rate(dt: float) -> str:
+    return f"{1.0 / dt:.6g} Hz (dt = {dt:.6g} s)"
 
 
 @dataclass(frozen=True)
@@ -88,9 +100,9 @@ class NeuralForwardModel:
 
     def predict_prepared(self, prep: PreparedRecord) -> np.ndarray:
         """The model force (N) at every sample of a prepared record (its grid step must be the training one)."""
-        if abs(prep.dt - self.dt) > 1e-6 * self.dt:
-            raise ValueError(f"the neural model was trained at dt = {self.dt:g} s; record {prep.label!r} is on "
-                             f"dt = {prep.dt:g} s (resample it with dt={self.dt:g})")
+        if not same_rate(prep.dt, self.dt):
+            raise ValueError(f"the neural model was trained at {_rate(self.dt)}; record {prep.label!r} is sampled "
+                             f"at {_rate(prep.dt)}: resample it to the model's step (dt = {self.dt:.6g} s)")
         h = (_windows(prep, self.lags) - self.x_mean) / self.x_std
         W1, b1, W2, b2, W3, b3 = (w.astype(np.float64) for w in self.weights)
         h = np.tanh(h @ W1.T + b1)
@@ -137,12 +149,15 @@ def fit_neural(records, net: NeuralOptions, search, data):
     preps = [prepare_record(r, command, **kw) for r in records]
     if data.align and data.offset is None:
         raise ValueError("the neural model cannot find the force offset itself (a more recent motion always fits "
-                         "better): give data={'offset': s}, e.g. the offset a parametric fit with align=True reports")
+                         "better): give it the one a parametric fit finds, "
+                         "data={'offset': reference_offset(records)[0]} (on the command line: --force-offset auto)")
     if data.offset:
         preps = [prepare_record(r, command, offset=data.offset, **kw) for r in records]
-    dts = {round(p.dt, 12) for p in preps}
-    if len(dts) != 1:
-        raise ValueError(f"the records have different grid steps {sorted(dts)} s: give data.dt to put them on one")
+    other = next((p for p in preps if not same_rate(p.dt, preps[0].dt)), None)
+    if other is not None:
+        raise ValueError(f"the neural model needs records of one sampling rate: {preps[0].label!r} is sampled at "
+                         f"{_rate(preps[0].dt)}, {other.label!r} at {_rate(other.dt)}; give dt (--dt) to resample "
+                         "them to one step")
     X = np.concatenate([_windows(p, net.lags)[p.mask] for p in preps])
     y = np.concatenate([p.force[p.mask] for p in preps])
     x_mean, x_std = X.mean(axis=0), X.std(axis=0)

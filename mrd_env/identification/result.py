@@ -12,6 +12,14 @@ from .measures import error_measures
 from .parameters import COMMAND_PARAMS, initial_values
 from .prepare import PreparedRecord
 
+# a fitted value within this fraction of its bounds' span of a bound sits on it (the optimisers work on the
+# bounds scaled to [0, 1]: 1e-3 there is well below any step that still improves the fit)
+BOUND_RTOL = 1e-3
+
+
+class ParameterAtBound(UserWarning):
+    """A parameter was fitted onto one of its bounds: the best fit may lie beyond it."""
+
 
 @dataclass(frozen=True, eq=False)
 class FitResult:
@@ -65,6 +73,30 @@ class FitResult:
         d = initial_values(self.damper.params, self.damper.command) if self.params else {}
         return {k: d[k] for k in self.free}
 
+    def bound_status(self) -> dict[str, str]:
+        """{free parameter: "at lower bound" or "at upper bound"} for those fitted onto a bound (within
+        :data:`BOUND_RTOL` of the bounds' span); the others are not listed."""
+        out = {}
+        for k, v in self.free_values().items():
+            lo, hi = self.bounds[k]
+            tol = BOUND_RTOL * (hi - lo)
+            if v <= lo + tol:
+                out[k] = "at lower bound"
+            elif v >= hi - tol:
+                out[k] = "at upper bound"
+        return out
+
+    def bound_messages(self) -> list[str]:
+        """One sentence per parameter fitted onto a bound (see :meth:`bound_status`)."""
+        units = self.damper.Params.units() if self.free else {}
+        out = []
+        for k, where in self.bound_status().items():
+            unit = units.get(k) or COMMAND_PARAMS[k][1]
+            bound = self.bounds[k][0 if where == "at lower bound" else 1]
+            out.append(f"{self.model}: {k} = {self.free_values()[k]:.6g} {unit} is {where} ({bound:.6g} {unit}): "
+                       "the best fit may lie beyond it (widen its bounds)")
+        return out
+
     def summary(self) -> str:
         o = self.overall
         lines = [f"{self.model} fitted by {self.method} (seed {self.seed}) on {len(self.per_record)} record(s): "
@@ -72,10 +104,12 @@ class FitResult:
                  f"J2 = {o['J2']:.4g} N; objective {self.initial_objective:.4g} → {self.objective:.4g}; "
                  f"{self.n_evaluations} evaluations, {self.wall_time:.1f} s; {self.message}"]
         units = self.damper.Params.units() if self.free else {}
+        status = self.bound_status()
         for k in self.free:
             v = self.free_values()[k]
             unit = units.get(k) or COMMAND_PARAMS[k][1]
-            lines.append(f"  {k:10s} = {v:.6g} {unit}  (initial {self._initial_of(k):.6g})")
+            flag = f"  {status[k]}" if k in status else ""
+            lines.append(f"  {k:10s} = {v:.6g} {unit}  (initial {self._initial_of(k):.6g}){flag}")
         return "\n".join(lines)
 
     def _initial_of(self, k):
