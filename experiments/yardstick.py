@@ -91,6 +91,12 @@ def warm_starts(problem, plant: str, agents=()) -> dict[str, np.ndarray]:
     return out
 
 
+def force_peak(problem, commands) -> float:
+    """The largest |F − F_static| (N) of the damper on the problem's episode under ``commands``."""
+    tr = problem.replay(commands, states=True)
+    return float(np.nanmax(np.abs(tr.F - problem.F_static)))
+
+
 def best_passive(problem) -> tuple[float, float]:
     """(return, command) of the best constant command on the problem's episode."""
     best = (-math.inf, math.nan)
@@ -117,24 +123,23 @@ def episode_yardstick(scenario: Scenario, seed: int, plant: str, *, agents=(), b
         return EpisodeYardstick(**{k: (math.nan if v is None else v) for k, v in hit.items()})
     if not solve:
         return None
-    if hit is not None:
-        y = EpisodeYardstick(**{k: (math.nan if v is None else v) for k, v in hit.items()})
-    else:
-        from mrd_env.optimal import clairvoyant
+    from mrd_env.optimal import clairvoyant
 
-        rp, vp = best_passive(problem)
-        starts = warm_starts(problem, plant, agents)
-        t0 = time.perf_counter()
-        cv = clairvoyant(problem, warm_starts=starts, cache=cache, progress=progress)
-        wall = getattr(cv, "wall_time", time.perf_counter() - t0)
-        y = EpisodeYardstick(scenario.label(seed), int(seed), rp, vp, float(cv.ret), str(cv.source), float(wall),
-                             warm_starts={k: float(v) for k, v in getattr(cv, "warm_returns", {}).items()})
+    rp, vp = best_passive(problem)
+    starts = warm_starts(problem, plant, agents)
+    cv = clairvoyant(problem, warm_starts=starts, cache=cache, progress=progress)  # its own cache: commands too
+    y = EpisodeYardstick(scenario.label(seed), int(seed), rp, vp, float(cv.ret), str(cv.source), float(cv.wall_time),
+                         warm_starts={k: float(v) for k, v in cv.warm_returns.items()})
     if bound:
         from mrd_env.optimal import active_bound
 
         t0 = time.perf_counter()
-        b = active_bound(problem)
-        y.bound, y.f_max, y.bound_seconds = float(b.bound), float(b.f_max), time.perf_counter() - t0
+        # the actuator may use the largest force any compared controller used on the episode: passive-on, the laws,
+        # the agents and the clairvoyant (the bound then holds for each of them)
+        on = np.full((problem.n_steps, problem.nd), problem.v_max)
+        y.f_max = max(force_peak(problem, U) for U in [on, *starts.values(), cv.commands])
+        b = active_bound(problem, f_max=y.f_max)
+        y.bound, y.bound_seconds = float(b.bound), time.perf_counter() - t0
     if cache:
         store.store("yardstick", key, {k: (None if isinstance(v, float) and math.isnan(v) else v)
                                        for k, v in asdict(y).items()})
