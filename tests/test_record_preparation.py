@@ -205,3 +205,40 @@ def test_neural_model_takes_records_of_one_rate_whose_time_stamps_round_differen
         fit_model("neural", [recs[0], slow], search={"maxiter": 2, "progress": False})
     with pytest.raises(ValueError, match=r"trained at 3004.8 Hz .*'slow' is sampled at 1000 Hz"):
         predict(res.damper, slow)
+
+
+def test_a_run_away_is_excluded_as_a_whole_not_only_where_the_force_clips():
+    """The last 0.6 s of a test: the actuator runs away at ±0.9 m/s (more than twice the test's peak speed), switched
+    off for 0.1 s, then on, so that the load cell is pinned at its limit for the last 0.5 s (but at the reversals).
+    The whole segment, from the first run-away sample to the end, is one fault, left out of the fit and the errors
+    and reported — not only its clipped samples, which would leave the first 0.1 s and every reversal in."""
+    from mrd_env.rig import simulate
+    d, rec = _record(noise=0.0, duration=3.0)
+    k_a = rec.n - int(round(0.6 / DT))
+    tau = rec.t[k_a:] - rec.t[k_a]
+    v = rec.v.copy()
+    v[k_a:] = 0.9 * np.tanh(np.sin(2 * np.pi * tau / 0.3) / 0.05)  # ±0.9 m/s, reversing every 0.15 s
+    x = rec.x.copy()
+    x[k_a:] = x[k_a - 1] + np.cumsum(v[k_a:]) * DT
+    cmd = rec.command.copy()
+    cmd[k_a:] = np.where(tau < 0.1, 0.0, LAG.v_max)
+    F = simulate(d, x, cmd, DT, v=v)[0].force
+    limit = 1.05 * np.abs(F[k_a:k_a + int(0.1 / DT)]).max()
+    assert limit > np.abs(F[:k_a]).max()  # the test itself never reaches the load cell's limit
+    F = np.clip(F + 0.005 * np.std(F[:k_a]) * np.random.default_rng(0).standard_normal(rec.n), -limit, limit)
+    bad = DamperRecord(rec.t, x, cmd, F, v, label="run-away")
+    assert np.count_nonzero(np.abs(F) == limit) < 0.5 / DT  # the clipped samples: not the whole segment
+    run = [f for f in find_faults(bad) if f.kind == "run-away"]
+    assert len(run) == 1 and run[0].i1 == rec.n - 1 and k_a <= run[0].i0 <= k_a + int(round(0.002 / DT))
+    assert find_faults(DamperRecord(rec.t[:k_a], x[:k_a], cmd[:k_a], F[:k_a], v[:k_a])) == []
+    with pytest.warns(FaultsExcluded, match=r"run-away \(speed far beyond the test's, with a saturated channel\) "
+                                            r"at t = 2\.4"):
+        prep = prepare_record(bad, d.command)
+    first = run[0].i0 - int(round(0.005 / DT))  # the fault margin
+    assert not prep.mask[first:].any() and prep.mask[:first - 1].all()
+    free = ["fc_a", "fc_b", "c0a", "c0b"]
+    with pytest.warns(FaultsExcluded, match=r"\(2\d\d\d of 12001 samples"):
+        res = fit_model(d, bad, free=free, initial={k: 1.3 * getattr(d.params, k) for k in free}, search=QUIET)
+    assert res.records[0]["samples_scored"] == np.count_nonzero(prep.mask)
+    for k in free:
+        assert res.params[k] == pytest.approx(getattr(d.params, k), rel=0.01)

@@ -18,7 +18,15 @@ design and is not searched):
 * **spike** — a sample that departs from both neighbours in the same direction by more than ``spike_threshold``
   times the robust scale of the channel's sample-to-sample change (1.4826 × median absolute deviation); a step
   (the command switching, a force following it) departs from one neighbour only and is not a spike;
-* **gap** — a time step longer than ``gap_factor`` × the median step.
+* **gap** — a time step longer than ``gap_factor`` × the median step;
+* **run-away** — a test gone wrong as a whole (an actuator running away, its load cell pinned at the limit): the
+  samples whose speed |ẋ| (measured, else dx/dt) exceeds ``runaway_factor`` times the record's median speed — far
+  beyond the test's envelope: a random test peaks near 7 times its median speed, a sine at 1.4 times; on the NEES
+  record at 8.8 times — chained with the saturation spans they touch, across gaps shorter than ``runaway_gap``
+  (the run-away reverses through zero speed), form one segment when the chain holds both; it reaches back and on
+  to the nearest samples at or below the median speed (where the motion left and rejoined the test's), and into
+  an end of the record closer than a gap. The whole segment is a fault, not only its clipped samples: the motion
+  that drove the load cell to its limit is no test either.
 """
 from __future__ import annotations
 
@@ -39,7 +47,7 @@ class FaultsExcluded(UserWarning):
 
 @dataclass(frozen=True)
 class Fault:
-    """One fault: ``kind`` ("saturation", "spike" or "gap"), ``channel`` ("x", "v", "command", "force" or "t"),
+    """One fault: ``kind`` ("saturation", "spike", "gap" or "run-away"), ``channel`` ("x", "v", "force" or "t"),
     ``start`` and ``end`` (s, inclusive; the samples i0..i1)."""
 
     kind: str
@@ -50,7 +58,9 @@ class Fault:
     i1: int
 
     def __str__(self) -> str:
-        where = f"{self.kind} of {self.channel} at t = {self.start:.5g}"
+        what = ("run-away (speed far beyond the test's, with a saturated channel)" if self.kind == "run-away"
+                else f"{self.kind} of {self.channel}")
+        where = f"{what} at t = {self.start:.5g}"
         if self.i0 == self.i1:
             return f"{where} s (1 sample)"
         return f"{where}–{self.end:.5g} s ({self.i1 - self.i0 + 1} samples)"
@@ -81,13 +91,16 @@ def _measured(record: DamperRecord) -> dict[str, np.ndarray]:
 
 
 def find_faults(record: DamperRecord, *, saturation_duration: float = 0.02, saturation_tol: float = 1e-4,
-                clip_samples: int = 5, spike_threshold: float = 20.0, gap_factor: float = 1.5) -> list[Fault]:
+                clip_samples: int = 5, spike_threshold: float = 20.0, gap_factor: float = 1.5,
+                runaway_factor: float = 8.0, runaway_gap: float = 0.05) -> list[Fault]:
     """The faults of ``record`` (see the module docstring), in time order."""
     saturation_duration = check_scalar("saturation_duration", saturation_duration, 0.0, lo_open=True, unit="s")
     saturation_tol = check_scalar("saturation_tol", saturation_tol, 0.0, 1.0, lo_open=True)
     clip_samples = check_scalar("clip_samples", clip_samples, 2.0)
     spike_threshold = check_scalar("spike_threshold", spike_threshold, 1.0, lo_open=True)
     gap_factor = check_scalar("gap_factor", gap_factor, 1.0, lo_open=True)
+    runaway_factor = check_scalar("runaway_factor", runaway_factor, 1.0, lo_open=True)
+    runaway_gap = check_scalar("runaway_gap", runaway_gap, 0.0, unit="s")
     t = record.t
     steps = np.diff(t)
     dt = float(np.median(steps))
@@ -118,7 +131,35 @@ def find_faults(record: DamperRecord, *, saturation_duration: float = 0.02, satu
                 score = np.where(np.sign(dm) == np.sign(dp), np.minimum(np.abs(dm), np.abs(dp)), 0.0)
                 for i in np.flatnonzero(score > spike_threshold * scale) + 1:
                     add("spike", name, i, i)
+    speed = np.abs(record.velocity())
+    typical = float(np.median(speed))
+    saturated = [(f.i0, f.i1) for f in faults if f.kind == "saturation"]
+    if typical > 0 and saturated:
+        fast = _runs(speed > runaway_factor * typical)
+        gap = int(round(runaway_gap / dt))
+        calm = np.flatnonzero(speed <= typical)
+        for i0, i1 in _chains(fast, saturated, gap):
+            # from where the motion left the test's (the last calm sample before) to where it rejoined it
+            before, after = calm[calm < i0], calm[calm > i1]
+            i0 = before[-1] + 1 if before.size else 0
+            i1 = after[0] - 1 if after.size else t.size - 1
+            # a segment that stops short of an end of the record by less than a gap runs into it
+            add("run-away", "v", 0 if i0 < gap else i0, t.size - 1 if t.size - 1 - i1 < gap else i1)
     return sorted(faults, key=lambda f: (f.i0, f.channel))
+
+
+def _chains(fast, saturated, gap: int) -> list[tuple[int, int]]:
+    """The spans of chains of ``fast`` and ``saturated`` spans (each joined to the next across fewer than ``gap``
+    samples) that hold at least one of each."""
+    spans = sorted([(a, b, "fast") for a, b in fast] + [(a, b, "saturated") for a, b in saturated])
+    chains: list[list] = []
+    for i0, i1, what in spans:
+        if chains and i0 <= chains[-1][1] + gap:
+            chains[-1][1] = max(chains[-1][1], i1)
+            chains[-1][2].add(what)
+        else:
+            chains.append([i0, i1, {what}])
+    return [(a, b) for a, b, kinds in chains if len(kinds) == 2]
 
 
 def fault_mask(n: int, faults, margin: int = 0) -> np.ndarray:
