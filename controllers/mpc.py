@@ -3,14 +3,15 @@
 At every control step k the law solves, from the Kalman estimate x̂[k] (:class:`~.model_based._ObserverLaw`),
 the finite-horizon problem over H control periods T = ``control_dt``::
 
-    min_{f_0..f_{H−1}}  Σ_{j<H} ∫_{jT}^{(j+1)T} zᵀz + fᵀR₀f dt  +  x_Hᵀ P x_H,     |f_j| ≤ f_max
+    min_{f_0..f_{H−1}}  Σ_{j<H} ∫_{jT}^{(j+1)T} zᵀz + fᵀR₀f dt  +  (x_H − x_ss)ᵀ P (x_H − x_ss),     |f_j| ≤ f_max
     ẋ = A x + B_f f + B_w w,   z = C_z x + D_z f,   x(0) = x̂[k]
 
 — ClippedOptimal's LQ cost (the environment's ``objective`` weights, R₀ = 1/force_ref²) integrated exactly over
 each period with the force held (Van Loan 1978; :func:`~.model_based.van_loan`), P the discrete Riccati
-solution of the same sampled-data problem (so that without active bounds the law is the infinite-horizon
-sampled-data LQR for any H; Rawlings, Mayne & Diehl, Model Predictive Control, 2nd ed., §2.5), the disturbance
-w known over the horizon (a road preview) or zero. The QP is condensed onto the forces (Maciejowski,
+solution of the same sampled-data problem (so that without active bounds and known inputs the law is the
+infinite-horizon sampled-data LQR for any H; Rawlings, Mayne & Diehl, Model Predictive Control, 2nd ed., §2.5),
+x_ss the equilibrium under the last known input (the road height at the end of the horizon; 0 without preview),
+the disturbance w known over the horizon (a road preview) or zero. The QP is condensed onto the forces (Maciejowski,
 Predictive Control with Constraints, §3.1), solved by OSQP (Stellato et al. 2020) warm-started from the last
 step, one problem per batch row; f_0 is the desired force f_c, turned into the command by the clipped on–off law
 u = u_max·H((f_c − f)·f) as :class:`~.model_based.ClippedOptimal` (or by its ``inverse``).
@@ -58,9 +59,10 @@ class MPC(ClippedOptimal):
     ``osqp``: OSQP settings overriding the defaults. ``weights``, ``force_ref``, ``inverse`` and the observer's
     options as :class:`~.model_based.ClippedOptimal`.
 
-    With preview the road (z_r from the samples, linearly interpolated to the horizon's period boundaries, held
-    at the last previewed height beyond the preview; ż_r by finite differences) is a known input held first-order
-    between period boundaries, both in the prediction and in the Kalman filter's time update.
+    With preview the road (the samples of this and the earlier readings, linearly interpolated to the horizon's
+    period boundaries: :meth:`road_ahead`) is a known input, first-order hold between period boundaries, both in
+    the prediction and in the Kalman filter's time update. The horizon spans H·control_dt: at 1 ms and H = 10 it sees
+    10 ms of a preview that may reach further.
     """
 
     name = "mpc"
@@ -114,7 +116,14 @@ class MPC(ClippedOptimal):
             L[n + nd:, n + nF + j * nv:n + nF + (j + 1) * nv] = np.eye(nv)
             Hth += L.T @ Qd @ L
             X = Phi @ X + Gf @ L[n:n + nd] + Gv @ L[n + nd:]
-        Hth += X.T @ P @ X
+        # the terminal cost is the cost-to-go of the deviation from the steady state the plant settles to if the
+        # known input stays at its last value w_H = w_{H−1} + T ẇ_{H−1} (zero without preview)
+        wH = np.zeros((nw, nth))
+        wH[:, n + nF + (H - 1) * nv:n + nF + (H - 1) * nv + nw] = np.eye(nw)
+        wH[:, n + nF + (H - 1) * nv + nw:n + nF + H * nv] = self.control_dt * np.eye(nw)
+        self.steady_state = self._steady_state(Q, R, N)
+        Xe = X - self.steady_state @ wH
+        Hth += Xe.T @ P @ Xe
         Hth = 0.5 * (Hth + Hth.T)
         iF = slice(n, n + nF)
         H_ff, self._H_fx, self._H_fv = Hth[iF, iF], Hth[iF, :n], Hth[iF, n + nF:]
@@ -130,16 +139,26 @@ class MPC(ClippedOptimal):
         self.K_horizon = np.linalg.solve(H_ff, self._H_fx)[:nd]
         self._settings = {"eps_abs": 1e-8, "eps_rel": 1e-8, "polishing": True, "max_iter": 20000,
                           "verbose": False, "warm_starting": True, **(osqp or {})}
-        self._solvers: list = []
+        self._solvers: dict = {}
         self.last_plan = np.zeros((0, H, nd))
+
+    def _steady_state(self, Q, R, N) -> np.ndarray:
+        """S (n × nw): the cheapest equilibrium x_ss = S w̄ under a constant input w̄ — min xᵀQx + 2xᵀNf + fᵀRf
+        s.t. A x + B_f f + B_w w̄ = 0 (the target calculation of Rawlings, Mayne & Diehl 2017, §1.5); for the
+        car on a road at constant height z̄, both masses at z̄ with no force."""
+        d = self.design
+        n, nd, nw = d.n, d.nd, d.Bw.shape[1]
+        K = np.block([[Q, N, d.A.T], [N.T, R, d.Bf.T], [d.A, d.Bf, np.zeros((n, n))]])
+        rhs = np.vstack([np.zeros((n + nd, nw)), -d.Bw])
+        return np.linalg.lstsq(K, rhs, rcond=None)[0][:n]
 
     # --- preview ----------------------------------------------------------------------------------------------
     def _init_preview(self, preview):
-        measured = "road_preview" in self.layout and hasattr(self.env, "preview_times")
+        measured = "road_preview" in self.layout and len(getattr(self.env, "preview_times", ())) > 0
         if preview is True and not measured:
             raise ValueError("preview=True needs the 'road_preview' sensor (the quarter car's road heights ahead); "
                              f"the environment measures {list(self.layout)}; create it with "
-                             "sensors=(..., 'road_preview')")
+                             "sensors=(..., 'road_preview') and preview=(times ahead, s)")
         self.preview = measured if preview is None else bool(preview)
         if not self.preview:
             return
@@ -147,39 +166,62 @@ class MPC(ClippedOptimal):
         if tuple(names[:2]) != ("z_r", "zdot_r"):
             raise ValueError(f"the road preview drives the inputs (z_r, zdot_r); this plant's inputs are {names}")
         tau = np.asarray(self.env.preview_times, dtype=float).ravel()
-        if tau.size < 1 or np.any(np.diff(tau) <= 0) or tau[0] < 0:
+        if np.any(np.diff(tau) <= 0) or tau[0] < 0:
             raise ValueError(f"env.preview_times must be increasing and >= 0 s, got {tau}")
         sl = self.layout["road_preview"]
-        self._preview_index = np.arange(sl.start, sl.stop)[-tau.size:]  # the newest, with a stacked history
-        # the current height: the preview's first sample if it is at 0 s, else the road sensor if measured
-        self._road_index = None
-        if tau[0] > 0.0 and "road" in self.layout:
-            self._road_index = self.layout["road"].stop - 1
+        self._src = np.arange(sl.start, sl.stop)[-tau.size:]  # the newest, with a stacked history
+        if "road" in self.layout and tau[0] > 0.0:  # the road under the wheel now: a preview 0 s ahead
+            self._src = np.concatenate([[self.layout["road"].stop - 1], self._src])
             tau = np.concatenate([[0.0], tau])
-        self._tau = tau
-        self._grid = np.arange(self.horizon + 1) * self.control_dt  # the periods' boundaries ahead
+        # the road memory: the sample τ_i read m steps ago is the road τ_i − m·T ahead now; of the samples of one
+        # point ahead the newest is kept
+        T = self.control_dt
+        m_max = int(np.floor(tau[-1] / T + 1e-9))
+        ahead = {}
+        for m in range(m_max, -1, -1):
+            for i, t in enumerate(tau):
+                rel = round(t - m * T, 12)
+                if rel >= 0.0:
+                    ahead[rel] = (m, i)
+        rel = np.array(sorted(ahead))
+        self._ahead = rel                                     # s ahead, increasing
+        self._ahead_m = np.array([ahead[r][0] for r in rel])  # how many steps ago it was read
+        self._ahead_i = np.array([ahead[r][1] for r in rel])  # which channel
+        self._memory = np.zeros((0, m_max + 1, tau.size))     # per row: the last m_max + 1 readings, newest first
+        self._age = np.zeros(0, dtype=np.int64)               # readings since the episode started
+        self._grid = np.arange(self.horizon + 1) * T          # the periods' boundaries ahead
 
     def road_ahead(self, obs: np.ndarray) -> np.ndarray:
-        """w = [z_r, ż_r] at the horizon's period boundaries t + jT, j = 0..H, per row: (N, H + 1, 2)."""
-        Z = obs[:, self._preview_index]
-        if self._road_index is not None:
-            Z = np.hstack([obs[:, [self._road_index]], Z])
-        tau, g = self._tau, self._grid
-        dZ = np.gradient(Z, tau, axis=1) if tau.size > 1 else np.zeros_like(Z)
-        out = np.empty((obs.shape[0], g.size, 2))
-        beyond = g > tau[-1]
-        for b in range(obs.shape[0]):
-            out[b, :, 0] = np.interp(g, tau, Z[b])
-            out[b, :, 1] = np.where(beyond, 0.0, np.interp(g, tau, dZ[b]))
+        """Read the road preview of ``obs`` (N, n_obs) into the road memory and return w = [z_r, ż_r] at the
+        horizon's period boundaries t + jT, j = 0..H, per row: (N, H + 1, 2). Call once per control step.
+
+        The points ahead come from this and the earlier readings (a sample τ ahead read m steps ago is τ − m·T
+        ahead now: at a 1 ms control step and samples 10 ms apart the memory fills the gaps to 1 ms, and holds the
+        road under the wheel). z_r: linearly interpolated between the points, held before the first and beyond the
+        last (ż_r = 0 there) — a random road is close to a random walk (ISO 8608: PSD ∝ n⁻²), whose best guess
+        outside its samples is the nearest one. ż_r: finite differences (``numpy.gradient``), interpolated alike."""
+        n = obs.shape[0]
+        self._memory = np.roll(self._memory, 1, axis=1)
+        self._memory[:, 0] = obs[:, self._src]
+        self._age += 1
+        g = self._grid
+        out = np.zeros((n, g.size, 2))
+        for b in range(n):
+            known = self._ahead_m < self._age[b]
+            tau = self._ahead[known]
+            z = self._memory[b, self._ahead_m[known], self._ahead_i[known]]
+            out[b, :, 0] = np.interp(g, tau, z)
+            if tau.size > 1:
+                out[b, :, 1] = np.interp(g, tau, np.gradient(z, tau))
+                out[b, (g < tau[0]) | (g > tau[-1]), 1] = 0.0
         return out
 
     def _known_inputs(self, obs):
         """V (N, H·nv): [w_j, ẇ_j] per period (w first-order hold between boundaries), or None without preview."""
         if not self.preview:
             return None
-        w = self.road_ahead(obs)                                  # (N, H+1, 2)
-        nw = self._nw
-        full = np.zeros((obs.shape[0], self.horizon + 1, nw))
+        w = self.last_road = self.road_ahead(obs)                 # (N, H+1, 2)
+        full = np.zeros((obs.shape[0], self.horizon + 1, self._nw))
         full[:, :, :2] = w
         slope = np.diff(full, axis=1) / self.control_dt           # (N, H, nw)
         return np.concatenate([full[:, :-1], slope], axis=2).reshape(obs.shape[0], -1)
@@ -187,26 +229,31 @@ class MPC(ClippedOptimal):
     # --- the law ----------------------------------------------------------------------------------------------
     def allocate(self, n_rows):
         super().allocate(n_rows)
-        import osqp
-        import scipy.sparse as sp
-
-        P = sp.triu(sp.csc_matrix(self._qp_P), format="csc")
-        m = self._qp_P.shape[0]
-        A = sp.identity(m, format="csc")
-        lo, hi = np.full(m, -self._u_max), np.full(m, self._u_max)
-        self._solvers = []
-        for _ in range(n_rows):
-            solver = osqp.OSQP()
-            solver.setup(P, np.zeros(m), A, lo, hi, **self._settings)
-            self._solvers.append(solver)
+        self._solvers = {}  # row → its OSQP problem, set up the first time that row's bounds bind
         self.last_plan = np.zeros((n_rows, self.horizon, self.design.nd))
+        if self.preview:
+            self._memory = np.zeros((n_rows,) + self._memory.shape[1:])
+            self._age = np.zeros(n_rows, dtype=np.int64)
+
+    def _solver(self, row: int):
+        solver = self._solvers.get(row)
+        if solver is None:
+            import osqp
+            import scipy.sparse as sp
+
+            m = self._qp_P.shape[0]
+            solver = self._solvers[row] = osqp.OSQP()
+            solver.setup(sp.triu(sp.csc_matrix(self._qp_P), format="csc"), np.zeros(m), sp.identity(m, format="csc"),
+                         np.full(m, -self._u_max), np.full(m, self._u_max), **self._settings)
+        return solver
 
     def reset_rows(self, mask):
         super().reset_rows(mask)
-        m = self._qp_P.shape[0]
+        if self.preview:
+            self._age[mask] = 0  # a new road: forget the old one
         for b in np.flatnonzero(mask):
             # a new episode starts from a cold solver: results do not depend on what came before
-            self._solvers[b].warm_start(x=np.zeros(m), y=np.zeros(m))
+            self._solvers.pop(int(b), None)
             self.last_plan[b] = 0.0
 
     def plan(self, x_hat: np.ndarray, V: np.ndarray | None = None) -> np.ndarray:
@@ -221,7 +268,7 @@ class MPC(ClippedOptimal):
             q = q + V @ self._qv_T
         out = q @ self._unconstrained_T
         for b in np.flatnonzero(np.any(np.abs(out) > self._u_max, axis=1)):
-            solver = self._solvers[b]
+            solver = self._solver(int(b))
             solver.update(q=q[b])
             res = solver.solve(raise_error=False)
             if res.info.status_val not in (1, 2):  # solved, solved inaccurate
@@ -231,19 +278,12 @@ class MPC(ClippedOptimal):
         return (out * self.force_ref).reshape(x_hat.shape[0], self.horizon, self.design.nd)
 
     def command(self, obs):
+        V = self._known_inputs(obs)
         x_hat, f = self.estimate(obs)
-        plan = self.plan(x_hat, self._known_inputs(obs))
+        if V is not None:
+            # the road is known now: the Kalman time update takes it as an input (first-order hold over the period)
+            self.kf.x += V[:, :self._nv] @ self.Gamma_v.T
+        plan = self.plan(x_hat, V)
         self.last_plan[:] = plan
         fc = self.last_desired = plan[:, 0]
         return self.actuate(fc, f, obs)
-
-    def estimate(self, obs):
-        if not self.preview:
-            return super().estimate(obs)
-        # the road is known now: the Kalman time update takes it as an input (first-order hold over the period)
-        y = obs[:, self._y_index]
-        f = self.dynamic_force(obs)
-        V = self._known_inputs(obs)[:, :self._nv]
-        x = self.kf.update(y, f)
-        self.kf.x += V @ self.Gamma_v.T
-        return x, f
