@@ -111,7 +111,8 @@ def test_without_preview_nothing_changes():
     (dict(preview=(0.1, 1j)), "preview"),
     (dict(preview=0.0005), r"preview times must be multiples of dt"),
     (dict(preview=0.0105), r"preview times must be multiples of dt"),
-    (dict(preview=(0.1, 0.1)), "preview must not repeat"),
+    (dict(preview=(0.1, 0.1)), "preview times must be increasing"),
+    (dict(preview=(0.1, 0.05)), "preview times must be increasing"),
     (dict(preview=11.0), "preview"),
 ])
 def test_bad_preview_options(kwargs, match):

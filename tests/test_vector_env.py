@@ -10,6 +10,7 @@ from gymnasium.vector import AutoresetMode
 
 import mrd_env  # noqa: F401  (registers the environments)
 from mrd_env.envs import QuarterCarVectorEnv, ShearBuildingVectorEnv
+from mrd_env.envs.vector import env_info
 
 QC, SB = "mrd_env/QuarterCar-v0", "mrd_env/ShearBuilding-v0"
 
@@ -51,7 +52,7 @@ def test_env_i_equals_a_scalar_env_with_the_same_seed_bit_for_bit(env_id, kw):
         sobs, srew, sinfo = _scalar_episode(env_id, 10 + i, acts[:, i], **kw)
         np.testing.assert_array_equal(vobs[:, i], sobs)
         np.testing.assert_array_equal(vrew[:, i], srew)
-        assert {k: v[i] for k, v in vinfo["episode_metrics"].items()} == sinfo["episode_metrics"]
+        assert env_info(vinfo, i)["episode_metrics"] == sinfo["episode_metrics"]
 
 
 def test_vector_env_api_and_next_step_autoreset():

@@ -6,12 +6,14 @@ A plant's module builds the assembly from the user's options and the class is a 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import gymnasium as gym
 import numpy as np
 
 from ..driver import BAD_ACTION, DIVERGED, HIST_FULL, RUNNING, TERMINATED
-from .core import Assembly, EnvCore, PlantDeclarations
+from .core import Assembly, EnvCore, PlantDeclarations, assemble
+from .render import HUMAN_FPS
 
 
 def action_space(asm: Assembly) -> gym.spaces.Box:
@@ -58,6 +60,12 @@ def as_action(action, nd: int, N: int | None = None) -> np.ndarray:
     return np.ascontiguousarray(a.reshape(-1))
 
 
+def render_fps(control_dt: float) -> float:
+    """Frames per second of simulated time: one frame per control step, so that a video plays in real time."""
+    fps = round(1.0 / control_dt, 9)
+    return int(fps) if fps == int(fps) else fps
+
+
 class MRDamperEnv(PlantDeclarations, gym.Env):
     """An MR-damper environment (see the plant's class docstring for its specification).
 
@@ -66,26 +74,44 @@ class MRDamperEnv(PlantDeclarations, gym.Env):
     control period and reaches the damper through its lag u̇ = −η (u − v). In force mode the action is the
     desired damper force beyond the static preload (N), clipped to the Box and turned into the command by the
     inverse model (``actuation``, reset with every episode). A wrongly shaped, non-numeric or non-finite action
-    raises ``ValueError``.
+    raises ``ValueError`` and changes nothing.
 
     Observations: float32, the chosen sensors in order (``sensor_layout`` lists ``(name, slice, unit)``;
     ``observation_labels`` names every entry), with noise, delay and history as configured.
 
     Episode end: ``terminated`` when a limit is exceeded (``info["termination_reason"] = "stroke_limit"``) or
     the simulation diverges (``"diverged: <message>"``, the last observation returned); ``truncated`` at the end
-    of the episode. The last step's info holds ``episode_metrics``. Every step's info has ``t`` (s);
-    ``damper_force`` and ``command`` (the last step's, (nd,)) are attributes of the environment.
+    of the episode, after ``max_episode_steps`` steps (also ``env.spec.max_episode_steps``; no TimeLimit wrapper
+    is needed or added). The last step's info holds ``episode_metrics``. Every step's info has ``t`` (s); reset's
+    has ``disturbance`` (the record's name); ``damper_force`` and ``command`` (the last step's, (nd,)) are
+    attributes of the environment.
+
+    Rendering: ``render_mode="rgb_array"`` (a frame of the plant) or ``"human"`` (a window); ``render_fps`` in
+    ``metadata`` is 1/control_dt, so that a video of one frame per step plays in simulated time.
+
+    Copies (``pickle``, ``copy.deepcopy``, cloudpickle) step exactly as the original from where it was copied.
+
+    Options: the plant's (see its class); an unknown option raises ``ValueError`` listing the valid ones. A plant's
+    class sets ``env_id`` and ``build`` (its assembly from the options).
     """
 
-    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 30}
+    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 1000}  # per instance: 1/control_dt
+    env_id = ""
+    build: Callable[..., Assembly] | None = None
 
-    def __init__(self, assembly: Assembly, render_mode: str | None = None):
+    def __init__(self, *, render_mode: str | None = None, assembly: Assembly | None = None, **options):
         super().__init__()
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, "
                              f"got {render_mode!r}")
+        if assembly is None:
+            assembly = assemble(type(self), options, own=("render_mode",))
+        elif options:
+            raise ValueError(f"options {sorted(options)} apply when the environment builds its assembly, not beside "
+                             f"an assembly")
         self.render_mode = render_mode
         self.assembly = asm = assembly
+        self.metadata = {**type(self).metadata, "render_fps": render_fps(asm.control_dt)}
         self.core = core = EnvCore(asm, 1, history=HIST_FULL)
         self.episode_seconds = asm.episode_seconds
         self.sensors = asm.sensors.names
@@ -99,10 +125,29 @@ class MRDamperEnv(PlantDeclarations, gym.Env):
         self._renderer = None
         self._last_frame_t = -math.inf
         self._ashape = (self.n_dampers,)
-        self._obs0 = core.obs[0]
-        self._reward0 = core.driver.state("REWARD")[0]
-        self._force0 = core.driver.state("F")[0]
-        self._cmd0 = core.driver.state("CMD")[0]
+        self._bind()
+
+    def _bind(self) -> None:
+        """Views of the driver's arrays the step reads (W and H may have been reallocated by a new episode; a copy
+        of the environment makes views separate arrays, so it binds them again)."""
+        d = self.core.driver
+        self._args = (d.fc, d.ic, d.fs, d.is_, d.W, d.H)
+        self._kstep = d.kernel.core_step
+        self._obs0 = self.core.obs[0]
+        self._reward0 = d.state("REWARD")[0]
+        self._force0 = d.state("F")[0]
+        self._cmd0 = d.state("CMD")[0]
+        self._k0 = d.int_state("K")
+
+    _DERIVED = ("_args", "_kstep", "_obs0", "_reward0", "_force0", "_cmd0", "_k0", "_renderer")
+
+    def __getstate__(self) -> dict:
+        return {k: v for k, v in self.__dict__.items() if k not in self._DERIVED}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self._renderer = None  # a figure is not copied: the copy draws its own
+        self._bind()
 
     # --- Gymnasium API -----------------------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None):
@@ -113,18 +158,11 @@ class MRDamperEnv(PlantDeclarations, gym.Env):
         if self.actuation is not None:
             self.actuation.reset()
         self._done = False
-        self._t = 0.0
         self._bind()
         self._last_frame_t = -math.inf
         if self.render_mode == "human":
             self._render_human()
         return self._obs0.copy(), {"t": 0.0, "disturbance": self.record.name}
-
-    def _bind(self) -> None:
-        """The arrays of the compiled step (W and H may have been reallocated by a new episode)."""
-        d = self.core.driver
-        self._args = (d.fc, d.ic, d.fs, d.is_, d.W, d.H)
-        self._kstep = d.kernel.core_step
 
     def step(self, action):
         if self._done:
@@ -133,32 +171,33 @@ class MRDamperEnv(PlantDeclarations, gym.Env):
             a = action
         else:
             a = as_action(action, self.n_dampers)
+        for v in a:  # before the kernel, which would have written the first dampers' commands
+            if not math.isfinite(v):
+                raise ValueError("action must be finite (no NaN or infinity)")
         if self.actuation is not None:
             a = self.actuation.step_commands(a, self._obs0, self.assembly.force_range)
         status = self._kstep(*self._args, a, self.core.obs)
+        if status == BAD_ACTION:  # a non-finite command from the force mode's inverse
+            self.core.driver.int_state("STATUS")[0] = RUNNING
+            raise ValueError("the inverse model returned a non-finite command")
         obs = self._obs0.copy()
         reward = float(self._reward0[0])
-        if self.core.python_reward and status != DIVERGED and status != BAD_ACTION:
+        if self.core.python_reward and status != DIVERGED:
             reward += self.assembly.reward(self.core.period(0))
-        self._t += self.control_dt
+        t = float(self._k0[0] * self.control_dt)
         if status == RUNNING:
-            if self.render_mode == "human" and self._t - self._last_frame_t >= 1.0 / self.metadata["render_fps"]:
+            if self.render_mode == "human" and t - self._last_frame_t >= 1.0 / HUMAN_FPS:
                 self._render_human()
-            return obs, reward, False, False, {"t": self._t}
-        return self._end(status, obs, reward)
+            return obs, reward, False, False, {"t": t}
+        return self._end(status, obs, reward, t)
 
-    def _end(self, status: int, obs, reward):
+    def _end(self, status: int, obs, reward, t: float):
         core = self.core
-        if status == BAD_ACTION:
-            self._t -= self.control_dt
-            core.driver.int_state("STATUS")[0] = RUNNING
-            raise ValueError("action must be finite (no NaN or infinity)")
         self._done = True
-        info = {"t": self._t}
+        info = {"t": t}
         if status == DIVERGED:
             asm = self.assembly
             reward = -asm.limits.amount(core._n_steps[0] * asm.control_dt)
-            info["t"] = core.time(0)
             info["termination_reason"] = f"diverged: {core.failure_message(0)}"
         elif status == TERMINATED:
             info["termination_reason"] = "stroke_limit"
@@ -184,11 +223,18 @@ class MRDamperEnv(PlantDeclarations, gym.Env):
         """The command applied over the last step ((nd,), V or A)."""
         return self._cmd0.copy()
 
+    @property
+    def episode(self):
+        """The current episode (:class:`~.core.Episode`: its record, initial state and the plant's extras)."""
+        return self.core.episodes[0]
+
     def signal(self, name: str) -> np.ndarray:
         """History of a named signal over the episode so far, (rows, width) at ``dt`` from t = 0 (a copy)."""
-        sig = self.assembly.signals[name]
-        rows = int(self.core.driver.int_state("ROWS")[0])
-        return self.core.driver.H[0, :rows][:, sig.columns]
+        return self.core.signal(name, 0)
+
+    @property
+    def title(self) -> str:
+        return type(self).__name__
 
     # --- rendering ---------------------------------------------------------------------------------------------
     def render(self):
@@ -208,7 +254,7 @@ class MRDamperEnv(PlantDeclarations, gym.Env):
         if self._renderer is None:
             self._renderer = self.assembly.renderer(self, human=True)
         self._renderer.show()
-        self._last_frame_t = self._t
+        self._last_frame_t = self.core.time(0)
 
     def close(self) -> None:
         if self._renderer is not None:

@@ -33,15 +33,16 @@ def build(what: str, spec: Any, kinds: Mapping[str, Callable], default: str, bas
     return factory(**options, **context)
 
 
-def check_options(what: str, options: Mapping, factory: Callable, exclude: tuple = ()) -> None:
-    """``ValueError`` for an option ``factory`` does not take (its keyword parameters, minus ``exclude``)."""
+def check_options(what: str, options: Mapping, factory: Callable, exclude: tuple = (), also: tuple = ()) -> None:
+    """``ValueError`` for an option ``factory`` does not take (its keyword parameters, minus ``exclude``; the
+    message lists ``also``, names taken before the factory, among the valid ones)."""
     params = inspect.signature(factory).parameters
     if any(p.kind is p.VAR_KEYWORD for p in params.values()):
         return
     valid = [n for n, p in params.items() if n not in exclude and p.kind in (p.KEYWORD_ONLY, p.POSITIONAL_OR_KEYWORD)]
     unknown = sorted(set(options) - set(valid), key=str)
     if unknown:
-        raise ValueError(f"{what} has unknown option(s) {unknown}; valid: {sorted(valid)}")
+        raise ValueError(f"{what} has unknown option(s) {unknown}; valid: {sorted([*valid, *also])}")
 
 
 def as_options(name: str, given) -> dict:

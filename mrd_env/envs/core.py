@@ -9,11 +9,13 @@ initial state of an episode, the episode metrics, the roles of its signals for t
 """
 from __future__ import annotations
 
+import copy
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from gymnasium.envs.registration import EnvSpec
 
 from ..dampers import DamperModel
 from ..disturbances import Record
@@ -86,6 +88,31 @@ class Assembly:
     def n_sub(self) -> int:
         return int(round(self.control_dt / self.dt))
 
+    def episode_steps(self, n_samples: int) -> int:
+        """Control steps of an episode on a record of ``n_samples`` samples (cut at ``episode_seconds``)."""
+        n_phys = n_samples - 1
+        if self.episode_seconds is not None:
+            n_phys = min(n_phys, int(round(self.episode_seconds / self.dt)))
+        return n_phys // self.n_sub
+
+    @property
+    def max_episode_steps(self) -> int | None:
+        """The most control steps an episode has (None: the disturbance's records are of unknown length and no
+        ``episode_seconds`` bounds them)."""
+        n = self.disturbance.max_samples
+        if n is None:
+            return None if self.episode_seconds is None else int(round(self.episode_seconds / self.dt)) // self.n_sub
+        return self.episode_steps(n)
+
+
+def assemble(cls, options: dict, own: tuple[str, ...]) -> Assembly:
+    """The assembly of environment class ``cls`` (its ``build``, the plant's ``assembly(**options)``), after a
+    ``ValueError`` for an option it does not take, naming the valid ones (``own``: the class's own keywords)."""
+    from .build import check_options
+
+    check_options(cls.env_id or cls.__name__, options, cls.build, also=own)
+    return cls.build(**options)
+
 
 class PlantDeclarations:
     """What an environment declares about its plant, for controllers and users (shared by the scalar and vector
@@ -151,6 +178,25 @@ class PlantDeclarations:
         """The times ahead (s) at which the ``road_preview`` sensor reads the road (empty: no preview)."""
         return self.assembly.preview_times
 
+    @property
+    def max_episode_steps(self) -> int | None:
+        """The most control steps an episode of this environment has (None if unknown: a disturbance whose records
+        are of unknown length, without ``episode_seconds``)."""
+        return self.core.max_episode_steps
+
+    # Gymnasium's make() sets the spec after construction, with the registry's max_episode_steps (None: the
+    # episode length depends on the options); the environment knows its own and states it.
+    @property
+    def spec(self) -> EnvSpec | None:
+        return self.__dict__.get("_spec")
+
+    @spec.setter
+    def spec(self, value: EnvSpec | None) -> None:
+        if value is not None:
+            value = copy.copy(value)
+            value.max_episode_steps = self.max_episode_steps
+        self.__dict__["_spec"] = value
+
     def signal_matrices(self, name: str) -> dict[str, np.ndarray]:
         """The linear map of signal ``name``: s = C·[q, q̇] + D_F·F + D_w·w + d0 (q, q̇ the ``linear_plant``
         coordinates, F the damper forces, w its inputs). ``ValueError`` for a signal that is not a linear output
@@ -195,9 +241,10 @@ class EnvCore:
     ``signal()``), HIST_PERIOD the rows of the last control period (a Python reward), HIST_NONE nothing.
     """
 
-    def __init__(self, asm: Assembly, N: int, history: int = HIST_NONE):
+    def __init__(self, asm: Assembly, N: int, history: int = HIST_NONE, step_cap: int | None = None):
         self.asm = asm
         self.N = N
+        self.step_cap = step_cap  # at most this many control steps per episode (a vector env's max_episode_steps)
         sig = asm.signals
         self.meas_cols, noise, self.layout, self.labels = asm.sensors.bind(sig, asm.sensor_names)
         self.python_reward = isinstance(asm.reward, CallableReward)
@@ -231,11 +278,43 @@ class EnvCore:
                              v_range=(cmd.v_min, cmd.v_max))
         self.nd = asm.coupled.system.nd
         self.episodes: list[Episode | None] = [None] * N
-        self._status = self.driver.int_state("STATUS")
-        self._k = self.driver.int_state("K")
-        self._reward = self.driver.state("REWARD")[:, 0]
-        self._rscale = self.driver.state("RSCALE")
-        self._n_steps = self.driver.int_state("NSTEPS")
+        self._bind_views()
+
+    def _bind_views(self) -> None:
+        """Views of the driver's state (re-derived on a copy, which would make them separate arrays)."""
+        d = self.driver
+        self._status = d.int_state("STATUS")
+        self._k = d.int_state("K")
+        self._reward = d.state("REWARD")[:, 0]
+        self._rscale = d.state("RSCALE")
+        self._n_steps = d.int_state("NSTEPS")
+
+    # --- copies (pickle, deepcopy, cloudpickle) ---------------------------------------------------------------
+    _VIEWS = ("_status", "_k", "_reward", "_rscale", "_n_steps")
+    _CODE = ("kernel", "_step")  # the driver's compiled module and entry: loaded again from the damper's class
+
+    def __getstate__(self) -> dict:
+        state = {k: v for k, v in self.__dict__.items() if k not in self._VIEWS}
+        d = self.driver
+        state["driver"] = (type(d), {k: v for k, v in vars(d).items() if k not in self._CODE})
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        from ..integrator import kernel_module
+
+        cls, dstate = state.pop("driver")
+        d = cls.__new__(cls)
+        d.__dict__.update(dstate)
+        d.kernel = kernel_module(type(d.damper))
+        d._step = d.kernel.core_step_parallel if d.threads > 1 else d.kernel.core_step  # as Driver.__init__
+        self.__dict__.update(state)
+        self.driver = d
+        self._bind_views()
+
+    @property
+    def max_episode_steps(self) -> int | None:
+        n = self.asm.max_episode_steps
+        return self.step_cap if n is None else (n if self.step_cap is None else min(n, self.step_cap))
 
     # --- episodes -------------------------------------------------------------------------------------------
     def start(self, rngs, mask=None) -> None:
@@ -252,9 +331,9 @@ class EnvCore:
         n_sub = asm.n_sub
         rows = {}
         for b, rec in recs.items():
-            n_avail = rec.n_samples - 1
-            n_phys = n_avail if asm.episode_seconds is None else min(n_avail, int(round(asm.episode_seconds / asm.dt)))
-            n_steps = n_phys // n_sub
+            n_steps = asm.episode_steps(rec.n_samples)
+            if self.step_cap is not None:
+                n_steps = min(n_steps, self.step_cap)
             if n_steps < 1:
                 raise ValueError(f"the disturbance record ({rec.duration:g} s) is shorter than one control period "
                                  f"({asm.control_dt:g} s)")
@@ -326,3 +405,9 @@ class EnvCore:
 
     def time(self, b: int) -> float:
         return float(self._k[b] * self.asm.control_dt)
+
+    def signal(self, name: str, b: int) -> np.ndarray:
+        """History of signal ``name`` of env b over its episode so far, (rows, width) at ``dt`` (HIST_FULL)."""
+        sig = self.asm.signals[name]
+        rows = int(self.driver.int_state("ROWS")[b])
+        return self.driver.H[b, :rows][:, sig.columns]

@@ -21,6 +21,9 @@ class Disturbance(ABC):
 
     channels: tuple[str, ...] = ()
     random: bool = False
+    #: the most samples a record of this source has (None: not known), for the episode length an environment
+    #: declares (``env.spec.max_episode_steps``)
+    max_samples: int | None = None
 
     @abstractmethod
     def sample(self, rng: np.random.Generator, dt: float) -> Record:
@@ -57,6 +60,7 @@ class FixedRecord(Disturbance):
     def __init__(self, record: Record, channels: Sequence[str], units: Sequence[str], dt: float):
         self.channels = tuple(channels)
         self.record = on_grid(record, channels, units, dt)
+        self.max_samples = self.record.n_samples
 
     def sample(self, rng, dt):
         return self.record
@@ -66,15 +70,18 @@ class FixedRecord(Disturbance):
 
 
 class Generated(Disturbance):
-    """A new record per episode: ``generator(rng) -> Record`` with the source's channels on the grid."""
+    """A new record per episode: ``generator(rng) -> Record`` with the source's channels on the grid
+    (``max_samples``: the longest record it returns, if known). A generator defined at module level (or a
+    ``functools.partial`` of one) keeps the environment picklable."""
 
     random = True
 
     def __init__(self, generator: Callable[[np.random.Generator], Record], channels: Sequence[str],
-                 name: str = "generated"):
+                 name: str = "generated", max_samples: int | None = None):
         self.channels = tuple(channels)
         self.generator = generator
         self.name = name
+        self.max_samples = max_samples
 
     def sample(self, rng, dt):
         rec = self.generator(rng)
@@ -103,6 +110,8 @@ class Mixture(Disturbance):
         if w.shape != (len(self.sources),) or np.any(w < 0) or not w.sum() > 0:
             raise ValueError("Mixture weights must be one non-negative number per source, not all zero")
         self.p = w / w.sum()
+        sizes = [s.max_samples for s in self.sources]
+        self.max_samples = None if None in sizes else max(sizes)
 
     def sample(self, rng, dt):
         k = int(rng.choice(len(self.sources), p=self.p))

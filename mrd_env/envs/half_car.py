@@ -2,6 +2,8 @@
 to the library — this module, the plant's module and one line in :data:`mrd_env.envs.ENVS`."""
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from ..disturbances import Record, iso8608_road
@@ -9,37 +11,86 @@ from ..metrics import weighting_sos
 from ..plants import CoupledPlant
 from ..plants.half_car import HalfCarParams, half_car
 from . import options as opt
+from . import randomize
 from .base import MRDamperEnv
+from .build import as_options, build
 from .core import Assembly, Episode, EpisodeStats
-from .disturbance import Generated
+from .disturbance import Disturbance, FixedRecord, Generated
 from .reward import QuadraticReward
 from .signals import SignalMap
 from .termination import Limits
 from .vector import MRDamperVectorEnv
 
 CHANNELS = ("z_rf", "zdot_rf", "z_rr", "zdot_rr")
+UNITS = ("m", "m/s", "m", "m/s")
 SENSORS = ("body_acc", "pitch_acc", "travel", "travel_rate", "body_vel_at_axles", "wheel_vel", "damper_force",
            "command", "damper_states")
+DEFAULT_SENSORS = ("body_acc", "pitch_acc", "travel", "damper_force", "command")
+DEFAULT_REWARD_WEIGHTS = {"comfort": 1.0, "travel": 0.5, "tyre": 0.5, "termination": 10.0}
+X_REF = 0.05  # m, suspension travel
 
 
-def road(road_class: str, speed: float, duration: float, dt: float, wheelbase: float):
+# --- the road: one rule, these kinds --------------------------------------------------------------------------
+def _iso8608(*, dt, episode_seconds, wheelbase, road_class="C", speed=20.0):
+    """An ISO 8608 road under both axles, new each episode; ``road_class`` may be a list and ``speed`` a range
+    (lo, hi) to draw per episode (:mod:`.randomize`)."""
+    if episode_seconds is None:
+        raise ValueError("road 'iso8608' needs episode_seconds (s), got None")
+    n_samples = max(_axles_record(c, v, episode_seconds, dt, wheelbase, np.random.default_rng(0)).n_samples
+                    for c in randomize.values("road_params['road_class']", road_class, lambda v: v)
+                    for v in randomize.values("road_params['speed']", speed,
+                                              lambda v: opt.check_scalar("road_params['speed']", v, 0.0,
+                                                                         lo_open=True, unit="m/s")))
+    return Generated(functools.partial(_axles_record, road_class, speed, episode_seconds, dt, wheelbase), CHANNELS,
+                     f"ISO 8608 class {randomize.describe(road_class)} at {randomize.describe(speed)} m/s, "
+                     f"both axles", max_samples=n_samples)
+
+
+def _axles_record(road_class, speed, duration: float, dt: float, wheelbase: float, rng) -> Record:
     """An ISO 8608 road under both axles: the rear meets the front's profile wheelbase/speed later."""
-    lag = int(round(wheelbase / speed / dt))
-
-    def generate(rng) -> Record:
-        r = iso8608_road(road_class, speed, duration + lag * dt, dt, rng=rng, method="fft")
-        z, zd = r.channel("z_r"), r.channel("zdot_r")
-        n = z.size - lag
-        data = np.column_stack([z[lag:], zd[lag:], z[:n], zd[:n]])
-        return Record(dt, data, CHANNELS, ("m", "m/s", "m", "m/s"), f"ISO 8608 class {road_class} (half car)")
-    generate(np.random.default_rng(0))  # the options are checked now
-    return Generated(generate, CHANNELS, f"ISO 8608 class {road_class} at {speed:g} m/s, both axles")
+    c, v = randomize.draw(road_class, rng), randomize.draw(speed, rng)
+    lag = int(round(wheelbase / v / dt))
+    r = iso8608_road(c, v, duration + lag * dt, dt, rng=rng, method="fft")
+    z, zd = r.channel("z_r"), r.channel("zdot_r")
+    n = z.size - lag
+    data = np.column_stack([z[lag:], zd[lag:], z[:n], zd[:n]])
+    return Record(dt, data, CHANNELS, UNITS, f"ISO 8608 class {c} (half car)")
 
 
-def assembly(*, plant_preset="sedan", plant_params=None, road_class="C", speed=20.0, damper="spencer_dyke",
+ROADS = {"iso8608": _iso8608}
+
+
+def road_source(road, road_params, dt: float, episode_seconds: float, wheelbase: float) -> Disturbance:
+    """The road part: a kind name (with ``road_params``), a dict {"kind": ..., options}, a Record with channels
+    z_rf, zdot_rf, z_rr, zdot_rr (m, m/s), or a :class:`~.disturbance.Disturbance`."""
+    if isinstance(road, Record):
+        if road_params:
+            raise ValueError("road_params apply to a road kind, not to a Record")
+        return FixedRecord(road, CHANNELS, UNITS, dt)
+    if isinstance(road, str) and road_params is not None:
+        road = {"kind": road, **as_options(f"road_params (road={road!r})", road_params)}
+    return build("road", road, ROADS, "iso8608", Disturbance, dt=dt, episode_seconds=episode_seconds,
+                 wheelbase=wheelbase)
+
+
+# --- the assembly ------------------------------------------------------------------------------------------------
+def _metrics(st: EpisodeStats, ep: Episode, static: np.ndarray) -> dict:
+    return {"acc_weighted_rms": float(st.rms["body_acc_wk"][0]), "pitch_acc_rms": float(st.rms["pitch_acc"][0]),
+            "travel_peak": float(st.peak["travel"].max()),
+            "tyre_load_ratio": float(np.max(st.rms["_tyre_load"] / static)), "duration": (st.n_rows - 1) * st.dt}
+
+
+def _new_episode(rec: Record) -> Episode:
+    """At rest, each wheel on its road's initial height and moving with it."""
+    return Episode(rec, np.concatenate([[0.0, 0.0], rec.data[0, [0, 2]], [0.0, 0.0], rec.data[0, [1, 3]]]))
+
+
+def assembly(*, plant_preset="sedan", plant_params=None, road="iso8608", road_params=None, damper="spencer_dyke",
              damper_preset=None, damper_params=None, dt=1e-3, control_dt=1e-3, episode_seconds=10.0, sensors=None,
              sensor_noise=None, sensor_delay=0, history=1, action_mode="physical", inverse=None, force_range=None,
-             stroke_limit=0.1) -> Assembly:
+             reward=None, reward_weights=None, stroke_limit=0.1) -> Assembly:
+    """The half-car environment's parts from its options (see :class:`HalfCarEnv`)."""
+    given = {k: v for k, v in locals().items()}
     dt, control_dt, episode_seconds = opt.time_steps(dt, control_dt, episode_seconds)
     p = plant_params if isinstance(plant_params, HalfCarParams) else \
         half_car(plant_preset, **opt.named_options("plant_params", plant_params))
@@ -60,45 +111,55 @@ def assembly(*, plant_preset="sedan", plant_params=None, road_class="C", speed=2
     static = p.static_tyre_loads
     tyre = -np.diag([p.k_tf, p.k_tr]) @ np.eye(4)[2:]
     sm.add("_tyre_load", sm.disp(tyre) + sm.inp([[p.k_tf, 0, 0, 0], [0, 0, p.k_tr, 0]]), "N")
+    sm.add("_q", sm.disp(np.eye(4)), "m, rad")  # for the renderer
+    sm.add("_road", sm.inp([[1.0, 0, 0, 0], [0, 0, 1.0, 0]]), "m")
     sm.add_commands(d.command.unit)
     sm.add_output("body_acc_wk", "m/s^2")
-    reward = QuadraticReward({"body_acc_wk": 1.0, "travel": np.full(2, 0.5 / 0.05 ** 2),
-                              "_tyre_load": 0.5 / static ** 2})
+    w = opt.weights(reward_weights, DEFAULT_REWARD_WEIGHTS)
+    reward = opt.reward(reward, lambda: QuadraticReward({"body_acc_wk": w["comfort"],
+                                                         "travel": np.full(2, w["travel"] / X_REF ** 2),
+                                                         "_tyre_load": w["tyre"] / static ** 2}))
 
-    def metrics(st: EpisodeStats, ep: Episode) -> dict:
-        return {"acc_weighted_rms": float(st.rms["body_acc_wk"][0]), "pitch_acc_rms": float(st.rms["pitch_acc"][0]),
-                "travel_peak": float(st.peak["travel"].max()), "tyre_load_ratio": float(np.max(
-                    st.rms["_tyre_load"] / static)), "duration": (st.n_rows - 1) * st.dt}
+    from .render import HalfCarRenderer
 
     return Assembly(
         kind="half_car", damper=d, plant_params=p, linear_plant=lp, coupled=coupled, signals=sm,
-        sensor_names=SENSORS, sensors=opt.sensors(sensors, sensor_noise, sensor_delay, history,
-                                                  ("body_acc", "pitch_acc", "travel", "damper_force", "command")),
-        disturbance=road(road_class, speed, episode_seconds, dt, p.wheelbase), reward=reward,
-        limits=Limits({"travel": opt.check_scalar("stroke_limit", stroke_limit, 0.0, lo_open=True)}),
-        new_episode=lambda rec: Episode(rec, np.concatenate([[0.0, 0.0], rec.data[0, [0, 2]], [0.0, 0.0],
-                                                             rec.data[0, [1, 3]]])),
-        metrics=metrics,
+        sensor_names=SENSORS, sensors=opt.sensors(sensors, sensor_noise, sensor_delay, history, DEFAULT_SENSORS),
+        disturbance=road_source(road, road_params, dt, episode_seconds, p.wheelbase), reward=reward,
+        limits=Limits({"travel": opt.check_scalar("stroke_limit", stroke_limit, 0.0, lo_open=True, unit="m")},
+                      penalty_rate=w["termination"]),
+        new_episode=_new_episode, metrics=functools.partial(_metrics, static=static),
         roles={"body_velocity": "body_vel_at_axles", "wheel_velocity": "wheel_vel", "damper_velocity": "travel_rate",
                "damper_stroke": "travel", "damper_force": "damper_force"},
-        objective={"body_acc": 1.0, "travel": 1.0 / 0.05 ** 2},
+        objective={"body_acc": 1.0, "travel": 1.0 / X_REF ** 2},
         dt=dt, control_dt=control_dt, episode_seconds=episode_seconds,
         **opt.actuation(action_mode, inverse, force_range),
         filters=[("body_acc", "body_acc_wk", weighting_sos("Wk", dt))],
-        stat_signals=("body_acc_wk", "pitch_acc", "travel", "_tyre_load"))
+        stat_signals=("body_acc_wk", "pitch_acc", "travel", "_tyre_load"), renderer=HalfCarRenderer, options=given)
 
 
 class HalfCarEnv(MRDamperEnv):
-    """Half car (body heave and pitch, two wheels) with an MR damper at each axle on an ISO 8608 road
-    (``road_class``, ``speed``); two commands per step (front, rear). Options as
-    :class:`~mrd_env.envs.quarter_car.QuarterCarEnv` where they apply; no rendering."""
+    """Half car (body heave and pitch, two wheels) with an MR damper at each axle; two commands per step (front,
+    rear). Options as :class:`~mrd_env.envs.quarter_car.QuarterCarEnv` where they apply, except:
 
-    metadata = {"render_modes": [], "render_fps": 30}
+    * ``road``: "iso8608" (default; a new road each episode under both axles, the rear meeting the front's
+      profile wheelbase/speed later; ``road_params``: ``road_class`` "C" (or a list to draw from), ``speed``
+      20 m/s (or a range (lo, hi))), a Record with channels z_rf, zdot_rf, z_rr, zdot_rr, or a Disturbance.
+    * ``episode_seconds`` default 10 s; ``plant_preset`` "sedan".
+    * ``reward_weights``: comfort 1.0 (on the Wk-weighted body acceleration², m²/s⁴), travel 0.5 (per
+      (0.05 m)² on each axle), tyre 0.5 (per static tyre load²), termination 10 per second; or ``reward``.
+    * no ``preview``.
 
-    def __init__(self, *, render_mode=None, **options):
-        super().__init__(assembly(**options), render_mode=render_mode)
+    Sensors: body_acc, pitch_acc, travel (2), travel_rate (2), body_vel_at_axles (2), wheel_vel (2), damper_force
+    (2), command (2), damper_states; default body_acc, pitch_acc, travel, damper_force, command.
+    """
+
+    env_id = "mrd_env/HalfCar-v0"
+    build = staticmethod(assembly)
 
 
 class HalfCarVectorEnv(MRDamperVectorEnv):
-    def __init__(self, num_envs: int = 1, *, render_mode=None, autoreset_mode="NextStep", **options):
-        super().__init__(assembly(**options), num_envs, render_mode=render_mode, autoreset_mode=autoreset_mode)
+    """``num_envs`` half cars in one compiled call (options as :class:`HalfCarEnv`)."""
+
+    env_id = "mrd_env/HalfCar-v0"
+    build = staticmethod(assembly)

@@ -2,13 +2,14 @@
 once, with errors that name the option and its valid values."""
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 
 import numpy as np
 
 from ..dampers import DamperModel, damper_class, make_damper
 from ..validation import check_n_samples, check_scalar
 from .build import as_options
+from .reward import CallableReward, QuadraticReward
 from .sensors import Sensors
 
 MAX_PERIOD_STEPS = 100_000  # physics steps in one control period (the period's buffers are allocated)
@@ -110,6 +111,19 @@ def sensors(spec, noise, delay, history, default: tuple[str, ...]) -> Sensors:
     return Sensors(default if spec is None else spec, noise, delay, history)
 
 
+def reward(given, default: Callable[[], QuadraticReward]) -> QuadraticReward | CallableReward:
+    """The ``reward`` option: None (the plant's ``default()``), a QuadraticReward, a CallableReward or any callable
+    of the period's signals (wrapped in a CallableReward)."""
+    if given is None:
+        return default()
+    if isinstance(given, (QuadraticReward, CallableReward)):
+        return given
+    if callable(given):
+        return CallableReward(given)
+    raise ValueError("reward must be None, a QuadraticReward, a CallableReward or a callable of the period's "
+                     f"signals, got {type(given).__name__}")
+
+
 def weights(given, defaults: Mapping[str, float]) -> dict[str, float]:
     """``reward_weights``: the defaults updated with the given ones (each >= 0, names among the defaults)."""
     out = dict(defaults)
@@ -127,8 +141,8 @@ MAX_PREVIEW = 10.0  # s: a look-ahead sensor sees metres to tens of metres of ro
 
 
 def preview_times(preview, dt: float) -> tuple[float, ...]:
-    """``preview``: None (no preview), or one time or a sequence of times ahead (s), each a multiple of ``dt``
-    in [dt, MAX_PREVIEW], no time twice; as a tuple of floats on the dt grid."""
+    """``preview``: None (no preview), or one time or an increasing sequence of times ahead (s), each a multiple of
+    ``dt`` in [dt, MAX_PREVIEW]; as a tuple of floats on the dt grid."""
     if preview is None:
         return ()
     if isinstance(preview, (str, bytes, bool, Mapping)):
@@ -146,6 +160,6 @@ def preview_times(preview, dt: float) -> tuple[float, ...]:
             raise ValueError(f"preview times must be multiples of dt = {dt:g} s (e.g. {dt:g}, {10 * dt:g}, "
                              f"{50 * dt:g} s), got {v!r}")
         out.append(k * dt)
-    if len(set(out)) != len(out):
-        raise ValueError(f"preview must not repeat a time, got {tuple(values)!r}")
+    if any(b <= a for a, b in zip(out, out[1:])):
+        raise ValueError(f"preview times must be increasing (s ahead, nearest first), got {tuple(values)!r}")
     return tuple(out)

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import numpy as np
 
@@ -15,7 +16,7 @@ from .base import MRDamperEnv
 from .build import as_options, build
 from .core import Assembly, Episode, EpisodeStats
 from .disturbance import Disturbance, FixedRecord, Generated, with_preview
-from .reward import CallableReward, QuadraticReward
+from .reward import QuadraticReward
 from .signals import SignalMap
 from .termination import Limits
 from .vector import MRDamperVectorEnv
@@ -49,15 +50,18 @@ def _iso8608(*, dt, episode_seconds, road_class="C", speed=20.0, method="fft", n
     extra = {k: v for k, v in dict(n_min=n_min, n_max=n_max, n_waves=n_waves, waviness=waviness).items()
              if v is not None}
     # the options are checked now, not at reset: every class and both ends of the speed range
-    for c in randomize.values("road_class", road_class, lambda v: v):
-        for v in randomize.values("road_params['speed']", speed):
-            iso8608_road(c, v, duration, dt, rng=0, method=method, **extra)
+    n_samples = max(iso8608_road(c, v, duration, dt, rng=0, method=method, **extra).n_samples
+                    for c in randomize.values("road_class", road_class, lambda v: v)
+                    for v in randomize.values("road_params['speed']", speed))
+    return Generated(functools.partial(_iso8608_record, road_class, speed, duration, dt, method, extra),
+                     ROAD_CHANNELS, f"ISO 8608 class {randomize.describe(road_class)} at "
+                                    f"{randomize.describe(speed)} m/s", max_samples=n_samples)
 
-    def generate(rng):
-        return iso8608_road(randomize.draw(road_class, rng), randomize.draw(speed, rng), duration, dt, rng=rng,
-                            method=method, **extra)
-    return Generated(generate, ROAD_CHANNELS, f"ISO 8608 class {randomize.describe(road_class)} at "
-                                              f"{randomize.describe(speed)} m/s")
+
+def _iso8608_record(road_class, speed, duration: float, dt: float, method: str, extra: dict, rng) -> Record:
+    """One episode's ISO 8608 road, its class and speed drawn from ``rng`` where they are random."""
+    return iso8608_road(randomize.draw(road_class, rng), randomize.draw(speed, rng), duration, dt, rng=rng,
+                        method=method, **extra)
 
 
 def _bump(*, dt, episode_seconds, height=0.05, length=1.0, speed=10.0, t_start=0.5, duration=None):
@@ -179,6 +183,24 @@ def metrics(stats: EpisodeStats, episode: Episode, static_tyre_load: float) -> d
     return out
 
 
+def _new_episode(p: QuarterCarParams, episode_seconds: float | None, dt: float, ahead: tuple[float, ...],
+                 rec: Record) -> Episode:
+    """An episode on road ``rec``: the car at rest in static equilibrium on the road's initial height, moving
+    with it (no step hits the tyre), the passive car's reference scales, the road ahead for the preview."""
+    zr0, zrd0 = rec.data[0]
+    q0 = np.array([zr0, zr0, zrd0, zrd0])
+    rows = rec.n_samples if episode_seconds is None else min(rec.n_samples, int(round(episode_seconds / dt)) + 1)
+    ref = passive_reference(p, rec, q0, rows, dt) if p.passive_c > 0 else _absolute_reference(p)
+    if ahead:
+        rec = with_preview(rec, "z_r", [int(round(t / dt)) for t in ahead], preview_channels(ahead), "m")
+    return Episode(rec, q0, {"reference": {k: max(v, 1e-12) for k, v in ref.items()}})
+
+
+def _per_reference(ep: Episode) -> np.ndarray:
+    """The reward's weights per unit of the passive car's mean squares on the episode's road."""
+    return np.array([1.0 / ep.extras["reference"][k] for k in REWARD_SIGNALS])
+
+
 def assembly(*, plant_preset: str = "set_a", plant_params=None, road="iso8608", road_params=None,
              damper="spencer_dyke", damper_preset: str | None = None, damper_params=None, dt: float = 1e-3,
              control_dt: float = 1e-3, episode_seconds: float | None = None, sensors=None, sensor_noise=None,
@@ -200,31 +222,13 @@ def assembly(*, plant_preset: str = "set_a", plant_params=None, road="iso8608", 
     sm = signals(coupled, p, d.command.unit)
     w = opt.weights(reward_weights, DEFAULT_REWARD_WEIGHTS)
     static = p.static_tyre_load
-    if reward is None:
-        reward = QuadraticReward({REWARD_SIGNALS[k]: w[k] for k in REWARD_SIGNALS},
-                                 episode_scale=lambda ep: np.array([1.0 / ep.extras["reference"][k]
-                                                                    for k in REWARD_SIGNALS]))
-    elif callable(reward) and not isinstance(reward, (QuadraticReward, CallableReward)):
-        reward = CallableReward(reward)
-    elif not isinstance(reward, (QuadraticReward, CallableReward)):
-        raise ValueError("reward must be None, a QuadraticReward, a CallableReward or a callable of the period's "
-                         f"signals, got {type(reward).__name__}")
+    reward = opt.reward(reward, lambda: QuadraticReward({REWARD_SIGNALS[k]: w[k] for k in REWARD_SIGNALS},
+                                                        episode_scale=_per_reference))
     limit = opt.check_scalar("stroke_limit", 0.1 if stroke_limit is None else stroke_limit, 0.0, lo_open=True,
                              unit="m")
     source = road_source(road, road_params, dt, episode_seconds)
     if episode_seconds is None and isinstance(source, Generated):
         episode_seconds = 10.0
-
-    def new_episode(rec: Record) -> Episode:
-        # at rest in static equilibrium on the road's initial height, moving with it: no step hits the tyre
-        zr0, zrd0 = rec.data[0]
-        q0 = np.array([zr0, zr0, zrd0, zrd0])
-        rows = rec.n_samples if episode_seconds is None else min(rec.n_samples,
-                                                                  int(round(episode_seconds / dt)) + 1)
-        ref = passive_reference(p, rec, q0, rows, dt) if p.passive_c > 0 else _absolute_reference(p)
-        if ahead:
-            rec = with_preview(rec, "z_r", [int(round(t / dt)) for t in ahead], preview_channels(ahead), "m")
-        return Episode(rec, q0, {"reference": {k: max(v, 1e-12) for k, v in ref.items()}})
 
     from .render import QuarterCarRenderer
 
@@ -233,7 +237,8 @@ def assembly(*, plant_preset: str = "set_a", plant_params=None, road="iso8608", 
         sensor_names=tuple(SENSOR_UNITS),
         sensors=sensor_part, disturbance=source, reward=reward,
         limits=Limits({"travel": limit}, penalty=0.0, penalty_rate=w["termination"]),
-        new_episode=new_episode, metrics=lambda st, ep: metrics(st, ep, static),
+        new_episode=functools.partial(_new_episode, p, episode_seconds, dt, ahead),
+        metrics=functools.partial(metrics, static_tyre_load=static),
         roles={"body_velocity": "sprung_vel", "wheel_velocity": "unsprung_vel", "damper_velocity": "travel_rate",
                "damper_stroke": "travel", "damper_force": "damper_force"},
         objective={"sprung_acc": 1.0 / A_REF ** 2, "travel": 1.0 / X_REF ** 2},
@@ -277,8 +282,8 @@ class QuarterCarEnv(MRDamperEnv):
       ``reward``: a :class:`~mrd_env.envs.reward.QuadraticReward`, or any callable of the period's signals
       (``{name: (n_sub, width)}`` → float; one Python call per step).
     * ``stroke_limit`` (default 0.1 m on |z_s − z_u|), ``render_mode`` ("rgb_array", "human").
-    * ``preview``: None (default: no preview), or the times ahead τ (s; one or a sequence, each a multiple of
-      ``dt`` in [dt, 10 s]) at which the ``road_preview`` sensor reads the road; ``env.unwrapped.preview_times``
+    * ``preview``: None (default: no preview), or the times ahead τ (s; one or an increasing sequence, each a
+      multiple of ``dt`` in [dt, 10 s]) at which the ``road_preview`` sensor reads the road; ``env.unwrapped.preview_times``
       gives them (a tuple in s, empty without preview).
 
     Sensors (SI): ``sprung_acc`` z̈_s (m/s², gravity removed), ``unsprung_acc`` z̈_u, ``travel`` z_s − z_u (m),
@@ -314,13 +319,13 @@ class QuarterCarEnv(MRDamperEnv):
     damper_force_peak (N), duration (s) — accumulated by the compiled step, no history needed.
     """
 
-    def __init__(self, *, render_mode: str | None = None, **options):
-        super().__init__(assembly(**options), render_mode=render_mode)
+    env_id = "mrd_env/QuarterCar-v0"
+    build = staticmethod(assembly)
 
 
 class QuarterCarVectorEnv(MRDamperVectorEnv):
     """``num_envs`` quarter cars in one compiled call (``gymnasium.make_vec("mrd_env/QuarterCar-v0", num_envs=N,
     vectorization_mode="vector_entry_point", **options)``; options as :class:`QuarterCarEnv`)."""
 
-    def __init__(self, num_envs: int = 1, *, render_mode: str | None = None, autoreset_mode="NextStep", **options):
-        super().__init__(assembly(**options), num_envs, render_mode=render_mode, autoreset_mode=autoreset_mode)
+    env_id = "mrd_env/QuarterCar-v0"
+    build = staticmethod(assembly)

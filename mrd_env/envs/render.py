@@ -3,14 +3,20 @@ exaggerated positions; the MR damper coloured by its command) next to scrolling 
 of the damper force.
 
 ``rgb_array``: an Agg canvas owned by the renderer (no pyplot state), read back as an (H, W, 3) uint8 array.
-``human``: the same figure as a pyplot window, refreshed without blocking (``plt.pause``) and closed by
-``env.close()``. The figure and its artists are built once; each frame only updates them.
+``human``: the same figure as a pyplot window, refreshed without blocking (``plt.pause``) at most ``HUMAN_FPS``
+times per simulated second and closed by ``env.close()``. The figure and its artists are built once; each frame
+only updates them.
+
+A renderer draws what its ``env`` exposes: ``signal(name)`` (the episode's history at ``dt``), ``dt``,
+``n_dampers``, ``command_spec``, ``plant_params``, ``episode`` (the current episode) and ``title``, so that a
+vector environment renders each of its environments through a view of it.
 """
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
 import numpy as np
 
+HUMAN_FPS = 30        # window refreshes per simulated second in "human" mode
 WINDOW = 3.0          # s of history in the traces
 MAX_POINTS = 600      # points per trace (decimated)
 FIGSIZE = (8.0, 4.0)  # inches
@@ -134,7 +140,7 @@ class _Renderer(ABC):
         cs = env.command_spec
         cmd = ", ".join(f"{v:.2f}" for v in state["command"])
         f = ", ".join(f"{v:.0f}" for v in state["force"])
-        self.title.set_text(f"{type(env).__name__}  t = {state['t']:.3f} s   command = {cmd} {cs.unit}   "
+        self.title.set_text(f"{env.title}  t = {state['t']:.3f} s   command = {cmd} {cs.unit}   "
                             f"F = {f} N")
 
     def frame(self) -> np.ndarray:
@@ -224,7 +230,7 @@ class BuildingRenderer(_Renderer):
 
     def _gain(self) -> float:
         """Drift exaggeration: the uncontrolled roof moves 0.35 display units at its peak."""
-        ep = self.env.core.episodes[0]
+        ep = self.env.episode
         peak = float(np.max(np.abs(ep.extras["uncontrolled"]["disp"]))) if ep is not None else 0.0
         return 0.35 / max(peak, 1e-9)
 
@@ -269,4 +275,53 @@ class BuildingRenderer(_Renderer):
             self.braces[j].set_data([x0 - 0.4, x1 + 0.1], [f - 1 + (0.08 if f > 1 else 0.0), f - 0.08])
             self.braces[j].set_color(self._color(s["command"][j]))
             self.brace_lbl[j].set_position((0.5 * (x0 + x1) - 0.05, f - 0.55))
+        self.lbl_f.set_text("F = " + ", ".join(f"{v:.0f}" for v in s["force"]) + " N")
+
+
+class HalfCarRenderer(_Renderer):
+    """Side view: road under each axle, wheels, suspension struts (MR dampers coloured by their command) and the
+    body pitching between them; vertical motion ×GAIN."""
+
+    response_label = "body acc. (m/s²)"
+    response = ("body_acc", 0)
+    GAIN = 10.0
+
+    def _state(self) -> dict:
+        env = self.env
+        q = env.signal("_q")[-1]
+        return {**super()._state(), "q": q.copy(), "road": env.signal("_road")[-1].copy()}
+
+    def _build_schematic(self) -> None:
+        from matplotlib.patches import Rectangle
+
+        p = self.env.plant_params
+        span = p.a + p.b
+        self.x = np.array([-p.a, p.b]) / span * 1.6  # front (left) and rear axles, display units
+        ax = self.ax_s
+        ax.set_xlim(-1.3, 1.3)
+        ax.set_ylim(-0.6, 2.6)
+        ax.set_title(f"half car (motion x{self.GAIN:g})", fontsize=8)
+        self.roads = [ax.plot([], [], color="k", lw=2)[0] for _ in range(2)]
+        self.tyres = [ax.plot([], [], color="0.3", lw=1.2)[0] for _ in range(2)]
+        self.wheels = [Rectangle((0, 0), 0.3, 0.3, fc="0.75", ec="k") for _ in range(2)]
+        self.struts = [ax.plot([], [], lw=5, solid_capstyle="butt")[0] for _ in range(2)]
+        for w in self.wheels:
+            ax.add_patch(w)
+        self.body, = ax.plot([], [], color="0.4", lw=8, solid_capstyle="butt")
+        self.lbl_f = ax.text(-1.25, -0.5, "", fontsize=7)
+
+    def _update_schematic(self, s: dict) -> None:
+        g = self.GAIN
+        z_s, theta, z_uf, z_ur = s["q"]
+        wheel = np.array([z_uf, z_ur])
+        body = z_s + np.array([-self.env.plant_params.a, self.env.plant_params.b]) * theta  # above each axle
+        for j in range(2):
+            x, y_r = self.x[j], g * s["road"][j]
+            y_w = 0.5 + g * wheel[j]
+            self.roads[j].set_data([x - 0.3, x + 0.3], [y_r, y_r])
+            self.tyres[j].set_data(*_zigzag(x, y_r, y_w, n=3))
+            self.wheels[j].set_xy((x - 0.15, y_w))
+            self.struts[j].set_data([x, x], [y_w + 0.3, 1.6 + g * body[j]])
+            self.struts[j].set_color(self._color(s["command"][j]))
+        self.body.set_data(self.x, 1.6 + g * body)
         self.lbl_f.set_text("F = " + ", ".join(f"{v:.0f}" for v in s["force"]) + " N")

@@ -4,24 +4,34 @@ environment: SB3 issues #1568, #1608, #1745).
 SB3's conventions: ``reset()`` returns the observations only (seeds from ``seed()``, applied at the next
 reset); ``step_wait()`` returns (obs, rewards, dones, infos) with dones = terminated | truncated and the
 environment already reset in the same step — its last observation in ``infos[i]["terminal_observation"]``,
-``infos[i]["TimeLimit.truncated"]`` true when the episode was cut by time rather than ended by the plant, and
-``infos[i]["episode_metrics"]``. The native environment runs in ``SAME_STEP`` autoreset mode for this.
+``infos[i]["TimeLimit.truncated"]`` true when the episode was cut by time rather than ended by the plant,
+``infos[i]["episode_metrics"]`` and ``infos[i]["episode"]`` (return, length, time: what SB3's Monitor writes).
+The native environment runs in ``SAME_STEP`` autoreset mode for this.
 
 >>> from mrd_env.envs.sb3 import make_sb3_vec_env
 >>> venv = make_sb3_vec_env("mrd_env/QuarterCar-v0", n_envs=8, seed=0, control_dt=0.01)
 """
 from __future__ import annotations
 
-from typing import Any, Sequence
+import time
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
 from gymnasium.vector import AutoresetMode
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv
 
+from .vector import env_info
+
 
 class SB3VecEnv(VecEnv):
-    """SB3's VecEnv over a :class:`~mrd_env.envs.vector.MRDamperVectorEnv` built in SAME_STEP mode."""
+    """SB3's VecEnv over a :class:`~mrd_env.envs.vector.MRDamperVectorEnv` built in SAME_STEP mode.
+
+    Each ending step's ``infos[i]["episode"]`` = {"r": return, "l": length, "t": seconds since the start}, as
+    SB3's ``Monitor`` writes it, so that SB3 logs ``ep_rew_mean`` and ``ep_len_mean`` without a ``VecMonitor``
+    (wrapping one around it is harmless: it writes the same). The N environments are one object: ``get_attr``
+    reads the shared attribute, ``set_attr`` and ``env_method`` apply to all of them (``indices`` None or every
+    index; a subset raises ``ValueError``)."""
 
     def __init__(self, venv):
         base = getattr(venv, "unwrapped", venv)
@@ -29,9 +39,12 @@ class SB3VecEnv(VecEnv):
             raise ValueError("the vector environment must be built with autoreset_mode=SAME_STEP "
                              "(make_sb3_vec_env does it)")
         self.venv = base
-        self.render_mode = None
+        self.render_mode = base.render_mode
         super().__init__(base.num_envs, base.single_observation_space, base.single_action_space)
         self._actions = None
+        self._returns = np.zeros(self.num_envs)
+        self._lengths = np.zeros(self.num_envs, dtype=np.int64)
+        self._t0 = time.time()
 
     def reset(self):
         seeds = self._seeds
@@ -40,6 +53,8 @@ class SB3VecEnv(VecEnv):
         self._reset_seeds()
         self._reset_options()
         self.reset_infos = [{} for _ in range(self.num_envs)]
+        self._returns[:] = 0.0
+        self._lengths[:] = 0
         return obs
 
     def step_async(self, actions: np.ndarray) -> None:
@@ -47,42 +62,62 @@ class SB3VecEnv(VecEnv):
 
     def step_wait(self):
         obs, rewards, terminated, truncated, info = self.venv.step(self._actions)
+        rewards = rewards.astype(np.float32)
+        self._returns += rewards
+        self._lengths += 1
         dones = terminated | truncated
         infos: list[dict[str, Any]] = [{} for _ in range(self.num_envs)]
         for i in np.flatnonzero(dones):
             d = infos[i]
+            final = env_info(info["final_info"], i)
             d["terminal_observation"] = info["final_obs"][i]
             d["TimeLimit.truncated"] = bool(truncated[i] and not terminated[i])
-            d["episode_metrics"] = {k: float(v[i]) for k, v in info["episode_metrics"].items()}
-            if "termination_reason" in info and info["termination_reason"][i] is not None:
-                d["termination_reason"] = info["termination_reason"][i]
-        return obs, rewards.astype(np.float32), dones, infos
+            d["episode_metrics"] = final["episode_metrics"]
+            if "termination_reason" in final:
+                d["termination_reason"] = final["termination_reason"]
+            d["episode"] = {"r": float(self._returns[i]), "l": int(self._lengths[i]),
+                            "t": round(time.time() - self._t0, 6)}
+            self._returns[i], self._lengths[i] = 0.0, 0
+        return obs, rewards, dones, infos
 
     def close(self) -> None:
         self.venv.close()
 
-    def _indices(self, indices) -> Sequence[int]:
+    def _indices(self, indices) -> list[int]:
         if indices is None:
-            return range(self.num_envs)
-        if isinstance(indices, int):
-            return [indices]
-        return indices
+            return list(range(self.num_envs))
+        idx = [indices] if isinstance(indices, (int, np.integer)) else list(indices)
+        if not all(isinstance(i, (int, np.integer)) and 0 <= i < self.num_envs for i in idx):
+            raise ValueError(f"indices must be None or environment indices in [0, {self.num_envs}), got {indices!r}")
+        return idx
+
+    def _all(self, indices, what: str) -> list[int]:
+        idx = self._indices(indices)
+        if sorted(set(idx)) != list(range(self.num_envs)):
+            raise ValueError(f"{what}: the {self.num_envs} environments are one native vector environment whose "
+                             f"attributes they share; indices must be None or all of 0..{self.num_envs - 1}, "
+                             f"got {indices!r}")
+        return idx
 
     def get_attr(self, attr_name: str, indices=None) -> list:
         return [getattr(self.venv, attr_name)] * len(self._indices(indices))
 
     def set_attr(self, attr_name: str, value, indices=None) -> None:
+        self._all(indices, "set_attr")
         setattr(self.venv, attr_name, value)
 
     def env_method(self, method_name: str, *method_args, indices=None, **method_kwargs) -> list:
+        idx = self._all(indices, "env_method")
         result = getattr(self.venv, method_name)(*method_args, **method_kwargs)
-        return [result] * len(self._indices(indices))
+        return [result] * len(idx)
 
     def env_is_wrapped(self, wrapper_class, indices=None) -> list[bool]:
         return [False] * len(self._indices(indices))
 
     def get_images(self):
-        return [None] * self.num_envs
+        if self.render_mode != "rgb_array":
+            return [None] * self.num_envs
+        return list(self.venv.render())
 
 
 def make_sb3_vec_env(env_id: str, n_envs: int = 1, seed: int | None = None, **env_kwargs) -> SB3VecEnv:

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import numpy as np
 
@@ -17,7 +18,7 @@ from .base import MRDamperEnv
 from .build import as_options, build
 from .core import Assembly, Episode, EpisodeStats
 from .disturbance import Disturbance, FixedRecord, Generated, Mixture
-from .reward import CallableReward, QuadraticReward
+from .reward import QuadraticReward
 from .signals import SignalMap
 from .termination import Limits
 from .vector import MRDamperVectorEnv
@@ -94,18 +95,24 @@ def _kanai_tajimi(*, dt, episode_seconds, lab, duration=None, omega_g=15.6, zeta
     drawn = {k: v for k, v in dict(omega_g=omega_g, zeta_g=zeta_g, pga=pga, S0=S0).items() if v is not None}
     fixed = {k: v for k, v in dict(envelope=envelope, envelope_params=envelope_params).items() if v is not None}
 
-    def generate(rng) -> Record:
-        kw = {k: randomize.draw(v, rng) for k, v in drawn.items()}
-        raw = kanai_tajimi(lab_seconds / ts, dt / ts, rng=rng, **kw, **fixed)
-        # replayed ts times faster: the samples land exactly on the dt grid
-        return Record(dt, raw.data * amp, raw.channels, raw.units, f"{raw.name} (time x{ts:g}, amplitude x{amp:g})")
-
+    n_samples = 0
     for k, v in drawn.items():  # every end of every range is a valid record (checked now, not at the first reset)
         for x in randomize.values(f"ground_motion_params[{k!r}]", v):
             low = {q: randomize.values(f"ground_motion_params[{q!r}]", w)[0] for q, w in drawn.items()}
-            kanai_tajimi(lab_seconds / ts, dt / ts, rng=0, **{**low, k: x}, **fixed)
-    return Generated(generate, CHANNELS, f"Kanai–Tajimi (ω_g {randomize.describe(omega_g)} rad/s, ζ_g "
-                                         f"{randomize.describe(zeta_g)})")
+            n_samples = max(n_samples, kanai_tajimi(lab_seconds / ts, dt / ts, rng=0, **{**low, k: x},
+                                                    **fixed).n_samples)
+    return Generated(functools.partial(_kanai_tajimi_record, lab_seconds, ts, amp, dt, drawn, fixed), CHANNELS,
+                     f"Kanai–Tajimi (ω_g {randomize.describe(omega_g)} rad/s, ζ_g {randomize.describe(zeta_g)})",
+                     max_samples=n_samples)
+
+
+def _kanai_tajimi_record(lab_seconds: float, ts: float, amp: float, dt: float, drawn: dict, fixed: dict,
+                         rng) -> Record:
+    """One episode's Kanai–Tajimi record, its drawn parameters from ``rng``, replayed ``1/ts`` times faster (the
+    samples land exactly on the dt grid)."""
+    kw = {k: randomize.draw(v, rng) for k, v in drawn.items()}
+    raw = kanai_tajimi(lab_seconds / ts, dt / ts, rng=rng, **kw, **fixed)
+    return Record(dt, raw.data * amp, raw.channels, raw.units, f"{raw.name} (time x{ts:g}, amplitude x{amp:g})")
 
 
 def _peer_records(*, dt, episode_seconds, lab, names=None, pga=None, time_scale=None, amplitude_scale=1.0):
@@ -125,11 +132,16 @@ def _peer_records(*, dt, episode_seconds, lab, names=None, pga=None, time_scale=
         randomize.values("ground_motion_params['pga']", pga,
                          lambda v: check_scalar("ground_motion_params['pga']", v, 0.0, lo_open=True, unit="m/s^2"))
 
-    def generate(rng) -> Record:
-        raw = raws[randomize.draw(list(names), rng)]
-        a = amp if pga is None else randomize.draw(pga, rng) / float(np.max(np.abs(raw.data)))
-        return scale_record(raw, ts, a, dt)
-    return Generated(generate, CHANNELS, f"PEER records {list(names)} (pga {randomize.describe(pga)})")
+    n_samples = max(scale_record(raw, ts, 1.0, dt).n_samples for raw in raws.values())
+    return Generated(functools.partial(_peer_records_record, raws, tuple(names), pga, amp, ts, dt), CHANNELS,
+                     f"PEER records {list(names)} (pga {randomize.describe(pga)})", max_samples=n_samples)
+
+
+def _peer_records_record(raws: dict, names: tuple, pga, amp: float, ts: float, dt: float, rng) -> Record:
+    """One episode's PEER record drawn from ``names``, scaled to a drawn ``pga`` (or by ``amp``)."""
+    raw = raws[randomize.draw(list(names), rng)]
+    a = amp if pga is None else randomize.draw(pga, rng) / float(np.max(np.abs(raw.data)))
+    return scale_record(raw, ts, a, dt)
 
 
 def _mixture(*, dt, episode_seconds, lab, sources=(), weights=None):
@@ -225,6 +237,48 @@ def uncontrolled(lp, p: ShearBuildingParams, heights: np.ndarray, record: Record
     return resp
 
 
+class _BuildingEpisodes:
+    """The episodes of a building: each record's uncontrolled response, computed once per record if the records
+    are fixed (``cache``)."""
+
+    def __init__(self, lp, p: ShearBuildingParams, heights: np.ndarray, dt: float, cache: bool):
+        self.lp, self.p, self.heights, self.dt, self.cache = lp, p, heights, dt, cache
+        self._last: tuple | None = None  # (record, response) of the last fixed record
+
+    def __call__(self, rec: Record) -> Episode:
+        if self._last is not None and self._last[0] is rec:
+            resp = self._last[1]
+        else:
+            resp = uncontrolled(self.lp, self.p, self.heights, rec)
+            if self.cache:
+                self._last = (rec, resp)
+        return Episode(rec, None, {"uncontrolled": resp, "heights": self.heights, "dt": self.dt})
+
+    def __getstate__(self):  # a copy recomputes the response at its next episode rather than carry it
+        return {**self.__dict__, "_last": None}
+
+
+def _uncontrolled_window(episode: Episode, n_rows: int, p: ShearBuildingParams) -> dict:
+    """The uncontrolled metrics over the controlled episode's rows (it may end early)."""
+    resp, rec = episode.extras["uncontrolled"], episode.record
+    if n_rows == rec.n_samples:
+        return resp["metrics"]
+    return building_metrics(episode.extras["dt"], resp["drift"][:n_rows], episode.extras["heights"],
+                            resp["abs_acc"][:n_rows], floor_masses=np.asarray(p.masses),
+                            displacement=resp["disp"][:n_rows])
+
+
+def _per_uncontrolled(episode_seconds: float | None, dt: float, n: int, ep: Episode) -> np.ndarray:
+    """The weights per unit of the uncontrolled building's r.m.s. drift and acceleration on the episode's record
+    and window (so that the uncontrolled building scores −(w_drift + w_acc) per second)."""
+    u = ep.extras["uncontrolled"]
+    rows = ep.record.n_samples if episode_seconds is None else min(ep.record.n_samples,
+                                                                    int(round(episode_seconds / dt)) + 1)
+    d_ms = float(np.sum(np.mean(u["drift"][:rows] ** 2, axis=0))) or 1.0
+    a_ms = float(np.sum(np.mean(u["abs_acc"][:rows] ** 2, axis=0))) or 1.0
+    return np.concatenate([np.full(n, 1.0 / d_ms), np.full(n, 1.0 / a_ms)])
+
+
 def metrics(stats: EpisodeStats, episode: Episode, p: ShearBuildingParams) -> dict[str, float]:
     """:func:`~mrd_env.metrics.building_metrics` of the controlled building and the benchmark criteria J1–J6
     against the uncontrolled building on the same record and time window."""
@@ -235,7 +289,7 @@ def metrics(stats: EpisodeStats, episode: Episode, p: ShearBuildingParams) -> di
            "base_shear_peak": float(pk["_base_shear"].max()), "base_shear_rms": float(r["_base_shear"].max()),
            "damper_force_peak": float(pk["damper_force"].max()), "damper_stroke_peak": float(pk["damper_stroke"].max()),
            "disp_peak": float(pk["floor_disp"].max())}
-    unc = episode.extras["uncontrolled_window"](stats.n_rows)
+    unc = _uncontrolled_window(episode, stats.n_rows, p)
     try:
         out.update(benchmark_criteria(out, unc, building_weight=p.weight))
     except ValueError:  # an uncontrolled response of zero (no ground motion): the ratios are undefined
@@ -262,44 +316,9 @@ def assembly(*, plant_preset: str = "three_storey", plant_params=None, damper_fl
     w = opt.weights(reward_weights, DEFAULT_REWARD_WEIGHTS)
     n = p.n_floors
     source = ground_motion_source(ground_motion, ground_motion_params, dt, episode_seconds, lab)
-    cache: dict = {}
-
-    def new_episode(rec: Record) -> Episode:
-        hit = cache.get(id(rec))
-        if hit is None or hit[0] is not rec:
-            resp = uncontrolled(lp, p, heights, rec)
-            hit = (rec, resp)
-            if not source.random:
-                cache.clear()
-                cache[id(rec)] = hit
-        resp = hit[1]
-
-        def window(n_rows: int) -> dict:
-            """The uncontrolled metrics over the controlled episode's rows (it may end early)."""
-            if n_rows == rec.n_samples:
-                return resp["metrics"]
-            return building_metrics(dt, resp["drift"][:n_rows], heights, resp["abs_acc"][:n_rows],
-                                    floor_masses=np.asarray(p.masses), displacement=resp["disp"][:n_rows])
-        return Episode(rec, None, {"uncontrolled": resp, "uncontrolled_window": window})
-
-    def episode_scale(ep: Episode) -> np.ndarray:
-        """The weights per unit of the uncontrolled building's r.m.s. drift and acceleration on the episode's
-        record and window (so that the uncontrolled building scores −(w_drift + w_acc) per second)."""
-        u = ep.extras["uncontrolled"]
-        rows = ep.record.n_samples if episode_seconds is None else min(ep.record.n_samples,
-                                                                        int(round(episode_seconds / dt)) + 1)
-        d_ms = float(np.sum(np.mean(u["drift"][:rows] ** 2, axis=0))) or 1.0
-        a_ms = float(np.sum(np.mean(u["abs_acc"][:rows] ** 2, axis=0))) or 1.0
-        return np.concatenate([np.full(n, 1.0 / d_ms), np.full(n, 1.0 / a_ms)])
-
-    if reward is None:
-        reward = QuadraticReward({"drift": np.full(n, w["drift"]), "abs_acc": np.full(n, w["acc"])},
-                                 episode_scale=episode_scale)
-    elif callable(reward) and not isinstance(reward, (QuadraticReward, CallableReward)):
-        reward = CallableReward(reward)
-    elif not isinstance(reward, (QuadraticReward, CallableReward)):
-        raise ValueError("reward must be None, a QuadraticReward, a CallableReward or a callable of the period's "
-                         f"signals, got {type(reward).__name__}")
+    reward = opt.reward(reward, lambda: QuadraticReward(
+        {"drift": np.full(n, w["drift"]), "abs_acc": np.full(n, w["acc"])},
+        episode_scale=functools.partial(_per_uncontrolled, episode_seconds, dt, n)))
     limit = check_scalar("stroke_limit", 0.05 if stroke_limit is None else stroke_limit, 0.0, lo_open=True, unit="m")
     if episode_seconds is None and source.random:
         episode_seconds = None  # a generated record's own length
@@ -312,7 +331,8 @@ def assembly(*, plant_preset: str = "three_storey", plant_params=None, damper_fl
         sensors=opt.sensors(sensors, sensor_noise, sensor_delay, history, DEFAULT_SENSORS),
         disturbance=source, reward=reward,
         limits=Limits({"damper_stroke": limit}, penalty=0.0, penalty_rate=w["termination"]),
-        new_episode=new_episode, metrics=lambda st, ep: metrics(st, ep, p),
+        new_episode=_BuildingEpisodes(lp, p, heights, dt, cache=not source.random),
+        metrics=functools.partial(metrics, p=p),
         roles={"body_velocity": "upper_floor_vel", "damper_velocity": "damper_velocity",
                "damper_stroke": "damper_stroke", "damper_force": "damper_force"},
         objective={"drift": 1.0 / 0.005 ** 2},
@@ -376,12 +396,12 @@ class ShearBuildingEnv(MRDamperEnv):
     input linear between samples), once per deterministic record.
     """
 
-    def __init__(self, *, render_mode: str | None = None, **options):
-        super().__init__(assembly(**options), render_mode=render_mode)
+    env_id = "mrd_env/ShearBuilding-v0"
+    build = staticmethod(assembly)
 
 
 class ShearBuildingVectorEnv(MRDamperVectorEnv):
     """``num_envs`` buildings in one compiled call (options as :class:`ShearBuildingEnv`)."""
 
-    def __init__(self, num_envs: int = 1, *, render_mode: str | None = None, autoreset_mode="NextStep", **options):
-        super().__init__(assembly(**options), num_envs, render_mode=render_mode, autoreset_mode=autoreset_mode)
+    env_id = "mrd_env/ShearBuilding-v0"
+    build = staticmethod(assembly)

@@ -1,44 +1,76 @@
 """The native vector environment: N environments of one assembly advanced in one compiled call.
 
-Gymnasium 1.x conventions: ``reset(seed=s)`` seeds environment i with s + i (or a list of seeds), each
-environment draws its own disturbance records and sensor noise from its own generator, so that environment i
-equals a scalar environment reset with the same seed, bit for bit. Autoreset ``NEXT_STEP`` (Gymnasium's
-default): the step after an episode ends resets that environment and returns its first observation with
-reward 0 and both flags false; ``SAME_STEP`` (used by the Stable-Baselines3 bridge): the ending step already
-returns the next episode's first observation and puts the last one in ``info["final_obs"]``.
+Gymnasium 1.x conventions, those of ``SyncVectorEnv`` over the scalar environments (a test checks that the two
+agree, infos included): ``reset(seed=s)`` seeds environment i with s + i (or a list of seeds; ``None`` keeps
+each environment's generator), each environment draws its own disturbance records and sensor noise from its own
+generator, so that environment i equals a scalar environment reset with the same seed, bit for bit.
+``reset(options={"reset_mask": mask})`` resets only the environments where ``mask`` (bool (N,)) is true.
 
-``infos``: ``t`` (s) for every environment; ``episode_metrics`` and ``termination_reason`` (with their masks
-``_episode_metrics``, ``_termination_reason``) for the environments whose episode ended at this step.
+Autoreset (``autoreset_mode``): ``NEXT_STEP`` (Gymnasium's default): the step after an episode ends resets that
+environment and returns its first observation with reward 0 and both flags false; ``SAME_STEP`` (used by the
+Stable-Baselines3 bridge): the ending step already returns the next episode's first observation, with the last
+one in ``info["final_obs"]`` and the ending step's info in ``info["final_info"]``; ``DISABLED``: an environment
+whose episode ended waits for ``reset(options={"reset_mask": ...})``.
+
+``infos`` are batched as Gymnasium batches the scalar environments' infos: every key has its mask ``_key``
+(nested dicts too). ``t`` (s) for every environment; ``disturbance`` (the record's name) for those that (re)start;
+``episode_metrics`` and ``termination_reason`` for those whose episode ended (in ``final_info`` in SAME_STEP
+mode). :func:`env_info` takes environment i's info out of a batch.
+
+A batch of actions is checked whole before any environment steps: a refused call changes nothing.
 """
 from __future__ import annotations
+
+from collections.abc import Callable
 
 import numpy as np
 from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from ..driver import BAD_ACTION, DIVERGED, HIST_NONE, RUNNING, TERMINATED, TRUNCATED
-from .base import action_space, as_action, force_actuation
-from .core import Assembly, EnvCore, PlantDeclarations
+from ..driver import BAD_ACTION, DIVERGED, HIST_FULL, HIST_NONE, RUNNING, TERMINATED, TRUNCATED
+from .base import action_space, as_action, force_actuation, render_fps
+from .core import Assembly, EnvCore, PlantDeclarations, assemble
 
 
 class MRDamperVectorEnv(PlantDeclarations, VectorEnv):
-    metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
+    """N environments of one plant in one compiled call (see the module docstring); options as the plant's scalar
+    class, plus ``num_envs``, ``autoreset_mode``, ``render_mode`` ("rgb_array": ``render()`` returns one frame per
+    environment, as Gymnasium's vector environments do; each environment then keeps its episode's history) and
+    ``max_episode_steps`` (episodes end, truncated, after at most that many steps, as ``gym.make``'s TimeLimit)."""
 
-    def __init__(self, assembly: Assembly, num_envs: int = 1, *, render_mode: str | None = None,
-                 autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP):
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 1000, "autoreset_mode": AutoresetMode.NEXT_STEP}
+    env_id = ""
+    build: Callable[..., Assembly] | None = None
+    _OWN = ("num_envs", "render_mode", "autoreset_mode", "max_episode_steps")
+
+    def __init__(self, num_envs: int = 1, *, render_mode: str | None = None,
+                 autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, max_episode_steps: int | None = None,
+                 assembly: Assembly | None = None, **options):
         if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs must be an int >= 1, got {num_envs!r}")
-        if render_mode is not None:
-            raise ValueError("the vector environment does not render; render a scalar environment instead")
-        mode = AutoresetMode(autoreset_mode)
-        if mode == AutoresetMode.DISABLED:
-            raise ValueError("autoreset_mode must be NEXT_STEP or SAME_STEP")
-        self.metadata = {**self.metadata, "autoreset_mode": mode}
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']} (a window: render "
+                             f"a scalar environment with render_mode='human'), got {render_mode!r}")
+        try:
+            mode = AutoresetMode(autoreset_mode)
+        except ValueError:
+            raise ValueError(f"autoreset_mode must be one of {[m.value for m in AutoresetMode]}, "
+                             f"got {autoreset_mode!r}") from None
+        if max_episode_steps is not None and (isinstance(max_episode_steps, bool) or not isinstance(
+                max_episode_steps, (int, np.integer)) or max_episode_steps < 1):
+            raise ValueError(f"max_episode_steps must be None or an int >= 1, got {max_episode_steps!r}")
+        if assembly is None:
+            assembly = assemble(type(self), options, own=self._OWN)
+        elif options:
+            raise ValueError(f"options {sorted(options)} apply when the environment builds its assembly, not beside "
+                             f"an assembly")
         self.assembly = asm = assembly
         self.num_envs = N = int(num_envs)
-        self.render_mode = None
-        self.core = core = EnvCore(asm, N, history=HIST_NONE)
+        self.render_mode = render_mode
+        self.metadata = {**type(self).metadata, "autoreset_mode": mode, "render_fps": render_fps(asm.control_dt)}
+        self.core = core = EnvCore(asm, N, history=HIST_FULL if render_mode else HIST_NONE,
+                                   step_cap=None if max_episode_steps is None else int(max_episode_steps))
         self.single_observation_space = _box(core.driver.n_obs)
         self.single_action_space = action_space(asm)
         self.observation_space = batch_space(self.single_observation_space, N)
@@ -49,32 +81,86 @@ class MRDamperVectorEnv(PlantDeclarations, VectorEnv):
         self.observation_labels = core.labels
         self.actuation = force_actuation(self)
         self._rngs: list = [None] * N
-        self._status = core.driver.int_state("STATUS")
-        self._reward = core.driver.state("REWARD")[:, 0]
-        self._pending = np.zeros(N, dtype=bool)  # NEXT_STEP: episodes that ended and reset at the next step
-        self._any_pending = False
+        self._seeds: list = [None] * N
+        self._ended = np.zeros(N, dtype=bool)  # episodes over: NEXT_STEP restarts them at the next step
         self._ashape = (N, self.nd)
         self._started = False
+        self._renderer = None
+        self._bind()
 
+    def _bind(self) -> None:
+        self._status = self.core.driver.int_state("STATUS")
+        self._reward = self.core.driver.state("REWARD")[:, 0]
+
+    def __getstate__(self) -> dict:
+        return {k: v for k, v in self.__dict__.items() if k not in ("_status", "_reward", "_renderer")}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self._renderer = None
+        self._bind()
+
+    # --- Gymnasium API -----------------------------------------------------------------------------------------
     def reset(self, *, seed=None, options=None):
         N = self.num_envs
-        super().reset(seed=seed if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool) else None)
         if seed is None:
             seeds = [None] * N
         elif isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
             seeds = [int(seed) + i for i in range(N)]
         else:
-            seeds = list(seed)
+            try:
+                seeds = list(seed)
+            except TypeError:
+                raise ValueError(f"seed must be None, an int >= 0 or a sequence of {N} of them, got {seed!r}") from None
             if len(seeds) != N:
                 raise ValueError(f"seed must be None, an int or {N} seeds, got {len(seeds)}")
-        self._rngs = [seeding.np_random(s)[0] for s in seeds]
-        self.core.start(self._rngs)
+        if not all(s is None or (isinstance(s, (int, np.integer)) and not isinstance(s, bool) and s >= 0)
+                   for s in seeds):
+            raise ValueError(f"seeds must be None or ints >= 0, got {seed!r}")
+        mask = self._reset_mask(options)
+        for b in np.flatnonzero(mask):  # None keeps an environment's generator, as a scalar env's reset does
+            if seeds[b] is not None or self._rngs[b] is None:
+                self._rngs[b], self._seeds[b] = seeding.np_random(seeds[b])
+        self.core.start(self._rngs, mask)
         if self.actuation is not None:
-            self.actuation.reset()
-        self._pending = np.zeros(N, dtype=bool)
-        self._any_pending = False
+            self.actuation.reset(mask)
+        self._ended[mask] = False
         self._started = True
-        return self.core.obs.copy(), {"t": np.zeros(N)}
+        infos = {"t": np.zeros(N), "_t": mask.copy()}
+        self._add_disturbance(infos, mask)
+        return self.core.obs.copy(), infos
+
+    @property
+    def np_random(self) -> tuple:
+        """Each environment's generator (its records and noise are drawn from it), as SyncVectorEnv gives them."""
+        return tuple(self._rngs)
+
+    @property
+    def np_random_seed(self) -> tuple:
+        """Each environment's seed (the last reset's, or the one drawn for it), as SyncVectorEnv gives them."""
+        return tuple(self._seeds)
+
+    def _reset_mask(self, options) -> np.ndarray:
+        """The environments a reset starts again (all, or ``options["reset_mask"]``), checked."""
+        N = self.num_envs
+        if options is None or "reset_mask" not in options:
+            return np.ones(N, dtype=bool)
+        mask = options["reset_mask"]
+        if not isinstance(mask, np.ndarray) or mask.dtype != np.bool_ or mask.shape != (N,):
+            raise ValueError(f"options['reset_mask'] must be a numpy bool array of shape ({N},), got "
+                             f"{type(mask).__name__} {getattr(mask, 'dtype', '')} {getattr(mask, 'shape', '')}")
+        if not mask.any():
+            raise ValueError("options['reset_mask'] must select at least one environment")
+        if not self._started and not mask.all():
+            raise ValueError("the first reset must start every environment (reset_mask all true, or no mask)")
+        return mask.copy()
+
+    def _add_disturbance(self, infos: dict, mask: np.ndarray) -> None:
+        """The names of the new episodes' records, for the environments in ``mask``."""
+        names = np.full(self.num_envs, None, dtype=object)
+        for b in np.flatnonzero(mask):
+            names[b] = self.core.episodes[b].record.name
+        infos["disturbance"], infos["_disturbance"] = names, mask.copy()
 
     def step(self, actions):
         if not self._started:
@@ -85,91 +171,129 @@ class MRDamperVectorEnv(PlantDeclarations, VectorEnv):
             a = actions.reshape(-1)
         else:
             a = as_action(actions, self.nd, N)
+        if not np.isfinite(a).all():  # the whole batch, before any environment steps
+            raise ValueError("actions must be finite (no NaN or infinity)")
+        mode = self.metadata["autoreset_mode"]
+        restart = self._ended if mode == AutoresetMode.NEXT_STEP and self._ended.any() else None
+        if mode == AutoresetMode.DISABLED and self._ended.any():
+            raise RuntimeError(f"the episodes of environments {np.flatnonzero(self._ended).tolist()} are over: "
+                               "reset them with reset(options={'reset_mask': mask}) (autoreset_mode DISABLED)")
         if self.actuation is not None:
             a = self.actuation.step_commands(a, core.obs, self.assembly.force_range)
-            if self._any_pending:  # these restart and do not step: their inverse starts at their next step
-                self.actuation.reset(self._pending)
-        restart = None
-        if self._any_pending:  # NEXT_STEP: the environments that ended last step start again, and do not step
-            restart = self._pending
+            if restart is not None:  # these restart and do not step: their inverse starts at their next step
+                self.actuation.reset(restart)
+        if restart is not None:  # NEXT_STEP: the environments that ended last step start again, and do not step
             core.start(self._rngs, restart)
             self._status[restart] = TRUNCATED
         core.step(a)
         if restart is not None:
             self._status[restart] = RUNNING
         rewards = self._reward.copy()
-        infos = {"t": core._k * self.assembly.control_dt}
-        if not self._status.any():  # every environment running (RUNNING = 0): the common step
-            obs = core.obs.copy()
-            if restart is not None:
-                rewards[restart] = 0.0
-                self._pending = np.zeros(N, dtype=bool)
-                self._any_pending = False
-            return obs, rewards, np.zeros(N, dtype=bool), np.zeros(N, dtype=bool), infos
-        return self._ended(restart, rewards, infos)
-
-    def _ended(self, restart, rewards, infos):
-        """The step at which some episodes ended (or an action was refused)."""
-        core = self.core
-        N = self.num_envs
-        status = self._status.copy()
-        ran = np.ones(N, dtype=bool) if restart is None else ~restart
-        if np.any(status[ran] == BAD_ACTION):
-            self._status[status == BAD_ACTION] = RUNNING
-            raise ValueError("actions must be finite (no NaN or infinity)")
+        infos = {"t": core._k * self.assembly.control_dt, "_t": np.ones(N, dtype=bool)}
         if restart is not None:
             rewards[restart] = 0.0
-        terminated = ran & ((status == TERMINATED) | (status == DIVERGED))
-        truncated = ran & (status == TRUNCATED)
-        ended = np.flatnonzero(terminated | truncated)
-        if ended.size:
-            self._end_infos(infos, ended, status, rewards)
-        obs = core.obs.copy()
-        done = terminated | truncated
-        if self.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP:
-            if ended.size:
-                final = np.full(N, None, dtype=object)
-                for b in ended:
-                    final[b] = obs[b].copy()
-                infos["final_obs"], infos["_final_obs"] = final, done
-                core.start(self._rngs, done)
-                if self.actuation is not None:
-                    self.actuation.reset(done)
-                obs[done] = core.obs[done]
-            self._pending = np.zeros(N, dtype=bool)
-        else:
-            self._pending = done
-        self._any_pending = bool(self._pending.any())
-        return obs, rewards, terminated, truncated, infos
+            self._add_disturbance(infos, restart)
+            self._ended = np.zeros(N, dtype=bool)
+        if not self._status.any():  # every environment running (RUNNING = 0): the common step
+            return core.obs.copy(), rewards, np.zeros(N, dtype=bool), np.zeros(N, dtype=bool), infos
+        return self._end_step(restart, rewards, infos)
 
-    def _end_infos(self, infos: dict, ended: np.ndarray, status: np.ndarray, rewards: np.ndarray) -> None:
+    def _end_step(self, restart, rewards, infos):
+        """The step at which some episodes ended."""
         core = self.core
         asm = self.assembly
         N = self.num_envs
-        mask = np.zeros(N, dtype=bool)
-        mask[ended] = True
-        metrics: dict[str, np.ndarray] = {}
-        reasons = np.full(N, None, dtype=object)
-        for b in ended:
+        status = self._status.copy()
+        if np.any(status == BAD_ACTION):  # a non-finite command from the force mode's inverse
+            self._status[status == BAD_ACTION] = RUNNING
+            raise ValueError("the inverse model returned a non-finite command")
+        ran = np.ones(N, dtype=bool) if restart is None else ~restart
+        terminated = ran & ((status == TERMINATED) | (status == DIVERGED))
+        truncated = ran & (status == TRUNCATED)
+        done = terminated | truncated
+        obs = core.obs.copy()
+        ended = {}  # each ended environment's info, as its scalar environment gives it
+        for b in np.flatnonzero(done):
+            info = {"t": float(infos["t"][b])}
             if status[b] == DIVERGED:
                 rewards[b] = -asm.limits.amount(core._n_steps[b] * asm.control_dt)
-                reasons[b] = f"diverged: {core.failure_message(b)}"
+                info["termination_reason"] = f"diverged: {core.failure_message(b)}"
             elif status[b] == TERMINATED:
-                reasons[b] = "stroke_limit"
-            for k, v in core.episode_metrics(b).items():
-                metrics.setdefault(k, np.zeros(N))[b] = v
-        infos["episode_metrics"] = metrics
-        infos["_episode_metrics"] = mask
-        term_mask = np.array([r is not None for r in reasons])
-        if term_mask.any():
-            infos["termination_reason"], infos["_termination_reason"] = reasons, term_mask
+                info["termination_reason"] = "stroke_limit"
+            info["episode_metrics"] = core.episode_metrics(int(b))
+            ended[b] = info
+        if self.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP:
+            for b, info in ended.items():
+                self._add_info(infos, {"final_obs": obs[b].copy(), "final_info": info}, b)
+            core.start(self._rngs, done)
+            if self.actuation is not None:
+                self.actuation.reset(done)
+            obs[done] = core.obs[done]
+            infos["t"][done] = 0.0  # the new episodes' reset info
+            self._add_disturbance(infos, done)
+        else:
+            for b, info in ended.items():
+                self._add_info(infos, info, b)
+            self._ended = done
+        return obs, rewards, terminated, truncated, infos
+
+    # --- rendering ---------------------------------------------------------------------------------------------
+    def render(self) -> tuple[np.ndarray, ...] | None:
+        """One frame per environment (``render_mode="rgb_array"``)."""
+        if self.render_mode is None:
+            from gymnasium import logger
+
+            logger.warn("render() called without a render_mode; pass render_mode='rgb_array'")
+            return None
+        if not self._started:
+            raise RuntimeError("call reset() before render()")
+        if self._renderer is None:
+            self._view = _SubEnv(self, 0)
+            self._renderer = self.assembly.renderer(self._view, human=False)
+        frames = []
+        for b in range(self.num_envs):  # one figure drawn for each environment in turn
+            self._view.b = b
+            frames.append(self._renderer.frame())
+        return tuple(frames)
 
     def close_extras(self, **kwargs):
-        pass
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
 
 
-def asm_dt(env) -> float:
-    return env.assembly.control_dt
+class _SubEnv:
+    """Environment ``b`` of a vector environment as a renderer sees a scalar one."""
+
+    def __init__(self, venv: MRDamperVectorEnv, b: int):
+        self.venv, self.b = venv, b
+
+    def signal(self, name: str) -> np.ndarray:
+        return self.venv.core.signal(name, self.b)
+
+    @property
+    def episode(self):
+        return self.venv.core.episodes[self.b]
+
+    @property
+    def title(self) -> str:
+        return f"{type(self.venv).__name__}[{self.b}]"
+
+    def __getattr__(self, name):  # dt, n_dampers, command_spec, plant_params: the vector env's
+        return getattr(self.venv, name)
+
+
+def env_info(infos: dict, i: int) -> dict:
+    """Environment ``i``'s info out of a batched info dict (the inverse of Gymnasium's batching): every key whose
+    mask ``_key`` is set for i, nested dicts included."""
+    out = {}
+    for key, value in infos.items():
+        mask = infos.get(f"_{key}")
+        if mask is None or not mask[i]:
+            continue
+        v = env_info(value, i) if isinstance(value, dict) else value[i]
+        out[key] = v.item() if isinstance(v, np.generic) else v
+    return out
 
 
 def _box(n: int):
