@@ -16,7 +16,8 @@ Predictive Control with Constraints, §3.1), solved by OSQP (Stellato et al. 202
 step, one problem per batch row; f_0 is the desired force f_c, turned into the command by the clipped on–off law
 u = u_max·H((f_c − f)·f) as :class:`~.model_based.ClippedOptimal` (or by its ``inverse``).
 
-OSQP is imported when the first controller is built: ``import controllers`` does not need it.
+OSQP is imported the first time a bound binds (or options for it are given): ``import controllers`` does not need
+it.
 """
 from __future__ import annotations
 
@@ -31,8 +32,8 @@ F_MAX_VELOCITY = 0.1
 def damper_force_limit(env, velocity: float = F_MAX_VELOCITY) -> float:
     """A damper's force capacity beyond its static preload (N): the peak |F − F_static| over a steady cycle of
     a sinusoidal stroke at the maximum command, with velocity amplitude ``velocity`` at the plant's lowest
-    undamped natural frequency (:func:`mrd_env.rig.sinusoidal_test`). At 0.1 m/s: 859 N for the quarter car's
-    automotive Spencer–Dyke damper (1.25 Hz), 1265 N for the building's prototype (5.46 Hz)."""
+    undamped natural frequency (:func:`mrd_env.rig.sinusoidal_test`). At 0.1 m/s: 857 N for the quarter car's
+    automotive Spencer–Dyke damper (1.25 Hz), 1260 N for the building's prototype (5.46 Hz)."""
     from scipy.linalg import eigh
 
     from mrd_env.rig import sinusoidal_test
@@ -141,6 +142,12 @@ class MPC(ClippedOptimal):
                           "verbose": False, "warm_starting": True, **(osqp or {})}
         self._solvers: dict = {}
         self.last_plan = np.zeros((0, H, nd))
+        if osqp:
+            try:  # bad settings fail now, not at the first step whose bounds bind
+                self._solver(-1)
+            except (TypeError, ValueError) as exc:
+                raise ValueError(f"osqp: invalid OSQP settings {osqp}: {exc}") from None
+            self._solvers.clear()
 
     def _steady_state(self, Q, R, N) -> np.ndarray:
         """S (n × nw): the cheapest equilibrium x_ss = S w̄ under a constant input w̄ — min xᵀQx + 2xᵀNf + fᵀRf

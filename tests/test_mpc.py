@@ -160,6 +160,9 @@ def test_bad_options_raise_value_errors_naming_them():
         MPC(env, design="continuous")
     with pytest.raises(ValueError, match="osqp"):
         MPC(env, osqp=3)
+    with pytest.raises(ValueError, match="osqp"):
+        MPC(env, osqp={"no_such_setting": 1})
+    assert MPC(env, osqp={"max_iter": 500}, f_max=500.0).horizon == 10
     with pytest.raises(ValueError, match="design"):
         ClippedOptimal(env, design="discrete")
     with pytest.raises(ValueError, match="damper_force"):
