@@ -11,7 +11,7 @@ from mrd_env.identification.compare import compare_models, split_records
 from mrd_env.identification.neural import NAME as NEURAL
 
 from . import sweep
-from .identify_cmd import (add_data_arguments, free_with_command, grid_dt, load_data, neural_data, options,
+from .identify_cmd import (add_data_arguments, free_with_command, grid_dt, load_data, neural_data, number, options,
                            reported_warnings)
 
 
@@ -20,13 +20,26 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--models", nargs="+", default=None,
                    help=f"models to compare (default: all registered: {available_dampers()}); add neural for the "
                         "neural forward model")
-    p.add_argument("--plot-window", type=float, default=1.0,
+    p.add_argument("--plot-window", type=number(lo=0.0, lo_open=True, unit="s"), default=1.0,
                    help="seconds of the held-back part shown over time in the figures (default 1)")
     p.add_argument("--out", type=Path, default=Path("results/compare"), help="output folder")
     sweep.add_arguments(p)
 
 
+def check_models(models: list[str]) -> None:
+    """--models: known names, each once."""
+    known = available_dampers() + [NEURAL]
+    bad = sorted({m for m in models if m not in known})
+    if bad:
+        raise ValueError(f"--models: unknown model(s) {bad}; available: {known}")
+    twice = sorted({m for m in models if models.count(m) > 1})
+    if twice:
+        raise ValueError(f"--models: {', '.join(twice)} given more than once")
+
+
 def run(args: argparse.Namespace) -> int:
+    if args.models:
+        check_models(args.models)
     executor = sweep.options(args)
     recs = load_data(args)
     others = load_data(args, args.validate) if args.validate else None

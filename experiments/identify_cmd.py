@@ -33,8 +33,28 @@ from mrd_env.identification.presets import save_preset
 from mrd_env.identification.result import ParameterAtBound
 
 from mrd_env.report import write_table
+from mrd_env.validation import describe_range
 
 from .records import add_column_arguments, columns_and_units, parse_pairs
+
+
+def number(cast=float, *, lo: float = -math.inf, hi: float = math.inf, lo_open: bool = False,
+           hi_open: bool = False, unit: str = ""):
+    """An argparse type: a finite number (``cast``: float or int) in a range; argparse names the option in its
+    one-line error ("argument --maxiter: 0 is invalid: must be finite and >= 1")."""
+    def parse(text: str):
+        try:
+            v = cast(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not {'a whole number' if cast is int else 'a number'}"
+                                             ) from None
+        if not (math.isfinite(v) and (v > lo if lo_open else v >= lo) and (v < hi if hi_open else v <= hi)):
+            limits = describe_range(lo, hi, lo_open, hi_open, unit)
+            if cast is int:
+                limits = "a whole number " + limits.removeprefix("finite and ")
+            raise argparse.ArgumentTypeError(f"{text} is invalid: must be {limits}")
+        return v
+    return parse
 
 
 def add_data_arguments(p: argparse.ArgumentParser) -> None:
@@ -45,22 +65,22 @@ def add_data_arguments(p: argparse.ArgumentParser) -> None:
                    help="score the models on these records (other tests of the same damper) after fitting on the "
                         "whole of --data; the table shows the fit and the validation errors")
     add_column_arguments(p)
-    p.add_argument("--t-start", type=float, default=None, help="keep samples from this time on (s)")
-    p.add_argument("--t-end", type=float, default=None, help="keep samples up to this time (s)")
+    p.add_argument("--t-start", type=number(), default=None, help="keep samples from this time on (s)")
+    p.add_argument("--t-end", type=number(), default=None, help="keep samples up to this time (s)")
     g = p.add_mutually_exclusive_group()
-    g.add_argument("--fs", type=float, default=None,
+    g.add_argument("--fs", type=number(lo=0.0, lo_open=True, unit="Hz"), default=None,
                    help="the record's sampling rate in Hz (e.g. 3004.8): time stamps are rebuilt as t0 + k/fs; an "
                         "error if the time column has another rate (to change the rate, use --dt)")
-    g.add_argument("--dt", type=float, default=None,
+    g.add_argument("--dt", type=number(lo=0.0, lo_open=True, unit="s"), default=None,
                    help="simulate on a grid of this step in s: the record is resampled to it when its own rate "
                         "differs (and the command says so)")
-    p.add_argument("--fit-fraction", type=float, default=0.6,
+    p.add_argument("--fit-fraction", type=number(lo=0.0, hi=1.0, lo_open=True, hi_open=True), default=0.6,
                    help="fraction of the record (from its start) used for fitting; the rest validates (0.6)")
     p.add_argument("--method", default="least_squares", choices=METHODS, help="optimiser (default least_squares)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the stochastic optimisers (default 0)")
-    p.add_argument("--maxiter", type=int, default=None,
+    p.add_argument("--seed", type=number(int, lo=0), default=0, help="seed of the stochastic optimisers (default 0)")
+    p.add_argument("--maxiter", type=number(int, lo=1), default=None,
                    help="least squares: residual evaluations (200); DE/PSO: generations (60)")
-    p.add_argument("--popsize", type=int, default=None, help="DE population multiplier / PSO swarm size")
+    p.add_argument("--popsize", type=number(int, lo=1), default=None, help="DE population multiplier / PSO swarm size")
     p.add_argument("--command-range", default="clip", choices=("clip", "widen", "raise"),
                    help="commands outside the preset's range: clip them (default), widen the range, or refuse")
     p.add_argument("--fit-eta", action="store_true", help="also fit the command lag rate η (1/s)")
@@ -77,7 +97,7 @@ def add_data_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--faults", default="exclude", choices=FAULT_MODES,
                    help="saturated channels, spikes and gaps: exclude them from the fit and errors (default), keep "
                         "them, or refuse the record")
-    p.add_argument("--warmup", type=float, default=0.0,
+    p.add_argument("--warmup", type=number(lo=0.0, unit="s"), default=0.0,
                    help="seconds at the start left out of the objective (model states start at rest)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
 
@@ -98,13 +118,19 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def load_data(args: argparse.Namespace, paths: list[Path] | None = None) -> list[DamperRecord]:
     """The records of ``paths`` (default --data), cut to [--t-start, --t-end]."""
+    if args.t_start is not None and args.t_end is not None and not args.t_start < args.t_end:
+        raise ValueError(f"--t-start {args.t_start:g} s must be before --t-end {args.t_end:g} s")
     recs = []
     for path in paths or args.data:
         columns, units = columns_and_units(args, path, ("t", "x", "command", "force"))
         rec = load_record_csv(path, columns, units)
         if args.t_start is not None or args.t_end is not None:
-            t0 = rec.t[0] if args.t_start is None else args.t_start
-            t1 = rec.t[-1] if args.t_end is None else args.t_end
+            t0 = float(rec.t[0]) if args.t_start is None else args.t_start
+            t1 = float(rec.t[-1]) if args.t_end is None else args.t_end
+            kept = int(np.count_nonzero((rec.t >= t0) & (rec.t <= t1)))
+            if kept < 3:
+                raise ValueError(f"--t-start/--t-end keep {kept} samples of {rec.label!r} (need >= 3): the record "
+                                 f"spans [{rec.t[0]:g}, {rec.t[-1]:g}] s, the window is [{t0:g}, {t1:g}] s")
             rec = rec.slice(t0, t1)
         recs.append(rec)
     return recs
@@ -114,16 +140,12 @@ def grid_dt(args: argparse.Namespace, rec: DamperRecord) -> float | None:
     """The simulation step: the record's own (None), its declared rate (--fs, checked against the time
     column) or a resampling step (--dt, announced when it changes the rate)."""
     if args.fs is not None:
-        if not (math.isfinite(args.fs) and args.fs > 0):
-            raise ValueError(f"--fs = {args.fs!r} is invalid: must be > 0 Hz")
         dt = 1.0 / args.fs
         if not on_grid(rec, dt):
             raise ValueError(f"--fs {args.fs:g} Hz does not match the time column of {rec.label!r} (mean rate "
                              f"{1 / rec.dt:.6g} Hz); --fs declares the record's rate, --dt resamples it")
         return dt
     if args.dt is not None:
-        if not (math.isfinite(args.dt) and args.dt > 0):
-            raise ValueError(f"--dt = {args.dt!r} is invalid: must be > 0 s")
         if not on_grid(rec, args.dt):
             print(f"resampling {rec.label!r} from {1 / rec.dt:.6g} Hz to {1 / args.dt:.6g} Hz (--dt {args.dt:g})")
         return args.dt
@@ -234,7 +256,25 @@ def _pct(x: float) -> float:
     return 100.0 * x
 
 
+def check_model_options(args: argparse.Namespace) -> None:
+    """Options that do not apply to --model: refused before any work, naming them."""
+    if args.model == NEURAL:
+        given = [opt for opt, v in (("--preset", args.preset), ("--free", args.free), ("--bounds", args.bounds),
+                                    ("--fit-eta", args.fit_eta or None), ("--fit-lag", args.fit_lag or None))
+                 if v is not None]
+        if given:
+            raise ValueError(f"{', '.join(given)}: parametric models only; the neural model has no named parameters "
+                             "(it learns the command lag from the record)")
+        if args.method not in ("least_squares", "adam"):
+            raise ValueError(f"--method {args.method}: the neural model is trained by adam (give --method adam or "
+                             "leave --method out)")
+    elif args.method == "adam":
+        raise ValueError(f"--method adam trains --model neural only; {args.model} takes least_squares, "
+                         "differential_evolution or pso")
+
+
 def run(args: argparse.Namespace) -> int:
+    check_model_options(args)
     fits, whole, idx, dt = records_and_grid(args)
     free = [s.strip() for s in args.free.split(",") if s.strip()] if args.free else None
     free = free_with_command(args, args.model, free)

@@ -35,6 +35,9 @@ def files(tmp_path):
     tt[200:] += 0.05  # a gap of 50 samples
     DamperRecord(tt, x, cmd, 0 * x).to_csv(paths["nonuniform"])
     paths["empty"].write_text("")
+    paths["backwards"] = tmp_path / "backwards.csv"  # a repeated time stamp at data row 3
+    paths["backwards"].write_text("t_s,x_m,command_V,force_N\n0,0,0,0\n0.001,0,0,1\n0.002,0,0,2\n0.002,0,0,3\n"
+                                  "0.004,0,0,4\n")
     paths["out_file"].write_text("not a folder")
     # saved agents (a folder holding agent.json and the model): without metadata, with broken, foreign or
     # incomplete metadata, for an unknown environment, without the model, and a valid quarter-car one
@@ -217,3 +220,33 @@ def test_command_help_exits_0(command, capsys):
     assert main([command, "--help"]) == 0
     out, err = capsys.readouterr()
     assert f"mrd-env {command}" in out and err == ""
+
+
+MESSAGES = [  # (argv, what the one line says): the option by its name, values as written
+    (["identify", "--data", "{good}", "--t-start", "0.3", "--t-end", "0.1"],
+     "--t-start 0.3 s must be before --t-end 0.1 s"),
+    (["identify", "--data", "{good}", "--t-start", "10"], "--t-start/--t-end keep 0 samples of 'good'"),
+    (["identify", "--data", "{good}", "--maxiter", "0"], "argument --maxiter: 0 is invalid: must be a whole number >= 1"),
+    (["identify", "--data", "{backwards}"], "not strictly increasing at data row 3 (0.002 followed by 0.002)"),
+    (["identify", "--data", "{good}", "--model", "neural", "--free", "c0a"], "--free: parametric models only"),
+    (["identify", "--data", "{good}", "--warmup", "100"], "are left to score after a warm-up of 100 s"),
+    (["compare-models", "--data", "{good}", "--models", "bingham", "bingham"],
+     "--models: bingham given more than once"),
+    (["compare-models", "--data", "{good}", "--plot-window", "0"], "argument --plot-window: 0 is invalid"),
+    (["inverse", "achievable", "--plants", "nope"], "--plants: unknown damper model(s) ['nope']; available"),
+    (["inverse", "achievable", "--network", "{binary}"], "not a neural-inverse network file"),
+    (["inverse", "train", "--history", "0"], "argument --history: 0 is invalid: must be a whole number >= 1"),
+    (["inverse", "train", "--model", "nope"], "--model: unknown damper model(s) ['nope']"),
+]
+LEAKS = ("np.float64(", "np.int64(", "slice", "pickle", "NeuralOptions", "Traceback", "['nope', 'nope']")
+
+
+@pytest.mark.parametrize("argv, text", MESSAGES, ids=[" ".join(a) for a, _ in MESSAGES])
+def test_error_messages_name_the_option_and_show_plain_values(argv, text, files, capsys, tmp_path):
+    """The line names what the user typed (the option, the value as written); never an internal call, a NumPy
+    repr, a library's option class or a name twice."""
+    code = main(_argv(argv, files) + ["--out", str(tmp_path / "out.npz")])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1, err
+    assert text in err, err
+    assert not [leak for leak in LEAKS if leak in err], err

@@ -106,6 +106,7 @@ def test_diverging_and_infeasible_candidates_get_a_penalty():
                     search={"method": "differential_evolution", "maxiter": 2, "popsize": 4, "progress": False})
     assert res.n_diverged > 0 and res.n_infeasible > 0
     assert np.isfinite(res.objective) and res.objective <= res.initial_objective
+    assert res.params["A"] > 10 and "A" not in res.bound_status()  # far from 1, in a span of 1e200: not "at" it
     # a diverging candidate inside a batch does not disturb the others
     d = make_damper("bouc_wen")
     prep = prepare_record(recs[0], d.command)

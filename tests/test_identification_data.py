@@ -7,8 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from mrd_env.identification import (DamperRecord, DisplacementSensor, LoadCell, SensorSet, apply_sensors,
-                                    load_record_csv)
+from mrd_env import make_damper
+from mrd_env.identification import (DamperRecord, DataOptions, DisplacementSensor, LoadCell, NeuralOptions,
+                                    SearchOptions, SensorSet, apply_sensors, load_record_csv)
+from mrd_env.inverse import make_inverse
 
 NEES_LIKE_COLUMNS = {"t": "t", "x": "D", "command": "Y", "force": "F", "v": "V"}
 NEES_LIKE_UNITS = {"t": "s", "x": "cm", "command": "V", "force": "N", "v": "cm/s"}
@@ -72,7 +74,8 @@ def test_slice_split_resample():
     r = DamperRecord(t, x, cmd, F, v, label="run")
     s = r.slice(0.1, 0.2)
     assert s.t[0] == pytest.approx(0.1) and s.t[-1] == pytest.approx(0.2) and s.n == 101
-    with pytest.raises(ValueError, match="t0 < t1"):
+    with pytest.raises(ValueError, match=r"the time window \[0.2, 0.1\] s is invalid: its start must be finite and "
+                                         "before its finite end"):
         r.slice(0.2, 0.1)
     with pytest.raises(ValueError, match="holds 0 samples"):
         r.slice(5.0, 6.0)
@@ -262,3 +265,18 @@ def test_sensor_parameters_are_validated():
     with pytest.raises(ValueError, match="velocity_cutoff_Hz"):
         SensorSet(sample_rate_Hz=100.0, velocity_cutoff_Hz=60.0)
     assert math.isclose(DisplacementSensor().range_m, 0.150)
+
+
+@pytest.mark.parametrize("make, shown", [
+    (lambda: DataOptions(dt=np.float64(-0.002)), "dt = -0.002 is invalid"),
+    (lambda: SearchOptions(seed=np.int64(-1)), "seed = -1 is invalid"),
+    (lambda: NeuralOptions(lr=np.float64(2.0)), "lr = 2.0 is invalid"),
+    (lambda: DamperRecord(np.array([0, 1e-3, 2e-3, 2e-3, 4e-3]), *np.zeros((3, 5))),
+     "(0.002 followed by 0.002)"),
+    (lambda: make_inverse("heaviside", make_damper("bouc_wen"), f_static=np.float64(np.inf)), "f_static = inf is"),
+])
+def test_bad_numpy_values_are_shown_as_numbers(make, shown):
+    """A NumPy scalar in an error message reads as the number it holds, never np.float64(...)."""
+    with pytest.raises(ValueError) as err:
+        make()
+    assert shown in str(err.value) and "np." not in str(err.value)

@@ -15,7 +15,7 @@ from scipy.optimize import brentq
 
 import mrd_env  # noqa: F401  (registers the environments)
 from mrd_env import SimulationDivergedError, make_damper
-from mrd_env.inverse import INVERSES, achievable_forces, make_inverse, nrmse, track
+from mrd_env.inverse import INVERSES, achievable_forces, make_inverse, nrmse, track, tracking_figure
 from mrd_env.inverse.neural import NETWORKS, load_network
 from mrd_env.inverse.sid import SID_MODELS, effective_command
 
@@ -583,3 +583,13 @@ def test_a_network_refuses_a_damper_with_another_command_lag(tmp_path):
     slower = make_damper("bouc_wen", command={"eta": d.command.eta, "eta_fall": 80.0})
     with pytest.raises(ValueError, match="command lag"):
         make_inverse("neural", slower, network=net)
+
+
+@pytest.mark.parametrize("model, unit", [("bouc_wen", "V"), ("ali_ramaswamy", "A")])
+def test_tracking_figure_labels_the_command_axis_in_the_plants_unit(model, unit):
+    d = make_damper(model)
+    rec = achievable_forces(d, duration=0.3, rng=0)
+    res = track(make_inverse("heaviside", d), d, rec.x, rec.v, rec.force, 1e-3)
+    assert res.command_unit == unit
+    fig = tracking_figure({"on–off": res})
+    assert fig.axes[1].get_ylabel() == f"command ({unit})"

@@ -11,6 +11,7 @@ from experiments.cli import main
 from mrd_env import make_damper
 from mrd_env.identification import DamperRecord
 from mrd_env.identification import save_preset
+from mrd_env.identification.presets import read_preset
 from mrd_env.inverse import achievable_forces
 
 
@@ -62,3 +63,53 @@ def test_train_writes_a_network_that_reproduces_itself(tmp_path, capsys):
     again = tmp_path / "again.npz"
     assert main(net.meta["reproduce"].split()[1:-1] + [str(again), "--no-progress"]) == 0
     assert all(np.array_equal(a, b) for a, b in zip(net.weights, load_network(again).weights))
+
+
+def test_a_fitted_preset_file_is_a_damper_wherever_a_model_name_is(tmp_path, capsys):
+    """achievable --plants/--mismatch, record --model and train --model take a preset file (as identify
+    --save-preset writes); with no shipped network for its parameters the neural inverse is left out, saying so;
+    a neural forward model's preset is refused in one line (the inverses step and invert a parametric model)."""
+    fitted = save_preset(make_damper("bouc_wen", c0a=1.2 * make_damper("bouc_wen").params.c0a),
+                         tmp_path / "fitted.json")
+    out = tmp_path / "achievable"
+    code = main(["inverse", "achievable", "--plants", str(fitted), "--mismatch", f"bouc_wen:{fitted}",
+                 "--inverses", "model", "neural", "--duration", "0.6", "--out", str(out)])
+    printed, err = capsys.readouterr()
+    assert code == 0, err
+    rows = _rows(out / "achievable.csv")
+    assert [(r["plant"], r["inverse model"], r["inverse"]) for r in rows] == [
+        ("fitted", "fitted", "model"), ("fitted", "bouc_wen", "model"), ("fitted", "bouc_wen", "neural")]
+    assert float(rows[0]["NRMSE %"]) < 2.0 < float(rows[1]["NRMSE %"])  # its own model, then the published one
+    assert "note: no neural inverse for this bouc_wen damper" in printed
+    assert (out / "achievable_fitted_on_fitted.png").is_file()
+
+    r = achievable_forces(make_damper(fitted), duration=1.0, rng=0)
+    data = DamperRecord(r.t, r.x, r.command, r.force, r.v).to_csv(tmp_path / "rec.csv")
+    code = main(["inverse", "record", "--data", str(data), "--model", str(fitted), "--maxiter", "2", "--fs", "1000",
+                 "--inverses", "model", "--no-progress", "--out", str(tmp_path / "record")])
+    assert code == 0, capsys.readouterr().err
+    plant = read_preset(tmp_path / "record" / "plant_fitted.json")
+    assert plant["model"] == "bouc_wen" and plant["provenance"]["initial"]["c0a"] == make_damper(fitted).params.c0a
+
+    pytest.importorskip("torch")
+    net = tmp_path / "net.npz"
+    assert main(["inverse", "train", "--model", str(fitted), "--records", "1", "--duration", "0.3", "--epochs", "1",
+                 "--hidden", "4", "--history", "2", "--no-progress", "--out", str(net)]) == 0
+    from mrd_env.inverse.neural import load_network
+    meta = load_network(net).meta
+    assert meta["parameters"]["c0a"] == make_damper(fitted).params.c0a
+    assert f"--model {fitted} --dt" in meta["reproduce"] and "--preset" not in meta["reproduce"]
+
+
+def test_a_neural_forward_model_preset_is_refused_by_the_inverses(tmp_path, capsys):
+    d = make_damper("bouc_wen")
+    r = achievable_forces(d, duration=0.5, rng=0)
+    rec = DamperRecord(r.t, r.x, r.command, r.force, r.v)
+    pytest.importorskip("torch")
+    from mrd_env.identification import fit_model
+    net = save_preset(fit_model("neural", rec, search={"maxiter": 1, "progress": False}), tmp_path / "net.json")
+    for argv in (["achievable", "--plants", str(net)], ["train", "--model", str(net)],
+                 ["record", "--data", str(rec.to_csv(tmp_path / "rec.csv")), "--plant-preset", str(net)]):
+        assert main(["inverse", *argv, "--out", str(tmp_path / "out.npz")]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "holds a neural forward model; the inverses need a parametric" in err

@@ -102,7 +102,7 @@ for label in ("on–off (Heaviside)", "SID", "model-predictive", "neural"):
     ax_f.plot(r.t[window], r.force[0, window], lw=0.9, label=f"{label} ({100 * r.nrmse[0]:.1f} %)")
     ax_c.step(r.t[window], r.command[0, window], lw=0.8, where="post", label=label)
 ax_f.set_ylabel("force (N)")
-ax_c.set_ylabel("command (V)")
+ax_c.set_ylabel(f"command ({damper.command.unit})")
 ax_c.set_xlabel("time t (s)")
 for ax in (ax_f, ax_c):
     ax.grid(alpha=0.3)

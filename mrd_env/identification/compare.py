@@ -23,6 +23,7 @@ from ..dampers import DamperModel, available_dampers, damper_class
 from ..errors import SimulationDivergedError
 from ..executor import Task, TaskFailed, resolve_backend, run_tasks
 from ..validation import check_scalar
+from .display import shown
 from .data import DamperRecord
 from .fit import fit_model
 from .neural import NAME as NEURAL
@@ -95,7 +96,7 @@ def split_records(records, fit_fraction: float, dt: float | None = None
     whole = [uniform_record(r, dt) for r in as_records(records)]
     f = float(fit_fraction)
     if not (0.0 < f < 1.0):
-        raise ValueError(f"fit_fraction = {fit_fraction!r} is invalid: must be in (0, 1)")
+        raise ValueError(f"fit_fraction = {shown(fit_fraction)} is invalid: must be in (0, 1)")
     fits, idx = [], []
     for r in whole:
         part, _ = r.split(f)
@@ -151,8 +152,9 @@ def compare_models(records, models: Sequence[str | DamperModel] | None = None, *
         if not isinstance(m, DamperModel) and m != NEURAL:
             damper_class(m)  # an unknown name is the caller's error, not a failed fit: refuse it before fitting
     names = [m.name if isinstance(m, DamperModel) else str(m) for m in models]
-    if len(set(names)) != len(names):
-        raise ValueError(f"models contains a model twice: {names}")
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise ValueError(f"models names {', '.join(twice)} more than once")
     if plot_window is not None:
         check_scalar("plot_window", plot_window, 0.0, lo_open=True, unit="s")
     presets = dict(presets or {})

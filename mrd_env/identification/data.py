@@ -14,6 +14,7 @@ from typing import Mapping
 
 import numpy as np
 
+from .display import shown
 from .measures import _check_signal, _check_time
 
 __all__ = ["DamperRecord", "load_record_csv", "read_columns", "own_columns", "UNITS"]
@@ -83,7 +84,7 @@ class DamperRecord:
         for name in ("x", "command", "force") + (("v",) if self.v is not None else ()):
             cols[name] = _check_signal(f"column '{name}'", getattr(self, name), n=n, item="row")
         if not isinstance(self.command_unit, str) or self.command_unit not in ("V", "A"):
-            raise ValueError(f"command_unit = {self.command_unit!r} is invalid: must be 'V' or 'A'")
+            raise ValueError(f"command_unit = {shown(self.command_unit)} is invalid: must be 'V' or 'A'")
         for name, a in cols.items():
             object.__setattr__(self, name, _frozen(a))
 
@@ -123,18 +124,19 @@ class DamperRecord:
         """Samples with t0 <= t <= t1 (s); times are kept, not shifted to zero."""
         t0, t1 = float(t0), float(t1)
         if not (math.isfinite(t0) and math.isfinite(t1) and t0 < t1):
-            raise ValueError(f"slice needs finite t0 < t1, got t0 = {t0!r}, t1 = {t1!r}")
+            raise ValueError(f"the time window [{t0:g}, {t1:g}] s is invalid: its start must be finite and before its "
+                             "finite end")
         idx = np.flatnonzero((self.t >= t0) & (self.t <= t1))
         if idx.size < 3:
-            raise ValueError(f"slice [{t0:g}, {t1:g}] s holds {idx.size} samples (need >= 3); the record spans "
-                             f"[{self.t[0]:g}, {self.t[-1]:g}] s")
+            raise ValueError(f"the time window [{t0:g}, {t1:g}] s holds {idx.size} samples (need >= 3); the record "
+                             f"{self.label!r} spans [{self.t[0]:g}, {self.t[-1]:g}] s")
         return self._replace(slice(int(idx[0]), int(idx[-1]) + 1))
 
     def split(self, fraction: float) -> tuple[DamperRecord, DamperRecord]:
         """(fit, validation): the first ``fraction`` of the samples and the rest, without overlap."""
         f = float(fraction)
         if not (0.0 < f < 1.0):
-            raise ValueError(f"fraction = {fraction!r} is invalid: must be in (0, 1)")
+            raise ValueError(f"fraction = {shown(fraction)} is invalid: must be in (0, 1)")
         k = int(round(f * self.n))
         if k < 3 or self.n - k < 3:
             raise ValueError(f"fraction = {f:g} of {self.n} samples leaves a part with fewer than 3 samples")
@@ -152,7 +154,7 @@ class DamperRecord:
         """
         dt = float(dt)
         if not (math.isfinite(dt) and 0.0 < dt <= self.duration / 2):
-            raise ValueError(f"dt = {dt!r} is invalid: must be > 0 and <= half the duration "
+            raise ValueError(f"dt = {shown(dt)} is invalid: must be > 0 and <= half the duration "
                              f"({self.duration / 2:g} s)")
         n_new = int(math.floor(self.duration / dt * (1 + 1e-12))) + 1
         t_new = self.t[0] + dt * np.arange(n_new)

@@ -17,6 +17,8 @@ import math
 import numpy as np
 from scipy.integrate import trapezoid
 
+from .display import shown
+
 __all__ = ["error_time", "error_displacement", "error_velocity", "j1", "j2", "error_measures"]
 
 _MIN_SAMPLES = 3  # second-order differences at both ends need three points
@@ -52,7 +54,7 @@ def _check_time(label: str, t, *, n: int | None = None, item: str = "index") -> 
     if bad.size:
         i = int(bad[0]) + 1
         raise ValueError(f"{label} is not strictly increasing at {item} {i} "
-                         f"({t[i - 1]!r} followed by {t[i]!r})")
+                         f"({shown(t[i - 1])} followed by {shown(t[i])})")
     return t
 
 

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..dampers import CommandSpec
+from .display import shown
 from .prepare import PreparedRecord, prepare_record
 from .result import FitResult, _measures, pooled_measures, record_info
 
@@ -58,18 +59,18 @@ class NeuralOptions:
 
     def __post_init__(self) -> None:
         if not (isinstance(self.hidden, int) and 1 <= self.hidden <= 4096):
-            raise ValueError(f"hidden = {self.hidden!r} is invalid: must be an int in [1, 4096]")
+            raise ValueError(f"hidden = {shown(self.hidden)} is invalid: must be an int in [1, 4096]")
         lags = tuple(self.lags)
         bad = any((not isinstance(k, (int, np.integer))) or k < 0 for k in lags)
         if not lags or bad or len(set(lags)) != len(lags):
-            raise ValueError(f"lags = {self.lags!r} is invalid: must be distinct ints >= 0")
+            raise ValueError(f"lags = {shown(self.lags)} is invalid: must be distinct ints >= 0")
         object.__setattr__(self, "lags", tuple(int(k) for k in lags))
         if not (isinstance(self.batch, int) and self.batch >= 1):
-            raise ValueError(f"batch = {self.batch!r} is invalid: must be an int >= 1")
+            raise ValueError(f"batch = {shown(self.batch)} is invalid: must be an int >= 1")
         if not (0 < self.lr < 1):
-            raise ValueError(f"lr = {self.lr!r} is invalid: must be in (0, 1)")
+            raise ValueError(f"lr = {shown(self.lr)} is invalid: must be in (0, 1)")
         if not (0 <= self.weight_decay < 1):
-            raise ValueError(f"weight_decay = {self.weight_decay!r} is invalid: must be in [0, 1)")
+            raise ValueError(f"weight_decay = {shown(self.weight_decay)} is invalid: must be in [0, 1)")
 
 
 def _windows(prep: PreparedRecord, lags: tuple[int, ...]) -> np.ndarray:

@@ -13,6 +13,7 @@ from typing import Mapping
 
 import numpy as np
 
+from .display import shown
 from .prepare import FAULT_MODES
 
 METHODS = ("least_squares", "differential_evolution", "pso", "adam")
@@ -27,7 +28,7 @@ def _check_count(name: str, value) -> None:
     except (TypeError, ValueError, OverflowError):
         ok = False
     if not ok:
-        raise ValueError(f"{name} = {value!r} is invalid: must be an int >= 1 (or None for the default)")
+        raise ValueError(f"{name} = {shown(value)} is invalid: must be an int >= 1 (or None for the default)")
 
 
 @dataclass(frozen=True)
@@ -55,18 +56,18 @@ class SearchOptions:
 
     def __post_init__(self) -> None:
         if not isinstance(self.method, str) or self.method not in METHODS:
-            raise ValueError(f"method = {self.method!r} is invalid: must be one of {list(METHODS)}")
+            raise ValueError(f"method = {shown(self.method)} is invalid: must be one of {list(METHODS)}")
         if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)) or self.seed < 0:
-            raise ValueError(f"seed = {self.seed!r} is invalid: must be a non-negative int")
+            raise ValueError(f"seed = {shown(self.seed)} is invalid: must be a non-negative int")
         _check_count("maxiter", self.maxiter)
         _check_count("popsize", self.popsize)
         if self.jacobian not in ("central", "forward"):
-            raise ValueError(f"jacobian = {self.jacobian!r} is invalid: must be 'central' or 'forward'")
+            raise ValueError(f"jacobian = {shown(self.jacobian)} is invalid: must be 'central' or 'forward'")
         if not (isinstance(self.diff_step, (int, float)) and 0 < self.diff_step < 0.25):
-            raise ValueError(f"diff_step = {self.diff_step!r} is invalid: must be in (0, 0.25)")
+            raise ValueError(f"diff_step = {shown(self.diff_step)} is invalid: must be in (0, 0.25)")
         f = self.bound_factor
         if not (isinstance(f, (int, float)) and math.isfinite(f) and f > 1):
-            raise ValueError(f"bound_factor = {f!r} is invalid: must be > 1")
+            raise ValueError(f"bound_factor = {shown(f)} is invalid: must be > 1")
 
     @property
     def iterations(self) -> int:
@@ -98,23 +99,23 @@ class DataOptions:
 
     def __post_init__(self) -> None:
         if self.dt is not None and not (isinstance(self.dt, (int, float)) and math.isfinite(self.dt) and self.dt > 0):
-            raise ValueError(f"dt = {self.dt!r} is invalid: must be > 0 s (or None)")
+            raise ValueError(f"dt = {shown(self.dt)} is invalid: must be > 0 s (or None)")
         try:
             w = float(self.warmup)
         except (TypeError, ValueError, OverflowError):
             w = math.nan
         if not (math.isfinite(w) and w >= 0):
-            raise ValueError(f"warmup = {self.warmup!r} is invalid: must be >= 0 s")
+            raise ValueError(f"warmup = {shown(self.warmup)} is invalid: must be >= 0 s")
         if not isinstance(self.command_range, str) or self.command_range not in ("clip", "raise", "widen"):
-            raise ValueError(f"command_range = {self.command_range!r} is invalid: must be 'clip', 'raise' or "
+            raise ValueError(f"command_range = {shown(self.command_range)} is invalid: must be 'clip', 'raise' or "
                              "'widen'")
         if self.faults not in FAULT_MODES:
-            raise ValueError(f"faults = {self.faults!r} is invalid: must be one of {list(FAULT_MODES)}")
+            raise ValueError(f"faults = {shown(self.faults)} is invalid: must be one of {list(FAULT_MODES)}")
         if self.offset is not None and (isinstance(self.offset, bool)
                                         or not isinstance(self.offset, (int, np.integer))):
-            raise ValueError(f"offset = {self.offset!r} is invalid: must be an int number of samples (or None)")
+            raise ValueError(f"offset = {shown(self.offset)} is invalid: must be an int number of samples (or None)")
         if self.weighting not in ("record", "sample"):
-            raise ValueError(f"weighting = {self.weighting!r} is invalid: must be 'record' or 'sample'")
+            raise ValueError(f"weighting = {shown(self.weighting)} is invalid: must be 'record' or 'sample'")
 
     def prepare_kwargs(self) -> dict:
         """The keyword arguments of ``prepare_record`` (without the offset)."""

@@ -21,6 +21,7 @@ import numpy as np
 
 from ..command_lag import LAG_DELAY, LAG_FALL, LAG_RISE
 from ..dampers import DamperModel, damper_class
+from .display import shown
 
 
 #: Pseudo-parameters of the command dynamics (:class:`~mrd_env.dampers.CommandSpec`): name → (field, unit, lo, hi).
@@ -68,7 +69,7 @@ def default_bounds(model: str | type | DamperModel, name: str, value: float,
     cls = _model_class(model)
     f = float(bound_factor)
     if not (math.isfinite(f) and f > 1):
-        raise ValueError(f"bound_factor = {bound_factor!r} is invalid: must be > 1")
+        raise ValueError(f"bound_factor = {shown(bound_factor)} is invalid: must be > 1")
     lo_valid, hi_valid, _ = _valid_range(cls, name)
     v = float(value)
     if name == COMMAND_DELAY:

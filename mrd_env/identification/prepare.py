@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from ..dampers import CommandSpec
+from .display import shown
 from .data import DamperRecord
 from .faults import Fault, FaultsExcluded, describe_faults, find_faults, repair_spikes
 
@@ -49,7 +50,7 @@ def uniform_record(record: DamperRecord, dt: float | None = None) -> DamperRecor
         dt = record.dt
     dt = float(dt)
     if not (math.isfinite(dt) and dt > 0):
-        raise ValueError(f"dt = {dt!r} is invalid: must be > 0 s")
+        raise ValueError(f"dt = {shown(dt)} is invalid: must be > 0 s")
     grid = record.t[0] + dt * np.arange(record.n)
     if np.abs(record.t - grid).max() <= 0.5 * dt:
         if np.array_equal(grid, record.t):
@@ -112,9 +113,9 @@ def prepare_record(record: DamperRecord, command: CommandSpec, *, dt: float | No
     back (``force[k] = measured[k + offset]``) and the samples left without a partner leave the mask.
     """
     if command_range not in ("clip", "raise", "widen"):
-        raise ValueError(f"command_range = {command_range!r} is invalid: must be 'clip', 'raise' or 'widen'")
+        raise ValueError(f"command_range = {shown(command_range)} is invalid: must be 'clip', 'raise' or 'widen'")
     if faults not in FAULT_MODES:
-        raise ValueError(f"faults = {faults!r} is invalid: must be one of {list(FAULT_MODES)}")
+        raise ValueError(f"faults = {shown(faults)} is invalid: must be one of {list(FAULT_MODES)}")
     if record.command_unit != command.unit:
         raise ValueError(f"record {record.label!r} has commands in {record.command_unit} but the damper's "
                          f"command channel is in {command.unit}")
@@ -137,7 +138,7 @@ def prepare_record(record: DamperRecord, command: CommandSpec, *, dt: float | No
     a = np.gradient(v, dt_r, edge_order=2)
     warmup = float(warmup)
     if not (math.isfinite(warmup) and warmup >= 0):
-        raise ValueError(f"warmup = {warmup!r} is invalid: must be >= 0 s")
+        raise ValueError(f"warmup = {shown(warmup)} is invalid: must be >= 0 s")
     mask = (r.t - r.t[0]) >= warmup - 1e-12 * dt_r
     force, partner = shift_channel(np.array(r.force), offset)
     mask &= partner
@@ -148,8 +149,11 @@ def prepare_record(record: DamperRecord, command: CommandSpec, *, dt: float | No
         mask &= ~bad
         warnings.warn(describe_faults(record.label, found, int(bad.sum()), r.n), FaultsExcluded, stacklevel=3)
     if np.count_nonzero(mask) < 3:
-        raise ValueError(f"warmup = {warmup:g} s, offset = {offset} and the faults leave fewer than 3 samples of "
-                         f"record {record.label!r} ({r.duration:g} s long)")
+        causes = [c for c, on in ((f"a warm-up of {warmup:g} s", warmup > 0),
+                                  (f"a force offset of {offset} samples", offset != 0), ("its faults", bool(found)))
+                  if on]
+        raise ValueError(f"fewer than 3 samples of record {record.label!r} ({r.duration:g} s long) are left to score "
+                         f"after {' and '.join(causes) or 'preparation'}")
     return PreparedRecord(r, dt_r, np.array(r.x), v, a, cmd, force, mask,
                           n_out if command_range == "clip" else 0, found, int(offset))
 

@@ -75,15 +75,15 @@ class FitResult:
 
     def bound_status(self) -> dict[str, str]:
         """{free parameter: "at lower bound" or "at upper bound"} for those fitted onto a bound (within
-        :data:`BOUND_RTOL` of the bounds' span); the others are not listed."""
+        :data:`BOUND_RTOL` of the bounds' span, and of the bound itself unless it is 0); the others are not
+        listed."""
         out = {}
         for k, v in self.free_values().items():
             lo, hi = self.bounds[k]
-            tol = BOUND_RTOL * (hi - lo)
-            if v <= lo + tol:
-                out[k] = "at lower bound"
-            elif v >= hi - tol:
-                out[k] = "at upper bound"
+            for where, b in (("at lower bound", lo), ("at upper bound", hi)):
+                tol = BOUND_RTOL * (hi - lo) if b == 0 else BOUND_RTOL * min(hi - lo, abs(b))
+                if abs(v - b) <= tol:
+                    out[k] = where
         return out
 
     def bound_messages(self) -> list[str]:
@@ -92,8 +92,9 @@ class FitResult:
         out = []
         for k, where in self.bound_status().items():
             unit = units.get(k) or COMMAND_PARAMS[k][1]
+            unit = "" if unit in ("", "-") else f" {unit}"
             bound = self.bounds[k][0 if where == "at lower bound" else 1]
-            out.append(f"{self.model}: {k} = {self.free_values()[k]:.6g} {unit} is {where} ({bound:.6g} {unit}): "
+            out.append(f"{self.model}: {k} = {self.free_values()[k]:.6g}{unit} is {where} ({bound:.6g}{unit}): "
                        "the best fit may lie beyond it (widen its bounds)")
         return out
 

@@ -19,10 +19,10 @@ from .base import Inverse
 from .data import achievable_forces, random_command
 from .heaviside import Heaviside
 from .model import ModelPredictive
-from .tracking import TrackingResult, nrmse, plot_tracking, track
+from .tracking import TrackingResult, nrmse, plot_tracking, track, tracking_figure
 
 __all__ = ["INVERSES", "Inverse", "make_inverse", "available_inverses", "track", "TrackingResult", "nrmse",
-           "plot_tracking", "achievable_forces", "random_command", "train_neural_inverse"]
+           "plot_tracking", "tracking_figure", "achievable_forces", "random_command", "train_neural_inverse"]
 
 
 def _classes() -> dict:

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..identification.display import shown
 from ..validation import as_real, check_scalar
 from .base import Inverse
 
@@ -35,7 +36,7 @@ class Heaviside(Inverse):
         self.gain = None if gain is None else check_scalar("gain", gain, 0.0, lo_open=True, unit=f"{unit}/N")
         self.f_static = as_real("f_static", f_static)
         if not np.isfinite(self.f_static):
-            raise ValueError(f"f_static = {f_static!r} is invalid: must be finite (N)")
+            raise ValueError(f"f_static = {shown(f_static)} is invalid: must be finite (N)")
 
     def _start(self, rows, x, v, f_measured):
         pass

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..identification.display import shown
 from ..integrator import ATOL, RTOL
 from ..validation import check_scalar
 from .observer import ObserverInverse
@@ -39,7 +40,7 @@ class ModelPredictive(ObserverInverse):
         self.n_grid = int(check_scalar("n_grid", n_grid, 2, 1000))
         self.n_refine = int(check_scalar("n_refine", n_refine, 0, 100))
         if self.n_grid != n_grid or self.n_refine != n_refine:
-            raise ValueError(f"n_grid and n_refine must be integers, got {n_grid!r} and {n_refine!r}")
+            raise ValueError(f"n_grid and n_refine must be integers, got {shown(n_grid)} and {shown(n_refine)}")
         self.grid = np.linspace(self.v_min, self.v_max, self.n_grid)
         self.predicted = np.zeros(0)
 

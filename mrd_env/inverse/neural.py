@@ -31,6 +31,7 @@ from pathlib import Path
 import numba as nb
 import numpy as np
 
+from ..identification.display import shown
 from .base import Inverse, lag_decay
 
 NETWORKS = Path(__file__).with_name("networks")
@@ -114,16 +115,25 @@ def load_network(path: str | Path) -> Network:
     path = Path(path)
     if not path.is_file():
         raise ValueError(f"{path}: no such network file")
+    foreign = f"{path}: not a neural-inverse network file (mrd-env inverse train writes them)"
     try:
-        with np.load(path, allow_pickle=False) as z:
+        z = np.load(path, allow_pickle=False)
+    except (OSError, ValueError):  # not an array file at all (numpy's own message speaks of pickles)
+        raise ValueError(f"{foreign}: not an .npz archive") from None
+    if not isinstance(z, np.lib.npyio.NpzFile):
+        raise ValueError(f"{foreign}: a single array, not an .npz archive")
+    with z:
+        try:
             meta = json.loads(str(z["meta"]))
             n = int(meta["layers"])
             weights = tuple(np.array(z[f"W{i}"], dtype=np.float64) for i in range(n))
             biases = tuple(np.array(z[f"b{i}"], dtype=np.float64) for i in range(n))
-    except (OSError, KeyError, ValueError, json.JSONDecodeError) as exc:
-        raise ValueError(f"{path}: not a neural-inverse network file ({exc})") from None
+        except KeyError as exc:
+            raise ValueError(f"{foreign}: no {exc.args[0]!r} in it") from None
+        except (TypeError, ValueError) as exc:  # json.JSONDecodeError is a ValueError
+            raise ValueError(f"{foreign}: unreadable metadata ({exc})") from None
     if meta.get("format") != FORMAT:
-        raise ValueError(f"{path}: not a neural-inverse network file (format {meta.get('format')!r})")
+        raise ValueError(f"{foreign}: format {meta.get('format')!r}, expected {FORMAT!r}")
     return Network(weights, biases, int(meta["history"]), tuple(float(s) for s in meta["scales"]), meta)
 
 
@@ -244,7 +254,7 @@ class NeuralInverse(Inverse):
         self._decay = lag_decay(c, self.dt)
         self.u0 = self.v_min if u0 is None else float(u0)
         if not self.v_min <= self.u0 <= self.v_max:
-            raise ValueError(f"u0 = {u0!r} is invalid: must be within [{self.v_min:g}, {self.v_max:g}] {c.unit}")
+            raise ValueError(f"u0 = {shown(u0)} is invalid: must be within [{self.v_min:g}, {self.v_max:g}] {c.unit}")
         self._work = np.zeros((2, int(self._sizes.max())))
         self._inp = np.zeros(net.n_inputs)
 

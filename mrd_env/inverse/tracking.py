@@ -37,7 +37,8 @@ def nrmse(f, f_ref) -> float:
 class TrackingResult:
     """Closed-loop tracking of N records (arrays (N, n), SI): the desired and achieved forces (N), the commands
     (held from each sample to the next; the last repeats the one before), the errors per record from the second
-    sample on, and the mean wall time of one ``command`` call (s, for the whole batch)."""
+    sample on, and the mean wall time of one ``command`` call (s, for the whole batch); ``command_unit`` is the
+    plant's (V or A)."""
 
     t: np.ndarray
     x: np.ndarray
@@ -50,6 +51,7 @@ class TrackingResult:
     command_time: float
     inverse: str
     plant: str
+    command_unit: str = ""
 
 
 def _records(name: str, value, shape: tuple[int, int] | None = None) -> np.ndarray:
@@ -104,14 +106,23 @@ def track(inverse: Inverse, damper, x, v, f_desired, dt: float, *, u0: float | N
     t = np.arange(n) * dt
     e_nrmse = np.array([nrmse(F[i, 1:], Fd[i, 1:]) for i in range(N)])
     e_t = np.array([error_time(Fd[i, 1:], F[i, 1:], t[1:]) for i in range(N)])
-    return TrackingResult(t, X, V, Fd, F, cmd, e_nrmse, e_t, spent / (n - 1), inverse.name, damper.name)
+    return TrackingResult(t, X, V, Fd, F, cmd, e_nrmse, e_t, spent / (n - 1), inverse.name, damper.name, c.unit)
 
 
 def plot_tracking(results: dict[str, TrackingResult], path: str | Path, *, record: int = 0,
                   window: tuple[float, float] | None = None, title: str = "") -> Path:
     """Desired and achieved force over time, the commands, and the force–velocity loops of one record for
-    several inverses (``{label: result}``) on one PNG figure; ``window`` (s) restricts the time span shown."""
-    from ..report import figure, save_figure
+    several inverses (``{label: result}``) on one PNG figure (:func:`tracking_figure`); ``window`` (s) restricts
+    the time span shown."""
+    from ..report import save_figure
+
+    return save_figure(tracking_figure(results, record=record, window=window, title=title), path, dpi=110)
+
+
+def tracking_figure(results: dict[str, TrackingResult], *, record: int = 0,
+                    window: tuple[float, float] | None = None, title: str = ""):
+    """The matplotlib Figure of :func:`plot_tracking`; the command axis in the plant's command unit."""
+    from ..report import figure
 
     fig, axes = figure(3, 1, figsize=(10, 9))
     first = next(iter(results.values()))
@@ -126,11 +137,11 @@ def plot_tracking(results: dict[str, TrackingResult], path: str | Path, *, recor
     axes[0].set_xlabel("time (s)")
     axes[0].set_ylabel("force (kN)")
     axes[1].set_xlabel("time (s)")
-    axes[1].set_ylabel("command")
+    axes[1].set_ylabel(f"command ({first.command_unit})" if first.command_unit else "command")
     axes[2].set_xlabel("velocity (m/s)")
     axes[2].set_ylabel("force (kN)")
     for ax in axes:
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=7, ncol=3)
     axes[0].set_title(title or f"force tracking, plant {first.plant}")
-    return save_figure(fig, path, dpi=110)
+    return fig

@@ -27,6 +27,7 @@ from typing import Sequence
 import numpy as np
 
 from ..command_lag import effective_command
+from ..identification.display import shown
 from ..validation import as_generator, check_scalar
 from .base import as_damper, lag_decay
 from .data import achievable_forces
@@ -157,7 +158,7 @@ def train_neural_inverse(damper, records: Sequence | None = None, *, dt: float =
     batch_size = int(check_scalar("batch_size", batch_size, 1, 1e7))
     learning_rate = check_scalar("learning_rate", learning_rate, 0.0, 1.0, lo_open=True)
     if not isinstance(seed, (int, np.integer)) or isinstance(seed, bool) or seed < 0:
-        raise ValueError(f"seed must be an int >= 0, got {seed!r}")
+        raise ValueError(f"seed must be an int >= 0, got {shown(seed)}")
     rng = np.random.default_rng(seed)
     source = "virtual rig"
     if records is None:
