@@ -1,6 +1,7 @@
 """The active-actuator bound (mrd_env/optimal/bound.py): above every controller's return in the environment, the
 plant without force at f_max = 0 (an exact linear simulation), monotone in f_max, its QP cost the problem's own
 return of its force history, the stroke limit imposed, the filter realisation against scipy's."""
+import itertools
 import math
 
 import numpy as np
@@ -61,7 +62,7 @@ def test_bound_grows_with_the_force_limit(problem):
     """More force, no less return — to the solver's duality gap (1e-8 absolute and relative) once f_max stops
     binding."""
     bounds = [active_bound(problem, f_max=f).bound for f in (0.0, 100.0, 400.0, 1500.0, 5000.0)]
-    assert all(a <= b + 2e-8 * max(1.0, abs(b)) for a, b in zip(bounds, bounds[1:]))
+    assert all(a <= b + 2e-8 * max(1.0, abs(b)) for a, b in itertools.pairwise(bounds))
     assert bounds[-1] > bounds[0]
 
 

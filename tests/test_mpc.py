@@ -1,6 +1,7 @@
 """Linear MPC (controllers/mpc.py) and the sampled-data design of clipped-optimal control: against python-control's
 LQR designs, numerical quadrature of the continuous cost, a brute-force bounded minimisation, the environment's own
 road, and the clipped-optimal law it reduces to."""
+import itertools
 import subprocess
 import sys
 
@@ -64,7 +65,7 @@ def test_sampled_cost_is_the_integral_of_the_continuous_cost():
     Ac[:n, :n], Ac[:n, n:] = d.A, d.Bf
     Qc = np.block([[Q, N], [N.T, R]])
     T = 0.01
-    ref, err = quad_vec(lambda t: expm(Ac.T * t) @ Qc @ expm(Ac * t), 0.0, T, epsrel=1e-11)
+    ref, _ = quad_vec(lambda t: expm(Ac.T * t) @ Qc @ expm(Ac * t), 0.0, T, epsrel=1e-11)
     Phi, Qd = van_loan(Ac, Qc, T)
     np.testing.assert_allclose(Qd, ref, rtol=1e-8, atol=1e-10 * np.abs(ref).max())
     np.testing.assert_allclose(Phi, expm(Ac * T), rtol=1e-12, atol=1e-14)
@@ -79,7 +80,7 @@ def test_sampled_design_tends_to_the_continuous_lqr(env_id):
     for T in (1e-3, 1e-4, 1e-5):
         K, _ = dlqr(*sampled_lq(co.design.A, co.design.Bf, Q, R, N, T))
         diff.append(np.linalg.norm(K - co.K) / np.linalg.norm(co.K))
-    assert all(8.0 < a / b < 12.0 for a, b in zip(diff, diff[1:]))  # O(T)
+    assert all(8.0 < a / b < 12.0 for a, b in itertools.pairwise(diff))  # O(T)
     assert diff[1] < 0.02  # 0.1 ms
     if env_id == CAR:
         assert diff[0] < 0.01  # the car at 1 ms (the building's faster closed loop: 13 %)
@@ -115,7 +116,7 @@ def _continuous_cost(co, x0, f, T, P=None):
         x = s[:n]
         return np.concatenate([d.A @ x + d.Bf @ fj, [x @ Q @ x + 2 * x @ N @ fj + fj @ R @ fj]])
 
-    s, J = np.concatenate([x0, [0.0]]), 0.0
+    s = np.concatenate([x0, [0.0]])
     for j in range(len(f)):  # period by period: the force jumps at the boundaries
         sol = solve_ivp(rhs, (j * T, (j + 1) * T), s, rtol=1e-11, atol=1e-14, method="DOP853")
         s = sol.y[:, -1]
@@ -224,7 +225,7 @@ def test_preview_acts_before_the_bump_and_pays():
                 control_dt=0.01, episode_seconds=2.0)
     env = _preview_env(**opts)
     seen, blind = MPC(env, horizon=20), MPC(env, horizon=20, preview=False)
-    ua, ub, fa, fb = _lockstep(env, seen, blind)
+    _, _, fa, fb = _lockstep(env, seen, blind)
     t = np.arange(len(fa)) * 0.01
     early = t < 0.4 - 1e-9
     np.testing.assert_allclose(fa[early], fb[early], rtol=1e-9, atol=1e-9)

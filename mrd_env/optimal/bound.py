@@ -169,11 +169,11 @@ def active_bound(problem: EpisodeProblem, f_max: float | None = None, solver: st
     """The active-actuator bound of ``problem`` (see the module docstring).
 
     ``f_max``: the actuator's force limit beyond the preload (N, finite); None: the damper's largest force in the
-    episode at its maximum command (:func:`passive_on_force_peak`). ``solver``: "clarabel" (the only one, see ``SOLVERS``). ``limits``: impose the
-    episode's stroke limits (a controller that exceeds them is penalised far below any bound). ``tol``: the
-    solver's relative tolerance."""
+    episode at its maximum command (:func:`passive_on_force_peak`). ``solver``: "clarabel" (the only one, see
+    ``SOLVERS``). ``limits``: impose the episode's stroke limits (a controller that exceeds them is penalised far
+    below any bound). ``tol``: the solver's tolerances (gap and feasibility)."""
     if not isinstance(problem, EpisodeProblem):
-        raise ValueError(f"problem must be an EpisodeProblem (mrd_env.optimal.episode_problem), got "
+        raise ValueError(f"problem must be an EpisodeProblem (mrd_env.optimal.episode_problem), got "  # noqa: TRY004
                          f"{type(problem).__name__}")
     if solver not in SOLVERS:
         raise ValueError(f"solver must be one of {list(SOLVERS)}, got {solver!r}")
@@ -190,7 +190,7 @@ def active_bound(problem: EpisodeProblem, f_max: float | None = None, solver: st
         f_max, source = float(f_max), "given"
     t0 = time.perf_counter()
     p = problem
-    nx, nd, nw, N, dt = p.nx, p.nd, p.nw, p.n_rows - 1, p.dt
+    nx, nd, N, dt = p.nx, p.nd, p.n_rows - 1, p.dt
     W = p.W
     # the plant over rows, inputs u = [F, W] linear between rows
     Phi, Ga, Gb = first_order_hold(p.A, np.hstack([p.BF, p.Bw]), dt)
@@ -336,7 +336,7 @@ def _scales(p, L, chans, Phi, GaF, GbF, GaW, GbW, f_max):
     for Gxf, Gw, sw, filt in chans:
         if filt is None:
             continue
-        Af, Bf, Cf, Df = filt
+        Af, Bf = filt[:2]
         nf = Af.shape[0]
         u = np.hstack([X, np.tile(Fs, (N + 1, 1))]) @ Gxf.T + W @ Gw.T
         xi = np.zeros(nf)
