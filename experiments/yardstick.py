@@ -8,9 +8,10 @@ Per episode (a scenario and a seed):
 * **clairvoyant** R_c — the full-knowledge optimal command sequence at 1 ms (:func:`mrd_env.optimal.clairvoyant`:
   CasADi + IPOPT on the smoothed model, warm-started from every law's and every shipped agent's own commands on
   the episode), re-simulated in the environment: an achievable return, so the true semi-active optimum is ≥ R_c;
-* **active bound** R_b — the same episode with an ideal actuator of force up to the damper's largest force in the
-  episode (:func:`mrd_env.optimal.active_bound`, a convex QP): no semi-active controller whose force stays within
-  it scores more, so the true optimum lies in [R_c, R_b];
+* **active bound** R_b — the same episode with an ideal actuator of force up to the largest damper force any
+  compared controller used on it (passive-on, the laws, the agents, the clairvoyant; :func:`mrd_env.optimal.
+  active_bound`, a convex QP): no semi-active controller whose force stays within it scores more, so the true
+  optimum lies in [R_c, R_b];
 * the **share of the achievable gain** a controller captures, (R − R_p) / (R_c − R_p): 0 is the best passive
   setting, 1 the clairvoyant optimum; negative is worse than the best passive setting.
 
