@@ -23,6 +23,10 @@ FIGURES = {
     "lab5_inverse": ["tracking.png", "mismatch.png"],
     "lab6_rl": ["agents/quarter_car_ppo_s0/learning_curve.png", "agent_vs_laws.png"],
 }
+#: lab script → checks its output must show passed (the ones that keep a lab honest)
+REQUIRED_CHECKS = {
+    "lab6_rl": ["[PASS] the lab's agent beats doing nothing: the agent started at skyhook scores above passive-off"],
+}
 SECTIONS = ("Learning objectives", "Equations (recap", "## Task 1", "## Questions", "## Instructor's check")
 
 
@@ -54,6 +58,8 @@ def test_lab_runs_end_to_end_and_writes_its_figures(lab, tmp_path):
     assert proc.returncode == 0, f"{lab} failed:\n{proc.stdout[-4000:]}\n{proc.stderr[-4000:]}"
     assert "[FAIL]" not in proc.stdout
     assert re.search(r"(\d+)/\1 checks passed", proc.stdout), proc.stdout[-2000:]
+    for check in REQUIRED_CHECKS.get(lab, []):
+        assert check in proc.stdout, f"{lab}: no {check!r} in its output"
     for name in FIGURES[lab]:
         assert_is_a_plot(tmp_path / lab / name)
 
