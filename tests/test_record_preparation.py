@@ -242,3 +242,17 @@ def test_a_run_away_is_excluded_as_a_whole_not_only_where_the_force_clips():
     assert res.records[0]["samples_scored"] == np.count_nonzero(prep.mask)
     for k in free:
         assert res.params[k] == pytest.approx(getattr(d.params, k), rel=0.01)
+
+
+def test_compare_models_gives_the_neural_model_the_reference_offset(tmp_path, capsys):
+    """compare-models --force-offset auto: the parametric models find their own offset, the neural model gets the
+    one a Spencer–Dyke reference fit finds on the same fit part."""
+    from experiments.cli import main
+    _, rec = _record("spencer_dyke", command=None, duration=0.5, noise=0.005)
+    path = _shifted(rec, 3).to_csv(tmp_path / "shifted.csv")
+    assert main(["compare-models", "--data", str(path), "--models", "spencer_dyke", "neural", "--force-offset",
+                 "auto", "--maxiter", "3", "--no-progress", "--out", str(tmp_path / "out")]) == 0
+    assert "note: force offset 3 samples, found by the spencer_dyke fit" in capsys.readouterr().out
+    with (tmp_path / "out" / "comparison.csv").open() as fh:
+        offsets = {r["model"]: r["offset samples"] for r in csv.DictReader(fh)}
+    assert offsets["neural"] == "3"
