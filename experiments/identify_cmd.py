@@ -6,8 +6,9 @@ are rebuilt as t0 + k·dt; it is resampled only when --dt asks for another step,
 into a fit part (the first --fit-fraction) and a held-back validation part; the model is fitted on the first and
 E_t, E_x, E_v (review eq. 3) and J2 (eq. 26) are reported on both. With --validate FILE the model is fitted on
 the whole of --data and scored on FILE (another test of the same damper). Faults found in a record (saturated
-channels, spikes, gaps) are excluded from the fit and the errors, and listed; --align corrects a constant sample
-offset between the force and the motion channels; --model neural fits the neural forward model.
+channels, spikes, gaps, run-aways) are excluded from the fit and the errors, and listed; --align (--force-offset auto)
+corrects a constant sample offset between the force and the motion channels, --force-offset N imposes one;
+--model neural fits the neural forward model. Parameters fitted onto a bound are flagged in the table and warned.
 """
 from __future__ import annotations
 
@@ -95,8 +96,8 @@ def add_data_arguments(p: argparse.ArgumentParser) -> None:
                         "estimated — by each parametric model's own fit, and for the neural model (which cannot "
                         f"find it) by a {OFFSET_REFERENCE} fit with its command lag first. Default: 0")
     p.add_argument("--faults", default="exclude", choices=FAULT_MODES,
-                   help="saturated channels, spikes and gaps: exclude them from the fit and errors (default), keep "
-                        "them, or refuse the record")
+                   help="saturated channels, spikes, gaps and run-aways (a test gone wrong as a whole): exclude them "
+                        "from the fit and errors (default, listed on the console), keep them, or refuse the record")
     p.add_argument("--warmup", type=number(lo=0.0, unit="s"), default=0.0,
                    help="seconds at the start left out of the objective (model states start at rest)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
