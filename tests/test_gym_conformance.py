@@ -580,3 +580,35 @@ def test_record_episode_statistics_scalar_and_vector(env_id):
         _, _, _, _, info = venv.step(venv.action_space.sample())
     assert info["_episode"].all() and np.all(info["episode"]["l"] == 10)
     assert env_info(info, 1)["episode_metrics"]["duration"] == pytest.approx(0.1)
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_vector_record_video_records_in_simulated_time(env_id, tmp_path, monkeypatch):
+    """Items 5 and 8: Gymnasium's vector RecordVideo runs on the native vector env and writes its clip at
+    render_fps = 1/control_dt (moviepy, not installed here, is replaced by a recorder of what it is given)."""
+    import sys
+    import types
+
+    clips = []
+
+    class ImageSequenceClip:
+        def __init__(self, frames, fps):
+            self.frames, self.fps = frames, fps
+
+        def write_videofile(self, path, logger=None):
+            clips.append((self.frames, self.fps, path))
+
+    for name in ("moviepy", "moviepy.video", "moviepy.video.io", "moviepy.video.io.ImageSequenceClip"):
+        monkeypatch.setitem(sys.modules, name, types.ModuleType(name))
+    sys.modules["moviepy.video.io.ImageSequenceClip"].ImageSequenceClip = ImageSequenceClip
+    venv = gym.make_vec(env_id, num_envs=2, render_mode="rgb_array", episode_seconds=0.05, control_dt=0.01)
+    venv = gym.wrappers.vector.RecordVideo(venv, str(tmp_path / "videos"), episode_trigger=lambda e: e == 0,
+                                           video_length=0)
+    venv.reset(seed=0)
+    for _ in range(6):  # the episode (5 steps) and the autoreset step
+        venv.step(venv.action_space.sample())
+    venv.close()
+    (frames, fps, _), = clips
+    assert fps == 100 and len(frames) == 6
+    h, w, c = venv.env.render()[0].shape
+    assert frames[0].shape == (h, 2 * w, c)  # the two environments side by side

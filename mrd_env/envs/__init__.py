@@ -1,4 +1,5 @@
-"""Gymnasium environments: ``mrd_env/QuarterCar-v0`` and ``mrd_env/ShearBuilding-v0``, scalar and native vector.
+"""Gymnasium environments: ``mrd_env/QuarterCar-v0``, ``mrd_env/ShearBuilding-v0`` and ``mrd_env/HalfCar-v0``,
+scalar and native vector.
 
 >>> import gymnasium as gym, mrd_env
 >>> env = gym.make("mrd_env/QuarterCar-v0", road="iso8608", road_params={"road_class": "D"})
@@ -21,14 +22,20 @@ ENV_IDS = {env_id: f"{m}:{c}" for env_id, (m, c, _) in ENVS.items()}
 
 _LAZY = {"MRDamperEnv": ".base", "MRDamperVectorEnv": ".vector", "QuarterCarEnv": ".quarter_car",
          "QuarterCarVectorEnv": ".quarter_car", "ShearBuildingEnv": ".shear_building",
-         "ShearBuildingVectorEnv": ".shear_building", "Assembly": ".core", "EnvCore": ".core",
+         "ShearBuildingVectorEnv": ".shear_building", "HalfCarEnv": ".half_car", "HalfCarVectorEnv": ".half_car",
+         "env_info": ".vector", "Assembly": ".core", "EnvCore": ".core",
          "Sensors": ".sensors", "QuadraticReward": ".reward", "CallableReward": ".reward", "Limits": ".termination",
          "FixedRecord": ".disturbance", "Generated": ".disturbance", "Mixture": ".disturbance",
          "Disturbance": ".disturbance"}
 
 
 def register_envs() -> None:
-    """Register the environments with Gymnasium (idempotent: ids already registered are left alone)."""
+    """Register the environments with Gymnasium (idempotent: ids already registered are left alone).
+
+    No ``max_episode_steps`` is registered: an environment's episode length depends on its options
+    (``episode_seconds``, ``control_dt``, the disturbance), so each environment states its own in
+    ``env.spec.max_episode_steps`` and truncates itself; a registered value would add a TimeLimit at the wrong
+    length."""
     import gymnasium
 
     for env_id, (module, scalar, vector) in ENVS.items():

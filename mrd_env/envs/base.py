@@ -125,6 +125,7 @@ class MRDamperEnv(PlantDeclarations, gym.Env):
         self._renderer = None
         self._last_frame_t = -math.inf
         self._ashape = (self.n_dampers,)
+        self._control_dt = asm.control_dt
         self._bind()
 
     def _bind(self) -> None:
@@ -171,7 +172,7 @@ class MRDamperEnv(PlantDeclarations, gym.Env):
             a = action
         else:
             a = as_action(action, self.n_dampers)
-        for v in a:  # before the kernel, which would have written the first dampers' commands
+        for v in a.tolist():  # before the kernel, which would have written the first dampers' commands
             if not math.isfinite(v):
                 raise ValueError("action must be finite (no NaN or infinity)")
         if self.actuation is not None:
@@ -184,7 +185,7 @@ class MRDamperEnv(PlantDeclarations, gym.Env):
         reward = float(self._reward0[0])
         if self.core.python_reward and status != DIVERGED:
             reward += self.assembly.reward(self.core.period(0))
-        t = float(self._k0[0] * self.control_dt)
+        t = self._k0.item(0) * self._control_dt  # as the vector env's k·control_dt, bit for bit
         if status == RUNNING:
             if self.render_mode == "human" and t - self._last_frame_t >= 1.0 / HUMAN_FPS:
                 self._render_human()

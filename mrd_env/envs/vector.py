@@ -93,7 +93,7 @@ class MRDamperVectorEnv(PlantDeclarations, VectorEnv):
         self._reward = self.core.driver.state("REWARD")[:, 0]
 
     def __getstate__(self) -> dict:
-        return {k: v for k, v in self.__dict__.items() if k not in ("_status", "_reward", "_renderer")}
+        return {k: v for k, v in self.__dict__.items() if k not in ("_status", "_reward", "_renderer", "_view")}
 
     def __setstate__(self, state: dict) -> None:
         self.__dict__.update(state)
@@ -280,6 +280,8 @@ class _SubEnv:
         return f"{type(self.venv).__name__}[{self.b}]"
 
     def __getattr__(self, name):  # dt, n_dampers, command_spec, plant_params: the vector env's
+        if name.startswith("__") or name == "venv":
+            raise AttributeError(name)
         return getattr(self.venv, name)
 
 
