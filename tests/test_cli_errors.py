@@ -151,6 +151,9 @@ CASES = {
         ["--data", "{good}", "--plot-window", "nan"], ["--data", "{good}", "--backend", "gpu"],
         ["--data", "{good}", "--jobs", "0"], ["--data", "{good}", "--address", "ray://x:1"],
     ],
+    "yardstick": [
+        ["--nope"], ["--plant", "nope"], ["--seeds", "x"], ["--seeds", "0"], ["--backend", "gpu"], ["--jobs", "0"],
+    ],
     "inverse": [
         [], ["nope"], ["achievable", "--nope"], ["achievable", "--inverses", "nope"], ["achievable", "--plants", "nope"],
         ["achievable", "--preset", "nope"], ["achievable", "--duration", "0"], ["achievable", "--rms", "-1"],
@@ -174,7 +177,7 @@ def test_bad_input_is_one_line_and_exit_2(command, argv, files, capsys, tmp_path
     # safety nets: should a case pass its checks after all, it stays short instead of running for minutes
     extra = {"benchmark": ["--seeds", "1", "--quick", None], "train": ["--timesteps", "1", "--eval-freq", "0"],
              "evaluate": ["--seeds", "1", "--quick", None, "--agents", None, "--no-1ms", None],
-             "tune": ["--trials", "1", "--timesteps", "1"],
+             "tune": ["--trials", "1", "--timesteps", "1"], "yardstick": ["--quick", None, "--no-progress", None],
              "identify": ["--maxiter", "1"], "compare-models": ["--maxiter", "1", "--models", "bingham"]}
     for opt, val in zip(extra.get(command, [])[::2], extra.get(command, [])[1::2]):
         if opt not in argv:
