@@ -84,6 +84,8 @@ def evaluate_batch(make, scenario: Scenario, response: str, name: str | None = N
     """One episode per seed of ``scenario`` in one vector environment, driven by ``make(venv)`` (a controller
     built on the vector environment: its predict takes the batch of observations). The time histories are
     those of the first seed."""
+    from mrd_env.envs.vector import env_info
+
     N = len(scenario.seeds)
     venv = gym.make_vec(scenario.env_id, num_envs=N, vectorization_mode="vector_entry_point",
                         **{**scenario.options, **env_options})
@@ -113,9 +115,10 @@ def evaluate_batch(make, scenario: Scenario, response: str, name: str | None = N
             vel.append(first(obs[0], rate))
         ended = (term | trunc) & ~done
         for b in np.flatnonzero(ended):
-            metrics[b] = {k: float(v[b]) for k, v in info["episode_metrics"].items()}
+            mine = env_info(info, b)  # Gymnasium's batched info: env b's own keys (masks dropped)
+            metrics[b] = {k: float(v) for k, v in mine.get("episode_metrics", {}).items()}
             if term[b]:
-                metrics[b]["terminated"] = str(info.get("termination_reason", [""] * N)[b] or "terminated")
+                metrics[b]["terminated"] = str(mine.get("termination_reason") or "terminated")
         done |= ended
     wall = (time.perf_counter() - t0) / N
     venv.close()

@@ -6,7 +6,7 @@ from collections.abc import Callable, Mapping
 
 import numpy as np
 
-from ..dampers import DamperModel, damper_class, make_damper
+from ..dampers import DamperModel, damper_class, is_preset_file, make_damper
 from ..validation import check_n_samples, check_scalar
 from .build import as_options
 from .reward import CallableReward, QuadraticReward
@@ -17,15 +17,20 @@ MAX_PERIOD_STEPS = 100_000  # physics steps in one control period (the period's 
 
 def make_env_damper(damper, preset, params, default_preset: str) -> DamperModel:
     """The damper of an environment: a model name (with ``preset``, default ``default_preset`` where the model
-    has it, and parameter overrides ``params``) or a :class:`DamperModel`."""
+    has it, and parameter overrides ``params``), a preset file (``"fitted.json"``, as ``mrd-env identify
+    --save-preset`` writes) or a :class:`DamperModel`."""
     params = named_options("damper_params", params)
     if isinstance(damper, DamperModel):
         if preset is not None:
             raise ValueError("damper_preset applies to a damper model name, not to a DamperModel instance")
         return damper.with_params(**params) if params else damper
+    if is_preset_file(damper):
+        if preset is not None:
+            raise ValueError(f"damper_preset applies to a damper model name; {damper} is a preset file already")
+        return make_damper(str(damper), **params)
     if not isinstance(damper, str):
-        raise ValueError(f"damper must be a model name (one of the registered models) or a DamperModel, "
-                         f"got {damper!r}")
+        raise ValueError(f"damper must be a model name (one of the registered models), a preset file (.json) or a "
+                         f"DamperModel, got {damper!r}")
     cls = damper_class(damper)  # ValueError naming the available models
     if preset is None:
         preset = default_preset if default_preset in cls.presets else None

@@ -1,0 +1,66 @@
+"""A user's path from one command to the next (issue 22): identify a damper on a record, then use the saved preset
+everywhere a model name is accepted — the rig, the environments, the benchmark, training and evaluation."""
+import csv
+import json
+
+import gymnasium as gym
+import pytest
+
+import mrd_env  # noqa: F401  (registers the environments)
+from experiments.cli import main
+
+
+@pytest.fixture(scope="module")
+def fitted(tmp_path_factory):
+    """A record from the virtual rig (a Bouc–Wen damper with a stiffer hysteresis than the preset), fitted with
+    identify and saved as a preset."""
+    d = tmp_path_factory.mktemp("user")
+    assert main(["rig", "--model", "bouc_wen", "--preset", "spencer1997", "--commands", "1.0", "--cycles", "2",
+                 "--out", str(d / "rig")]) == 0
+    record = d / "rig" / "bouc_wen_1V.csv"
+    preset = d / "fitted.json"
+    assert main(["identify", "--data", str(record), "--model", "bouc_wen", "--preset", "spencer1997",
+                 "--maxiter", "20", "--no-progress", "--out", str(d / "fit"), "--save-preset", str(preset)]) == 0
+    return d, preset
+
+
+def test_identify_then_rig_environments_benchmark_train_and_evaluate_on_the_preset(fitted):
+    d, preset = fitted
+    doc = json.loads(preset.read_text())
+    assert doc["model"] == "bouc_wen"
+    # the rig
+    assert main(["rig", "--preset", str(preset), "--cycles", "1", "--out", str(d / "rig2")]) == 0
+    with (d / "rig2" / "bouc_wen_summary.csv").open() as fh:
+        assert all(float(r["F_max (N)"]) > 0 for r in csv.DictReader(fh))
+    # Python: every environment takes the file as its damper
+    for env_id in ("mrd_env/QuarterCar-v0", "mrd_env/ShearBuilding-v0", "mrd_env/HalfCar-v0"):
+        env = gym.make(env_id, damper=str(preset), episode_seconds=0.05)
+        assert env.unwrapped.damper.name == "bouc_wen"
+        assert env.unwrapped.damper.params.alpha_b == doc["parameters"]["alpha_b"]["value"]
+    with pytest.raises(ValueError, match="preset file"):
+        gym.make("mrd_env/QuarterCar-v0", damper=str(preset), damper_preset="spencer1997")
+    # the benchmark
+    assert main(["benchmark", "--plant", "building", "--quick", "--controllers", "passive_off", "clipped_optimal",
+                 "--damper", str(preset), "--yardstick", "off", "--out", str(d / "bench"), "--no-progress"]) == 0
+    assert (d / "bench" / "building_benchmark.md").exists()
+    # a short training on it, and its evaluation on the same damper (taken from the agent's record)
+    assert main(["train", "--plant", "building", "--algo", "ppo", "--damper", str(preset), "--timesteps", "64",
+                 "--set", "n_steps=32", "batch_size=32", "n_envs=1", "--eval-freq", "0", "--no-progress",
+                 "--out", str(d / "agents")]) == 0
+    agent = d / "agents" / "building_ppo_s0"
+    meta = json.loads((agent / "agent.json").read_text())
+    assert meta["env_kwargs"]["damper"] == str(preset.resolve())
+    assert main(["evaluate", "--plant", "building", "--agents", str(agent), "--laws", "passive_off", "--quick",
+                 "--seeds", "1", "--no-mpc", "--no-1ms", "--yardstick", "off", "--out", str(d / "eval"),
+                 "--no-progress"]) == 0
+
+
+def test_a_bad_preset_file_is_one_line(tmp_path, capsys):
+    bad = tmp_path / "bad.json"
+    bad.write_text("{not json")
+    assert main(["rig", "--preset", str(bad), "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert "not a JSON preset" in err and err.count("\n") == 1
+    assert main(["benchmark", "--plant", "building", "--damper", str(tmp_path / "missing.json"), "--quick",
+                 "--out", str(tmp_path)]) == 2
+    assert "missing.json" in capsys.readouterr().err
