@@ -1,0 +1,41 @@
+"""The defaults a user meets (issue 22): the v1 ids are what an RL user expects out of the box; v0 keeps the
+physics-level defaults."""
+import warnings
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import mrd_env  # noqa: F401
+from mrd_env.envs import V1
+
+SHORT = {"episode_seconds": 0.5}
+
+
+@pytest.mark.parametrize("env_id", sorted(V1))
+def test_v1_is_the_rl_set_up_and_passes_sb3s_checker_without_warnings(env_id):
+    from stable_baselines3.common.env_checker import check_env
+
+    env = gym.make(env_id, **SHORT)
+    base = env.unwrapped
+    assert base.control_dt == 0.01 and base.action_mode == "normalized"
+    assert env.action_space.low.min() == -1.0 and env.action_space.high.max() == 1.0
+    assert env.spec.max_episode_steps == 50                          # 0.5 s at 10 ms
+    with warnings.catch_warnings():
+        warnings.filterwarnings("error", message=".*(normali[sz]ed|symmetric).*")   # SB3's action-space warning
+        check_env(base, warn=True)
+    venv = gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point", **SHORT)
+    assert venv.control_dt == 0.01 and venv.single_action_space == env.action_space
+    # an option still overrides the version's default
+    assert gym.make(env_id, control_dt=0.001, **SHORT).unwrapped.control_dt == 0.001
+
+
+def test_v1_building_has_the_benchmarks_damper_storey_and_v0_the_labs():
+    from experiments.scenarios import PLANT
+
+    v1 = gym.make("mrd_env/ShearBuilding-v1", **SHORT).unwrapped
+    v0 = gym.make("mrd_env/ShearBuilding-v0", **SHORT).unwrapped
+    assert tuple(v1.assembly.options["damper_floors"]) == tuple(PLANT["building"]["damper_floors"]) == (2,)
+    assert np.array_equal(v0.linear_plant.S, [[1.0, 0.0, 0.0]])     # storey 1: the ground floor's drift
+    assert np.array_equal(v1.linear_plant.S, [[-1.0, 1.0, 0.0]])    # storey 2: floor 2 relative to floor 1
+    assert v0.control_dt == 0.001 and v0.action_mode == "physical"
