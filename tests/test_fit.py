@@ -285,3 +285,20 @@ def test_a_parameter_fitted_onto_its_bound_is_flagged_and_fixed_ones_show_no_bou
     assert "warning: bingham: c0a = 2500 N·s/m is at upper bound (2500 N·s/m)" in printed
     assert rows["v_s"]["lower"] == rows["v_s"]["upper"] == "" and rows["v_s"]["status"].startswith("fixed")
     assert "nan" not in (out / "bingham_params.md").read_text()
+
+
+def test_bound_status_is_relative_to_the_span_and_to_the_bound():
+    """On a bound: within 0.1 % of the span and 1 % of the bound (k0 = 469.6 N/m against 469 N/m on the NEES
+    record is); a value far from a bound in a huge span is not."""
+    import dataclasses
+    from mrd_env.identification import ParameterAtBound
+    truth = make_damper("bingham", c0a=3000.0)
+    r = random_test(truth, rms=0.004, bandwidth=8.0, duration=1.0, switch_rate=4.0, rng=2, dt=1e-3)
+    with pytest.warns(ParameterAtBound, match=r"c0a = 2500 N·s/m is at upper bound \(2500 N·s/m\)"):
+        res = fit_model("bingham", DamperRecord(r.t, r.x, r.command, r.force, r.v), free=["c0a", "fc_a"],
+                        bounds={"c0a": (1000.0, 2500.0)}, search={"maxiter": 40, "progress": False})
+    assert res.bound_status() == {"c0a": "at upper bound"}
+    v = res.free_values()["c0a"]
+    assert dataclasses.replace(res, bounds={**res.bounds, "c0a": (v / 1.0013, 10 * v)}).bound_status() == {
+        "c0a": "at lower bound"}
+    assert dataclasses.replace(res, bounds={**res.bounds, "c0a": (1.0, 1e200)}).bound_status() == {}

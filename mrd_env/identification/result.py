@@ -12,9 +12,12 @@ from .measures import error_measures
 from .parameters import COMMAND_PARAMS, initial_values
 from .prepare import PreparedRecord
 
-# a fitted value within this fraction of its bounds' span of a bound sits on it (the optimisers work on the
-# bounds scaled to [0, 1]: 1e-3 there is well below any step that still improves the fit)
+# a fitted value sits on a bound when it is within this fraction of the bounds' span of it (the optimisers work on
+# the bounds scaled to [0, 1]: 1e-3 there is below any step that still improves the fit) ...
 BOUND_RTOL = 1e-3
+# ... and, for a bound other than 0, within this fraction of the bound itself (so that 301 is not "at" a bound of
+# 1 in a span of 1e200, while k0 = 469.6 N/m against a bound of 469 N/m is)
+BOUND_REL = 1e-2
 
 
 class ParameterAtBound(UserWarning):
@@ -75,14 +78,13 @@ class FitResult:
 
     def bound_status(self) -> dict[str, str]:
         """{free parameter: "at lower bound" or "at upper bound"} for those fitted onto a bound (within
-        :data:`BOUND_RTOL` of the bounds' span, and of the bound itself unless it is 0); the others are not
-        listed."""
+        :data:`BOUND_RTOL` of the bounds' span, and :data:`BOUND_REL` of the bound itself unless it is 0); the
+        others are not listed."""
         out = {}
         for k, v in self.free_values().items():
             lo, hi = self.bounds[k]
             for where, b in (("at lower bound", lo), ("at upper bound", hi)):
-                tol = BOUND_RTOL * (hi - lo) if b == 0 else BOUND_RTOL * min(hi - lo, abs(b))
-                if abs(v - b) <= tol:
+                if abs(v - b) <= BOUND_RTOL * (hi - lo) and (b == 0 or abs(v - b) <= BOUND_REL * abs(b)):
                     out[k] = where
         return out
 
