@@ -233,6 +233,8 @@ MESSAGES = [  # (argv, what the one line says): the option by its name, values a
     (["identify", "--data", "{backwards}"], "not strictly increasing at data row 3 (0.002 followed by 0.002)"),
     (["identify", "--data", "{good}", "--model", "neural", "--free", "c0a"], "--free: parametric models only"),
     (["identify", "--data", "{good}", "--warmup", "100"], "are left to score after a warm-up of 100 s"),
+    (["identify", "--data", "{good}", "--bounds", "c0a=1"], "--bounds: expected NAME=LO:HI (numbers in SI units)"),
+    (["identify", "--data", "{good}", "--force-offset", "2", "--align"], "--align estimates the force offset and"),
     (["compare-models", "--data", "{good}", "--models", "bingham", "bingham"],
      "--models: bingham given more than once"),
     (["compare-models", "--data", "{good}", "--plot-window", "0"], "argument --plot-window: 0 is invalid"),
