@@ -14,7 +14,7 @@ def check_scalar(name: str, value, lo: float = -math.inf, hi: float = math.inf, 
     lo_ok = v > lo if lo_open else v >= lo
     hi_ok = v < hi if hi_open else v <= hi
     if not math.isfinite(v) or not (lo_ok and hi_ok):
-        raise ValueError(f"{name} = {reprlib.repr(value)} is invalid: must be "
+        raise ValueError(f"{name} = {shown(value)} is invalid: must be "
                          f"{describe_range(lo, hi, lo_open, hi_open, unit)}")
     return v
 
@@ -27,7 +27,15 @@ def as_real(name: str, value) -> float:
             raise TypeError("complex")
         return float(value)
     except (TypeError, ValueError, OverflowError):
-        raise ValueError(f"{name} must be a real number, got {reprlib.repr(value)}") from None
+        raise ValueError(f"{name} must be a real number, got {shown(value)}") from None
+
+
+def shown(value) -> str:
+    """A value as a message shows it: NumPy scalars as plain numbers (not ``np.float64(0.002)``), others by a
+    short repr."""
+    if isinstance(value, np.generic):
+        value = value.item()
+    return reprlib.repr(value)
 
 
 def describe_range(lo: float, hi: float, lo_open: bool = False, hi_open: bool = False, unit: str = "") -> str:

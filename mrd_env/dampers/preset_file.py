@@ -41,8 +41,8 @@ def load_damper_preset(path: str | Path):
     """The parametric :class:`~.base.DamperModel` of a preset file, parameters exactly as saved.
 
     ``ValueError`` for an unknown model, missing or extra parameters, a unit that differs from the model's
-    declared SI unit, or a neural forward model (a network: it replays a rig record and trains inverses, see
-    :func:`mrd_env.identification.load_preset`, but is not a damper model of the environments).
+    declared SI unit, or a neural forward model (a network, read by :func:`mrd_env.identification.load_preset`,
+    not a damper model of the environments).
     """
     from .base import CommandSpec
     from .registry import damper_class
@@ -50,9 +50,9 @@ def load_damper_preset(path: str | Path):
     path = Path(path)
     doc = read_preset(path)
     if doc.get("model") == NEURAL_MODEL:
-        raise ValueError(f"{path} holds a neural forward model: it replays records (mrd-env rig --replay) and trains "
-                         "inverses, but the environments need a parametric damper model (fit one with mrd-env "
-                         "identify --model <name>)")
+        raise ValueError(f"{path} holds a neural forward model (mrd_env.identification.load_preset reads it): the "
+                         "environments, the rig and the inverses need a parametric damper model (fit one with "
+                         "mrd-env identify --model <name>)")
     cls = damper_class(doc.get("model", ""))
     units = cls.Params.units()
     pars = doc.get("parameters", {})

@@ -23,7 +23,7 @@ from ..dampers import DamperModel, available_dampers, damper_class
 from ..errors import SimulationDivergedError
 from ..executor import Task, TaskFailed, resolve_backend, run_tasks
 from ..validation import check_scalar
-from .display import shown
+from ..validation import shown
 from .data import DamperRecord
 from .fit import fit_model
 from .neural import NAME as NEURAL

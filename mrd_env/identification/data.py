@@ -14,7 +14,7 @@ from typing import Mapping
 
 import numpy as np
 
-from .display import shown
+from ..validation import shown
 from .measures import _check_signal, _check_time
 
 __all__ = ["DamperRecord", "load_record_csv", "read_columns", "own_columns", "UNITS"]

@@ -17,7 +17,7 @@ import math
 import numpy as np
 from scipy.integrate import trapezoid
 
-from .display import shown
+from ..validation import shown
 
 __all__ = ["error_time", "error_displacement", "error_velocity", "j1", "j2", "error_measures"]
 

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..dampers import CommandSpec
-from .display import shown
+from ..validation import shown
 from .prepare import PreparedRecord, prepare_record
 from .result import FitResult, _measures, pooled_measures, record_info
 

@@ -13,7 +13,7 @@ from typing import Mapping
 
 import numpy as np
 
-from .display import shown
+from ..validation import shown
 from .prepare import FAULT_MODES
 
 METHODS = ("least_squares", "differential_evolution", "pso", "adam")

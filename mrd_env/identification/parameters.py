@@ -21,7 +21,7 @@ import numpy as np
 
 from ..command_lag import LAG_DELAY, LAG_FALL, LAG_RISE
 from ..dampers import DamperModel, damper_class
-from .display import shown
+from ..validation import shown
 
 
 #: Pseudo-parameters of the command dynamics (:class:`~mrd_env.dampers.CommandSpec`): name → (field, unit, lo, hi).

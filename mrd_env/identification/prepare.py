@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from ..dampers import CommandSpec
-from .display import shown
+from ..validation import shown
 from .data import DamperRecord
 from .faults import Fault, FaultsExcluded, describe_faults, find_faults, repair_spikes
 

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..identification.display import shown
+from ..validation import shown
 from ..validation import as_real, check_scalar
 from .base import Inverse
 

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..identification.display import shown
+from ..validation import shown
 from ..integrator import ATOL, RTOL
 from ..validation import check_scalar
 from .observer import ObserverInverse

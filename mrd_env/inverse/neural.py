@@ -31,7 +31,7 @@ from pathlib import Path
 import numba as nb
 import numpy as np
 
-from ..identification.display import shown
+from ..validation import shown
 from .base import Inverse, lag_decay
 
 NETWORKS = Path(__file__).with_name("networks")

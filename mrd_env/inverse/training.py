@@ -27,7 +27,7 @@ from typing import Sequence
 import numpy as np
 
 from ..command_lag import effective_command
-from ..identification.display import shown
+from ..validation import shown
 from ..validation import as_generator, check_scalar
 from .base import as_damper, lag_decay
 from .data import achievable_forces
