@@ -69,6 +69,15 @@ class OneStep:
         self._status = np.zeros(self.N, dtype=np.int64)
         self.t = 0.0
 
+    # copies (pickle, deepcopy, cloudpickle: planning, checkpoints, Ray) carry the state, not the compiled module,
+    # which is reloaded from its disk cache by the damper's class
+    def __getstate__(self) -> dict:
+        return {k: v for k, v in self.__dict__.items() if k != "module"}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self.module = onestep_module(type(self.damper))
+
     def start(self, W: np.ndarray, u0: np.ndarray, rows: np.ndarray | None = None) -> None:
         """Start from rest at the motion ``W`` (N, 3) with the effective commands ``u0`` (N,) — every damper, or
         those in ``rows`` (N,) — : the rest state switched to the motion (the model's ``project``) and its force,
