@@ -144,3 +144,33 @@ def test_unsupported_damper_and_too_long_episodes_are_refused(monkeypatch):
     with pytest.raises(ValueError, match="warm start"):
         p = episode_problem("mrd_env/QuarterCar-v0", seed=0, control_dt=0.01, episode_seconds=0.2)
         cv.clairvoyant(p, warm_starts=["skyhook_on_off"], progress=False, cache=False)
+
+
+# ---------------------------------------------------------------------------------------------- nonlinear MPC
+def test_nmpc_runs_an_episode_and_beats_passive_off():
+    """controllers.nmpc.NonlinearMPC on a short car episode at 10 ms (horizon 50 ms): measured −1.52 against
+    passive-off's −1.56 (skyhook-continuous: −1.41)."""
+    import gymnasium as gym
+
+    from controllers import make_controller
+    from controllers.nmpc import NonlinearMPC
+
+    def run(make):
+        env = gym.make("mrd_env/QuarterCar-v0", control_dt=0.01, **CAR).unwrapped
+        c = make(env)
+        obs, _ = env.reset(seed=SEED)
+        total, done = 0.0, False
+        while not done:
+            a, _ = c.predict(obs)
+            obs, r, term, trunc, _ = env.step(a)
+            total, done = total + r, term or trunc
+        return total, c
+
+    off, _ = run(lambda e: make_controller("passive_off", e))
+    ret, c = run(lambda e: NonlinearMPC(e))
+    assert c.horizon == 5 and len(c.solve_stats) == 150
+    assert ret > off + 0.01 * abs(off)
+    with pytest.raises(ValueError, match="horizon"):
+        NonlinearMPC(gym.make("mrd_env/QuarterCar-v0", control_dt=0.01, **CAR).unwrapped, horizon=0)
+    with pytest.raises(ValueError, match="spencer_dyke"):
+        NonlinearMPC(gym.make("mrd_env/QuarterCar-v0", damper="bingham", **CAR).unwrapped)
