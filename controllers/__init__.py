@@ -1,7 +1,8 @@
 """Semi-active control laws behind one interface (``predict``/``reset``, as Stable-Baselines3 agents).
 
 Build a controller from the environment it drives: ``SkyhookOnOff(env)``; ``make_controller(name, env)``
-by name (``"mpc"``: linear model-predictive control, :mod:`.mpc`, needs OSQP). ``CONTROLLERS`` lists the names;
+by name (``"mpc"``: linear model-predictive control, :mod:`.mpc`, needs OSQP; ``"nmpc"``: nonlinear MPC on the
+damper model, :mod:`.nmpc`, needs CasADi and a C compiler, not real time). ``CONTROLLERS`` lists the names;
 ``VARIANTS`` names laws with options (clipped-optimal control with each inverse model: ``"clipped_optimal+model"``
 is ``ClippedOptimal(env, inverse="model")``).
 """
@@ -10,10 +11,11 @@ from .base import AgentController, Controller, PassiveOff, PassiveOn, RandomComm
 from .friction_laws import MaximumEnergyDissipation, ModulatedHomogeneousFriction
 from .model_based import ClippedOptimal, KalmanEstimator, LinearDesign, Lyapunov
 from .mpc import MPC
+from .nmpc import NonlinearMPC
 from .velocity_laws import Groundhook, Hybrid, SkyhookContinuous, SkyhookOnOff, force_gain
 
 CONTROLLERS = {c.name: c for c in (RandomCommand, PassiveOff, PassiveOn, SkyhookOnOff, SkyhookContinuous, Groundhook, Hybrid,
-                                   ClippedOptimal, MPC, Lyapunov, MaximumEnergyDissipation,
+                                   ClippedOptimal, MPC, NonlinearMPC, Lyapunov, MaximumEnergyDissipation,
                                    ModulatedHomogeneousFriction)}
 
 
@@ -36,7 +38,7 @@ def make_controller(name: str, env, **options) -> Controller:
     return CONTROLLERS[name](env, **options)
 
 
-__all__ = ["AgentController", "CONTROLLERS", "ClippedOptimal", "Controller", "Groundhook", "Hybrid",
+__all__ = ["NonlinearMPC", "AgentController", "CONTROLLERS", "ClippedOptimal", "Controller", "Groundhook", "Hybrid",
            "KalmanEstimator", "LinearDesign", "Lyapunov", "MPC", "MaximumEnergyDissipation",
            "ModulatedHomogeneousFriction", "PassiveOff", "PassiveOn", "RandomCommand", "SkyhookContinuous", "SkyhookOnOff",
            "TrainedAgent", "VARIANTS", "available_controllers", "force_gain", "load_agent", "make_controller",

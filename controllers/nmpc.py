@@ -10,7 +10,7 @@ step at the physics step with a fixed number of Newton iterations, |·| smoothed
 with the environment's declared ``objective`` weights w_s (those of :class:`~.model_based.ClippedOptimal` and
 :class:`~.mpc.MPC`; building: the drifts; car: sprung acceleration and travel), single shooting from the current
 estimate, the exact gradient by reverse-mode AD compiled to C once per set-up
-(:class:`mrd_env.optimal.clairvoyant.ShootingModel`, cached on disk), solved by L-BFGS-B (``solver="lbfgsb"``) or IPOPT
+(:class:`mrd_env.optimal.full_knowledge.ShootingModel`, cached on disk), solved by L-BFGS-B (``solver="lbfgsb"``) or IPOPT
 with a limited-memory Hessian (``solver="ipopt"``), warm-started from the previous step's solution shifted by one
 period.
 
@@ -133,7 +133,7 @@ class NonlinearMPC(_ObserverLaw):
         import casadi as ca
 
         from mrd_env.optimal.casadi_model import CoupledModel, symbolic_damper
-        from mrd_env.optimal.clairvoyant import ShootingModel
+        from mrd_env.optimal.full_knowledge import ShootingModel
 
         self.model = ShootingModel(self.problem, self.smoothing, newton_iterations)
         sd = symbolic_damper(self.env.damper, smoothing=self.smoothing)
@@ -229,7 +229,7 @@ class NonlinearMPC(_ObserverLaw):
     def command(self, obs):
         import time
 
-        from mrd_env.optimal.clairvoyant import _ipopt, _lbfgsb
+        from mrd_env.optimal.full_knowledge import _ipopt, _lbfgsb
 
         x_pred, f = self.estimate(obs)
         y = obs[:, self._y_index]

@@ -1,4 +1,4 @@
-"""The clairvoyant optimum (mrd_env.optimal.clairvoyant): better than every warm start, re-simulated in the
+"""The clairvoyant optimum (mrd_env.optimal.full_knowledge): better than every warm start, re-simulated in the
 environment, cached by the exact episode."""
 import numpy as np
 import pytest
@@ -6,7 +6,7 @@ import pytest
 pytest.importorskip("casadi")
 
 from mrd_env.optimal import cache, episode_problem
-from mrd_env.optimal import clairvoyant as cv
+from mrd_env.optimal import full_knowledge as cv
 
 CAR = dict(road="iso8608", road_params={"road_class": "C", "speed": 20.0}, episode_seconds=1.5)
 BUILDING = dict(damper_floors=(2,), ground_motion="el_centro", ground_motion_params={"time_scale": 0.2},

@@ -15,7 +15,7 @@ def _ep(ctrl, label, ret):
 
 
 def test_share_of_the_achievable_gain():
-    y = EpisodeYardstick("ISO-C s1", 1, passive=-10.0, passive_command=2.0, clairvoyant=-6.0, source="ipopt",
+    y = EpisodeYardstick("ISO-C s1", 1, passive=-10.0, passive_command=2.0, clairvoyant=-6.0, source="optimiser",
                          clairvoyant_seconds=1.0, bound=-5.0)
     assert y.share(-10.0) == 0.0 and y.share(-6.0) == 1.0 and y.share(-9.0) == pytest.approx(0.25)
     assert y.share(-12.0) < 0                         # worse than the best passive setting
@@ -25,8 +25,8 @@ def test_share_of_the_achievable_gain():
 
 
 def test_share_rows_pool_episodes_and_give_intervals_only_with_repeats():
-    ys = [EpisodeYardstick(f"ISO-C s{i}", i, -10.0, 2.0, -6.0, "ipopt", 1.0) for i in (1, 2)]
-    ys.append(EpisodeYardstick("bump", 0, -2.0, 2.0, -1.0, "ipopt", 1.0))
+    ys = [EpisodeYardstick(f"ISO-C s{i}", i, -10.0, 2.0, -6.0, "optimiser", 1.0) for i in (1, 2)]
+    ys.append(EpisodeYardstick("bump", 0, -2.0, 2.0, -1.0, "optimiser", 1.0))
     res = {"sky": [_ep("sky", "ISO-C s1", -9.0), _ep("sky", "ISO-C s2", -8.0), _ep("sky", "bump", -1.5)]}
     rows = share_rows(res, ys, lambda label: label.rsplit(" s", 1)[0] if " s" in label else label)
     by = {r["scenario"]: r for r in rows}

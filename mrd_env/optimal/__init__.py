@@ -2,7 +2,8 @@
 
 * :func:`episode_problem` — one seeded episode of an environment as optimisation data (:mod:`.problem`);
 * :func:`clairvoyant` — the full-knowledge optimal command sequence, re-simulated in the environment
-  (:mod:`.clairvoyant`, CasADi + IPOPT);
+  (:mod:`.full_knowledge`, CasADi; the module is not named after the function, so that importing it never
+  shadows the function on the package);
 * :func:`active_bound` — the same episode with an ideal force actuator (:mod:`.bound`, a convex QP).
 
 The solvers are optional dependencies (the ``[optimal]`` extra) and are imported on first use.
@@ -12,7 +13,7 @@ from __future__ import annotations
 import importlib
 
 _LAZY = {"episode_problem": ".problem", "EpisodeProblem": ".problem", "CostTerm": ".problem", "Limit": ".problem",
-         "Trajectory": ".problem", "clairvoyant": ".clairvoyant", "ClairvoyantResult": ".clairvoyant",
+         "Trajectory": ".problem", "clairvoyant": ".full_knowledge", "ClairvoyantResult": ".full_knowledge",
          "active_bound": ".bound", "BoundResult": ".bound"}
 
 

@@ -32,7 +32,7 @@ import numpy as np
 import scipy.linalg
 import scipy.sparse as sp
 
-from .problem import EpisodeProblem
+from .problem import EpisodeProblem, sos_state_space  # noqa: F401  (sos_state_space: re-exported)
 
 #: Clarabel only: OSQP (first-order ADMM) did not reach 1e-6 on a 2 s car episode in 200 000 iterations (265 s), the
 #: 2000-step dynamics chain conditioning it badly, where Clarabel's interior point needs 14 iterations (1 s).
@@ -76,28 +76,6 @@ def passive_on_force_peak(problem: EpisodeProblem) -> float:
     U = np.full((problem.n_steps, problem.nd), problem.v_max)
     tr = problem.replay(U, states=True)
     return float(np.nanmax(np.abs(tr.F - problem.F_static)))
-
-
-def sos_state_space(sos: np.ndarray):
-    """(A, B, C, D) of a cascade of second-order sections in transposed direct form II, the realisation of
-    ``scipy.signal.sosfilt`` (zero initial state = its zero initial conditions)::
-
-        y = b0 u + s1,   s1' = (b1 − a1 b0) u − a1 s1 + s2,   s2' = (b2 − a2 b0) u − a2 s1
-    """
-    sos = np.atleast_2d(np.asarray(sos, dtype=float))
-    A = np.zeros((0, 0))
-    B, C, D = np.zeros((0, 1)), np.zeros((1, 0)), np.ones((1, 1))
-    for row in sos:
-        b, a = row[:3] / row[3], row[3:] / row[3]
-        As = np.array([[-a[1], 1.0], [-a[2], 0.0]])
-        Bs = np.array([[b[1] - a[1] * b[0]], [b[2] - a[2] * b[0]]])
-        Cs, Ds = np.array([[1.0, 0.0]]), np.array([[b[0]]])
-        n = A.shape[0]  # the section is fed by the cascade so far: u_s = C x + D u
-        A = np.block([[A, np.zeros((n, 2))], [Bs @ C, As]])
-        B = np.vstack([B, Bs @ D])
-        C = np.hstack([Ds @ C, Cs])
-        D = Ds @ D
-    return A, B, C, D
 
 
 def first_order_hold(A: np.ndarray, B: np.ndarray, dt: float):

@@ -1,6 +1,6 @@
 """Symbolic (CasADi) versions of the damper models, the command lag and the coupled plant, for optimisers.
 
-The clairvoyant optimum (:mod:`mrd_env.optimal.clairvoyant`) and nonlinear MPC (``controllers/nmpc.py``) need
+The clairvoyant optimum (:mod:`mrd_env.optimal.full_knowledge`) and nonlinear MPC (``controllers/nmpc.py``) need
 the environment's own equations as CasADi expressions: this module writes them from the project's
 :class:`~mrd_env.dampers.DamperModel` (its parameter dataclass, SI) and :class:`~mrd_env.dampers.CommandSpec`.
 

@@ -251,6 +251,29 @@ class EpisodeProblem:
                 "command": _jsonable(vars(d.command)), "episode": self.episode_name}
 
 
+def sos_state_space(sos: np.ndarray):
+    """(A, B, C, D) of a cascade of second-order sections in transposed direct form II, the realisation of
+    ``scipy.signal.sosfilt`` and of the environment's online filters (zero initial state = its zero initial
+    conditions), ξ_r = A ξ_{r−1} + B u_r, y_r = C ξ_{r−1} + D u_r::
+
+        y = b0 u + s1,   s1' = (b1 − a1 b0) u − a1 s1 + s2,   s2' = (b2 − a2 b0) u − a2 s1
+    """
+    sos = np.atleast_2d(np.asarray(sos, dtype=float))
+    A = np.zeros((0, 0))
+    B, C, D = np.zeros((0, 1)), np.zeros((1, 0)), np.ones((1, 1))
+    for row in sos:
+        b, a = row[:3] / row[3], row[3:] / row[3]
+        As = np.array([[-a[1], 1.0], [-a[2], 0.0]])
+        Bs = np.array([[b[1] - a[1] * b[0]], [b[2] - a[2] * b[0]]])
+        Cs, Ds = np.array([[1.0, 0.0]]), np.array([[b[0]]])
+        n = A.shape[0]  # the section is fed by the cascade so far: u_s = C x + D u
+        A = np.block([[A, np.zeros((n, 2))], [Bs @ C, As]])
+        B = np.vstack([B, Bs @ D])
+        C = np.hstack([Ds @ C, Cs])
+        D = Ds @ D
+    return A, B, C, D
+
+
 def episode_problem(env_id: str, *, seed: int, control_dt: float | None = None, **env_options) -> EpisodeProblem:
     """The episode of ``env_id`` with ``env_options`` reset with ``seed``, as an :class:`EpisodeProblem`.
 

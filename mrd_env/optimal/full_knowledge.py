@@ -51,6 +51,7 @@ from pathlib import Path
 import numpy as np
 
 from .casadi_model import CoupledModel, Smoothing, check_supported, symbolic_damper
+from .problem import sos_state_space
 
 #: Bumped when the solver changes what it returns for the same key (part of the cache key).
 VERSION = 1
@@ -150,31 +151,6 @@ def problem_digest(problem) -> str:
     for lim in problem.limits:
         parts += [np.atleast_2d(lim.G), [lim.bound]]
     return _digest(*parts)
-
-
-def sos_state_space(sos: np.ndarray):
-    """(A, B, C, D) of a cascade of second-order sections in transposed direct form II (``scipy.signal.sosfilt``,
-    the environment's online filter): ξ_r = A ξ_{r−1} + B x_r, y_r = C ξ_{r−1} + D x_r, ξ_0 = 0."""
-    sos = np.asarray(sos, dtype=float)
-    ns = 2 * sos.shape[0]
-
-    def step(z, x):
-        z = z.copy()
-        for s in range(sos.shape[0]):
-            b0, b1, b2, _, a1, a2 = sos[s]
-            y = b0 * x + z[2 * s]
-            z[2 * s] = b1 * x - a1 * y + z[2 * s + 1]
-            z[2 * s + 1] = b2 * x - a2 * y
-            x = y
-        return z, x
-
-    A, C = np.zeros((ns, ns)), np.zeros((1, ns))
-    for i in range(ns):
-        e = np.zeros(ns)
-        e[i] = 1.0
-        A[:, i], C[0, i] = step(e, 0.0)
-    Bz, D = step(np.zeros(ns), 1.0)
-    return A, Bz[:, None], C, np.array([[D]])
 
 
 def _jit_dir() -> Path:
