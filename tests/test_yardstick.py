@@ -70,3 +70,32 @@ def test_intervals_only_where_there_are_repeats_and_never_beyond_the_possible():
     m, lo, hi = mean_ci([-0.1, -0.2, -5.0], upper=0.0)
     assert lo < m < hi == 0.0
     assert mean_ci([-1.0, -1.0]) == (-1.0, -1.0, -1.0)
+
+
+def test_the_yardstick_brackets_every_controller_on_an_episode(tmp_path, monkeypatch):
+    """On one held-out car episode: no law, no shipped agent and no MPC (with or without preview) beats the
+    clairvoyant return, and the clairvoyant stays below the active bound, which covers their forces."""
+    from controllers import make_controller, shipped_agents
+    from experiments.evaluation import controller_episodes
+    from experiments.scenarios import Scenario, preview_options
+    from experiments.yardstick import episode_yardstick
+
+    monkeypatch.setenv("MRD_ENV_CACHE_DIR", str(tmp_path))
+    sc = Scenario("ISO-C 1 s", "mrd_env/QuarterCar-v0",
+                  dict(road="iso8608", road_params={"road_class": "C", "speed": 20.0}, episode_seconds=1.0),
+                  seeds=(1_000_000,))
+    agents = shipped_agents("quarter_car")
+    y = episode_yardstick(sc, 1_000_000, "quarter_car", agents=agents)
+    assert y.passive <= y.clairvoyant <= y.bound
+    assert set(y.warm_starts) >= {"passive_off", "passive_on", "skyhook_continuous", "clipped_optimal"}
+    assert all(r <= y.clairvoyant for r in y.warm_starts.values())   # every law at 1 ms and the shipped agent
+    assert y.clairvoyant > max(y.warm_starts.values())               # and strictly better than the best of them
+    others = [controller_episodes("mpc", sc, control_dt=0.01)[0],
+              controller_episodes("mpc", sc, **preview_options("quarter_car", {"control_dt": 0.01}))[0],
+              controller_episodes("skyhook_continuous", sc, control_dt=0.01)[0]]
+    for e in others:
+        assert e.episode_return <= y.clairvoyant, e.controller
+        assert y.share(e.episode_return) <= 1.0
+    # the cache returns the same yardstick without solving
+    again = episode_yardstick(sc, 1_000_000, "quarter_car", agents=agents, solve=False)
+    assert again is not None and again.clairvoyant == y.clairvoyant and again.bound == y.bound
