@@ -68,12 +68,7 @@ def _user_errors() -> tuple[type[BaseException], ...]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    import warnings
-
     argv = sys.argv[1:] if argv is None else list(argv)
-    # the commands use the physics-level -v0 ids on purpose (laws at 1 ms, commands in V or A; see mrd_env.envs.V1):
-    # Gymnasium's note that a -v1 exists is for users of gym.make, not for every line of a report
-    warnings.filterwarnings("ignore", message=r".*mrd_env/\w+-v0 is out of date", category=DeprecationWarning)
     command = _command_of(argv)
     prog = f"mrd-env {command}" if command in COMMANDS else "mrd-env"
     try:
