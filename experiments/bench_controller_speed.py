@@ -8,7 +8,6 @@ from __future__ import annotations
 import time
 
 import gymnasium as gym
-import numpy as np
 
 import mrd_env  # noqa: F401  (registers the environments)
 from controllers import available_controllers, make_controller

@@ -21,7 +21,7 @@ from mrd_env.report import markdown_table, write_table
 
 from . import sweep, yardstick
 from .evaluation import Episode, controller_episodes, evaluate, evaluate_batch, response_of  # noqa: F401
-from .scenarios import Scenario, held_out_scenarios
+from .scenarios import Scenario, held_out_scenarios  # noqa: F401  (Scenario: re-exported)
 
 QC_CONTROLLERS = ("passive_off", "passive_on", "skyhook_on_off", "skyhook_continuous", "groundhook", "hybrid",
                   "clipped_optimal")

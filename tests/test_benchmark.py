@@ -7,7 +7,7 @@ import pytest
 
 import mrd_env  # noqa: F401  (registers the environments)
 from controllers import AgentController, ClippedOptimal, SkyhookOnOff, make_controller
-from experiments.benchmark import Scenario, evaluate, run_benchmark, write_reports
+from experiments.benchmark import Scenario, evaluate, run_benchmark
 from experiments.cli import main
 
 

@@ -1,9 +1,7 @@
 """Controllers: each law's command on hand-made observations (sign conventions), the designs against
 python-control/scipy, clear errors for missing sensors and roles, and batches (one law, many environments)."""
-import types
 
 import control
-import gymnasium as gym
 import numpy as np
 import pytest
 from scipy.linalg import solve_continuous_are

@@ -341,7 +341,6 @@ def test_online_comfort_filter_matches_sosfilt():
     env = QuarterCarEnv(episode_seconds=0.5, control_dt=0.002)
     _run(env, 0.8, seed=2)
     acc = env.signal("sprung_acc")[:, 0]
-    offline = scipy.signal.sosfilt(weighting_sos("Wk", env.dt), acc)
     online = env.signal("sprung_acc_wk")[:, 0]
     # the online filter starts at the first step (row 0 is the state at rest before it)
     np.testing.assert_allclose(online[1:], scipy.signal.sosfilt(weighting_sos("Wk", env.dt), acc[1:]), rtol=0,

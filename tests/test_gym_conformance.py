@@ -19,7 +19,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env, data_equivalence
 from gymnasium.utils.env_match import check_environments_match
 from gymnasium.utils.passive_env_checker import env_render_passive_checker
-from gymnasium.vector import AutoresetMode, SyncVectorEnv
+from gymnasium.vector import AutoresetMode
 
 import mrd_env  # noqa: F401  (registers the environments)
 from mrd_env.envs import ENVS

@@ -75,7 +75,7 @@ def test_intervals_only_where_there_are_repeats_and_never_beyond_the_possible():
 def test_the_yardstick_brackets_every_controller_on_an_episode(tmp_path, monkeypatch):
     """On one held-out car episode: no law, no shipped agent and no MPC (with or without preview) beats the
     clairvoyant return, and the clairvoyant stays below the active bound, which covers their forces."""
-    from controllers import make_controller, shipped_agents
+    from controllers import shipped_agents
     from experiments.evaluation import controller_episodes
     from experiments.scenarios import Scenario, preview_options
     from experiments.yardstick import episode_yardstick

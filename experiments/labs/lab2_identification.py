@@ -44,14 +44,13 @@
 
 # %%
 import os
-from pathlib import Path
 
 import numpy as np
 
 from experiments.labs.labkit import Lab, full_length
 from mrd_env import make_damper
 from mrd_env.identification import (DisplacementSensor, LoadCell, SensorSet, apply_sensors, compare_models,
-                                    fit_model, load_record_csv, propagate_sensor_errors, rss_budget)
+                                    load_record_csv, propagate_sensor_errors, rss_budget)
 from mrd_env.report import figure
 from mrd_env.rig import random_test
 

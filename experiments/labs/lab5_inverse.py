@@ -40,7 +40,6 @@
 #   the place of the measured force.
 
 # %%
-import gymnasium as gym
 import numpy as np
 
 import mrd_env  # noqa: F401  (registers the environments)

@@ -304,7 +304,7 @@ def episode_problem(env_id: str, *, seed: int, control_dt: float | None = None, 
     sys_ = asm.coupled.system
     sig = asm.signals
     nq = 2 * asm.linear_plant.n_dof
-    nY, nd = sig.nY, sig.nd
+    nY = sig.nY
     G_all = sig.G
 
     def rows_over_xfw(col: int) -> np.ndarray:
