@@ -143,15 +143,16 @@ def _base(label: str) -> str:
     return head if tail.isdigit() and head else label
 
 
-def plot(plant: str, rows: list[dict], path: Path) -> Path:
-    """Mean return with its 95 % interval per controller, one group per scenario."""
+def grouped_bars(rows: list[dict], value: str, lo: str, hi: str, path: Path, *, ylabel: str, title: str,
+                 refs: tuple[float, ...] = ()) -> Path:
+    """Bars of ``rows[value]`` per controller (one colour per law, tab20 so none repeats up to 20; its 1 ms rows
+    hatched), one group per scenario, with the interval [lo, hi] where it exists; horizontal lines at ``refs``."""
     import matplotlib
 
     scen = list(dict.fromkeys(r["scenario"] for r in rows))
     ctrls = list(dict.fromkeys(r["controller"] for r in rows))
-    fig, ax = figure(figsize=(max(8.0, 1.2 * len(scen) * len(ctrls) / 4), 4.8))
-    width = 0.8 / len(ctrls)
-    # one colour per law (tab20: no colour repeats up to 20), its 1 ms rows hatched
+    fig, ax = figure(figsize=(max(8.0, 0.3 * len(scen) * len(ctrls)), 4.8))
+    width = 0.8 / max(len(ctrls), 1)
     bases = list(dict.fromkeys(c.split(" @ ")[0] for c in ctrls))
     cmap = matplotlib.colormaps["tab20"]
     for i, c in enumerate(ctrls):
@@ -161,16 +162,26 @@ def plot(plant: str, rows: list[dict], path: Path) -> Path:
             r = next((r for r in rows if r["scenario"] == s and r["controller"] == c), None)
             if r is None:
                 continue
-            ax.bar(j + i * width, r["return"], width, color=colour, hatch=hatch, edgecolor="white", lw=0.3,
+            m = r[value]
+            ax.bar(j + i * width, m, width, color=colour, hatch=hatch, edgecolor="white", lw=0.3,
                    label=c if j == 0 else None)
-            ax.errorbar(j + i * width, r["return"], yerr=[[r["return"] - r["return_lo95"]],
-                                                          [r["return_hi95"] - r["return"]]], color="k", lw=0.8)
+            if np.isfinite(r[lo]) and np.isfinite(r[hi]):
+                ax.errorbar(j + i * width, m, yerr=[[m - r[lo]], [r[hi] - m]], color="k", lw=0.8)
+    for k, y in enumerate(refs):
+        ax.axhline(y, color="k", lw=0.8, ls="--" if k else "-")
     ax.set_xticks(np.arange(len(scen)) + 0.4 - width / 2, scen, fontsize=8)
-    ax.set_ylabel("episode return (mean, 95 % interval)")
-    ax.set_title(f"{plant}: agents and classical laws on the held-out test scenarios")
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
     ax.legend(fontsize=7, ncol=3)
     ax.grid(axis="y", alpha=0.3)
     return save_figure(fig, path)
+
+
+def plot(plant: str, rows: list[dict], path: Path) -> Path:
+    """Mean return with its 95 % interval per controller, one group per scenario."""
+    return grouped_bars(rows, "return", "return_lo95", "return_hi95", path,
+                        ylabel="episode return (1; mean, 95 % interval)",
+                        title=f"{plant}: agents and classical laws on the held-out test scenarios")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

@@ -192,33 +192,12 @@ def share_rows(results: dict[str, list[Episode]], ys: list[EpisodeYardstick], sc
 
 def plot_shares(plant: str, rows: list[dict], path: Path) -> Path:
     """Bars of the share of the achievable gain per controller, one group per scenario (intervals where there
-    are repeats)."""
-    import matplotlib
+    are repeats); 0: the best passive setting, dashed 1: the clairvoyant optimum."""
+    from .evaluate_cmd import grouped_bars
 
-    from mrd_env.report import figure, save_figure
-
-    scen = list(dict.fromkeys(r["scenario"] for r in rows))
-    ctrls = list(dict.fromkeys(r["controller"] for r in rows))
-    fig, ax = figure(figsize=(max(8.0, 0.35 * len(scen) * len(ctrls)), 4.8))
-    width = 0.8 / max(len(ctrls), 1)
-    cmap = matplotlib.colormaps["tab20"]
-    for i, c in enumerate(ctrls):
-        for j, s in enumerate(scen):
-            r = next((r for r in rows if r["scenario"] == s and r["controller"] == c), None)
-            if r is None:
-                continue
-            m = r["share of achievable gain"]
-            ax.bar(j + i * width, m, width, color=cmap(i % 20), label=c if j == 0 else None)
-            if np.isfinite(r["share lo95"]):
-                ax.errorbar(j + i * width, m, yerr=[[m - r["share lo95"]], [r["share hi95"] - m]], color="k", lw=0.8)
-    ax.axhline(0.0, color="k", lw=0.8)
-    ax.axhline(1.0, color="k", lw=0.8, ls="--")
-    ax.set_xticks(np.arange(len(scen)) + 0.4 - width / 2, scen, fontsize=8)
-    ax.set_ylabel("share of the achievable gain (1)")
-    ax.set_title(f"{plant}: (R − R_best passive) / (R_clairvoyant − R_best passive); dashed: clairvoyant")
-    ax.legend(fontsize=7, ncol=3)
-    ax.grid(axis="y", alpha=0.3)
-    return save_figure(fig, path)
+    return grouped_bars(rows, "share of achievable gain", "share lo95", "share hi95", path,
+                        ylabel="share of the achievable gain (1)", refs=(0.0, 1.0),
+                        title=f"{plant}: (R − R_best passive) / (R_clairvoyant − R_best passive)")
 
 
 def report(plant: str, results: dict[str, list[Episode]], scenarios: list[Scenario], out: Path, mode: str,

@@ -13,9 +13,8 @@ from ..plants.half_car import HalfCarParams, half_car
 from . import options as opt
 from . import randomize
 from .base import MRDamperEnv
-from .build import as_options, build
 from .core import Assembly, Episode, EpisodeStats
-from .disturbance import Disturbance, FixedRecord, Generated
+from .disturbance import Disturbance, Generated
 from .reward import QuadraticReward
 from .signals import SignalMap
 from .termination import Limits
@@ -61,16 +60,13 @@ ROADS = {"iso8608": _iso8608}
 
 
 def road_source(road, road_params, dt: float, episode_seconds: float, wheelbase: float) -> Disturbance:
-    """The road part: a kind name (with ``road_params``), a dict {"kind": ..., options}, a Record with channels
-    z_rf, zdot_rf, z_rr, zdot_rr (m, m/s), or a :class:`~.disturbance.Disturbance`."""
-    if isinstance(road, Record):
-        if road_params:
-            raise ValueError("road_params apply to a road kind, not to a Record")
-        return FixedRecord(road, CHANNELS, UNITS, dt)
-    if isinstance(road, str) and road_params is not None:
-        road = {"kind": road, **as_options(f"road_params (road={road!r})", road_params)}
-    return build("road", road, ROADS, "iso8608", Disturbance, dt=dt, episode_seconds=episode_seconds,
-                 wheelbase=wheelbase)
+    """The road part, by the quarter car's rule (:func:`.quarter_car.road_source`): a kind name (with
+    ``road_params``), a dict {"kind": ..., options}, a Record with channels z_rf, zdot_rf, z_rr, zdot_rr (m, m/s),
+    or a :class:`~.disturbance.Disturbance`."""
+    from .quarter_car import road_source as car_road
+
+    return car_road(road, road_params, dt, episode_seconds, kinds=ROADS, channels=CHANNELS, units=UNITS,
+                    wheelbase=wheelbase)
 
 
 # --- the assembly ------------------------------------------------------------------------------------------------

@@ -88,16 +88,19 @@ def _csv(*, dt, episode_seconds, path=None, height_column=None, distance_column=
 ROADS = {"iso8608": _iso8608, "bump": _bump, "sine_sweep": _sweep, "csv": _csv}
 
 
-def road_source(road, road_params, dt: float, episode_seconds) -> Disturbance:
-    """The road part: a kind name (with ``road_params``), a dict {"kind": ..., options}, a Record with channels
-    z_r, zdot_r (m, m/s), or a :class:`~.disturbance.Disturbance`."""
+def road_source(road, road_params, dt: float, episode_seconds, *, kinds=None, channels=ROAD_CHANNELS,
+                units=ROAD_UNITS, **kind_options) -> Disturbance:
+    """The road part: a kind name (with ``road_params``), a dict {"kind": ..., options}, a Record with the road's
+    ``channels`` (z_r, zdot_r: m, m/s), or a :class:`~.disturbance.Disturbance`. ``kinds`` (default ``ROADS``),
+    ``channels``, ``units`` and ``kind_options`` (e.g. the half car's wheelbase) let another car use the rule."""
     if isinstance(road, Record):
         if road_params:
             raise ValueError("road_params apply to a road kind, not to a Record")
-        return FixedRecord(road, ROAD_CHANNELS, ROAD_UNITS, dt)
+        return FixedRecord(road, channels, units, dt)
     if isinstance(road, str) and road_params is not None:
         road = {"kind": road, **as_options(f"road_params (road={road!r})", road_params)}
-    return build("road", road, ROADS, "iso8608", Disturbance, dt=dt, episode_seconds=episode_seconds)
+    return build("road", road, ROADS if kinds is None else kinds, "iso8608", Disturbance, dt=dt,
+                 episode_seconds=episode_seconds, **kind_options)
 
 
 # --- the assembly ------------------------------------------------------------------------------------------------
