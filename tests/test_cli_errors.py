@@ -151,6 +151,7 @@ CASES = {
         ["--data", "{good}", "--plot-window", "nan"], ["--data", "{good}", "--backend", "gpu"],
         ["--data", "{good}", "--jobs", "0"], ["--data", "{good}", "--address", "ray://x:1"],
     ],
+    "warmup": [["--nope"], ["--models", "nope"], ["--models"]],
     "yardstick": [
         ["--nope"], ["--plant", "nope"], ["--seeds", "x"], ["--seeds", "0"], ["--backend", "gpu"], ["--jobs", "0"],
     ],
@@ -182,7 +183,7 @@ def test_bad_input_is_one_line_and_exit_2(command, argv, files, capsys, tmp_path
     for opt, val in zip(extra.get(command, [])[::2], extra.get(command, [])[1::2]):
         if opt not in argv:
             argv += [opt, val] if val is not None else [opt]
-    argv += ["--out", str(tmp_path / "out")] if "--out" not in argv else []
+    argv += ["--out", str(tmp_path / "out")] if "--out" not in argv and command != "warmup" else []
     code = main([command, *argv])
     out, err = capsys.readouterr()
     assert "Traceback" not in out + err
@@ -208,7 +209,7 @@ def test_help_exits_0_without_importing_the_commands():
             "with contextlib.redirect_stdout(io.StringIO()) as out:\n"
             "    rc = main(['--help'])\n"
             "mods = [m for m in ('experiments.rig_report', 'experiments.benchmark', 'experiments.train',\n"
-            "        'experiments.evaluate_cmd', 'experiments.scenarios',\n"
+            "        'experiments.evaluate_cmd', 'experiments.scenarios', 'experiments.warmup_cmd',\n"
             "        'experiments.identify_cmd', 'experiments.compare_models_cmd', 'mrd_env.rig',\n"
             "        'mrd_env.identification', 'stable_baselines3', 'torch') if m in sys.modules]\n"
             "print(rc, 'COMMANDS' if all(c in out.getvalue() for c in ('rig', 'benchmark', 'train', 'evaluate', 'identify',\n"
@@ -255,3 +256,9 @@ def test_error_messages_name_the_option_and_show_plain_values(argv, text, files,
     assert code == 2 and err.count("\n") == 1, err
     assert text in err, err
     assert not [leak for leak in LEAKS if leak in err], err
+
+
+def test_warmup_compiles_a_model_and_says_so(capsys):
+    assert main(["warmup", "--models", "bingham"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("bingham") and "1 model(s) ready" in out
