@@ -34,6 +34,8 @@ from .scenarios import Scenario, held_out_scenarios
 #: The clairvoyant's control step: every controller's rate (1 ms, 10 ms) is a multiple of it, so its command
 #: sequences are candidate solutions and the optimum at 1 ms dominates them all.
 YARDSTICK_DT = 1e-3
+#: Warm starts the clairvoyant tries, best first, when the optimiser fails from the best one.
+RETRY_STARTS = 3
 #: Constant commands tried for the best passive setting (fractions of the command range).
 PASSIVE_GRID = np.linspace(0.0, 1.0, 9)
 #: The laws whose commands warm-start the clairvoyant (their own 1 ms rate), per plant.
@@ -128,7 +130,10 @@ def episode_yardstick(scenario: Scenario, seed: int, plant: str, *, agents=(), b
 
     rp, vp = best_passive(problem)
     starts = warm_starts(problem, plant, agents)
+    starts["best constant"] = np.full((problem.n_steps, problem.nd), vp)  # so that the optimum is never below it
     cv = clairvoyant(problem, warm_starts=starts, cache=cache, progress=progress)  # its own cache: commands too
+    if cv.failed:  # the optimiser stopped at its start (a line search that found no descent): from the next ones
+        cv = clairvoyant(problem, warm_starts=starts, n_starts=RETRY_STARTS, cache=cache, progress=progress)
     y = EpisodeYardstick(scenario.label(seed), int(seed), rp, vp, float(cv.ret), str(cv.source), float(cv.wall_time),
                          warm_starts={k: float(v) for k, v in cv.warm_returns.items()})
     if bound:
