@@ -143,44 +143,55 @@ def _base(label: str) -> str:
     return head if tail.isdigit() and head else label
 
 
-def grouped_bars(rows: list[dict], value: str, lo: str, hi: str, path: Path, *, ylabel: str, title: str,
-                 refs: tuple[float, ...] = ()) -> Path:
-    """Bars of ``rows[value]`` per controller (one colour per law, tab20 so none repeats up to 20; its 1 ms rows
-    hatched), one group per scenario, with the interval [lo, hi] where it exists; horizontal lines at ``refs``."""
+def grouped_bars(rows: list[dict], value: str, lo: str, hi: str, path: Path, *, xlabel: str, title: str,
+                 refs: tuple[float, ...] = (), xlim: tuple[float, float] | None = None) -> Path:
+    """One panel per scenario, a horizontal bar of ``rows[value]`` per controller (one colour per law, its 1 ms row
+    hatched) with the interval [lo, hi] where there is one; vertical lines at ``refs``. With ``xlim``, a bar beyond
+    the axis is drawn to its edge and labelled with its value, so that one very poor controller does not squash
+    the others."""
     import matplotlib
 
     scen = list(dict.fromkeys(r["scenario"] for r in rows))
     ctrls = list(dict.fromkeys(r["controller"] for r in rows))
-    fig, ax = figure(figsize=(max(8.0, 0.3 * len(scen) * len(ctrls)), 4.8))
-    width = 0.8 / max(len(ctrls), 1)
+    ncol = min(len(scen), 4)
+    nrow = -(-len(scen) // ncol)
+    fig, axes = figure(nrow, ncol, figsize=(3.6 * ncol + 1.6, 0.22 * len(ctrls) * nrow + 1.4), sharey=True,
+                       squeeze=False)
     bases = list(dict.fromkeys(c.split(" @ ")[0] for c in ctrls))
     cmap = matplotlib.colormaps["tab20"]
-    for i, c in enumerate(ctrls):
-        colour = cmap(bases.index(c.split(" @ ")[0]) % 20)
-        hatch = "//" if c.endswith("@ 1 ms") else None
-        for j, s in enumerate(scen):
+    y = np.arange(len(ctrls))[::-1]
+    for k, s in enumerate(scen):
+        ax = axes[k // ncol][k % ncol]
+        for i, c in enumerate(ctrls):
             r = next((r for r in rows if r["scenario"] == s and r["controller"] == c), None)
             if r is None:
                 continue
             m = r[value]
-            ax.bar(j + i * width, m, width, color=colour, hatch=hatch, edgecolor="white", lw=0.3,
-                   label=c if j == 0 else None)
-            if np.isfinite(r[lo]) and np.isfinite(r[hi]):
-                ax.errorbar(j + i * width, m, yerr=[[m - r[lo]], [r[hi] - m]], color="k", lw=0.8)
-    for k, y in enumerate(refs):
-        ax.axhline(y, color="k", lw=0.8, ls="--" if k else "-")
-    ax.set_xticks(np.arange(len(scen)) + 0.4 - width / 2, scen, fontsize=8)
-    ax.set_ylabel(ylabel)
-    ax.set_title(title)
-    ax.legend(fontsize=7, ncol=3)
-    ax.grid(axis="y", alpha=0.3)
+            shown = m if xlim is None else min(max(m, xlim[0]), xlim[1])
+            ax.barh(y[i], shown, 0.8, color=cmap(bases.index(c.split(" @ ")[0]) % 20),
+                    hatch="//" if c.endswith("@ 1 ms") else None, edgecolor="white", lw=0.3)
+            if shown != m:
+                ax.text(shown, y[i], f" {m:.2g} ", va="center", ha="left" if m < shown else "right", fontsize=7)
+            elif np.isfinite(r[lo]) and np.isfinite(r[hi]):
+                ax.errorbar(m, y[i], xerr=[[m - r[lo]], [r[hi] - m]], color="k", lw=0.8, capsize=2)
+        for j, ref in enumerate(refs):
+            ax.axvline(ref, color="k", lw=0.8, ls="--" if j else "-")
+        if xlim is not None:
+            ax.set_xlim(*xlim)
+        ax.set_title(s, fontsize=9)
+        ax.set_xlabel(xlabel, fontsize=8)
+        ax.grid(axis="x", alpha=0.3)
+    for ax in axes.flat[len(scen):]:
+        ax.set_visible(False)
+    axes[0][0].set_yticks(y, ctrls, fontsize=8)
+    fig.suptitle(title, fontsize=10)
     return save_figure(fig, path)
 
 
 def plot(plant: str, rows: list[dict], path: Path) -> Path:
     """Mean return with its 95 % interval per controller, one group per scenario."""
     return grouped_bars(rows, "return", "return_lo95", "return_hi95", path,
-                        ylabel="episode return (1; mean, 95 % interval)",
+                        xlabel="episode return (1; mean, 95 % interval)",
                         title=f"{plant}: agents and classical laws on the held-out test scenarios")
 
 

@@ -201,8 +201,9 @@ def plot_shares(plant: str, rows: list[dict], path: Path) -> Path:
     from .evaluate_cmd import grouped_bars
 
     return grouped_bars(rows, "share of achievable gain", "share lo95", "share hi95", path,
-                        ylabel="share of the achievable gain (1)", refs=(0.0, 1.0),
-                        title=f"{plant}: (R − R_best passive) / (R_clairvoyant − R_best passive)")
+                        xlabel="share of the achievable gain (1)", refs=(0.0, 1.0), xlim=(-1.0, 1.05),
+                        title=f"{plant}: share of the achievable gain, (R − R_best passive) / (R_clairvoyant − "
+                              "R_best passive); 0: best constant command, dashed 1: clairvoyant optimum")
 
 
 def report(plant: str, results: dict[str, list[Episode]], scenarios: list[Scenario], out: Path, mode: str,
