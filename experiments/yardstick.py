@@ -34,6 +34,8 @@ from .scenarios import Scenario, held_out_scenarios
 #: The clairvoyant's control step: every controller's rate (1 ms, 10 ms) is a multiple of it, so its command
 #: sequences are candidate solutions and the optimum at 1 ms dominates them all.
 YARDSTICK_DT = 1e-3
+#: Bumped when the yardstick changes what it computes for the same episode (part of its cache key).
+VERSION = 2
 #: Warm starts the clairvoyant tries, best first, when the optimiser fails from the best one.
 RETRY_STARTS = 3
 #: Constant commands tried for the best passive setting (fractions of the command range).
@@ -120,7 +122,7 @@ def episode_yardstick(scenario: Scenario, seed: int, plant: str, *, agents=(), b
 
     problem = episode_problem(scenario.env_id, seed=int(seed), control_dt=YARDSTICK_DT, **scenario.options)
     key = {**problem.key(), "scenario": scenario.label(seed), "agents": [str(Path(a).name) for a in agents],
-           "passive_grid": PASSIVE_GRID.tolist()}
+           "passive_grid": PASSIVE_GRID.tolist(), "version": VERSION}
     hit = store.load("yardstick", key) if cache else None
     if hit is not None and (hit.get("bound") is not None or not bound):
         return EpisodeYardstick(**{k: (math.nan if v is None else v) for k, v in hit.items()})
