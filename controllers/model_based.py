@@ -11,8 +11,13 @@ the measured outputs and the measured damper forces; the disturbance w is its pr
 usable measurement when it is a linear output that does not depend directly on the unknown disturbance
 (D_w = 0: accelerations of the sprung mass or of the floors in absolute terms, strokes, velocities; not the
 unsprung acceleration, which the road drives directly, nor the ground acceleration itself).
+
+The cost may be the environment's own reward (``weights="reward"``: :func:`reward_weights`), its filtered terms
+realised as states (:func:`continuous_filter`), the car in road coordinates (``frame="road"``).
 """
 from __future__ import annotations
+
+from collections.abc import Mapping
 
 import control
 import numpy as np
@@ -22,39 +27,220 @@ from .base import Controller
 
 
 class LinearDesign:
-    """The plant's linear model in the form the designs need, from what ``env.unwrapped`` declares."""
+    """The plant's linear model in the form the designs need, from what ``env.unwrapped`` declares.
 
-    def __init__(self, env):
+    ``filtered``: names of filtered signals (``env.assembly.filters``: an output of a digital filter of a linear
+    signal, e.g. the quarter car's ISO 2631 Wk-weighted ``sprung_acc_wk``) whose filter is appended to the state as
+    a continuous-time realisation (:func:`continuous_filter`): x = [q, q̇, ξ_1, ...], n_plant the plant's states."""
+
+    def __init__(self, env, filtered=(), frame: str = "absolute"):
+        if frame not in ("absolute", "road"):
+            raise ValueError(f"frame must be 'absolute' or 'road', got {frame!r}")
         self.env = env
         lp = env.linear_plant
         self.plant = lp
         self.A, self.Bf, self.Bw = lp.state_space(inertance=env.damper.inertance())
-        self.n = self.A.shape[0]
+        self.n_plant = self.A.shape[0]
         self.n_dof = lp.n_dof
         self.nd = lp.n_dampers
+        self.frame = frame
+        self.shift = None
+        if frame == "road":
+            self._road_frame()
+        self.filtered: dict = {}  # filtered signal → (C, D_F, D_w) over the augmented state
+        for name in dict.fromkeys(filtered):
+            self._append_filter(name)
+        self.n = self.A.shape[0]
+
+    def _road_frame(self):
+        """Displacements relative to the road under the wheel: q_rel = q − g z_r with g the rigid shift of a unit
+        road height (A [g; 0] = −B_w[:, z_r]: both car masses, g = [1, 1]), velocities absolute. The dynamics do
+        not change, the road enters only through its velocity: B_w → [0, B_w[:, ż_r] − [g; 0]] — a random road of
+        ISO 8608's n⁻² spectrum has a white velocity, what the Kalman filter's process noise models; the road
+        height, a random walk, drops out (in absolute coordinates it is white noise on z_r and the filter takes the
+        body's drift with the road for a deflection of the tyre)."""
+        names = tuple(self.plant.input_names[:2])
+        if names != ("z_r", "zdot_r"):
+            raise ValueError(f"frame='road' needs a road input (z_r, zdot_r) (the quarter car); this plant's inputs "
+                             f"are {self.plant.input_names}")
+        n = self.n_dof
+        g = np.linalg.lstsq(self.A[n:, :n], -self.Bw[n:, 0], rcond=None)[0]
+        G = np.concatenate([g, np.zeros(n)])
+        if not np.allclose(self.A @ G, -self.Bw[:, 0], rtol=1e-9, atol=1e-9 * np.abs(self.Bw[:, 0]).max()):
+            raise ValueError("frame='road': no rigid shift of the displacements follows the road height")
+        self.shift = G
+        self.Bw = self.Bw.copy()
+        self.Bw[:, 1] -= G
+        self.Bw[:, 0] = 0.0
+
+    def _append_filter(self, name: str):
+        filters = {o: (i, sos) for i, o, sos in getattr(getattr(self.env, "assembly", None), "filters", ())}
+        if name not in filters:
+            raise ValueError(f"{name!r} is not a filtered signal of the environment (filtered: {sorted(filters)})")
+        source, sos = filters[name]
+        C, DF, Dw = self.signal(source)
+        Af, Bf, Cf, Df = continuous_filter(sos, self.env.dt)
+        n, m = self.A.shape[0], Af.shape[0]
+        # ξ' = A_f ξ + B_f s, s = C x + D_F f + D_w w (the source signal); output C_f ξ + D_f s
+        self.A = np.block([[self.A, np.zeros((n, m))], [Bf @ C, Af]])
+        self.Bf = np.vstack([self.Bf, Bf @ DF])
+        self.Bw = np.vstack([self.Bw, Bf @ Dw])
+        for k, (Ck, DFk, Dwk) in self.filtered.items():
+            self.filtered[k] = (np.hstack([Ck, np.zeros((Ck.shape[0], m))]), DFk, Dwk)
+        self.filtered[name] = (np.hstack([Df @ C, Cf]), Df @ DF, Df @ Dw)
+
+    def signal(self, name: str):
+        """(C, D_F, D_w) of a linear output ``C x + D_F f + D_w w`` over the (augmented) state; ValueError if the
+        signal is not one."""
+        if name in self.filtered:
+            return self.filtered[name]
+        if name in ("damper_force", "command"):
+            raise ValueError(f"{name!r} is not a linear output of the plant state, forces and inputs")
+        m = self.env.signal_matrices(name)
+        Dw = np.array(m["D_w"], dtype=float)
+        if self.shift is not None:  # y = C q + D_w w = C q_rel + (C g + D_w[:, z_r]) z_r + ...
+            cancel = np.abs(m["C"]) @ np.abs(self.shift) + np.abs(Dw[:, 0])
+            Dw[:, 0] += m["C"] @ self.shift
+            Dw[np.abs(Dw[:, 0]) <= 1e-12 * cancel, 0] = 0.0  # what cancels exactly, to round-off
+        C = np.hstack([m["C"], np.zeros((m["C"].shape[0], self.A.shape[0] - m["C"].shape[1]))])
+        return C, m["D_F"], Dw
 
     def output(self, sensor: str):
         """(C, D_f) of a signal, or None if it is not a usable measurement (see the module docstring)."""
-        if sensor in ("damper_force", "command"):
-            return None
         try:
-            m = self.env.signal_matrices(sensor)
+            C, DF, Dw = self.signal(sensor)
         except ValueError:
             return None
-        if np.max(np.abs(m["D_w"]), initial=0.0) > 1e-9 * max(1.0, np.max(np.abs(m["C"]), initial=0.0)):
+        if sensor in self.filtered:  # computed, not measured
             return None
-        return m["C"], m["D_F"]
+        if np.max(np.abs(Dw), initial=0.0) > 1e-9 * max(1.0, np.max(np.abs(C), initial=0.0)):
+            return None
+        return C, DF
+
+    def cost_outputs(self, weights: dict):
+        """(C_z, D_z, D_zw): the weighted outputs z = C_z x + D_z f + D_zw w of ``{signal: weight}`` (weights on
+        squared outputs, scalar or one per channel), any linear output — a disturbance-driven one too (the quarter
+        car's tyre load) and an appended filter's (:attr:`filtered`)."""
+        Cs, Ds, Ws = [], [], []
+        for name, w in weights.items():
+            try:
+                C, DF, Dw = self.signal(name)
+            except ValueError:
+                raise ValueError(f"cannot regulate {name!r}: it is not a linear function of the plant state, forces "
+                                 "and inputs") from None
+            s = np.sqrt(np.broadcast_to(np.asarray(w, dtype=float), (C.shape[0],)))[:, None]
+            Cs.append(s * C)
+            Ds.append(s * DF)
+            Ws.append(s * Dw)
+        return np.vstack(Cs), np.vstack(Ds), np.vstack(Ws)
 
     def regulated(self, weights: dict):
-        """(C_z, D_z) stacked from weighted outputs ``{signal: weight}`` (weights on squared outputs)."""
-        Cs, Ds = [], []
-        for name, w in weights.items():
-            out = self.output(name)
-            if out is None:
+        """(C_z, D_z) stacked from weighted outputs ``{signal: weight}`` (weights on squared outputs) of the state
+        and forces alone (no disturbance term)."""
+        for name in weights:
+            if self.output(name) is None and name not in self.filtered:
                 raise ValueError(f"cannot regulate {name!r}: it is not a function of the plant state and forces")
-            Cs.append(np.sqrt(w) * out[0])
-            Ds.append(np.sqrt(w) * out[1])
-        return np.vstack(Cs), np.vstack(Ds)
+        return self.cost_outputs(weights)[:2]
+
+
+def continuous_filter(sos: np.ndarray, dt: float):
+    """(A, B, C, D): a continuous-time realisation of the digital filter ``sos`` at sample interval ``dt`` — the
+    analog filter whose bilinear (Tustin) transform at ``dt`` it is, section by section: z⁻¹ = (1 − sT/2)/(1 + sT/2)
+    turns b₀ + b₁z⁻¹ + b₂z⁻² into (b₀ − b₁ + b₂)T²/4·s² + (b₀ − b₂)T·s + (b₀ + b₁ + b₂) (over (1 + sT/2)², which
+    cancels). For a pre-warped bilinear design (the ISO 2631 weightings of :func:`mrd_env.metrics.weighting_sos`)
+    it is the analog prototype with its corners at the pre-warped frequencies (Wk at 1 ms: 100 Hz → 103 Hz, the
+    others within 0.3 %). Realised as a cascade of sections in observable canonical form
+    (:func:`mrd_env.optimal.bound.sos_state_space`: the same matrices are the continuous realisation of the
+    analog sections), its states scaled by a diagonal similarity (``scipy.linalg.matrix_balance``)."""
+    from scipy.linalg import matrix_balance
+
+    from mrd_env.optimal.bound import sos_state_space
+
+    sos = np.atleast_2d(np.asarray(sos, dtype=float))
+    T = float(dt)
+    M = np.array([[T * T / 4.0, -T * T / 4.0, T * T / 4.0], [T, 0.0, -T], [1.0, 1.0, 1.0]])
+    analog = np.hstack([sos[:, :3] @ M.T, sos[:, 3:] @ M.T])
+    A, B, C, D = sos_state_space(analog)
+    _, (s, _) = matrix_balance(A, permute=False, separate=True)
+    return A * (1.0 / s)[:, None] * s[None, :], B / s[:, None], C * s[None, :], D
+
+
+#: The nominal disturbances of weights="reward"'s fixed reference scales, per plant kind (:func:`nominal_reference`).
+NOMINAL_ROAD = {"road_class": "C", "speed": 20.0, "duration": 100.0, "seed": 0}
+NOMINAL_GROUND_MOTION = {"kind": "kanai_tajimi", "episode_seconds": 10.0, "seeds": (0, 1, 2, 3)}
+_NOMINAL_CACHE: dict = {}
+
+
+def nominal_reference(env) -> dict:
+    """{reward signal: mean square} of the environment's reward normaliser on a fixed nominal disturbance — what
+    the reward divides each term by, with the episode's own disturbance replaced by a nominal one a controller can
+    know in advance (the per-episode scale depends on the road or record the controller has not seen).
+
+    Quarter car: the conventional passive car's mean squares (:func:`mrd_env.envs.quarter_car.passive_reference`)
+    on an ISO 8608 class-C road at 20 m/s, 100 s (``method="fft"``, seed 0; the long-run values: 10 s episodes
+    scatter around them by ±10–50 %, travel the most); the fixed reference scales for a car without a passive damper.
+    Shear building: the uncontrolled building's mean squares of drift and absolute acceleration, summed over the
+    floors, on four 10 s Kanai–Tajimi records with the nominal parameters (ω_g 15.6 rad/s, ζ_g 0.6, PGA 0.3 g; seeds
+    0–3), replayed at the environment's time scale. Cached per plant and time step."""
+    base = getattr(env, "unwrapped", env)
+    asm = base.assembly
+    key = (asm.kind, repr(asm.plant_params), float(base.dt), repr(asm.options.get("plant_params")))
+    if key in _NOMINAL_CACHE:
+        return dict(_NOMINAL_CACHE[key])
+    dt, p = float(base.dt), asm.plant_params
+    if asm.kind == "quarter_car":
+        from mrd_env.disturbances import iso8608_road
+        from mrd_env.envs import quarter_car as qc
+
+        if p.passive_c > 0:
+            nom = NOMINAL_ROAD
+            rec = iso8608_road(nom["road_class"], nom["speed"], nom["duration"], dt, rng=nom["seed"], method="fft")
+            z0, zd0 = rec.data[0]
+            ref = qc.passive_reference(p, rec, np.array([z0, z0, zd0, zd0]), rec.n_samples, dt)
+        else:
+            ref = {"comfort": qc.A_REF ** 2, "travel": qc.X_REF ** 2, "tyre": p.static_tyre_load ** 2}
+        out = {qc.REWARD_SIGNALS[k]: v for k, v in ref.items()}
+    elif asm.kind == "shear_building":
+        from mrd_env.envs import shear_building as sb
+        from mrd_env.plants import ShearBuildingParams
+
+        lab = not isinstance(asm.options.get("plant_params"), ShearBuildingParams)  # as the environment's options
+        nom = NOMINAL_GROUND_MOTION
+        src = sb.ground_motion_source(nom["kind"], None, dt, nom["episode_seconds"], lab)
+        heights = np.asarray(p.storey_heights if p.storey_heights is not None
+                             else [sb.DEFAULT_STOREY_HEIGHT] * p.n_floors)
+        d_ms = a_ms = 0.0
+        for seed in nom["seeds"]:
+            u = sb.uncontrolled(asm.linear_plant, p, heights, src.sample(np.random.default_rng(seed), dt))
+            d_ms += float(np.sum(np.mean(u["drift"] ** 2, axis=0)))
+            a_ms += float(np.sum(np.mean(u["abs_acc"] ** 2, axis=0)))
+        out = {"drift": d_ms / len(nom["seeds"]), "abs_acc": a_ms / len(nom["seeds"])}
+    else:
+        raise ValueError(f"weights='reward' knows the nominal reference of the quarter car and the shear building, "
+                         f"not of a {asm.kind!r} environment: pass weights={{signal: weight}}")
+    _NOMINAL_CACHE[key] = out
+    return dict(out)
+
+
+def reward_weights(env) -> dict:
+    """The environment's quadratic reward as LQ weights ``{signal: weight}``: each term's reward weight over its
+    :func:`nominal_reference` mean square — the reward's own cost rate, in the reward's units on the nominal
+    disturbance (the passive car, or the uncontrolled building, costs about 1 per second there). Quarter car: the
+    Wk-weighted sprung acceleration (``sprung_acc_wk``, a filtered signal: :class:`LinearDesign` appends the filter),
+    the travel and the dynamic tyre load (``_tyre_load``, driven by the road too); building: the interstorey drifts
+    and the absolute floor accelerations."""
+    from mrd_env.envs.reward import QuadraticReward
+
+    base = getattr(env, "unwrapped", env)
+    reward = base.assembly.reward
+    if not isinstance(reward, QuadraticReward):
+        raise ValueError("weights='reward' needs the environment's quadratic reward (a QuadraticReward), got "
+                         f"{type(reward).__name__}: pass weights={{signal: weight}}")
+    ref = nominal_reference(base)
+    missing = sorted(set(reward.weights) - set(ref))
+    if missing:
+        raise ValueError(f"weights='reward': no nominal reference for the reward's signal(s) {missing}")
+    return {name: np.asarray(w, dtype=float) / max(ref[name], 1e-300) for name, w in reward.weights.items()}
 
 
 def van_loan(Ac: np.ndarray, Qc: np.ndarray, T: float) -> tuple[np.ndarray, np.ndarray]:
@@ -144,9 +330,10 @@ class _ObserverLaw(Controller):
     requires = ("damper_force",)
     measurement_noise_default = 0.05  # RMS of each measured output, SI (m/s², m, m/s)
 
-    def __init__(self, env, measurements=None, process_noise: float = 1.0, measurement_noise=None):
+    def __init__(self, env, measurements=None, process_noise: float = 1.0, measurement_noise=None, filtered=(),
+                 frame: str = "absolute"):
         super().__init__(env)
-        self.design = LinearDesign(self.env)
+        self.design = LinearDesign(self.env, filtered, frame)
         if measurements is None:
             usable = [n for n in self.layout if self.design.output(n) is not None]
         else:
@@ -192,7 +379,22 @@ class ClippedOptimal(_ObserverLaw):
     ``weights``: {signal: weight on its square}; default the environment's declared objective (building: the
     interstorey drifts with 1/(5 mm)²; quarter car: sprung acceleration with 1/(1 m/s²)² and travel with
     1/(5 cm)²). R = 1/(force_ref)² per damper with force_ref = 3000 N (the prototype damper's force scale;
-    with these the El Centro lab ranking of Dyke et al. 1996 is reproduced, see the README).
+    with these the El Centro lab ranking of Dyke et al. 1996 is reproduced, see the README). Any linear output
+    may be weighted: one the disturbance drives too (its disturbance part is unknown here, w = 0; MPC's road
+    preview knows it) and a filtered signal of ``env.assembly.filters``, whose filter is appended to the design
+    state (:class:`LinearDesign`). ``weights="reward"``: the environment's own quadratic reward over fixed nominal
+    scales (:func:`reward_weights`) — quarter car: 0.5 (Wk-weighted sprung acceleration)² / 1.36 (m/s²)² +
+    0.25 travel² / (11.0 mm)² + 0.25 (dynamic tyre load)² / (761 N)², the passive car's mean squares on an ISO
+    class-C road at 20 m/s; building: 0.5 Σ drift² / ⟨Σ drift²⟩ + 0.5 Σ a_abs² / ⟨Σ a_abs²⟩ of the uncontrolled
+    building under nominal Kanai–Tajimi records; each costs about 1 per second on its nominal disturbance, like
+    the reward.
+
+    ``frame`` (the design's coordinates): "absolute" (the environment's states), or "road" (the car's
+    displacements relative to the road under the wheel, :meth:`LinearDesign._road_frame`: the road enters through
+    its velocity, the tyre deflection is a state the filter estimates, from the unsprung acceleration — usable
+    then — among others). Default: "road" with ``weights="reward"`` on the car (its tyre-load term needs it: in
+    absolute coordinates the filter takes the wheel's travel with the road for tyre deflection, about three
+    times the true tyre load), "absolute" otherwise.
 
     ``design``: "continuous" (default) the continuous-time LQR above; "sampled" the LQR of the same cost for the
     force held over each control period ``control_dt`` — the sampled-data problem solved exactly
@@ -208,11 +410,28 @@ class ClippedOptimal(_ObserverLaw):
 
     name = "clipped_optimal"
 
-    def __init__(self, env, weights: dict | None = None, force_ref: float = 3000.0, inverse=None,
-                 design: str = "continuous", **observer):
+    def __init__(self, env, weights: dict | str | None = None, force_ref: float = 3000.0, inverse=None,
+                 design: str = "continuous", frame: str | None = None, **observer):
         if design not in ("continuous", "sampled"):
             raise ValueError(f"design must be 'continuous' or 'sampled', got {design!r}")
-        super().__init__(env, **observer)
+        if not force_ref > 0:
+            raise ValueError(f"force_ref must be > 0 N, got {force_ref}")
+        base = getattr(env, "unwrapped", env)
+        road = tuple(base.linear_plant.input_names[:2]) == ("z_r", "zdot_r")
+        if isinstance(weights, str):
+            if weights != "reward":
+                raise ValueError(f"weights must be None (the environment's objective), 'reward' or a dict "
+                                 f"{{signal: weight}}, got {weights!r}")
+            weights = reward_weights(base)
+            frame = ("road" if road else "absolute") if frame is None else frame
+        elif weights is None:
+            weights = dict(base.objective)
+        elif not isinstance(weights, Mapping):
+            raise ValueError(f"weights must be None, 'reward' or a dict {{signal: weight}}, got "
+                             f"{type(weights).__name__}")
+        self.weights = weights = dict(weights)
+        outputs = {o for _, o, _ in getattr(getattr(base, "assembly", None), "filters", ())}
+        super().__init__(env, filtered=[k for k in weights if k in outputs], frame=frame or "absolute", **observer)
         if inverse is None:
             self.actuation = None
         else:
@@ -220,15 +439,13 @@ class ClippedOptimal(_ObserverLaw):
 
             self.actuation = ForceActuation(self.env, inverse)
             self.name = f"{self.name}+{self.actuation.inverse.name}"
-        weights = dict(self.env.objective) if weights is None else dict(weights)
-        if not force_ref > 0:
-            raise ValueError(f"force_ref must be > 0 N, got {force_ref}")
-        Cz, Dz = self.design.regulated(weights)
+        Cz, Dz, Dzw = self.design.cost_outputs(weights)
         Q = Cz.T @ Cz
         R = Dz.T @ Dz + np.eye(self.design.nd) / force_ref ** 2
         N = Cz.T @ Dz
-        self.weights, self.force_ref, self.design_kind = weights, float(force_ref), design
-        self.lq = (Q, R, N)  # the continuous cost ∫ xᵀQx + 2xᵀNf + fᵀRf dt
+        self.force_ref, self.design_kind = float(force_ref), design
+        self.lq = (Q, R, N)  # the continuous cost ∫ xᵀQx + 2xᵀNf + fᵀRf dt (w = 0)
+        self.cost = (Cz, Dz, Dzw)  # z = C_z x + D_z f + D_zw w, R₀ = 1/force_ref² on f besides
         if design == "continuous":
             self.K, self.S_riccati, self.closed_loop_poles = control.lqr(self.design.A, self.design.Bf, Q, R, N)
             self.K = np.asarray(self.K)

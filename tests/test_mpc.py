@@ -1,6 +1,7 @@
 """Linear MPC (controllers/mpc.py) and the sampled-data design of clipped-optimal control: against python-control's
 LQR designs, numerical quadrature of the continuous cost, a brute-force bounded minimisation, the environment's own
-road, and the clipped-optimal law it reduces to."""
+road, and the clipped-optimal law it reduces to; the reward's own cost (weights="reward": its Wk filter, nominal
+scales, the car's road frame) against the environment's reward signals and an LQR built by hand."""
 import itertools
 import subprocess
 import sys
@@ -244,3 +245,214 @@ def test_preview_acts_before_the_bump_and_pays():
                 break
         returns.append(total)
     assert returns[0] > returns[1]
+
+
+# --- the reward's own cost (weights="reward") -----------------------------------------------------------------------
+def _car_road(seconds, dt=1e-3, seed=0):
+    from mrd_env.disturbances import iso8608_road
+
+    return iso8608_road("C", 20.0, seconds, dt, rng=seed, method="fft")
+
+
+def test_continuous_filter_is_the_analog_prototype_of_the_rewards_wk_filter():
+    """The continuous realisation of the car's Wk sections is the filter whose bilinear transform they are: its
+    response at the pre-warped frequency equals the digital filter's; below 20 Hz it is ISO 2631's analog Wk."""
+    import scipy.signal
+
+    from controllers.model_based import continuous_filter
+    from mrd_env.metrics import weighting_magnitude
+
+    env = _env(CAR)
+    (src, out, sos), = env.assembly.filters
+    assert (src, out) == ("sprung_acc", "sprung_acc_wk")
+    T = env.dt
+    A, B, C, D = continuous_filter(sos, T)
+    assert np.all(np.linalg.eigvals(A).real < 0)
+
+    def H(s):
+        return (C @ np.linalg.solve(s * np.eye(A.shape[0]) - A, B) + D)[0, 0]
+
+    f = np.array([0.2, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0, 50.0, 120.0, 300.0])
+    _, Hd = scipy.signal.sosfreqz(sos, worN=f, fs=1.0 / T)
+    Hc = np.array([H(2j / T * np.tan(np.pi * fi * T)) for fi in f])
+    np.testing.assert_allclose(Hc, Hd, rtol=1e-8)
+    low = f < 20.0
+    np.testing.assert_allclose([abs(H(2j * np.pi * fi)) for fi in f[low]], weighting_magnitude("Wk", f[low]),
+                               rtol=1e-3)
+
+
+@pytest.mark.parametrize("frame", ["absolute", "road"])
+def test_reward_cost_outputs_are_the_rewards_signals(frame):
+    """The design's weighted outputs, driven by the passive car (the set's dashpot as the force) on a road, have
+    the reward's mean squares: Wk-weighted sprung acceleration, travel and tyre load as
+    :func:`~mrd_env.envs.quarter_car.passive_reference` computes them (exact simulation and scipy's digital Wk)."""
+    from mrd_env.envs.quarter_car import passive_reference
+    from mrd_env.plants.response import foh_response
+
+    env = _env(CAR)
+    co = ClippedOptimal(env, weights={"sprung_acc_wk": 1.0, "travel": 1.0, "_tyre_load": 1.0}, frame=frame)
+    d, (Cz, Dz, Dzw) = co.design, co.cost
+    assert d.frame == frame and d.n == 4 + 8  # the plant and the Wk filter's four sections
+    c = env.plant_params.passive_c
+    Cv = d.signal("travel_rate")[0]
+    rec = _car_road(10.0)
+    w = rec.data
+    x0 = np.zeros(d.n)
+    x0[2:4] = w[0, 1]
+    if frame == "absolute":
+        x0[:2] = w[0, 0]
+    X = foh_response(d.A + c * d.Bf @ Cv, d.Bw, w, env.dt, x0=x0)  # f = c·(travel rate): dissipative
+    z = X @ (Cz + c * Dz @ Cv).T + w @ Dzw.T
+    ms = np.mean(z[1:] ** 2, axis=0)
+    z0, zd0 = w[0]
+    ref = passive_reference(env.plant_params, rec, np.array([z0, z0, zd0, zd0]), rec.n_samples, env.dt)
+    np.testing.assert_allclose(ms, [ref["comfort"], ref["travel"], ref["tyre"]], rtol=2e-3)
+
+
+def test_reward_weights_are_the_reward_over_the_nominal_passive_car():
+    """weights="reward" on the car: the reward's weights over the passive car's mean squares on the nominal class-C
+    road at 20 m/s (100 s), so that the passive car costs 1 per second there; on the building over the
+    uncontrolled building's; the reward's own weights (reward_weights) are followed."""
+    from controllers.model_based import NOMINAL_ROAD, nominal_reference, reward_weights
+    from mrd_env.envs.quarter_car import passive_reference
+
+    env = _env(CAR)
+    rec = _car_road(NOMINAL_ROAD["duration"], seed=NOMINAL_ROAD["seed"])
+    z0, zd0 = rec.data[0]
+    ref = passive_reference(env.plant_params, rec, np.array([z0, z0, zd0, zd0]), rec.n_samples, env.dt)
+    w = reward_weights(env)
+    assert set(w) == {"sprung_acc_wk", "travel", "_tyre_load"}
+    np.testing.assert_allclose([w["sprung_acc_wk"], w["travel"], w["_tyre_load"]],
+                               [0.5 / ref["comfort"], 0.25 / ref["travel"], 0.25 / ref["tyre"]], rtol=1e-12)
+    assert 0.1 < ref["comfort"] / 1.0 < 10.0 and 0.005 < np.sqrt(ref["travel"]) < 0.03  # a class-C road
+    w2 = reward_weights(_env(CAR, reward_weights={"comfort": 1.0, "travel": 0.0, "tyre": 0.5}))
+    np.testing.assert_allclose([w2["sprung_acc_wk"], w2["travel"], w2["_tyre_load"]],
+                               [1.0 / ref["comfort"], 0.0, 0.5 / ref["tyre"]], rtol=1e-12)
+    b = _env(BUILDING, damper_floors=(2,))
+    wb, rb = reward_weights(b), nominal_reference(b)
+    np.testing.assert_allclose(wb["drift"], np.full(3, 0.5 / rb["drift"]))
+    np.testing.assert_allclose(wb["abs_acc"], np.full(3, 0.5 / rb["abs_acc"]))
+    assert ClippedOptimal(b, weights="reward").design.frame == "absolute"
+
+
+def _tustin_analog(sos, T):
+    """A state-space model of the analog filter whose bilinear transform at T is the digital ``sos``: in each
+    section z⁻¹ = (1 − sT/2)/(1 + sT/2) substituted by numpy polynomial algebra, realised by python-control
+    (tf2ss, series) — independent of controllers.model_based.continuous_filter."""
+    p, m = np.array([T / 2, 1.0]), np.array([-T / 2, 1.0])  # 1 + sT/2, 1 − sT/2
+
+    def sub(c):  # (1 + sT/2)² (c₀ + c₁z⁻¹ + c₂z⁻²)
+        return c[0] * np.polymul(p, p) + c[1] * np.polymul(m, p) + c[2] * np.polymul(m, m)
+
+    out = None
+    for row in np.atleast_2d(sos):
+        num, den = sub(row[:3]), sub(row[3:])
+        num = np.where(np.abs(num) < 1e-12 * np.abs(num).max(), 0.0, num)
+        num = np.trim_zeros(num, "f")
+        sec = control.tf2ss(control.tf(num, den))
+        out = sec if out is None else control.series(out, sec)
+    return out
+
+
+def test_reward_weighted_horizon_one_gain_is_the_sampled_lqr_of_the_reward():
+    """weights="reward", unconstrained: every horizon's first-step gain is the infinite-horizon sampled-data LQR
+    (python-control) of the reward's cost built here by hand — the car in road coordinates [z_s − z_r, z_u − z_r,
+    ż_s, ż_u], the analog Wk filter of the reward's sections (control.tf2ss of the substituted polynomials),
+    travel and tyre load k_t(z_r − z_u) — in the gain on the car's states and in the closed-loop poles (both
+    independent of how the filter is realised)."""
+    env = _env(CAR, control_dt=0.01)
+    from controllers.model_based import reward_weights
+
+    w = reward_weights(env)
+    p = env.plant_params
+    A, Bf, _ = env.linear_plant.state_space(inertance=env.damper.inertance())
+    Wk = _tustin_analog(env.assembly.filters[0][2], env.dt)
+    Aw, Bw, Cw, Dw = (np.asarray(M) for M in (Wk.A, Wk.B, Wk.C, Wk.D))
+    assert Aw.shape == (8, 8) and abs(Dw[0, 0]) < 1e-9
+    Ca, Da = A[2:3], Bf[2:3]  # sprung acceleration
+    m = Aw.shape[0]
+    Aa = np.block([[A, np.zeros((4, m))], [Bw @ Ca, Aw]])
+    Ba = np.vstack([Bf, Bw @ Da])
+    Cz = np.vstack([np.sqrt(w["sprung_acc_wk"]) * np.hstack([np.zeros((1, 4)), Cw]),
+                    np.sqrt(w["travel"]) * np.hstack([[[1.0, -1.0, 0.0, 0.0]], np.zeros((1, m))]),
+                    np.sqrt(w["_tyre_load"]) * np.hstack([[[0.0, -p.k_t, 0.0, -p.c_t]], np.zeros((1, m))])])
+    Q, R, N = Cz.T @ Cz, np.eye(1) / 1000.0 ** 2, np.zeros((4 + m, 1))
+    Phi, Gam, Qd, Rd, Nd = sampled_lq(Aa, Ba, Q, R, N, 0.01)
+    K_ref, _, poles_ref = control.dlqr(Phi, Gam, Qd, Rd, Nd)
+    for H in (1, 5):
+        mpc = MPC(env, weights="reward", force_ref=1000.0, horizon=H, f_max=1e7)
+        assert mpc.design.frame == "road"
+        np.testing.assert_allclose(mpc.K_horizon[:, :4], K_ref[:, :4], rtol=1e-5)
+    co = ClippedOptimal(env, weights="reward", force_ref=1000.0, design="sampled")
+    np.testing.assert_allclose(co.K[:, :4], K_ref[:, :4], rtol=1e-5)
+    np.testing.assert_allclose(np.sort_complex(co.closed_loop_poles), np.sort_complex(poles_ref), rtol=1e-6,
+                               atol=1e-9)
+
+
+def test_road_frame():
+    """frame="road": the road enters through its velocity alone, the tyre load and the unsprung acceleration are
+    functions of the state (the latter becomes a measurement), the plant settles at 0 under any road height; it
+    needs a road input."""
+    env = _env(CAR)
+    co = ClippedOptimal(env, frame="road")
+    d = co.design
+    np.testing.assert_array_equal(d.Bw[:, 0], 0.0)
+    np.testing.assert_allclose(d.Bw[:, 1], [-1.0, -1.0, 0.0, 0.0])
+    for name in ("_tyre_load", "unsprung_acc", "sprung_acc", "travel"):
+        np.testing.assert_array_equal(d.signal(name)[2], 0.0)  # c_t = 0 on set A
+    assert "unsprung_acc" in co.measurements and "unsprung_acc" not in ClippedOptimal(env).measurements
+    # the same dynamics: the absolute design's K is the road frame's for the objective's shift-invariant weights
+    np.testing.assert_allclose(co.K, ClippedOptimal(env).K, rtol=1e-9)
+    mpc = MPC(_preview_env(control_dt=0.01), weights="reward", horizon=3)
+    assert mpc.design.frame == "road" and mpc.preview
+    np.testing.assert_array_equal(mpc.steady_state, 0.0)
+    with pytest.raises(ValueError, match="road input"):
+        ClippedOptimal(_env(BUILDING), frame="road")
+
+
+def _returns(env, ctrl, seeds):
+    out = []
+    for s in seeds:
+        obs, _ = env.reset(seed=s)
+        ctrl.reset()
+        total = 0.0
+        while True:
+            a, _ = ctrl.predict(obs)
+            obs, r, term, trunc, _ = env.step(a)
+            total += r
+            if term or trunc:
+                break
+        out.append(total)
+    return np.array(out)
+
+
+def test_reward_weights_beat_the_objective_on_validation_episodes():
+    """On validation episodes (seeds training never draws): the car with road preview at 10 ms (3 s of four
+    roads, force_ref 200 N as tuned) and the building at 10 ms (four records) score better with the reward's own
+    cost than with the objective's, in total and on most episodes."""
+    from experiments.scenarios import validation
+
+    car = validation("quarter_car")[0]
+    env = _preview_env(**{**car.options, "episode_seconds": 3.0}, control_dt=0.01)
+    seeds = car.seeds[:4]
+    old = _returns(env, MPC(env), seeds)
+    new = _returns(env, MPC(env, weights="reward", force_ref=200.0, f_max=1e5), seeds)
+    assert new.sum() > old.sum() + 0.5 and np.all(new > old)
+    bld = validation("building")[0]
+    env = gym.make(bld.env_id, **bld.options, control_dt=0.01).unwrapped
+    seeds = bld.seeds[:4]
+    old = _returns(env, MPC(env), seeds)
+    new = _returns(env, MPC(env, weights="reward"), seeds)
+    assert new.sum() > old.sum() + 0.1 and np.all(new > old)
+
+
+def test_bad_reward_options_raise_value_errors_naming_them():
+    env = _env(CAR)
+    with pytest.raises(ValueError, match="weights"):
+        ClippedOptimal(env, weights="objective")
+    with pytest.raises(ValueError, match="weights"):
+        MPC(env, weights=3)
+    with pytest.raises(ValueError, match="frame"):
+        MPC(env, frame="wheel")
+    with pytest.raises(ValueError, match="cannot regulate 'damper_force'"):
+        ClippedOptimal(env, weights={"damper_force": 1.0})
