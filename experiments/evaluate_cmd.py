@@ -30,11 +30,17 @@ LAWS = {"quarter_car": ("random", "passive_off", "passive_on", "skyhook_on_off",
                         "clipped_optimal"),
         "building": ("random", "passive_off", "passive_on", "clipped_optimal", "lyapunov", "max_energy_dissipation",
                      "modulated_friction")}
-#: Model predictive control at the comparison's control step (not at 1 ms, where its horizon would span a few
-#: milliseconds): row label → (controller, extra environment options). The car's preview row also measures the
-#: road ahead (``scenarios.PREVIEW``): the only row with information the others lack.
-MPC = {"quarter_car": {"mpc": ("mpc", {}), "mpc+preview": ("mpc", "preview")},
-       "building": {"mpc": ("mpc", {})}}
+#: Model predictive control: (label, control step (None: the comparison's), controller options, preview). The
+#: objective's MPC at the comparison's step; with the reward's own cost (``weights="reward"``, settings tuned on the
+#: validation roads, see :class:`controllers.mpc.MPC`) with road preview at the comparison's step and at 1 ms, and
+#: without preview at 1 ms. A preview row measures the road ahead (``scenarios.PREVIEW``): the only rows with
+#: information the others lack, and never "the best law".
+_REWARD = {"weights": "reward", "f_max": 1e5}
+MPC = {"quarter_car": [("mpc", None, {}, False),
+                       ("mpc+preview (reward)", None, {**_REWARD, "force_ref": 200.0, "horizon": 10}, True),
+                       ("mpc (reward)", 1e-3, {**_REWARD, "force_ref": 1000.0, "horizon": 10}, False),
+                       ("mpc+preview (reward)", 1e-3, {**_REWARD, "force_ref": 1000.0, "horizon": 100}, True)],
+       "building": [("mpc", None, {}, False), ("mpc (reward)", 1e-3, {"weights": "reward"}, False)]}
 
 
 def evaluate(plant: str, agents=(), laws=None, *, seeds: int = 3, control_dt: float | None = None,
@@ -70,9 +76,10 @@ def evaluate(plant: str, agents=(), laws=None, *, seeds: int = 3, control_dt: fl
     if laws_at_1ms and abs(dt - 1e-3) > 1e-12:
         rows += [(f"{name} @ 1 ms", name, {**law_kw, "control_dt": 1e-3}) for name in laws]
     if mpc:
-        for label, (name, extra) in MPC[plant].items():
-            rows.append((f"{label} @ {dt * 1e3:g} ms", name, {**law_kw, **(preview_options(plant, law_kw)
-                                                                            if extra == "preview" else extra)}))
+        for label, step, options, preview in MPC[plant]:
+            kw = {**law_kw, "control_dt": dt if step is None else step}
+            rows.append((f"{label} @ {kw['control_dt'] * 1e3:g} ms", ("mpc", options),
+                         preview_options(plant, kw) if preview else kw))
     response = "sprung_acc" if plant == "quarter_car" else "drift"
     scenarios = held_out_scenarios(plant, seeds=seeds, quick=quick)
     tasks = [Task(controller_episodes, (ctrl, sc, response), kw, label=f"{sc.name} / {label}")

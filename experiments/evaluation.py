@@ -131,8 +131,8 @@ def evaluate_batch(make, scenario: Scenario, response: str, name: str | None = N
 
 
 def controller_episodes(controller, scenario: Scenario, response: str = "", **env_options) -> list[Episode]:
-    """One episode per seed of ``scenario`` for ``controller``: a law's name (``controllers.CONTROLLERS``), an
-    agent folder (a ``pathlib.Path``; evaluated with the observation options it was trained with), or
+    """One episode per seed of ``scenario`` for ``controller``: a law's name (``controllers.CONTROLLERS``) or a
+    pair (name, options), an agent folder (a ``pathlib.Path``; evaluated with the observation options it was trained with), or
     ``"passive_ref"`` (the conventional passive car: the MR damper replaced by the set's dashpot). A plain
     function of picklable inputs, so that sweeps run it on any backend (:mod:`mrd_env.executor`)."""
     import mrd_env  # noqa: F401  (registers the environments, also in a fresh worker)
@@ -151,7 +151,8 @@ def controller_episodes(controller, scenario: Scenario, response: str = "", **en
         opts = {**env_options, "damper": "bingham", "damper_params": dict(fc_a=0.0, fc_b=0.0, c0a=c, c0b=0.0,
                                                                           f0=0.0)}
         return evaluate_batch(PassiveOff, scenario, response, name=f"passive_ref (c={c:g})", **opts)
-    return evaluate_batch(lambda v: make_controller(controller, v), scenario, response, name=controller,
+    name, options = controller if isinstance(controller, tuple) else (controller, {})
+    return evaluate_batch(lambda v: make_controller(name, v, **options), scenario, response, name=name,
                           **env_options)
 
 
