@@ -90,7 +90,7 @@ def test_filter_state_space_is_sosfilt():
 
 
 def test_cache_hit_returns_the_same_and_another_set_up_is_refused(tmp_path, monkeypatch, car):
-    monkeypatch.setenv("MRD_ENV_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr("mrd_env.optimal.cache.cache_dir", lambda: tmp_path / "optimal")  # kernels stay cached
     p, _ = car
     starts = {"const": np.full((p.n_steps, 1), 1.0)}
     # n_starts=0: the warm starts only (the cache logic is the same, and no compilation)

@@ -37,7 +37,7 @@ def test_share_rows_pool_episodes_and_give_intervals_only_with_repeats():
 
 
 def test_cache_returns_only_the_exact_key(tmp_path, monkeypatch):
-    monkeypatch.setenv("MRD_ENV_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr("mrd_env.optimal.cache.cache_dir", lambda: tmp_path / "optimal")  # kernels stay cached
     key = {"env_id": "mrd_env/QuarterCar-v0", "seed": 1, "damper_params": {"c0a": 1.0}}
     assert cache.load("clairvoyant", key) is None
     path = cache.store("clairvoyant", key, {"ret": -3.5})
@@ -54,7 +54,7 @@ def test_report_without_a_cached_yardstick_says_how_to_get_one(tmp_path, monkeyp
     from experiments.scenarios import held_out_scenarios
     from experiments.yardstick import report
 
-    monkeypatch.setenv("MRD_ENV_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr("mrd_env.optimal.cache.cache_dir", lambda: tmp_path / "optimal")  # kernels stay cached
     scen = held_out_scenarios("quarter_car", quick=True)[:1]
     text = report("quarter_car", {}, scen, tmp_path, "auto", progress=False)
     assert "mrd-env yardstick --plant quarter_car" in text
@@ -80,7 +80,7 @@ def test_the_yardstick_brackets_every_controller_on_an_episode(tmp_path, monkeyp
     from experiments.scenarios import Scenario, preview_options
     from experiments.yardstick import episode_yardstick
 
-    monkeypatch.setenv("MRD_ENV_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr("mrd_env.optimal.cache.cache_dir", lambda: tmp_path / "optimal")  # kernels stay cached
     sc = Scenario("ISO-C 1 s", "mrd_env/QuarterCar-v0",
                   dict(road="iso8608", road_params={"road_class": "C", "speed": 20.0}, episode_seconds=1.0),
                   seeds=(1_000_000,))
@@ -99,3 +99,8 @@ def test_the_yardstick_brackets_every_controller_on_an_episode(tmp_path, monkeyp
     # the cache returns the same yardstick without solving
     again = episode_yardstick(sc, 1_000_000, "quarter_car", agents=agents, solve=False)
     assert again is not None and again.clairvoyant == y.clairvoyant and again.bound == y.bound
+
+
+def test_the_cache_lives_under_the_projects_cache_directory(tmp_path, monkeypatch):
+    monkeypatch.setenv("MRD_ENV_CACHE_DIR", str(tmp_path))
+    assert cache.cache_dir() == tmp_path / "optimal"
