@@ -232,19 +232,7 @@ def test_preview_acts_before_the_bump_and_pays():
     np.testing.assert_allclose(fa[early], fb[early], rtol=1e-9, atol=1e-9)
     window = (t >= 0.4 - 1e-9) & (t < 0.5 - 1e-9)
     assert np.max(np.abs(fa[window] - fb[window])) > 50.0
-    returns = []
-    for ctrl in (seen, blind):
-        obs, _ = env.reset(seed=0)
-        ctrl.reset()
-        total = 0.0
-        while True:
-            a, _ = ctrl.predict(obs)
-            obs, r, term, trunc, _ = env.step(a)
-            total += r
-            if term or trunc:
-                break
-        returns.append(total)
-    assert returns[0] > returns[1]
+    assert _returns(env, seen, [0])[0] > _returns(env, blind, [0])[0]
 
 
 # --- the reward's own cost (weights="reward") -----------------------------------------------------------------------
