@@ -324,7 +324,7 @@ class KalmanEstimator:
         return x
 
 
-class _ObserverLaw(Controller):
+class ObserverLaw(Controller):
     """Shared part of the model-based laws: measured outputs → Kalman estimate x̂."""
 
     requires = ("damper_force",)
@@ -368,7 +368,7 @@ class _ObserverLaw(Controller):
         return self.kf.update(y, f), f
 
 
-class ClippedOptimal(_ObserverLaw):
+class ClippedOptimal(ObserverLaw):
     """Clipped-optimal control (Dyke, Spencer, Sain & Carlson 1996).
 
     An LQR (``control.lqr``) on the weighted responses z = C_z x + D_z f, J = ∫ zᵀz + fᵀ R f dt, gives
@@ -476,7 +476,7 @@ class ClippedOptimal(_ObserverLaw):
             self.actuation.reset(mask)
 
 
-class Lyapunov(_ObserverLaw):
+class Lyapunov(ObserverLaw):
     """Lyapunov-based law (Leitmann 1994; Jansen & Dyke 2000): V = xᵀPx with AᵀP + PA = −Q;
     u = u_max·H(−x̂ᵀ P B_f f), i.e. full command whenever the damper force makes V decrease fastest.
 

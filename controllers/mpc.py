@@ -1,6 +1,6 @@
 """Linear model-predictive control of the damper force, clipped to what a semi-active damper can do.
 
-At every control step k the law solves, from the Kalman estimate x̂[k] (:class:`~.model_based._ObserverLaw`),
+At every control step k the law solves, from the Kalman estimate x̂[k] (:class:`~.model_based.ObserverLaw`),
 the finite-horizon problem over H control periods T = ``control_dt``::
 
     min_{f_0..f_{H−1}}  Σ_{j<H} ∫_{jT}^{(j+1)T} zᵀz + fᵀR₀f dt  +  (x_H − x_ss)ᵀ P (x_H − x_ss),     |f_j| ≤ f_max

@@ -14,7 +14,7 @@ estimate, the exact gradient by reverse-mode AD compiled to C once per set-up
 with a limited-memory Hessian (``solver="ipopt"``), warm-started from the previous step's solution shifted by one
 period.
 
-**The estimate.** The plant state is the Kalman estimate of :class:`~.model_based._ObserverLaw` (the same measured
+**The estimate.** The plant state is the Kalman estimate of :class:`~.model_based.ObserverLaw` (the same measured
 responses and damper force as the model-based laws), taken as the filtered estimate x̂[k|k] (the predictor's
 x̂[k|k−1] corrected with this step's measurements, M = Φ⁻¹L). The damper's internal states (y, z) are not measured:
 they are estimated by running the symbolic damper model on the measured stroke and stroke rate (the sensors of the
@@ -40,14 +40,14 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from .model_based import _ObserverLaw
+from .model_based import ObserverLaw
 
 #: Default horizon (s): measured on the quarter car (class C road, 1.5 s, 10 ms control step), the return falls as the
 #: horizon grows beyond it — the disturbance held over the horizon is the wrong future (README).
 DEFAULT_HORIZON = 0.05
 
 
-class NonlinearMPC(_ObserverLaw):
+class NonlinearMPC(ObserverLaw):
     """Nonlinear MPC of the damper commands (see the module docstring).
 
     Options: ``horizon`` H (control periods, 1..200; default 50 ms worth); ``weights`` {signal: weight on its square}
@@ -229,7 +229,7 @@ class NonlinearMPC(_ObserverLaw):
     def command(self, obs):
         import time
 
-        from mrd_env.optimal.full_knowledge import _ipopt, _lbfgsb
+        from mrd_env.optimal.full_knowledge import minimize_ipopt, minimize_lbfgsb
 
         x_pred, f = self.estimate(obs)
         y = obs[:, self._y_index]
@@ -254,9 +254,9 @@ class NonlinearMPC(_ObserverLaw):
             V0 = np.vstack([self.V_prev[b, 1:], self.V_prev[b, -1:]])
             t0 = time.perf_counter()
             if self.solver == "lbfgsb":
-                V, status, _, nit, nev = _lbfgsb(fun, V0, self.v_min, self.v_max, self.max_iter, 1e-9, 5, None)
+                V, status, _, nit, nev = minimize_lbfgsb(fun, V0, self.v_min, self.v_max, self.max_iter, 1e-9, 5, None)
             else:
-                V, status, _, nit, nev = _ipopt(fun, V0, self.v_min, self.v_max, self.max_iter, 1e-8, False)
+                V, status, _, nit, nev = minimize_ipopt(fun, V0, self.v_min, self.v_max, self.max_iter, 1e-8, False)
             self.solve_stats.append((time.perf_counter() - t0, nit, nev))
             V = np.clip(V, self.v_min, self.v_max)
             self.V_prev[b] = V

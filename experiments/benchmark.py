@@ -142,11 +142,11 @@ def history_selection(eps: list[Episode]) -> list[Episode]:
 def write_reports(plant: str, episodes: list[Episode], out: Path, response: str = "") -> dict:
     from mrd_env.report import figure, save_figure
 
-    from .evaluate_cmd import _base
+    from .evaluate_cmd import base_scenario
 
     out.mkdir(parents=True, exist_ok=True)
     rows = _rows(plant, episodes)
-    means = scenario_means(rows, _base)
+    means = scenario_means(rows, base_scenario)
     worst = worst_case(means)
     md, csv_path = write_table(_with_units(means + worst), out / f"{plant}_benchmark", floatfmt=".4g",
                                title=f"{plant}: controller × scenario (mean over each scenario's seeds; metrics "

@@ -97,10 +97,10 @@ def summarise(plant: str, results: dict[str, list[Episode]]) -> list[dict]:
     """Rows: per scenario and controller, mean and 95 % interval of the return and the metrics; then the
     mean over the test scenarios (``all test scenarios``)."""
     rows = []
-    scen = list(dict.fromkeys(_base(e.scenario) for eps in results.values() for e in eps))
+    scen = list(dict.fromkeys(base_scenario(e.scenario) for eps in results.values() for e in eps))
     for s in scen + ["all test scenarios"]:
         for ctrl, eps in results.items():
-            mine = [e for e in eps if s == "all test scenarios" or _base(e.scenario) == s]
+            mine = [e for e in eps if s == "all test scenarios" or base_scenario(e.scenario) == s]
             if not mine:
                 continue
             m, lo, hi = mean_ci([e.episode_return for e in mine], upper=0.0)
@@ -135,16 +135,16 @@ def paired(results: dict[str, list[Episode]]) -> list[dict]:
             best = max(at_rate, key=lambda c: np.mean([e.episode_return for e in results[c]]))
             law = per_episode(best)
             labels = [k for k in mine if k in law]
-            scen = list(dict.fromkeys(_base(k) for k in labels))
+            scen = list(dict.fromkeys(base_scenario(k) for k in labels))
             for s in scen + ["all test scenarios"]:
-                diff = [mine[k] - law[k] for k in labels if s == "all test scenarios" or _base(k) == s]
+                diff = [mine[k] - law[k] for k in labels if s == "all test scenarios" or base_scenario(k) == s]
                 m, lo, hi = mean_ci(diff)
                 rows.append({"comparison": f"{a} − {best}", "scenario": s, "episodes": len(diff),
                              "difference": m, "difference_lo95": lo, "difference_hi95": hi})
     return rows
 
 
-def _base(label: str) -> str:
+def base_scenario(label: str) -> str:
     """The scenario of an episode label (without the seed suffix)."""
     head, _, tail = label.rpartition(" s")
     return head if tail.isdigit() and head else label

@@ -18,12 +18,13 @@ from dataclasses import dataclass, field
 
 import gymnasium.logger  # noqa: F401  (it installs a DeprecationWarning filter when first imported: ours goes first)
 
+from mrd_env.constants import GRAVITY as G
+
 # The experiments use the physics-level -v0 ids on purpose (laws at 1 ms, commands in V or A; see mrd_env.envs.V1):
 # Gymnasium's note that a -v1 exists is for users of gym.make, not for every line of a report. Every command imports
 # this module (and so do the sweep's worker processes, through the tasks' modules).
 warnings.filterwarnings("ignore", message=r".*mrd_env/\w+-v0 is out of date", category=DeprecationWarning)
 
-G = 9.80665
 ENV_IDS = {"quarter_car": "mrd_env/QuarterCar-v0", "building": "mrd_env/ShearBuilding-v0"}
 #: Seeds of validation and test episodes start here; training draws from SB3's seeds (the run's seed + env index),
 #: far below.

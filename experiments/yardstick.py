@@ -232,11 +232,11 @@ def write_report(plant: str, results: dict[str, list[Episode]], ys: list[Episode
     """Write the yardstick table, the shares table and their figure (see :func:`report`); the text to print."""
     from mrd_env.report import write_table
 
-    from .evaluate_cmd import _base
+    from .evaluate_cmd import base_scenario
 
     md, _ = write_table(yardstick_rows(ys), out / f"{plant}_yardstick", floatfmt=".4g",
                         title=f"{plant}: the yardstick per test episode (returns; solve times in s)")
-    rows = share_rows(results, ys, _base)
+    rows = share_rows(results, ys, base_scenario)
     smd, _ = write_table(rows, out / f"{plant}_shares", floatfmt=".3g",
                          title=f"{plant}: share of the achievable gain, (R − R_best passive) / (R_clairvoyant − "
                                "R_best passive) (mean; 95 % interval over episodes where there are several)")

@@ -43,9 +43,8 @@ import numpy as np
 from scipy import fft as sfft
 from scipy import signal
 
+from .constants import GRAVITY as G  # noqa: F401 (standard gravity, m/s²; ``metrics.G`` kept for callers)
 from .validation import check_array, check_scalar
-
-G = 9.80665  # standard gravity, m/s²
 
 _Q_BUTTERWORTH = 1.0 / math.sqrt(2.0)
 

@@ -85,12 +85,16 @@ def check_n_samples(n: float, what: str) -> float:
 
 
 def as_generator(rng, name: str = "rng") -> np.random.Generator:
-    """``rng`` as a ``numpy.random.Generator``: a Generator is used as is, an int seed >= 0 seeds a new one,
-    None draws fresh OS entropy (not reproducible)."""
+    """``rng`` as a ``numpy.random.Generator`` — the project's one rule for random-number arguments: a Generator
+    is used as is, a ``SeedSequence`` or an int seed >= 0 seeds a new one, None draws fresh OS entropy (not
+    reproducible: what ``numpy.random.default_rng(None)`` does). Functions whose results must be reproducible take
+    ``rng`` without a default or with an int default, so None is only ever the caller's explicit choice."""
     if isinstance(rng, np.random.Generator):
         return rng
     if rng is None:
         return np.random.default_rng()
+    if isinstance(rng, np.random.SeedSequence):
+        return np.random.default_rng(rng)
     if isinstance(rng, (int, np.integer)) and not isinstance(rng, bool) and rng >= 0:
         return np.random.default_rng(int(rng))
-    raise ValueError(f"{name} must be a numpy.random.Generator, an int seed >= 0 or None, got {reprlib.repr(rng)}")
+    raise ValueError(f"{name} must be a numpy.random.Generator, a SeedSequence, an int seed >= 0 or None, got {reprlib.repr(rng)}")

@@ -126,7 +126,7 @@ def test_a_failed_solve_returns_the_best_warm_start_and_says_so(monkeypatch, car
     def boom(*a, **k):
         raise RuntimeError("solver exploded")
 
-    monkeypatch.setattr(cv, "_lbfgsb", boom)
+    monkeypatch.setattr(cv, "minimize_lbfgsb", boom)
     r = cv.clairvoyant(p, warm_starts=starts, cache=False, progress=False)
     assert r.failed and "solver exploded" in r.status
     best = max(r.warm_returns, key=r.warm_returns.get)

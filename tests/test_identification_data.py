@@ -242,8 +242,8 @@ def test_seeds_are_reproducible_and_streams_independent():
     # a quieter load cell leaves the displacement errors unchanged
     d = apply_sensors(t, x, F, SensorSet(load_cell=LoadCell(noise_rms=0.0)), 11)
     np.testing.assert_array_equal(a.x, d.x)
-    with pytest.raises(ValueError, match="rng"):
-        apply_sensors(t, x, F, SensorSet(), None)
+    with pytest.raises(ValueError, match="rng"):  # the project's one rule (validation.as_generator): None is
+        apply_sensors(t, x, F, SensorSet(), -1)   # fresh entropy, a negative seed is refused
 
 
 def test_out_of_range_detected_or_clipped():

@@ -200,7 +200,8 @@ def test_monte_carlo_errors_and_skips():
     with pytest.raises(RuntimeError):
         monte_carlo(flaky, 40, 1)
     with pytest.raises(ValueError, match="rng"):
-        monte_carlo(lambda g: 1.0, 10, None)
+        monte_carlo(lambda g: 1.0, 10, "seed")
+    assert monte_carlo(lambda g: 1.0, 10, None).samples["value"].size == 10  # None: fresh entropy, as everywhere
     with pytest.raises(ValueError, match="n_draws"):
         monte_carlo(lambda g: 1.0, 1, 0)
     with pytest.raises(ValueError, match="keys"):

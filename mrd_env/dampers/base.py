@@ -164,6 +164,14 @@ class CommandSpec:
         return a
 
 
+
+#: The command channel of the Spencer et al. (1997) prototype damper, shared by every model's ``spencer1997``
+#: preset: 0–2.25 V into the current driver, first-order lag η = 190 1/s, no delay.
+PROTOTYPE_COMMAND = CommandSpec("V", 0.0, 2.25, 190.0)
+#: The command channel of the automotive presets (``spencer_dyke`` and ``bouc_wen``): 0–2 V, η = 190 1/s.
+AUTOMOTIVE_COMMAND = CommandSpec("V", 0.0, 2.0, 190.0)
+
+
 def command_spec(command, base: CommandSpec) -> CommandSpec:
     """``command`` as a :class:`CommandSpec`: None → ``base``; a CommandSpec; or a dict of field overrides of
     ``base`` (``unit``, ``v_min``, ``v_max``, ``eta``, ``eta_fall``, ``delay``). Anything else raises ``ValueError``."""

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
-from .base import CommandSpec, DamperModel, DamperParams, Preset, no_projection, no_states_rhs, param
+from .base import CommandSpec, DamperModel, DamperParams, Preset, no_projection, no_states_rhs, param, PROTOTYPE_COMMAND
 from .registry import register
 
 
@@ -111,7 +111,7 @@ class BiViscous(CommandRangeChecked):
     Params = BiViscousParams
     state_names = ()
     presets = {
-        "spencer1997": Preset(PROTOTYPE, CommandSpec("V", 0.0, 2.25, 190.0),
+        "spencer1997": Preset(PROTOTYPE, PROTOTYPE_COMMAND,
                               "fit of eq. (5) to the Spencer–Dyke prototype's loops at 1.5 cm / 2.5 Hz "
                               "(derived, see module source)", verified=False),
     }

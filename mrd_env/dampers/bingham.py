@@ -10,8 +10,8 @@ from dataclasses import dataclass
 
 import numba as nb
 
-from .base import (CommandSpec, DamperModel, DamperParams, FIXED_SMOOTHING, Preset, no_projection, no_states_rhs,
-                   param, smooth_sign)
+from .base import (DamperModel, DamperParams, FIXED_SMOOTHING, Preset, no_projection, no_states_rhs, param, smooth_sign,
+                   PROTOTYPE_COMMAND)
 from .registry import register
 
 
@@ -46,7 +46,7 @@ class Bingham(DamperModel):
     Params = BinghamParams
     state_names = ()
     presets = {
-        "spencer1997": Preset(PROTOTYPE, CommandSpec("V", 0.0, 2.25, 190.0),
+        "spencer1997": Preset(PROTOTYPE, PROTOTYPE_COMMAND,
                               "large-velocity asymptote of the Spencer–Dyke prototype set (derived)",
                               verified=False),
     }

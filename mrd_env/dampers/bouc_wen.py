@@ -13,7 +13,8 @@ from dataclasses import dataclass
 
 import numba as nb
 
-from .base import CommandSpec, DamperModel, DamperParams, FIXED_SCALING, FIXED_SHAPE, Preset, param
+from .base import (DamperModel, DamperParams, FIXED_SCALING, FIXED_SHAPE, Preset, param, PROTOTYPE_COMMAND,
+                   AUTOMOTIVE_COMMAND)
 from .hysteresis import BoucWenSaturation, bouc_wen_partials, bouc_wen_zdot, clip_to_saturation
 from .registry import register
 
@@ -86,10 +87,10 @@ class BoucWen(BoucWenSaturation, DamperModel):
     Params = BoucWenParams
     state_names = ("z",)
     presets = {
-        "spencer1997": Preset(PROTOTYPE, CommandSpec("V", 0.0, 2.25, 190.0),
+        "spencer1997": Preset(PROTOTYPE, PROTOTYPE_COMMAND,
                               "derived from the Spencer et al. (1997) prototype Spencer–Dyke set "
                               "(see module source)", verified=False),
-        "automotive": Preset(AUTOMOTIVE, CommandSpec("V", 0.0, 2.0, 190.0),
+        "automotive": Preset(AUTOMOTIVE, AUTOMOTIVE_COMMAND,
                              "derived from the automotive Spencer–Dyke set (see module source)",
                              verified=False),
     }

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numba as nb
 
-from .base import CommandSpec, DamperModel, DamperParams, Preset, param
+from .base import DamperModel, DamperParams, Preset, param, PROTOTYPE_COMMAND
 from .hysteresis import bouc_wen_zdot, clip_to_saturation
 from .registry import register
 
@@ -72,7 +72,7 @@ class Dahl(DamperModel):
     Params = DahlParams
     state_names = ("z",)
     presets = {
-        "spencer1997": Preset(PROTOTYPE, CommandSpec("V", 0.0, 2.25, 190.0),
+        "spencer1997": Preset(PROTOTYPE, PROTOTYPE_COMMAND,
                               "least-squares fit to the Spencer-Dyke prototype loops at 1.5 cm / 2.5 Hz "
                               "(derived, see module source)", verified=False),
     }

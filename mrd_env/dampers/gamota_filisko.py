@@ -43,7 +43,7 @@ from dataclasses import dataclass
 
 import numba as nb
 
-from .base import CommandSpec, DamperModel, DamperParams, Preset, no_projection, param
+from .base import DamperModel, DamperParams, Preset, no_projection, param, PROTOTYPE_COMMAND
 from .registry import register
 
 
@@ -107,7 +107,7 @@ class GamotaFilisko(DamperModel):
     Params = GamotaFiliskoParams
     state_names = ("f1", "f2")
     presets = {
-        "spencer1997": Preset(PROTOTYPE, CommandSpec("V", 0.0, 2.25, 190.0),
+        "spencer1997": Preset(PROTOTYPE, PROTOTYPE_COMMAND,
                               "mapped from the Spencer–Dyke prototype set (derived, see module source)",
                               verified=False),
     }

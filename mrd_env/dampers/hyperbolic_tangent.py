@@ -29,8 +29,8 @@ from dataclasses import dataclass
 
 import numba as nb
 
-from .base import (CommandSpec, DamperModel, DamperParams, FIXED_SMOOTHING, Preset, no_projection, no_states_rhs,
-                   param, smooth_sign)
+from .base import (DamperModel, DamperParams, FIXED_SMOOTHING, Preset, no_projection, no_states_rhs, param, smooth_sign,
+                   PROTOTYPE_COMMAND)
 from .registry import register
 
 
@@ -69,7 +69,7 @@ class HyperbolicTangent(DamperModel):
     Params = HyperbolicTangentParams
     state_names = ()
     presets = {
-        "spencer1997": Preset(PROTOTYPE, CommandSpec("V", 0.0, 2.25, 190.0),
+        "spencer1997": Preset(PROTOTYPE, PROTOTYPE_COMMAND,
                               "least-squares fit to the Spencer-Dyke prototype loops at 1.5 cm / 2.5 Hz "
                               "(derived, see module source)", verified=False),
     }

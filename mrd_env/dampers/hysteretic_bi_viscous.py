@@ -46,7 +46,7 @@ import numba as nb
 import numpy as np
 
 from .acceleration_branch import branch, filter_rhs
-from .base import CommandSpec, DamperParams, FIXED_FILTER, FIXED_SMOOTHING, Preset, param
+from .base import DamperParams, FIXED_FILTER, FIXED_SMOOTHING, Preset, param, PROTOTYPE_COMMAND
 from .bi_viscous import CommandRangeChecked, bi_viscous_curve, command_grid
 from .registry import register
 
@@ -140,7 +140,7 @@ class HystereticBiViscous(CommandRangeChecked):
     Params = HystereticBiViscousParams
     state_names = ("q", "sigma")
     presets = {
-        "spencer1997": Preset(PROTOTYPE, CommandSpec("V", 0.0, 2.25, 190.0),
+        "spencer1997": Preset(PROTOTYPE, PROTOTYPE_COMMAND,
                               "fit to the Spencer–Dyke prototype's loops at 1.5 cm / 2.5 Hz "
                               "(derived, see module source)", verified=False),
     }

@@ -41,7 +41,7 @@ from dataclasses import dataclass
 
 import numba as nb
 
-from .base import CommandSpec, DamperModel, DamperParams, FIXED_SCALING, FIXED_SHAPE, Preset, param
+from .base import CommandSpec, DamperModel, DamperParams, FIXED_SCALING, FIXED_SHAPE, Preset, param, PROTOTYPE_COMMAND
 from .hysteresis import BoucWenSaturation, bouc_wen_zdot, clip_to_saturation
 from .registry import register
 
@@ -113,7 +113,7 @@ class ModifiedBoucWen(BoucWenSaturation, DamperModel):
     Params = ModifiedBoucWenParams
     state_names = ("z",)
     presets = {
-        "spencer1997": Preset(PROTOTYPE, CommandSpec("V", 0.0, 2.25, 190.0),
+        "spencer1997": Preset(PROTOTYPE, PROTOTYPE_COMMAND,
                               "derived from the Spencer et al. (1997) prototype via the bouc_wen set, with a "
                               "shear-thinning c(ẋ) equal to its c0 at 0.236 m/s (see module source)",
                               verified=False),

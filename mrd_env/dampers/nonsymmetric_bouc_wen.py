@@ -35,11 +35,9 @@ from dataclasses import dataclass
 
 import numba as nb
 
-from .base import CommandSpec, DamperModel, FIXED_SMOOTHING, Preset, param, smooth_sign
+from .base import DamperModel, FIXED_SMOOTHING, Preset, param, smooth_sign, PROTOTYPE_COMMAND
 from .hysteresis import BoucWenSaturation, bouc_wen_zdot
-from .bouc_wen import BoucWenParams
-from .bouc_wen import _force as bouc_wen_force
-from .bouc_wen import _project as bouc_wen_project
+from .bouc_wen import BoucWen, BoucWenParams
 from .registry import register
 
 
@@ -64,8 +62,8 @@ def _rhs(p, s, x, xd, u, ds):
 
 
 # force law (eq. 7) and saturation of z are those of the plain Bouc–Wen model
-_force = bouc_wen_force
-_project = bouc_wen_project
+_force = BoucWen.force_law
+_project = BoucWen.project
 
 
 PROTOTYPE = NonsymmetricBoucWenParams(
@@ -79,7 +77,7 @@ class NonsymmetricBoucWen(BoucWenSaturation, DamperModel):
     Params = NonsymmetricBoucWenParams
     state_names = ("z",)
     presets = {
-        "spencer1997": Preset(PROTOTYPE, CommandSpec("V", 0.0, 2.25, 190.0),
+        "spencer1997": Preset(PROTOTYPE, PROTOTYPE_COMMAND,
                               "derived from the bouc_wen prototype set with the velocity shift mu fitted to "
                               "the Spencer-Dyke prototype loops (see module source)", verified=False),
     }

@@ -37,7 +37,7 @@ from dataclasses import dataclass
 import numba as nb
 
 from .acceleration_branch import branch, filter_rhs
-from .base import CommandSpec, DamperModel, DamperParams, FIXED_FILTER, FIXED_SMOOTHING, Preset, param
+from .base import DamperModel, DamperParams, FIXED_FILTER, FIXED_SMOOTHING, Preset, param, PROTOTYPE_COMMAND
 from .registry import register
 
 
@@ -93,7 +93,7 @@ class Sigmoid(DamperModel):
     Params = SigmoidParams
     state_names = ("v_f", "sigma")
     presets = {
-        "spencer1997": Preset(PROTOTYPE, CommandSpec("V", 0.0, 2.25, 190.0),
+        "spencer1997": Preset(PROTOTYPE, PROTOTYPE_COMMAND,
                               "least-squares fit to the Spencer-Dyke prototype loops at 1.5 cm / 2.5 Hz "
                               "(derived, see module source)", verified=False),
     }

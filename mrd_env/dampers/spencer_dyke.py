@@ -16,7 +16,8 @@ from dataclasses import dataclass
 
 import numba as nb
 
-from .base import CommandSpec, DamperModel, DamperParams, FIXED_SCALING, FIXED_SHAPE, Preset, param
+from .base import (DamperModel, DamperParams, FIXED_SCALING, FIXED_SHAPE, Preset, param, PROTOTYPE_COMMAND,
+                   AUTOMOTIVE_COMMAND)
 from .hysteresis import BoucWenSaturation, bouc_wen_partials, bouc_wen_zdot, clip_to_saturation
 from .registry import register
 
@@ -111,10 +112,10 @@ class SpencerDyke(BoucWenSaturation, DamperModel):
     Params = SpencerDykeParams
     state_names = ("y", "z")
     presets = {
-        "spencer1997": Preset(PROTOTYPE, CommandSpec("V", 0.0, 2.25, 190.0),
+        "spencer1997": Preset(PROTOTYPE, PROTOTYPE_COMMAND,
                               "Spencer, Dyke, Sain & Carlson (1997) J. Eng. Mech. 123(3):230-238, "
                               "prototype damper (cm-based values converted to SI)"),
-        "automotive": Preset(AUTOMOTIVE, CommandSpec("V", 0.0, 2.0, 190.0),
+        "automotive": Preset(AUTOMOTIVE, AUTOMOTIVE_COMMAND,
                              "vehicle-suspension set commonly attributed to Yao et al. (2002) "
                              "Mechatronics 12:963 (attribution unverified)", verified=False),
     }

@@ -19,7 +19,7 @@ import scipy.signal
 
 from ..validation import check_scalar
 from .record import (STANDARD_GRAVITY, Record, as_generator, check_column, check_duration_dt, n_samples_for,
-                     parse_float, read_table, unit_factor, _ACCEL_UNITS, _TIME_UNITS)
+                     parse_float, read_table, unit_factor, ACCEL_UNITS, TIME_UNITS)
 
 GM_CHANNELS = ("xg_ddot",)
 GM_UNITS = ("m/s^2",)
@@ -93,8 +93,8 @@ def _at2_unit_factor(line: str, path: str) -> float:
     if m is None or m.group(1).upper() == "G":
         return STANDARD_GRAVITY
     unit = m.group(1).lower().replace("sec", "s").replace("/s/s", "/s^2")
-    if unit in _ACCEL_UNITS:
-        return _ACCEL_UNITS[unit]
+    if unit in ACCEL_UNITS:
+        return ACCEL_UNITS[unit]
     raise ValueError(f"read_at2: {path!r} line 3 gives unsupported units {m.group(1)!r}; expected G")
 
 
@@ -108,8 +108,8 @@ def read_two_column(path, *, accel_unit: str, time_unit: str = "s", resample_dt:
     within ``rtol`` (relative, to absorb printed rounding) unless ``resample_dt`` is given, in which case the
     record is linearly interpolated onto t_k = k resample_dt.
     """
-    fa = unit_factor("accel_unit", accel_unit, _ACCEL_UNITS)
-    ft = unit_factor("time_unit", time_unit, _TIME_UNITS)
+    fa = unit_factor("accel_unit", accel_unit, ACCEL_UNITS)
+    ft = unit_factor("time_unit", time_unit, TIME_UNITS)
     rtol = check_scalar("rtol", rtol, 0.0, 0.5, lo_open=True)
     if resample_dt is not None:
         resample_dt = check_scalar("resample_dt", resample_dt, 0.0, lo_open=True, unit="s")

@@ -9,14 +9,16 @@ from typing import Mapping
 
 import numpy as np
 
+from ..constants import GRAVITY
 from ..validation import as_generator, check_n_samples, check_scalar  # noqa: F401 (as_generator: shared)
 
-#: Standard acceleration of gravity (CGPM 1901), m/s^2. AT2 files give accelerations in units of g.
-STANDARD_GRAVITY = 9.80665
+#: Standard acceleration of gravity, m/s^2 (:data:`mrd_env.constants.GRAVITY`, under the name this package has
+#: always exported). AT2 files give accelerations in units of g.
+STANDARD_GRAVITY = GRAVITY
 
-_LENGTH_UNITS = {"m": 1.0, "cm": 1e-2, "mm": 1e-3, "km": 1e3}
-_TIME_UNITS = {"s": 1.0, "ms": 1e-3}
-_ACCEL_UNITS = {"g": STANDARD_GRAVITY, "m/s^2": 1.0, "m/s2": 1.0, "cm/s^2": 1e-2, "cm/s2": 1e-2, "gal": 1e-2}
+LENGTH_UNITS = {"m": 1.0, "cm": 1e-2, "mm": 1e-3, "km": 1e3}
+TIME_UNITS = {"s": 1.0, "ms": 1e-3}
+ACCEL_UNITS = {"g": STANDARD_GRAVITY, "m/s^2": 1.0, "m/s2": 1.0, "cm/s^2": 1e-2, "cm/s2": 1e-2, "gal": 1e-2}
 
 
 @dataclass(frozen=True, eq=False)

@@ -14,7 +14,7 @@ import scipy.fft
 
 from ..validation import check_scalar
 from .record import (Record, as_generator, check_column, check_duration_dt, n_samples_for, read_table,
-                     split_unit, unit_factor, _LENGTH_UNITS, _TIME_UNITS)
+                     split_unit, unit_factor, LENGTH_UNITS, TIME_UNITS)
 
 ROAD_CHANNELS = ("z_r", "zdot_r")
 ROAD_UNITS = ("m", "m/s")
@@ -287,11 +287,11 @@ def road_from_csv(path, *, height_column: str, distance_column: str | None = Non
         raise ValueError(f"road_from_csv: {os.fspath(path)!r} has no header row: the columns must be named")
     x_col = distance_column if distance_column is not None else time_column
     x_par = "distance_column" if distance_column is not None else "time_column"
-    x_table = _LENGTH_UNITS if distance_column is not None else _TIME_UNITS
+    x_table = LENGTH_UNITS if distance_column is not None else TIME_UNITS
     jx, x_unit = _find_column(header, x_col, x_par, units, path)
     jz, z_unit = _find_column(header, height_column, "height_column", units, path)
     x = table[:, jx] * unit_factor(f"unit of column {x_col!r}", x_unit, x_table)
-    z = table[:, jz] * unit_factor(f"unit of column {height_column!r}", z_unit, _LENGTH_UNITS)
+    z = table[:, jz] * unit_factor(f"unit of column {height_column!r}", z_unit, LENGTH_UNITS)
     check_column(x, lines, x_col, path, increasing=True)
     check_column(z, lines, height_column, path, increasing=False)
 

@@ -6,7 +6,8 @@ import functools
 
 import numpy as np
 
-from ..disturbances import (STANDARD_GRAVITY, Record, el_centro, kanai_tajimi, peer_record, read_at2,
+from ..constants import GRAVITY
+from ..disturbances import (Record, el_centro, kanai_tajimi, peer_record, read_at2,
                             read_two_column, scale_record)
 from ..metrics import benchmark_criteria, building_metrics
 from ..plants import CoupledPlant, ShearBuildingParams, shear_building
@@ -90,7 +91,7 @@ def _kanai_tajimi(*, dt, episode_seconds, lab, duration=None, omega_g=15.6, zeta
     draw per episode (:mod:`.randomize`)."""
     ts, amp = _scales(time_scale, amplitude_scale, lab)
     if pga is None and S0 is None:
-        pga = 0.3 * STANDARD_GRAVITY
+        pga = 0.3 * GRAVITY
     lab_seconds = duration if duration is not None else (episode_seconds or 10.0)
     drawn = {k: v for k, v in dict(omega_g=omega_g, zeta_g=zeta_g, pga=pga, S0=S0).items() if v is not None}
     fixed = {k: v for k, v in dict(envelope=envelope, envelope_params=envelope_params).items() if v is not None}

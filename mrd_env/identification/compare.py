@@ -30,7 +30,7 @@ from .neural import NAME as NEURAL
 from .options import DataOptions, SearchOptions, as_options
 from .prepare import PreparedRecord, as_records, uniform_record
 from .presets import save_preset
-from .result import FitResult, _measures, pooled_measures
+from .result import FitResult, record_measures, pooled_measures
 from .simulate import predict
 
 __all__ = ["ModelComparison", "ComparisonResult", "compare_models", "split_records", "validate", "plot_fit",
@@ -116,7 +116,7 @@ def validate(damper, whole: Sequence[DamperRecord], split_index: Sequence[int], 
                           **integrator_options)
         sl = prep.mask.copy()
         sl[:k] = False
-        rows.append(_measures(prep, F, sl))
+        rows.append(record_measures(prep, F, sl))
         forces.append(F)
         preps.append(prep)
     return rows, pooled_measures(rows), forces, preps

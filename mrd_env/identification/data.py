@@ -15,7 +15,7 @@ from typing import Mapping
 import numpy as np
 
 from ..validation import shown
-from .measures import _check_signal, _check_time
+from .measures import check_signal, check_time
 
 __all__ = ["DamperRecord", "load_record_csv", "read_columns", "own_columns", "UNITS"]
 
@@ -78,11 +78,11 @@ class DamperRecord:
     label: str = field(default="", compare=False)
 
     def __post_init__(self):
-        t = _check_time("column 't'", self.t, item="row")
+        t = check_time("column 't'", self.t, item="row")
         n = t.shape[0]
         cols = {"t": t}
         for name in ("x", "command", "force") + (("v",) if self.v is not None else ()):
-            cols[name] = _check_signal(f"column '{name}'", getattr(self, name), n=n, item="row")
+            cols[name] = check_signal(f"column '{name}'", getattr(self, name), n=n, item="row")
         if not isinstance(self.command_unit, str) or self.command_unit not in ("V", "A"):
             raise ValueError(f"command_unit = {shown(self.command_unit)} is invalid: must be 'V' or 'A'")
         for name, a in cols.items():
@@ -272,9 +272,9 @@ def read_columns(path: str | Path, columns: dict[str, str], units: dict[str, str
     for role in columns:
         what = f"{path}: column '{columns[role]}' ({role})"
         if role == "t":
-            _check_time(what, data[role], item="data row")
+            check_time(what, data[role], item="data row")
         else:
-            _check_signal(what, data[role], item="data row")
+            check_signal(what, data[role], item="data row")
     return data
 
 

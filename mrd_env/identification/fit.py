@@ -50,11 +50,11 @@ from .align import best_offset
 from .neural import NeuralOptions, fit_neural
 from .optimisers import run_search
 from .options import DataOptions, SearchOptions, as_options
-from .parameters import (COMMAND_PARAMS, _make_params, _valid_range, command_with, default_bounds,
+from .parameters import (COMMAND_PARAMS, make_params, valid_range, command_with, default_bounds,
                          fixed_by_default, initial_values)
 from .prepare import as_records, prepare_record
 from .problem import Problem
-from .result import FitResult, ParameterAtBound, _measures, pooled_measures, record_info
+from .result import FitResult, ParameterAtBound, record_measures, pooled_measures, record_info
 from .simulate import predict
 
 __all__ = ["fit_model", "reference_offset", "SearchOptions", "DataOptions"]
@@ -150,7 +150,7 @@ def fit_model(model: str | DamperModel, records, *, preset: str | None = None, f
         prob, _, (theta, nit, converged, message, history) = min(runs, key=lambda r: r[0].best)
         damper = _fitted(cls, prob, theta, command, free_t)
     J = float(prob.objective(theta[None, :])[0])
-    per = [_measures(p, predict(damper, p, **opts)[1]) for p in preps]
+    per = [record_measures(p, predict(damper, p, **opts)[1]) for p in preps]
     settings = {"preset": preset_name, **dataclasses.asdict(search), **dataclasses.asdict(data),
                 "maxiter": search.iterations, "offsets": offsets, "integrator_options": opts}
     fr = FitResult(cls.name, damper, damper.params.to_dict(), init_vals, free_t, bnd,
@@ -246,7 +246,7 @@ def _bounds(cls, free_t, init_vals, bounds, bound_factor):
                 raise ValueError(f"bounds[{k!r}] must be a pair (lo, hi) of numbers, got {bounds[k]!r}") from None
             if not (math.isfinite(b_lo) and math.isfinite(b_hi) and b_lo < b_hi):
                 raise ValueError(f"bounds[{k!r}] = ({b_lo!r}, {b_hi!r}) is invalid: need finite lo < hi")
-            vlo, vhi, _ = _valid_range(cls, k)
+            vlo, vhi, _ = valid_range(cls, k)
             if b_lo < vlo or b_hi > vhi:
                 raise ValueError(f"bounds[{k!r}] = ({b_lo:g}, {b_hi:g}) leave the valid range [{vlo:g}, {vhi:g}] "
                                  f"of parameter {k!r}")
@@ -266,4 +266,4 @@ def _fitted(cls, prob: Problem, theta, command, free_t) -> DamperModel:
     if prob.best_theta is not None and prob.best < float(prob.objective(theta[None, :])[0]):
         theta[:] = prob.best_theta
     P, lag = prob.decode(theta[None, :])
-    return cls(_make_params(cls, P[0]), command_with(command, lag[0], free_t))
+    return cls(make_params(cls, P[0]), command_with(command, lag[0], free_t))

@@ -26,7 +26,7 @@ _MIN_SAMPLES = 3  # second-order differences at both ends need three points
 
 # --- shared input checks (also used by the data module) -------------------------------------------------------
 
-def _check_signal(label: str, value, *, n: int | None = None, item: str = "index") -> np.ndarray:
+def check_signal(label: str, value, *, n: int | None = None, item: str = "index") -> np.ndarray:
     """``value`` as a 1-D float64 array of finite numbers (of length ``n`` if given), else ``ValueError``."""
     try:
         if np.iscomplexobj(value):  # a float cast would drop the imaginary part silently
@@ -45,9 +45,9 @@ def _check_signal(label: str, value, *, n: int | None = None, item: str = "index
     return a
 
 
-def _check_time(label: str, t, *, n: int | None = None, item: str = "index") -> np.ndarray:
+def check_time(label: str, t, *, n: int | None = None, item: str = "index") -> np.ndarray:
     """A finite, strictly increasing time grid with at least three samples."""
-    t = _check_signal(label, t, n=n, item=item)
+    t = check_signal(label, t, n=n, item=item)
     if t.shape[0] < _MIN_SAMPLES:
         raise ValueError(f"{label} must have at least {_MIN_SAMPLES} samples, got {t.shape[0]}")
     bad = np.flatnonzero(np.diff(t) <= 0.0)
@@ -59,19 +59,19 @@ def _check_time(label: str, t, *, n: int | None = None, item: str = "index") -> 
 
 
 def _forces_and_time(F_exp, F, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    F_exp = _check_signal("F_exp", F_exp)
-    F = _check_signal("F", F, n=F_exp.shape[0])
-    t = _check_time("t", t, n=F_exp.shape[0])
+    F_exp = check_signal("F_exp", F_exp)
+    F = check_signal("F", F, n=F_exp.shape[0])
+    t = check_time("t", t, n=F_exp.shape[0])
     return F_exp, F, t
 
 
 def _velocity(t: np.ndarray, x, v) -> np.ndarray:
     """Measured velocity if given, else dx/dt of the displacement on the time grid."""
     if v is not None:
-        return _check_signal("v", v, n=t.shape[0])
+        return check_signal("v", v, n=t.shape[0])
     if x is None:
         raise ValueError("give the displacement x (m) or the velocity v (m/s)")
-    return np.gradient(_check_signal("x", x, n=t.shape[0]), t, edge_order=2)
+    return np.gradient(check_signal("x", x, n=t.shape[0]), t, edge_order=2)
 
 
 def _normalised_error(F_exp: np.ndarray, F: np.ndarray, t: np.ndarray, w: np.ndarray, name: str) -> float:
@@ -113,8 +113,8 @@ def error_velocity(F_exp, F, t, x=None, *, v=None) -> float:
 
 def j1(F_exp, F) -> float:
     """J1 of review eq. (25): sum of squared force errors over the samples (N²)."""
-    F_exp = _check_signal("F_exp", F_exp)
-    F = _check_signal("F", F, n=F_exp.shape[0])
+    F_exp = check_signal("F_exp", F_exp)
+    F = check_signal("F", F, n=F_exp.shape[0])
     if F_exp.shape[0] == 0:
         raise ValueError("F_exp must have at least one sample")
     return float(np.sum((F_exp - F) ** 2))
@@ -122,7 +122,7 @@ def j1(F_exp, F) -> float:
 
 def j2(F_exp, F) -> float:
     """J2 of review eq. (26): root-mean-square force error over the samples (N)."""
-    F_exp = _check_signal("F_exp", F_exp)
+    F_exp = check_signal("F_exp", F_exp)
     return math.sqrt(j1(F_exp, F) / F_exp.shape[0])
 
 

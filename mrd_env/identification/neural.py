@@ -25,7 +25,7 @@ import numpy as np
 from ..dampers import CommandSpec
 from ..validation import shown
 from .prepare import PreparedRecord, prepare_record
-from .result import FitResult, _measures, pooled_measures, record_info
+from .result import FitResult, record_measures, pooled_measures, record_info
 
 __all__ = ["NeuralOptions", "NeuralForwardModel", "fit_neural", "LAGS"]
 
@@ -171,7 +171,7 @@ def fit_neural(records, net: NeuralOptions, search, data):
     finally:
         torch.set_num_threads(threads)
     model = NeuralForwardModel(weights, net.lags, x_mean, x_std, f_mean, f_std, command, preps[0].dt)
-    per = [_measures(p, model.predict_prepared(p)) for p in preps]
+    per = [record_measures(p, model.predict_prepared(p)) for p in preps]
     settings = {**dataclasses.asdict(search), **dataclasses.asdict(data), **dataclasses.asdict(net),
                 "maxiter": search.iterations, "n_weights": model.n_weights,
                 "offsets": [p.offset for p in preps]}

@@ -31,7 +31,7 @@ COMMAND_PARAMS = {
     "command_delay": ("delay", "s", 0.0, 1.0),
 }
 COMMAND_ETA, COMMAND_ETA_FALL, COMMAND_DELAY = COMMAND_PARAMS
-_LAG_COLUMN = {COMMAND_ETA: LAG_RISE, COMMAND_ETA_FALL: LAG_FALL, COMMAND_DELAY: LAG_DELAY}
+LAG_COLUMN = {COMMAND_ETA: LAG_RISE, COMMAND_ETA_FALL: LAG_FALL, COMMAND_DELAY: LAG_DELAY}
 _ZERO_REASON = "zero in the preset (structurally absent): name it in free and give bounds to fit it"
 
 
@@ -51,7 +51,7 @@ def fixed_by_default(model: str | type | DamperModel, params=None) -> dict[str, 
 def initial_values(params, command) -> dict[str, float]:
     """{name: value} of every parameter and command pseudo-parameter of a configured damper."""
     lag = command.lag_vector()
-    return {**params.to_dict(), **{k: float(lag[c]) for k, c in _LAG_COLUMN.items()}}
+    return {**params.to_dict(), **{k: float(lag[c]) for k, c in LAG_COLUMN.items()}}
 
 
 def command_with(command, lag_row, free: tuple[str, ...]):
@@ -70,7 +70,7 @@ def default_bounds(model: str | type | DamperModel, name: str, value: float,
     f = float(bound_factor)
     if not (math.isfinite(f) and f > 1):
         raise ValueError(f"bound_factor = {shown(bound_factor)} is invalid: must be > 1")
-    lo_valid, hi_valid, _ = _valid_range(cls, name)
+    lo_valid, hi_valid, _ = valid_range(cls, name)
     v = float(value)
     if name == COMMAND_DELAY:
         return 0.0, min(max(f * v, 5e-3), hi_valid)
@@ -85,7 +85,7 @@ def default_bounds(model: str | type | DamperModel, name: str, value: float,
     return max(lo, lo_valid), min(hi, hi_valid)
 
 
-def _valid_range(cls, name: str) -> tuple[float, float, bool]:
+def valid_range(cls, name: str) -> tuple[float, float, bool]:
     if name in COMMAND_PARAMS:
         _, _, lo, hi = COMMAND_PARAMS[name]
         return lo, hi, name != COMMAND_DELAY
@@ -93,7 +93,7 @@ def _valid_range(cls, name: str) -> tuple[float, float, bool]:
     return f.metadata["lo"], f.metadata["hi"], f.metadata["lo_open"]
 
 
-def _make_params(cls, p: np.ndarray):
+def make_params(cls, p: np.ndarray):
     """The model's parameter dataclass from a vector in declaration order (fields may be keyword-only)."""
     return cls.Params(**{k: float(v) for k, v in zip(cls.Params.names(), p)})
 

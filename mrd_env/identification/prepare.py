@@ -16,7 +16,7 @@ from .data import DamperRecord
 from .faults import Fault, FaultsExcluded, describe_faults, find_faults, repair_spikes
 
 
-def _as_record(rec: Any, i: int) -> DamperRecord:
+def as_record(rec: Any, i: int) -> DamperRecord:
     """A DamperRecord from a DamperRecord or any object with t, x, command, force (and v) arrays (a RigResult,
     a SensorReadout...); constructing the DamperRecord validates it (NaN, lengths, increasing time)."""
     if isinstance(rec, DamperRecord):
@@ -30,12 +30,12 @@ def _as_record(rec: Any, i: int) -> DamperRecord:
 
 
 def as_records(records) -> list[DamperRecord]:
-    """One record or a sequence of them as a non-empty list of DamperRecords (see :func:`_as_record`)."""
+    """One record or a sequence of them as a non-empty list of DamperRecords (see :func:`as_record`)."""
     if isinstance(records, DamperRecord) or not isinstance(records, (list, tuple)):
         records = [records]
     if not records:
         raise ValueError("records must not be empty")
-    return [_as_record(r, i) for i, r in enumerate(records)]
+    return [as_record(r, i) for i, r in enumerate(records)]
 
 
 def uniform_record(record: DamperRecord, dt: float | None = None) -> DamperRecord:

@@ -14,7 +14,7 @@ import numpy as np
 
 from ..dampers import CommandSpec
 from ..command_lag import LAG_FALL, LAG_RISE, check_lag
-from .parameters import _LAG_COLUMN, COMMAND_ETA, COMMAND_ETA_FALL, _make_params
+from .parameters import LAG_COLUMN, COMMAND_ETA, COMMAND_ETA_FALL, make_params
 from .prepare import PreparedRecord
 from .simulate import simulate_batch
 
@@ -32,7 +32,7 @@ class Problem:
         self.names = cls.Params.names()
         self.base = base_params.as_array()
         self.free = tuple(free)
-        self.idx = [self.names.index(k) if k in self.names else -1 - _LAG_COLUMN[k] for k in self.free]
+        self.idx = [self.names.index(k) if k in self.names else -1 - LAG_COLUMN[k] for k in self.free]
         # a symmetric lag whose rate is fitted stays symmetric
         self.tied_fall = COMMAND_ETA in self.free and COMMAND_ETA_FALL not in self.free and command.eta_fall is None
         self.lo = np.asarray(lo, dtype=np.float64)
@@ -83,7 +83,7 @@ class Problem:
 
     def _feasible(self, p: np.ndarray, lag: np.ndarray):
         try:
-            params = _make_params(self.cls, p)
+            params = make_params(self.cls, p)
             check_lag(lag)
             return self.cls(params, self.command)
         except ValueError:

@@ -22,7 +22,7 @@ from ..rig import RigResult, random_test
 from .data import DamperRecord
 from .fit import fit_model
 from .parameters import COMMAND_PARAMS, initial_values
-from .result import FitResult, _measures, pooled_measures
+from .result import FitResult, record_measures, pooled_measures
 from .simulate import predict
 from .options import SearchOptions, as_options
 from .uncertainty import MonteCarloResult, SensorSet, apply_sensors, as_generator, monte_carlo
@@ -113,7 +113,7 @@ class _Draw:
         out = dict(fr.free_values())
         for k in _MEASURES:
             out[k] = fr.overall[k]
-        pooled = pooled_measures([_measures(*predict(fr.damper, r, **self.integrator_options)) for r in self.truth])
+        pooled = pooled_measures([record_measures(*predict(fr.damper, r, **self.integrator_options)) for r in self.truth])
         for k in _MEASURES:
             out[f"{k}_true"] = pooled[k]
         return out

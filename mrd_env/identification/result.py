@@ -119,7 +119,7 @@ class FitResult:
         return self.initial.get(k, float("nan"))
 
 
-def _measures(prep: PreparedRecord, F_model: np.ndarray, sl=None) -> dict:
+def record_measures(prep: PreparedRecord, F_model: np.ndarray, sl=None) -> dict:
     m = prep.mask if sl is None else sl
     t = prep.record.t[m]
     em = error_measures(prep.force[m], F_model[m], t, v=prep.v[m])

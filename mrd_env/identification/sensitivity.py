@@ -11,7 +11,7 @@ from ..dampers import DamperModel
 from ..errors import SimulationDivergedError
 from .data import DamperRecord
 from .parameters import fixed_by_default
-from .prepare import _as_record, prepare_record
+from .prepare import as_record, prepare_record
 from .simulate import simulate_batch
 
 
@@ -38,7 +38,7 @@ def sensitivity(damper: DamperModel, records, *, free: Iterable[str] | None = No
         raise ValueError(f"unknown parameter name(s) {bad} for model {cls.name!r}")
     if isinstance(records, DamperRecord) or not isinstance(records, (list, tuple)):
         records = [records]
-    preps = [prepare_record(_as_record(r, i), damper.command, dt=dt, command_range=command_range, warmup=warmup)
+    preps = [prepare_record(as_record(r, i), damper.command, dt=dt, command_range=command_range, warmup=warmup)
              for i, r in enumerate(records)]
     p0 = damper.params.as_array()
     idx = [cls.Params.names().index(k) for k in names]

@@ -8,9 +8,9 @@ import numpy as np
 
 from ..dampers import CommandSpec, DamperModel
 from ..errors import SimulationDivergedError
-from ..integrator import Stepper, SystemMatrices
+from ..stepping import Stepper, SystemMatrices
 from .data import DamperRecord
-from .prepare import PreparedRecord, _as_record, prepare_record
+from .prepare import PreparedRecord, as_record, prepare_record
 
 _CHUNK = 32              # candidates per compiled call (bounds the memory of long records)
 
@@ -75,7 +75,7 @@ def predict(damper, record: DamperRecord | PreparedRecord, *, dt: float | None =
     :class:`~mrd_env.errors.SimulationDivergedError` if the simulation diverges.
     """
     prep = record if isinstance(record, PreparedRecord) else prepare_record(
-        _as_record(record, 0), damper.command, dt=dt, command_range=command_range, faults=faults, offset=offset)
+        as_record(record, 0), damper.command, dt=dt, command_range=command_range, faults=faults, offset=offset)
     if not isinstance(damper, DamperModel):
         return prep, damper.predict_prepared(prep)
     cls = type(damper)

@@ -18,26 +18,14 @@ import numpy as np
 
 from ..executor import Task, TaskFailed, run_tasks
 from .data import DamperRecord, hold_previous, lowpass_zero_phase
-from .measures import _check_signal, _check_time
+from .measures import check_signal, check_time
+from ..validation import as_generator
 
 __all__ = [
     "LoadCell", "DisplacementSensor", "SensorSet", "SensorReadout", "apply_sensors",
     "Contribution", "UncertaintyBudget", "rss_budget", "table8_contributions", "TABLE8_DEFAULTS",
     "MonteCarloResult", "monte_carlo", "as_generator",
 ]
-
-
-def as_generator(rng, name: str = "rng") -> np.random.Generator:
-    """A ``Generator`` from a ``Generator``, an int seed or a ``SeedSequence``; ``None`` is refused so that
-    every result can be reproduced."""
-    if isinstance(rng, np.random.Generator):
-        return rng
-    if isinstance(rng, np.random.SeedSequence):
-        return np.random.default_rng(rng)
-    if isinstance(rng, (int, np.integer)) and not isinstance(rng, bool) and rng >= 0:
-        return np.random.default_rng(int(rng))
-    raise ValueError(f"{name} must be a numpy.random.Generator, a SeedSequence or a non-negative int seed, "
-                     f"got {rng!r}")
 
 
 def _positive(owner: str, name: str, value: float, *, allow_zero: bool, unit: str = "") -> None:
@@ -195,9 +183,9 @@ def apply_sensors(t, x, F, sensors: SensorSet, rng, *, command=None, command_uni
     if command_unit not in ("V", "A"):
         raise ValueError(f"command_unit = {command_unit!r} is invalid: must be 'V' or 'A'")
     rng = as_generator(rng)
-    t = _check_time("t", t)
-    x = _check_signal("x", x, n=t.shape[0])
-    F = _check_signal("F", F, n=t.shape[0])
+    t = check_time("t", t)
+    x = check_signal("x", x, n=t.shape[0])
+    F = check_signal("F", F, n=t.shape[0])
     if overrange == "raise":
         for what, sig, lim, unit in (("F", F, sensors.load_cell.range_N, "N"),
                                      ("x", x, sensors.displacement.range_m / 2, "m")):
@@ -222,7 +210,7 @@ def apply_sensors(t, x, F, sensors: SensorSet, rng, *, command=None, command_uni
     vm = np.gradient(xf, dt, edge_order=2)
     cmd = None
     if command is not None:
-        command = _check_signal("command", command, n=t.shape[0])
+        command = check_signal("command", command, n=t.shape[0])
         cmd = hold_previous(t, command, tm)
     return SensorReadout(tm, xm, vm, Fm, sat_x, sat_f, cmd, command_unit)
 

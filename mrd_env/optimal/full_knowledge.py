@@ -357,7 +357,7 @@ class _Stop(Exception):
     pass
 
 
-def _lbfgsb(fun, V0, lo, hi, max_iter, rtol, window, bar):
+def minimize_lbfgsb(fun, V0, lo, hi, max_iter, rtol, window, bar):
     """L-BFGS-B from V0 within [lo, hi], stopped when the objective has improved by less than ``rtol`` (relative)
     over the last ``window`` iterations, or after ``max_iter`` iterations."""
     from scipy.optimize import minimize
@@ -388,7 +388,7 @@ def _lbfgsb(fun, V0, lo, hi, max_iter, rtol, window, bar):
     return r.x.reshape(shape), status, ok, len(hist), count["evals"]
 
 
-def _ipopt(fun, V0, lo, hi, max_iter, tol, progress):
+def minimize_ipopt(fun, V0, lo, hi, max_iter, tol, progress):
     """IPOPT (limited-memory Hessian) on the box-constrained problem, through a CasADi callback."""
     import casadi as ca
 
@@ -579,10 +579,10 @@ def clairvoyant(problem_or_env_id, *, seed: int | None = None, control_dt: float
                 fb, Vc0, expand = _blocked(fun, V, blk)
                 try:
                     if method == "lbfgsb":
-                        Vc, st, ok_l, it_l, ev_l = _lbfgsb(fb, Vc0, lo, hi, max_iter, tol if final else COARSE_TOL,
+                        Vc, st, ok_l, it_l, ev_l = minimize_lbfgsb(fb, Vc0, lo, hi, max_iter, tol if final else COARSE_TOL,
                                                            WINDOW if final else COARSE_WINDOW, bar)
                     else:
-                        Vc, st, ok_l, it_l, ev_l = _ipopt(fb, Vc0, lo, hi, max_iter, 1e-8 if final else 1e-6, progress)
+                        Vc, st, ok_l, it_l, ev_l = minimize_ipopt(fb, Vc0, lo, hi, max_iter, 1e-8 if final else 1e-6, progress)
                     V = expand(Vc)
                 except Exception as e:  # a failed run is recorded; the warm starts still stand
                     st, ok_l, it_l, ev_l = f"error: {type(e).__name__}: {e}", False, 0, 0

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..constants import GRAVITY
 from ..validation import check_scalar
 from .base import LinearPlant, preset_with_overrides
 
@@ -49,7 +50,7 @@ class HalfCarParams:
     @property
     def static_tyre_loads(self) -> np.ndarray:
         """(front, rear) static tyre loads, N."""
-        g = 9.80665
+        g = GRAVITY
         return np.array([self.m_s * g * self.b / self.wheelbase + self.m_uf * g,
                          self.m_s * g * self.a / self.wheelbase + self.m_ur * g])
 

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..constants import GRAVITY
 from ..validation import check_scalar
 from .base import LinearPlant, preset_with_overrides
 
@@ -38,7 +39,7 @@ class QuarterCarParams:
     @property
     def static_tyre_load(self) -> float:
         """(m_s + m_u)·g in N."""
-        return (self.m_s + self.m_u) * 9.80665
+        return (self.m_s + self.m_u) * GRAVITY
 
     def plant(self) -> LinearPlant:
         ms, mu, ks, kt, ct, cp = self.m_s, self.m_u, self.k_s, self.k_t, self.c_t, self.c_p

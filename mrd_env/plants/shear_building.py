@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..constants import GRAVITY
 from ..validation import check_array
 from .base import LinearPlant, preset_with_overrides
 
@@ -60,7 +61,7 @@ class ShearBuildingParams:
 
     @property
     def weight(self) -> float:
-        return float(sum(self.masses)) * 9.80665
+        return float(sum(self.masses)) * GRAVITY
 
     @classmethod
     def uniform(cls, n: int, mass: float, storey_stiffness: float, damping_ratio: float = 0.02,
