@@ -85,7 +85,8 @@ def test_half_car_with_bingham_dampers_matches_radau():
     F_ref = np.column_stack([(fca + fcb * uf) * np.tanh(xdf / vs_) + (c0a + c0b * uf) * xdf,
                              (fca + fcb * ur) * np.tanh(xdr / vs_) + (c0a + c0b * ur) * xdr])
     q_ref = sol.y[:4].T
-    # heave, pitch, front and rear wheels, and both damper forces, within 0.1 % (measured: 0.007 % on the motions, 0.03 % on the forces)
+    # heave, pitch, front and rear wheels, and both damper forces, within 0.1 %
+    # (measured: at most 0.007 % on the motions, 0.03 % on the forces)
     for j in range(4):
         assert nrmse(Y[:, j], q_ref[:, j]) <= 1e-3, j
     for j in range(2):

@@ -135,19 +135,81 @@ def assembly(*, plant_preset="sedan", plant_params=None, road="iso8608", road_pa
 
 
 class HalfCarEnv(MRDamperEnv):
-    """Half car (body heave and pitch, two wheels) with an MR damper at each axle; two commands per step (front,
-    rear). Options as :class:`~mrd_env.envs.quarter_car.QuarterCarEnv` where they apply, except:
+    """Half car (body heave and pitch, two wheels) with an MR damper at each axle, driven by a road profile.
+
+    ## Description
+
+    Half car in the pitch plane: body mass m_s and pitch inertia I_y, front and rear unsprung masses, suspension
+    springs and tyres, and an MR damper across each suspension; the rear wheel meets the front wheel's road
+    wheelbase/speed later. Physics at ``dt`` = 1 ms, the commands held over each control period. The task: ride
+    comfort (heave and pitch) against rattle space and road holding, by choosing only the two dampers' commands.
+    Equations: :mod:`mrd_env.plants.half_car`.
+
+    ## Action Space
+
+    Two commands (front, rear), a ``Box`` of shape ``(2,)``, float32: in ``-v0`` in V or A, [v_min, v_max] of
+    the preset ([0, 2] V for the default "automotive" Spencer–Dyke damper); in ``-v1`` normalised to [−1, 1];
+    with ``action_mode="force"`` the desired damper forces (N). See :class:`~mrd_env.envs.base.MRDamperEnv`.
+
+    ## Observation Space
+
+    A ``Box(-inf, inf)``, float32, of the chosen sensors in order (``env.unwrapped.sensor_layout``). The default
+    sensors, shape ``(8,)``:
+
+    | Index | Sensor | Quantity | Unit |
+    |---|---|---|---|
+    | 0 | ``body_acc`` | body heave acceleration at the centre of mass | m/s² |
+    | 1 | ``pitch_acc`` | body pitch acceleration (nose up positive) | rad/s² |
+    | 2–3 | ``travel`` | suspension travel, front and rear (extension positive) | m |
+    | 4–5 | ``damper_force`` | damper forces, front and rear | N |
+    | 6–7 | ``command`` | the commands applied over the last step | V or A |
+
+    All sensors: ``body_acc``, ``pitch_acc``, ``travel`` (2), ``travel_rate`` (2, m/s), ``body_vel_at_axles``
+    (2, m/s: the body's vertical velocity above each axle), ``wheel_vel`` (2, m/s), ``damper_force`` (2),
+    ``command`` (2), ``damper_states`` (hidden unless asked).
+
+    ## Rewards
+
+    The cost integrated over the control period, as the quarter car's but with fixed scales::
+
+        r = −∫ (w_comfort a_w² + w_travel Σ_i (x_i / 0.05 m)² + w_tyre Σ_i (F_t,i / F_static,i)²) dt
+
+    a_w the Wk-weighted body acceleration (m/s², filtered online), x_i the travel and F_t,i the dynamic tyre
+    load of axle i over its static load. An episode ended by the stroke limit loses
+    ``reward_weights["termination"]`` = 10 × its planned length in seconds.
+
+    ## Starting State
+
+    The body at zero heave and pitch, at rest; each wheel on its road's initial height and moving with it. A
+    generated road is new each episode, drawn from ``np_random`` (``reset(seed=...)``).
+
+    ## Episode End
+
+    ``terminated`` when a |travel| exceeds ``stroke_limit`` (0.1 m; ``info["termination_reason"] =
+    "stroke_limit"``) or the simulation diverges; ``truncated`` after ``episode_seconds`` (10 s:
+    ``env.spec.max_episode_steps`` 10 000 steps in ``-v0``, 1 000 in ``-v1``).
+
+    ``info["episode_metrics"]`` at the end of an episode: acc_weighted_rms (Wk, m/s²), pitch_acc_rms (rad/s²),
+    travel_peak (m, both axles), tyre_load_ratio (the larger axle's r.m.s. dynamic tyre load over its static
+    load), duration (s).
+
+    ## Arguments
+
+    As :class:`~mrd_env.envs.quarter_car.QuarterCarEnv` where they apply, except:
 
     * ``road``: "iso8608" (default; a new road each episode under both axles, the rear meeting the front's
       profile wheelbase/speed later; ``road_params``: ``road_class`` "C" (or a list to draw from), ``speed``
       20 m/s (or a range (lo, hi))), a Record with channels z_rf, zdot_rf, z_rr, zdot_rr, or a Disturbance.
-    * ``episode_seconds`` default 10 s; ``plant_preset`` "sedan".
+    * ``episode_seconds`` default 10 s; ``plant_preset`` "sedan" (:data:`mrd_env.plants.half_car.HALF_CAR_PRESETS`).
     * ``reward_weights``: comfort 1.0 (on the Wk-weighted body acceleration², m²/s⁴), travel 0.5 (per
       (0.05 m)² on each axle), tyre 0.5 (per static tyre load²), termination 10 per second; or ``reward``.
     * no ``preview``.
 
-    Sensors: body_acc, pitch_acc, travel (2), travel_rate (2), body_vel_at_axles (2), wheel_vel (2), damper_force
-    (2), command (2), damper_states; default body_acc, pitch_acc, travel, damper_force, command.
+    ## Version History
+
+    * v1: the defaults an RL user expects — ``control_dt`` = 0.01 s (100 Hz) and ``action_mode="normalized"``
+      (:data:`mrd_env.envs.RL_DEFAULTS`).
+    * v0: the physics-level defaults — commands in V or A at every 1 ms step.
     """
 
     env_id = "mrd_env/HalfCar-v0"

@@ -254,10 +254,84 @@ def assembly(*, plant_preset: str = "set_a", plant_params=None, road="iso8608", 
 
 
 class QuarterCarEnv(MRDamperEnv):
-    """Quarter car (sprung mass m_s, unsprung mass m_u, suspension spring k_s, tyre k_t/c_t) with an MR damper
-    across the suspension, driven by a road profile; physics at ``dt`` = 1 ms.
+    """Quarter car with an MR damper across its suspension, driven by a road profile.
 
-    Options (keyword-only; every bad value raises ``ValueError`` naming the option):
+    ## Description
+
+    Quarter car (sprung mass m_s, unsprung mass m_u, suspension spring k_s, tyre k_t/c_t) with an MR damper
+    across the suspension, driven by a road profile; physics at ``dt`` = 1 ms, the command held over each control
+    period (``control_dt``). The task: ride comfort against rattle space and road holding, by choosing only the
+    damper's command (semi-active control). Equations: :mod:`mrd_env.plants.quarter_car`.
+
+    ## Action Space
+
+    One command, a ``Box`` of shape ``(1,)``, float32: in ``-v0`` the damper's command in V or A,
+    [v_min, v_max] of the preset ([0, 2] V for the default "automotive" Spencer–Dyke damper); in ``-v1``
+    normalised to [−1, 1] (``action_mode="normalized"``); with ``action_mode="force"`` the desired damper force
+    beyond the static preload (N). See :class:`~mrd_env.envs.base.MRDamperEnv` for clipping and the command lag.
+
+    ## Observation Space
+
+    A ``Box(-inf, inf)``, float32, of the chosen sensors in order (``env.unwrapped.sensor_layout``). The default
+    sensors (what a test car measures; every controller and agent gets the same), shape ``(8,)``:
+
+    | Index | Sensor | Quantity | Unit |
+    |---|---|---|---|
+    | 0 | ``sprung_acc`` | body acceleration z̈_s (gravity removed) | m/s² |
+    | 1 | ``unsprung_acc`` | wheel acceleration z̈_u | m/s² |
+    | 2 | ``travel`` | suspension travel z_s − z_u (extension positive) | m |
+    | 3 | ``travel_rate`` | its rate ż_s − ż_u | m/s |
+    | 4 | ``sprung_vel`` | body velocity ż_s (absolute) | m/s |
+    | 5 | ``unsprung_vel`` | wheel velocity ż_u (absolute) | m/s |
+    | 6 | ``damper_force`` | damper force (load cell, includes the static preload) | N |
+    | 7 | ``command`` | the command applied over the last step | V or A |
+
+    All sensors (SI): ``sprung_acc`` z̈_s (m/s², gravity removed), ``unsprung_acc`` z̈_u, ``travel`` z_s − z_u (m),
+    ``travel_rate`` (m/s), ``sprung_vel`` ż_s and ``unsprung_vel`` ż_u (m/s, absolute — on a car these come
+    from integrated accelerometers), ``damper_force`` (N, load cell, includes the static preload), ``command``
+    (applied, V or A), ``road`` z_r (m), ``damper_states`` (the model's internal states, hidden unless asked),
+    ``road_preview`` (m, one channel per preview time: z_r(t + τ), the road height τ seconds ahead of the wheel
+    as a camera or lidar preview suspension measures it; beyond the end of the record the last height is held;
+    noise, delay and history apply as to any sensor). Preview is never in the default: a controller that uses it
+    must be compared as one that had it
+    (``sensors=(*DEFAULT_SENSORS, "road_preview")`` with ``preview=...``). With preview, the plant has one
+    more input per preview time, which it ignores (``linear_plant.input_names`` ends with ``z_r(t+τs)``; zero
+    columns of E) and ``env.record`` carries those channels; the dynamics are those without preview, bit for
+    bit.
+
+    ## Rewards
+
+    The cost integrated over the control period (so returns do not depend on the control rate)::
+
+        r = −∫ c dt,   c = w_comfort a_w² / ⟨a_w²⟩_p + w_travel x² / ⟨x²⟩_p + w_tyre F_t² / ⟨F_t²⟩_p
+
+    a_w the ISO 2631-1 Wk-weighted sprung acceleration filtered online (causal IIR at 1/dt), x the travel,
+    F_t = k_t (z_r − z_u) + c_t (ż_r − ż_u) the dynamic tyre load; ⟨·⟩_p the mean square of the same signal for
+    the conventional passive car (the set's ``passive_c`` damper, simulated exactly at reset) on the same road.
+    The return is thus the comfort / rattle-space / road-holding index of the field, relative to the passive
+    car, per second: the passive car scores −1 per second on any road, and rough and smooth roads weigh alike.
+    An episode ended by the stroke limit loses ``reward_weights["termination"]`` = 10 × its planned length in
+    seconds: more than any controller that finishes pays (a test checks it on every benchmark scenario).
+
+    ## Starting State
+
+    The car starts at rest in static equilibrium on the road's initial height (both masses at z_r(0), moving with
+    ż_r(0)). A generated road is new each episode, drawn from ``np_random`` (``reset(seed=...)``).
+
+    ## Episode End
+
+    ``terminated`` when |travel| exceeds ``stroke_limit`` (0.1 m; ``info["termination_reason"] =
+    "stroke_limit"``) or the simulation diverges; ``truncated`` after ``episode_seconds`` (10 s for generated
+    roads: ``env.spec.max_episode_steps`` steps, 10 000 in ``-v0``, 1 000 in ``-v1``).
+
+    ``info["episode_metrics"]`` at the end of an episode: acc_weighted_rms, acc_rms, acc_vdv, acc_mtvv (ISO 2631-1
+    Wk; MTVV over 1 s), travel_rms, travel_peak, tyre_load_rms, tyre_load_ratio, damper_force_rms,
+    damper_force_peak (N), duration (s) — accumulated by the compiled step, no history needed.
+
+    ## Arguments
+
+    Keyword-only (``gym.make("mrd_env/QuarterCar-v1", **options)``; every bad value raises ``ValueError`` naming
+    the option):
 
     * ``plant_preset``: "set_a" (default), "set_b", "set_c" (reference parameter sets); ``plant_params``: a dict
       of :class:`~mrd_env.plants.QuarterCarParams` overrides, or a ``QuarterCarParams``.
@@ -286,40 +360,14 @@ class QuarterCarEnv(MRDamperEnv):
       (``{name: (n_sub, width)}`` → float; one Python call per step).
     * ``stroke_limit`` (default 0.1 m on |z_s − z_u|), ``render_mode`` ("rgb_array", "human").
     * ``preview``: None (default: no preview), or the times ahead τ (s; one or an increasing sequence, each a
-      multiple of ``dt`` in [dt, 10 s]) at which the ``road_preview`` sensor reads the road; ``env.unwrapped.preview_times``
-      gives them (a tuple in s, empty without preview).
+      multiple of ``dt`` in [dt, 10 s]) at which the ``road_preview`` sensor reads the road;
+      ``env.unwrapped.preview_times`` gives them (a tuple in s, empty without preview).
 
-    Sensors (SI): ``sprung_acc`` z̈_s (m/s², gravity removed), ``unsprung_acc`` z̈_u, ``travel`` z_s − z_u (m),
-    ``travel_rate`` (m/s), ``sprung_vel`` ż_s and ``unsprung_vel`` ż_u (m/s, absolute — on a car these come
-    from integrated accelerometers), ``damper_force`` (N, load cell, includes the static preload), ``command``
-    (applied, V or A), ``road`` z_r (m), ``damper_states`` (the model's internal states, hidden unless asked),
-    ``road_preview`` (m, one channel per preview time: z_r(t + τ), the road height τ seconds ahead of the wheel
-    as a camera or lidar preview suspension measures it; beyond the end of the record the last height is held;
-    noise, delay and history apply as to any sensor). Default (what a test car measures; every controller and
-    agent gets the same): sprung_acc, unsprung_acc, travel, travel_rate, sprung_vel, unsprung_vel, damper_force,
-    command. Preview is never in the default: a controller that uses it must be compared as one that had it
-    (``sensors=(*DEFAULT_SENSORS, "road_preview")`` with ``preview=...``). With preview, the plant has one
-    more input per preview time, which it ignores (``linear_plant.input_names`` ends with ``z_r(t+τs)``; zero
-    columns of E) and ``env.record`` carries those channels; the dynamics are those without preview, bit for
-    bit.
+    ## Version History
 
-    Reward: the cost integrated over the control period (so returns do not depend on the control rate)::
-
-        r = −∫ c dt,   c = w_comfort a_w² / ⟨a_w²⟩_p + w_travel x² / ⟨x²⟩_p + w_tyre F_t² / ⟨F_t²⟩_p
-
-    a_w the ISO 2631-1 Wk-weighted sprung acceleration filtered online (causal IIR at 1/dt), x the travel,
-    F_t = k_t (z_r − z_u) + c_t (ż_r − ż_u) the dynamic tyre load; ⟨·⟩_p the mean square of the same signal for
-    the conventional passive car (the set's ``passive_c`` damper, simulated exactly at reset) on the same road.
-    The return is thus the comfort / rattle-space / road-holding index of the field, relative to the passive
-    car, per second: the passive car scores −1 per second on any road, and rough and smooth roads weigh alike.
-    An episode ended by the stroke limit loses ``reward_weights["termination"]`` = 10 × its planned length in
-    seconds: more than any controller that finishes pays (a test checks it on every benchmark scenario). The
-    car starts at rest in static equilibrium on the road's initial height (both masses at z_r(0), moving with
-    ż_r(0)).
-
-    ``info["episode_metrics"]`` at the end of an episode: acc_weighted_rms, acc_rms, acc_vdv, acc_mtvv (ISO 2631-1
-    Wk; MTVV over 1 s), travel_rms, travel_peak, tyre_load_rms, tyre_load_ratio, damper_force_rms,
-    damper_force_peak (N), duration (s) — accumulated by the compiled step, no history needed.
+    * v1: the defaults an RL user expects — ``control_dt`` = 0.01 s (100 Hz, 1 000 steps per 10 s episode;
+      physics still at 1 ms) and ``action_mode="normalized"`` (:data:`mrd_env.envs.RL_DEFAULTS`).
+    * v0: the physics-level defaults — a command in V or A at every 1 ms step.
     """
 
     env_id = "mrd_env/QuarterCar-v0"

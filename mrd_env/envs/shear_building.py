@@ -345,10 +345,79 @@ def assembly(*, plant_preset: str = "three_storey", plant_params=None, damper_fl
 
 
 class ShearBuildingEnv(MRDamperEnv):
-    """N-storey shear building (default: the three-storey Notre Dame lab model with the Spencer–Dyke prototype
-    damper between the ground and floor 1) under a ground acceleration; physics at ``dt`` = 1 ms.
+    """Shear building with MR dampers between floors, under a ground acceleration.
 
-    Options (keyword-only; every bad value raises ``ValueError`` naming the option):
+    ## Description
+
+    N-storey shear building (default: the three-storey Notre Dame lab model with the Spencer–Dyke prototype
+    damper between the ground and floor 1 in ``-v0``, between floors 1 and 2 in ``-v1``) under a ground
+    acceleration; physics at ``dt`` = 1 ms. The task: reduce interstorey drift and floor acceleration by choosing
+    only the dampers' commands (semi-active control). Equations: :mod:`mrd_env.plants.shear_building`.
+
+    ## Action Space
+
+    One command per damper, a ``Box`` of shape ``(n_dampers,)`` (``(1,)`` by default), float32: in ``-v0`` the
+    command in V or A, [v_min, v_max] of the preset ([0, 2.25] V for the default "spencer1997" Spencer–Dyke
+    damper); in ``-v1`` normalised to [−1, 1]; with ``action_mode="force"`` the desired damper force (N). See
+    :class:`~mrd_env.envs.base.MRDamperEnv`.
+
+    ## Observation Space
+
+    A ``Box(-inf, inf)``, float32, of the chosen sensors in order (``env.unwrapped.sensor_layout``). The default
+    sensors (what the lab model measures; every controller and agent gets the same), shape ``(14,)`` for the
+    three-storey building with one damper:
+
+    | Index | Sensor | Quantity | Unit |
+    |---|---|---|---|
+    | 0–2 | ``abs_acc`` | absolute floor accelerations ẍ + ẍ_g, floors 1–3 | m/s² |
+    | 3–5 | ``drift`` | interstorey drifts, storeys 1–3 | m |
+    | 6–8 | ``floor_vel`` | floor velocities relative to the ground | m/s |
+    | 9 | ``damper_force`` | damper force | N |
+    | 10 | ``damper_stroke`` | damper stroke | m |
+    | 11 | ``damper_velocity`` | damper velocity | m/s |
+    | 12 | ``ground_acc`` | ground acceleration ẍ_g | m/s² |
+    | 13 | ``command`` | the command applied over the last step | V or A |
+
+    All sensors (SI): ``abs_acc`` absolute floor accelerations ẍ + ẍ_g (m/s², n floors), ``drift`` interstorey
+    drifts (m), ``floor_vel`` and ``floor_disp`` relative to the ground (m/s, m), ``damper_force`` (N), ``damper_stroke``
+    (m), ``damper_velocity`` (m/s), ``upper_floor_vel`` (the velocity of the floor above each damper, m/s),
+    ``ground_acc`` (m/s²), ``command`` (applied), ``damper_states`` (hidden unless asked).
+
+    ## Rewards
+
+    The cost integrated over the control period (returns do not depend on the control rate)::
+
+        r = −∫ c dt,   c = w_drift · mean_i (d_i / d_ref,i)² + w_acc · mean_i (a_i / a_ref,i)²
+
+    d_ref,i and a_ref,i the uncontrolled building's (no damper) RMS drift and RMS absolute acceleration of storey
+    / floor i over the episode's record — the normed J-criteria J4 and J5 of the benchmark, squared — so the
+    uncontrolled building scores −(w_drift + w_acc) = −1 per second with the default weights 0.5, 0.5, whatever
+    the record; an episode ended by the stroke limit loses ``reward_weights["termination"]`` = 10 × its planned
+    length in seconds, more than any controller that finishes pays.
+
+    ## Starting State
+
+    The building at rest (zero displacements and velocities relative to the ground). A generated ground motion
+    ("kanai_tajimi") is new each episode, drawn from ``np_random`` (``reset(seed=...)``); a recorded one is the
+    same every episode.
+
+    ## Episode End
+
+    ``terminated`` when a damper's |stroke| exceeds ``stroke_limit`` (0.05 m; ``info["termination_reason"] =
+    "stroke_limit"``) or the simulation diverges; ``truncated`` at the end of the record or of
+    ``episode_seconds`` (El Centro replayed 5× faster: 10.742 s, ``env.spec.max_episode_steps`` 10 742 steps in
+    ``-v0``, 1 074 in ``-v1``).
+
+    ``info["episode_metrics"]``: :func:`~mrd_env.metrics.building_metrics` of the controlled building (drift,
+    drift ratio, acceleration, base shear, damper force/stroke peaks) and :func:`~mrd_env.metrics.benchmark_criteria`
+    against the uncontrolled building on the same record and time window (J1–J6, force_over_weight,
+    stroke_peak, stroke_over_disp). The uncontrolled response is computed exactly (matrix exponential with the
+    input linear between samples), once per deterministic record.
+
+    ## Arguments
+
+    Keyword-only (``gym.make("mrd_env/ShearBuilding-v1", **options)``; every bad value raises ``ValueError``
+    naming the option):
 
     * ``plant_preset``: "three_storey" (default); ``plant_params``: a dict of
       :class:`~mrd_env.plants.ShearBuildingParams` overrides, or a ``ShearBuildingParams`` (e.g.
@@ -373,28 +442,13 @@ class ShearBuildingEnv(MRDamperEnv):
       (with ``inverse`` and ``force_range`` for "force"),
       ``reward_weights`` or ``reward``, ``render_mode``: as :class:`~mrd_env.envs.quarter_car.QuarterCarEnv`.
 
-    Sensors (SI): ``abs_acc`` absolute floor accelerations ẍ + ẍ_g (m/s², n floors), ``drift`` interstorey drifts
-    (m), ``floor_vel`` and ``floor_disp`` relative to the ground (m/s, m), ``damper_force`` (N), ``damper_stroke``
-    (m), ``damper_velocity`` (m/s), ``upper_floor_vel`` (the velocity of the floor above each damper, m/s),
-    ``ground_acc`` (m/s²), ``command`` (applied), ``damper_states`` (hidden unless asked). Default (what the lab
-    model measures; every controller and agent gets the same): abs_acc, drift, floor_vel, damper_force,
-    damper_stroke, damper_velocity, ground_acc, command.
+    ## Version History
 
-    Reward: the cost integrated over the control period (returns do not depend on the control rate)::
-
-        r = −∫ c dt,   c = w_drift · mean_i (d_i / d_ref,i)² + w_acc · mean_i (a_i / a_ref,i)²
-
-    d_ref,i and a_ref,i the uncontrolled building's (no damper) RMS drift and RMS absolute acceleration of storey
-    / floor i over the episode's record — the normed J-criteria J4 and J5 of the benchmark, squared — so the
-    uncontrolled building scores −(w_drift + w_acc) = −1 per second with the default weights 0.5, 0.5, whatever
-    the record; an episode ended by the stroke limit loses ``reward_weights["termination"]`` = 10 × its planned
-    length in seconds, more than any controller that finishes pays.
-
-    ``info["episode_metrics"]``: :func:`~mrd_env.metrics.building_metrics` of the controlled building (drift,
-    drift ratio, acceleration, base shear, damper force/stroke peaks) and :func:`~mrd_env.metrics.benchmark_criteria`
-    against the uncontrolled building on the same record and time window (J1–J6, force_over_weight,
-    stroke_peak, stroke_over_disp). The uncontrolled response is computed exactly (matrix exponential with the
-    input linear between samples), once per deterministic record.
+    * v1: the defaults an RL user expects and the benchmark's building — ``control_dt`` = 0.01 s (100 Hz),
+      ``action_mode="normalized"`` and the damper in storey 2 (``damper_floors=(2,)``, between floors 1 and 2,
+      where the control laws can be told apart; see :data:`mrd_env.envs.V1`).
+    * v0: the physics-level defaults — a command in V or A at every 1 ms step, the damper in storey 1 as Dyke et
+      al. (1996) built the lab model.
     """
 
     env_id = "mrd_env/ShearBuilding-v0"
