@@ -14,8 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from mrd_env.dampers import make_damper
-from mrd_env.driver import Driver, Processing
-from mrd_env.integrator import SystemMatrices, run
+from mrd_env.stepping import Driver, Processing, SystemMatrices, run
 
 from mrd_env.report import write_table
 

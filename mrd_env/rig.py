@@ -14,7 +14,7 @@ import numpy as np
 
 from .command_lag import effective_command
 from .dampers import DamperModel, make_damper
-from .integrator import SystemMatrices, run
+from .stepping import SystemMatrices, run
 from .validation import as_generator, check_array, check_n_samples, check_scalar
 
 

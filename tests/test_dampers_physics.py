@@ -9,7 +9,7 @@ from mrd_env import SimulationDivergedError, available_dampers, make_damper
 from mrd_env.dampers import CommandSpec
 from mrd_env.dampers.bouc_wen import BoucWenParams
 from mrd_env.dampers.spencer_dyke import SpencerDykeParams
-from mrd_env.integrator import SystemMatrices, run
+from mrd_env.stepping import SystemMatrices, run
 from mrd_env.rig import random_test, simulate, sinusoidal_test
 
 DEFAULT_MODELS = ["spencer_dyke", "bouc_wen", "bingham"]

@@ -14,7 +14,7 @@ import mrd_env
 from mrd_env.dampers import available_dampers, make_damper
 from mrd_env.disturbances import Record, sine_sweep
 from mrd_env.envs import QuarterCarEnv, ShearBuildingEnv, register_envs
-from mrd_env.driver import DIVERGED
+from mrd_env.stepping import DIVERGED
 from mrd_env.metrics import weighting_sos
 from mrd_env.plants import ShearBuildingParams
 

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from mrd_env.dampers import make_damper
-from mrd_env.integrator import SystemMatrices, run
+from mrd_env.stepping import SystemMatrices, run
 
 from reference_models import bouc_wen_reference, nrmse, spencer_dyke_reference
 

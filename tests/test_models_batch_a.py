@@ -11,7 +11,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from mrd_env import available_dampers, make_damper
-from mrd_env.integrator import SystemMatrices, run
+from mrd_env.stepping import SystemMatrices, run
 from mrd_env.rig import sinusoidal_test
 
 from reference_models import nrmse

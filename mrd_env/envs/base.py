@@ -11,7 +11,7 @@ from collections.abc import Callable
 import gymnasium as gym
 import numpy as np
 
-from ..driver import BAD_ACTION, DIVERGED, HIST_FULL, RUNNING, TERMINATED
+from ..stepping import BAD_ACTION, DIVERGED, HIST_FULL, RUNNING, TERMINATED
 from .core import Assembly, EnvCore, PlantDeclarations, assemble
 from .render import HUMAN_FPS
 

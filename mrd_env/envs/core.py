@@ -19,8 +19,8 @@ from gymnasium.envs.registration import EnvSpec
 
 from ..dampers import DamperModel
 from ..disturbances import Record
-from ..driver import HIST_FULL, HIST_NONE, HIST_PERIOD, Driver, Processing, noise_keys
 from ..plants import CoupledPlant, LinearPlant
+from ..stepping import HIST_FULL, HIST_NONE, HIST_PERIOD, Driver, Processing, noise_keys
 from .disturbance import Disturbance
 from .reward import CallableReward, QuadraticReward
 from .sensors import Sensors
@@ -300,7 +300,7 @@ class EnvCore:
         return state
 
     def __setstate__(self, state: dict) -> None:
-        from ..integrator import kernel_module
+        from ..stepping import kernel_module
 
         cls, dstate = state.pop("driver")
         d = cls.__new__(cls)
@@ -398,7 +398,7 @@ class EnvCore:
         return self.asm.metrics(self.stats(b), self.episodes[b])
 
     def failure_message(self, b: int) -> str:
-        from ..integrator import diverged_error
+        from ..stepping import diverged_error
 
         reason, t = self.driver.failure(b)
         return str(diverged_error(self.asm.damper.name, reason, t, b, self.driver.max_substeps))

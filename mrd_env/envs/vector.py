@@ -28,7 +28,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from ..driver import BAD_ACTION, DIVERGED, HIST_FULL, HIST_NONE, RUNNING, TERMINATED, TRUNCATED
+from ..stepping import BAD_ACTION, DIVERGED, HIST_FULL, HIST_NONE, RUNNING, TERMINATED, TRUNCATED
 from .base import action_space, as_action, force_actuation, render_fps
 from .core import Assembly, EnvCore, PlantDeclarations, assemble
 

@@ -1,19 +1,25 @@
-"""Template of the inverses' compiled one-step routines (see :mod:`mrd_env.inverse.onestep`).
+"""Template of the inverses' compiled one-step routines (see :mod:`mrd_env.inverse.observer`).
 
-Not imported as such: :func:`mrd_env.inverse.onestep.onestep_module` writes, for each damper model, a module made
-of a header importing ``macro_step``, ``workspace_views`` and ``ns`` from that model's compiled stepping kernel
-(:func:`mrd_env.integrator.kernel_module`) followed by this text, so that every step below is the project's
-stepping routine (SDIRK2 with error control, the command lag integrated exactly) on the virtual rig: no plant,
-the damper driven by its stroke, velocity and acceleration w = (x, ẋ, ẍ), interpolated linearly inside the step.
+Not imported as such: :func:`mrd_env.inverse.observer.onestep_module` writes, for each damper model, a module
+importing ``macro_step``, ``workspace_views`` and ``ns`` from that model's compiled stepping kernel
+(:func:`mrd_env.stepping.codegen.kernel_module`; the ``# injected`` lines below stand for that import) followed by
+this text, so that every step below is the project's stepping routine (SDIRK2 with error control, the command lag
+integrated exactly) on the virtual rig: no plant, the damper driven by its stroke, velocity and acceleration
+w = (x, ẋ, ẍ), interpolated linearly inside the step.
 
 Arguments shared by the functions: the rig's system arrays C, D and level matrices Ainv, Bbar, Mq, PP
-(:meth:`mrd_env.integrator.SystemMatrices.levels`), the parameter vector P (1, n_params), the command dynamics lag (1, 3) (η_rise, η_fall, τ; the delay τ is not modelled here),
-the step dt, the finest sub-step level, the tolerances, and scratch buffers wf, wi (one system's workspace).
+(:meth:`mrd_env.stepping.SystemMatrices.levels`), the parameter vector P (1, n_params), the command dynamics
+lag (1, 3) (η_rise, η_fall, τ; the delay τ is not modelled here), the step dt, the finest sub-step level, the
+tolerances, and scratch buffers wf, wi (one system's workspace).
 """
 import math
 
 import numba as nb
 import numpy as np
+
+from mrd_env.stepping._kernel_template import macro_step, workspace_views  # injected
+from mrd_env.stepping.injected import ns  # injected
+from mrd_env.stepping.layout import VD_TS, VD_VA, VD_VB
 
 
 @nb.njit(cache=True)
@@ -43,9 +49,9 @@ def advance(C, D, Ainv, Bbar, Mq, PP, P, lag, Y, U, F, W, V, x1, v1, dt, max_lev
 def hold(Vd, v):
     """The command v held over the whole step, in the kernel's rows of the step's commands (before and after
     the switch time, which is 0): the inverses' one-step models leave out the command delay."""
-    Vd[10, 0] = v
-    Vd[11, 0] = v
-    Vd[12, 0] = 0.0
+    Vd[VD_VA, 0] = v
+    Vd[VD_VB, 0] = v
+    Vd[VD_TS, 0] = 0.0
 
 
 @nb.njit(inline='always')

@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..validation import shown
-from ..integrator import ATOL, RTOL
+from ..stepping import ATOL, RTOL
 from ..validation import check_scalar
 from .observer import ObserverInverse
 

@@ -2,7 +2,7 @@
 internal states that the simplified-inverse and model-predictive inverses share, and the model's one-step force
 predictions for candidate commands.
 
-Each step is the project's stepping routine (:mod:`mrd_env.integrator`: the model's compiled kernel, SDIRK2 with
+Each step is the project's stepping routine (:mod:`mrd_env.stepping`: the model's compiled kernel, SDIRK2 with
 error control, the command lag u̇ = −η (u − v) integrated exactly) on the virtual rig, called from a small
 compiled module generated per damper model (``_onestep_template.py``), so that one call advances a batch of N
 dampers or predicts the forces of all candidate commands without returning to Python.
@@ -14,8 +14,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..integrator import ATOL, RTOL, SystemMatrices, diverged_error, kernel_module, load_generated_module, \
-    max_level_of
+from ..stepping.codegen import kernel_module, load_generated_module, render
+from ..stepping.matrices import SystemMatrices
+from ..stepping.scheme import ATOL, RTOL, max_level_of
+from ..stepping.stepper import diverged_error
 from ..validation import check_scalar
 from .base import Inverse
 
@@ -29,9 +31,8 @@ def onestep_module(model_cls):
     module = _MODULES.get(model_cls)
     if module is None:
         kernel = kernel_module(model_cls)
-        header = ("import math\nimport numba as nb\nimport numpy as np\n"
-                  f"from {kernel.__name__} import macro_step, ns, workspace_views\n")
-        source = header + (Path(__file__).with_name("_onestep_template.py")).read_text()
+        source = render(Path(__file__).with_name("_onestep_template.py"),
+                        f"from {kernel.__name__} import macro_step, ns, workspace_views\n")
         # the kernel's module name carries its own key: a changed model or routine gives a new module here too
         key = hashlib.sha256(source.encode()).hexdigest()[:16]
         module = _MODULES[model_cls] = load_generated_module(f"mrd_env_onestep_{model_cls.name}", source, key)

@@ -41,7 +41,7 @@ import math
 import numba as nb
 import numpy as np
 
-from ..integrator import ATOL, RTOL
+from ..stepping import ATOL, RTOL
 from .base import lag_decay
 from .observer import ObserverInverse
 

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from ..identification.measures import error_time
-from ..integrator import Stepper, SystemMatrices
+from ..stepping import Stepper, SystemMatrices
 from ..validation import check_array, check_scalar
 from .base import Inverse, as_damper
 

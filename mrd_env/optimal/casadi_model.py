@@ -47,7 +47,7 @@ import numpy as np
 
 from ..command_lag import delay_split
 from ..dampers import DamperModel
-from ..integrator import GAMMA
+from ..stepping import GAMMA
 
 #: Damper models this module writes symbolically.
 SUPPORTED_MODELS = ("spencer_dyke", "bouc_wen")

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..dampers import DamperModel
-from ..integrator import Stepper, SystemMatrices
+from ..stepping import Stepper, SystemMatrices
 from ..validation import check_array
 
 

@@ -1,16 +1,34 @@
-"""Template of the compiled driver: one call advances N systems over one period (see :mod:`mrd_env.driver`).
+"""Template of the compiled driver: one call advances N systems over one period (see
+:mod:`mrd_env.stepping.driver`).
 
-Appended to the stepping kernel of a damper model (``_kernel_template.py``) in the generated module, after a
-header of slot numbers (``F_<name>``, ``I_<name>``, ``S_<name>``, ``T_<name>``, ``D_<name>``) written from
-:data:`mrd_env.driver.LAYOUT`, so that the Python side and the kernel agree on one list of names.
+Appended to the stepping kernel of a damper model (``_kernel_template.py``) in the generated module, whose names
+it imports here on ``# injected`` lines (dropped by the generator); the slot numbers (``F_<name>``, ``I_<name>``,
+``S_<name>``, ``T_<name>``, ``DIM_<name>``, ``SC_<name>``) come from :mod:`mrd_env.stepping.layout`, so that the
+Python side and the kernel agree on one list of names.
 
 Per system b and per step of the period: the command (the held action, or a column of the input record)
-pushed into the queue of past commands that the command delay reads, the physics (``macro_step``), the named outputs h = G·[Y, F, W] into one row, the command columns, the online
-filters (second-order sections, transposed direct form II as ``scipy.signal.sosfilt``), the quadratic reward
-terms, the limits (termination), the running statistics of chosen columns (sum of squares, peak, fourth
-power and 1 s running r.m.s. of one column); after the period: the measurement (with Gaussian noise from a
-counter-based generator keyed per system and episode), the sensor delay and history FIFO, the observation.
+pushed into the queue of past commands that the command delay reads, the physics (``macro_step``), the named
+outputs h = G·[Y, F, W] into one row, the command columns, the online filters (second-order sections,
+transposed direct form II as ``scipy.signal.sosfilt``), the quadratic reward terms, the limits (termination),
+the running statistics of chosen columns (sum of squares, peak, fourth power and 1 s running r.m.s. of one
+column); after the period: the measurement (with Gaussian noise from a counter-based generator keyed per
+system and episode), the sensor delay and history FIFO, the observation.
 """
+import math
+
+import numba as nb
+
+from mrd_env.stepping._kernel_template import delayed_commands, end_forces, macro_step, workspace_views  # injected
+from mrd_env.stepping.injected import ns  # injected
+from mrd_env.stepping.layout import (
+    BAD_ACTION, D_DIMS, DIM_CMD_INPUT, DIM_DELAY, DIM_DOSE_COL, DIM_HIST_MODE, DIM_HISTORY, DIM_MAX_LEVEL, DIM_N,
+    DIM_NH, DIM_NORMALIZED, DIM_NPAR, DIM_NSUB, DIM_SCRATCH, DIVERGED, F_AINV, F_BBAR, F_C, F_D, F_G, F_LIMITS,
+    F_MQ, F_NOISE, F_PP, F_SCAL, F_SOS, HIST_FULL, HIST_PERIOD, I_FILTERS, I_LCOLS, I_MEAS, I_RCOLS, I_STAT_COLS,
+    RUNNING, S_CMD, S_CMDQ, S_DOSE, S_F, S_FIFO, S_LAG, S_P, S_RING, S_ROW, S_RSCALE, S_REWARD, S_STATS, S_U, S_Y,
+    S_ZI, SC_ATOL, SC_DT, SC_PEN_CONST, SC_PEN_STEP, SC_RTOL, SC_VMAX, SC_VMIN, T_CMDQ_POS, T_COUNTER, T_FAIL_STEP,
+    T_FIFO_POS, T_K, T_KEY, T_NSTEPS, T_NSUB, T_REASON, T_RING_POS, T_ROWS, T_STATUS, T_SUBSTEPS, TERMINATED,
+    TRUNCATED, CoreArrays, OutputArrays, PlantArrays)
+from mrd_env.stepping.scheme import OK
 
 
 @nb.njit(inline='always')
@@ -156,7 +174,7 @@ def core_reset(fc, ic, fs, is_, W, H, obs, mask):
         for i in range(nH):
             h[i] = 0.0
         _row(G, Y, Fz, W[b, 0], cmd, h, nsig, nd)
-        if hist_mode == 1:
+        if hist_mode == HIST_FULL:
             for i in range(nH):
                 H[b, 0, i] = h[i]
         st = _state(fs, ic, b, S_STATS)
@@ -192,9 +210,11 @@ def core_reset(fc, ic, fs, is_, W, H, obs, mask):
 
 
 @nb.njit(cache=True)
-def _advance_one(b, fc, ic, fs, is_, W, H, action, obs, C, D, Ainv, Bbar, Mq, PP, G, sos, filt, scal, noise,
-                 limits, wf, wi):
-    """One period of system b (see the module docstring); returns its status."""
+def _advance_one(b, core, plant, outputs, wf, wi):
+    """One period of system b (see the module docstring) with the scratch wf, wi; returns its status."""
+    fc, ic, fs, is_, W, H, action, obs = core
+    C, D, Ainv, Bbar, Mq, PP = plant
+    G, sos, filt, scal, noise, limits = outputs
     nd = C.shape[1]
     n = ic[D_DIMS + DIM_N]
     nsig = G.shape[0]
@@ -288,10 +308,10 @@ def _advance_one(b, fc, ic, fs, is_, W, H, action, obs, C, D, Ainv, Bbar, Mq, PP
             run = math.sqrt(max(dose[1], 0.0) / window)
             if run > dose[2]:
                 dose[2] = run
-        if hist_mode == 1:
+        if hist_mode == HIST_FULL:
             for i in range(nH):
                 H[b, r + 1, i] = h[i]
-        elif hist_mode == 2:
+        elif hist_mode == HIST_PERIOD:
             for i in range(nH):
                 H[b, k, i] = h[i]
     is_[b, T_NSUB] = nsub
@@ -329,26 +349,18 @@ def core_step_parallel(fc, ic, fs, is_, W, H, action, obs):
 
 @nb.njit(cache=True)
 def _run_chunk(fc, ic, fs, is_, W, H, action, obs, scratch, b0, b1):
-    """Systems b0..b1−1, with the scratch row ``scratch`` of fs and is_ (see mrd_env.driver)."""
-    C = _f3(fc, ic, F_C)
-    D = _f3(fc, ic, F_D)
-    Ainv = _f3(fc, ic, F_AINV)
-    Bbar = _f3(fc, ic, F_BBAR)
-    Mq = _f3(fc, ic, F_MQ)
-    PP = _f4(fc, ic, F_PP)
-    G = _f2(fc, ic, F_G)
-    sos = _f2(fc, ic, F_SOS)
-    scal = _f1(fc, ic, F_SCAL)
-    noise = _f1(fc, ic, F_NOISE)
-    limits = _f1(fc, ic, F_LIMITS)
-    filt = _i2(ic, I_FILTERS)
+    """Systems b0..b1−1, with the scratch row ``scratch`` of fs and is_ (see :mod:`mrd_env.stepping.layout`)."""
+    core = CoreArrays(fc, ic, fs, is_, W, H, action, obs)
+    plant = PlantArrays(_f3(fc, ic, F_C), _f3(fc, ic, F_D), _f3(fc, ic, F_AINV), _f3(fc, ic, F_BBAR),
+                        _f3(fc, ic, F_MQ), _f4(fc, ic, F_PP))
+    outputs = OutputArrays(_f2(fc, ic, F_G), _f2(fc, ic, F_SOS), _i2(ic, I_FILTERS), _f1(fc, ic, F_SCAL),
+                           _f1(fc, ic, F_NOISE), _f1(fc, ic, F_LIMITS))
     wf = fs[scratch]
     wi = is_[scratch]
-    m = max(C.shape[1] * (ns + 1), 1)
+    m = max(plant.C.shape[1] * (ns + 1), 1)
     for b in range(b0, b1):
         if is_[b, T_STATUS] != RUNNING:
             continue
         wi[m] = -1
-        status = _advance_one(b, fc, ic, fs, is_, W, H, action, obs, C, D, Ainv, Bbar, Mq, PP, G, sos, filt,
-                              scal, noise, limits, wf, wi)
+        status = _advance_one(b, core, plant, outputs, wf, wi)
         is_[b, T_STATUS] = status

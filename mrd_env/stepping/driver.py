@@ -1,11 +1,11 @@
 """The compiled driver: N coupled systems advanced over one period per call, with everything an environment
 does per step (see ``_driver_template.py``), and the same call for the rig and identification.
 
-A :class:`Driver` packs a coupled system (:class:`~mrd_env.integrator.SystemMatrices` and a damper model) and a
-:class:`Processing` — the named outputs h = G·[Y, F, W], online filters, reward terms, limits, statistics and
-measurements — into four arrays (float and int constants, float and int per-system state), so that one
-``env.step`` is one compiled call with eight arguments (numba's dispatch costs about 30 ns per argument). The
-layout is defined once, here (:data:`LAYOUT`); the kernel reads it from constants written into its source.
+A :class:`Driver` packs a coupled system (:class:`~mrd_env.stepping.matrices.SystemMatrices` and a damper model)
+and a :class:`Processing` — the named outputs h = G·[Y, F, W], online filters, reward terms, limits, statistics
+and measurements — into four arrays (float and int constants, float and int per-system state), so that one
+``env.step`` is one compiled call with eight arguments (numba's dispatch costs about 30 ns per argument). Where
+each thing lives in those arrays is defined once, in :mod:`mrd_env.stepping.layout`, which the kernel imports.
 
 Per-system state (one row of ``fs`` and ``is_`` per system, plus one scratch row for the kernel): the coupled
 state Y, the effective commands U, the forces F, the damper parameters P and command dynamics (η_rise, η_fall,
@@ -20,45 +20,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .command_lag import LAG_DELAY, check_lag, queue_length
-from .integrator import ATOL, RTOL, SystemMatrices, kernel_module, max_level_of
-from .validation import check_scalar
+from ..command_lag import LAG_DELAY, check_lag, queue_length
+from ..validation import check_scalar
+from .codegen import kernel_module
+from .layout import HIST_NONE, LAYOUT, T_FAIL_STEP, T_REASON, T_STATUS, TRUNCATED, pack
+from .matrices import SystemMatrices
+from .scheme import ATOL, RTOL, max_level_of
 
-#: Names shared by the Python side and the kernel (constants F_*, I_*, DIM_*, SC_*, S_*, T_* and the statuses).
-LAYOUT = {
-    "float_constants": ("C", "D", "AINV", "BBAR", "MQ", "PP", "G", "SOS", "SCAL", "NOISE", "LIMITS"),
-    "int_constants": ("MEAS", "RCOLS", "LCOLS", "STAT_COLS", "FILTERS"),
-    "dims": ("N", "NH", "NPAR", "NSUB", "MAX_LEVEL", "HIST_MODE", "CMD_INPUT", "DOSE_COL", "NORMALIZED",
-             "DELAY", "HISTORY", "SCRATCH"),
-    "scalars": ("DT", "VMIN", "VMAX", "RTOL", "ATOL", "PEN_CONST", "PEN_STEP"),
-    "state": ("Y", "U", "F", "P", "LAG", "CMDQ", "CMD", "ZI", "RSCALE", "STATS", "DOSE", "RING", "FIFO", "ROW",
-              "REWARD"),
-    "int_state": ("K", "NSTEPS", "STATUS", "KEY", "COUNTER", "NSUB", "FIFO_POS", "RING_POS", "ROWS", "REASON",
-                  "FAIL_STEP", "SUBSTEPS", "CMDQ_POS"),
-    "status": ("RUNNING", "TERMINATED", "TRUNCATED", "DIVERGED", "BAD_ACTION"),
-}
-RUNNING, TERMINATED, TRUNCATED, DIVERGED, BAD_ACTION = range(5)
 PARALLEL_FROM = 64  # systems from which a batch runs on numba's threads by default
-HIST_NONE, HIST_FULL, HIST_PERIOD = 0, 1, 2
-
-_NF = len(LAYOUT["float_constants"])
-_NI = len(LAYOUT["int_constants"])
-_D_DIMS = 5 * (_NF + _NI)
-_S0 = _D_DIMS + len(LAYOUT["dims"])
-_HEADER_LEN = _S0 + 2 * len(LAYOUT["state"])
-
-
-def layout_source() -> str:
-    """The layout as Python constants, written at the top of the driver's generated source."""
-    lines = [f"F_{n} = {5 * i}" for i, n in enumerate(LAYOUT["float_constants"])]
-    lines += [f"I_{n} = {5 * (_NF + i)}" for i, n in enumerate(LAYOUT["int_constants"])]
-    lines += [f"D_DIMS = {_D_DIMS}"]
-    lines += [f"DIM_{n} = {i}" for i, n in enumerate(LAYOUT["dims"])]
-    lines += [f"SC_{n} = {i}" for i, n in enumerate(LAYOUT["scalars"])]
-    lines += [f"S_{n} = {_S0 + 2 * i}" for i, n in enumerate(LAYOUT["state"])]
-    lines += [f"T_{n} = {i}" for i, n in enumerate(LAYOUT["int_state"])]
-    lines += [f"{n} = {i}" for i, n in enumerate(LAYOUT["status"])]
-    return "\n".join(lines) + "\n"
 
 
 @dataclass
@@ -163,7 +132,7 @@ class Driver:
                  "ZI": 2 * len(sos),
                  "RSCALE": len(pr.reward_cols), "STATS": 2 * len(pr.stat_cols), "DOSE": 3,
                  "RING": max(int(pr.dose_window), 1), "FIFO": depth * n_meas, "ROW": nH, "REWARD": 1}
-        self.fc, self.ic, self._fields = _pack(floats, ints, dims, sizes)
+        self.fc, self.ic, self._fields = pack(floats, ints, dims, sizes)
         wf, wi = self.kernel.workspace_len(nq, nd, n, nw)
         width = max(sum(sizes.values()), int(wf))
         # the last rows are the kernel's scratch, one per thread
@@ -177,7 +146,7 @@ class Driver:
         self.state("LAG")[:] = lag.reshape(N, 3 * nd)
         self.W = np.zeros((N, 2, nw))
         self.H = np.zeros((N, 0, nH))
-        self.is_[:N, LAYOUT["int_state"].index("STATUS")] = TRUNCATED  # nothing runs before a reset
+        self.is_[:N, T_STATUS] = TRUNCATED  # nothing runs before a reset
 
     # --- named views --------------------------------------------------------------------------------------------
     def state(self, name: str) -> np.ndarray:
@@ -227,41 +196,7 @@ class Driver:
 
     def failure(self, b: int) -> tuple[int, float]:
         """(status code of the integrator, time in s) of system b's divergence."""
-        return int(self.is_[b, LAYOUT["int_state"].index("REASON")]), \
-            (int(self.is_[b, LAYOUT["int_state"].index("FAIL_STEP")]) + 1) * self.dt
-
-
-def _pack(floats: dict, ints: dict, dims: dict, sizes: dict):
-    """(fc, ic, field offsets): the constants in one float and one int array with the headers the kernel reads
-    (offset and up to four dimensions per array), and the per-system field offsets."""
-    fc_parts, ic_head = [], []
-    o = 0
-    for name in LAYOUT["float_constants"]:
-        a = np.ascontiguousarray(floats[name], dtype=np.float64)
-        shape = list(a.shape) + [1] * (4 - a.ndim)
-        ic_head += [o, *shape]
-        fc_parts.append(a.ravel())
-        o += a.size
-    int_data = []
-    o_int = _HEADER_LEN
-    for name in LAYOUT["int_constants"]:
-        a = np.ascontiguousarray(np.asarray(ints[name], dtype=np.int64))
-        if a.ndim == 1:
-            a = a.reshape(-1)
-        shape = list(a.shape) + [1] * (4 - a.ndim)
-        ic_head += [o_int, *shape]
-        int_data.append(a.ravel())
-        o_int += a.size
-    ic_head += [int(dims[n]) for n in LAYOUT["dims"]]
-    fields, o = {}, 0
-    for name in LAYOUT["state"]:
-        fields[name] = (o, int(sizes[name]))
-        ic_head += [o, int(sizes[name])]
-        o += int(sizes[name])
-    assert len(ic_head) == _HEADER_LEN
-    fc = np.concatenate(fc_parts) if fc_parts else np.zeros(0)
-    ic = np.concatenate([np.array(ic_head, dtype=np.int64)] + int_data)
-    return np.ascontiguousarray(fc), np.ascontiguousarray(ic), fields
+        return int(self.is_[b, T_REASON]), (int(self.is_[b, T_FAIL_STEP]) + 1) * self.dt
 
 
 def noise_keys(rngs) -> np.ndarray:

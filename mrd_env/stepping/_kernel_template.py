@@ -1,13 +1,14 @@
-"""Template of the compiled stepping routine (see :mod:`mrd_env.integrator`).
+"""Template of the compiled stepping routine (see :mod:`mrd_env.stepping`).
 
-Not imported as such: :func:`mrd_env.integrator.kernel_module` writes, for each damper model, a module made of
-a short header binding ``rhs``, ``force``, ``project`` (the model's numba functions, compiled again inline),
+Not imported as such: :func:`mrd_env.stepping.codegen.kernel_module` writes, for each damper model, a module made
+of a short header binding ``rhs``, ``force``, ``project`` (the model's numba functions, compiled again inline),
 ``partials`` (the model's analytic derivatives, or :func:`fd_partials` below) and ``ns`` (its number of internal
-states), followed by this text. Each model thus gets its own module-level kernel with those functions as
+states) — the names this file imports from :mod:`mrd_env.stepping.injected` — followed by this text and the
+driver's (``_driver_template.py``). Each model thus gets its own module-level kernel with those functions as
 compile-time constants, and numba can cache it on disk across processes.
 
-The stage equations Z = R + hγ f(Z) are solved with the linear plant eliminated (see the integrator's
-docstring): the unknowns are each damper's internal states s_j and its force F_j, nd·(ns + 1) of them.
+The stage equations Z = R + hγ f(Z) are solved with the linear plant eliminated (see :mod:`mrd_env.stepping`):
+the unknowns are each damper's internal states s_j and its force F_j, nd·(ns + 1) of them.
 
 Conventions of the arrays passed down (everything is inlined into one function per driver, and a call with
 more than 30 arguments cannot be inlined, hence the stacking):
@@ -17,7 +18,7 @@ more than 30 arguments cannot be inlined, hence the stacking):
 * Jd (nd, ns + 1, ns + 2): per damper, the Jacobian of (ṡ, F) with respect to (s, x, ẋ), rows 0..ns−1 for
   g = ṡ and row ns for F, columns 0..ns−1 for s, then x, then ẋ (what ``partials`` writes).
 * lag (nd, 3): per damper η_rise, η_fall and the delay τ (:mod:`mrd_env.command_lag`); over a step the delayed
-  command is va up to ts, then vb (va, vb, ts: rows 10-12 of Vd).
+  command is va up to ts, then vb (rows VD_VA, VD_VB, VD_TS of Vd, :mod:`mrd_env.stepping.layout`).
 * scratch: Vn (7, max(n, m)) vectors of the state length (and the Newton residual), Vd (13, nd) of the damper
   count, Vx (4, L) short vectors (q̄, ṡ, finite-difference work, the input inside a step), K (m, m) the Newton
   matrix, Iw (m + 1) its pivots and the level it was factorised for.
@@ -25,13 +26,14 @@ more than 30 arguments cannot be inlined, hence the stacking):
 import math
 
 import numba as nb
-import numpy as np
-
-from mrd_env.integrator import GAMMA, NO_CONVERGENCE, NONFINITE, OK
-from mrd_env.integrator import _lu_factor as _lu_factor_dispatcher, _lu_solve as _lu_solve_dispatcher
 
 from mrd_env.command_lag import delay_split as _delay_split_dispatcher, lag_value as _lag_value_dispatcher
+from mrd_env.stepping.injected import force, ns, partials, project, rhs  # injected
+from mrd_env.stepping.layout import VD_TS, VD_VA, VD_VB
+from mrd_env.stepping.matrices import lu_factor as _lu_factor_dispatcher, lu_solve as _lu_solve_dispatcher
+from mrd_env.stepping.scheme import GAMMA, NO_CONVERGENCE, NONFINITE, OK
 
+# compiled again inline: the Newton loop makes no calls
 _lu_factor = nb.njit(inline='always')(_lu_factor_dispatcher.py_func)
 _lu_solve = nb.njit(inline='always')(_lu_solve_dispatcher.py_func)
 _lag_value = nb.njit(inline='always')(_lag_value_dispatcher.py_func)
@@ -228,7 +230,7 @@ def solve_stage(C, D, Ainv, Bbar, Mq, PP, P, R, u, w, hg, Z, Fz, atol, rtol, reu
 def sdirk_step(C, D, Ainv, Bbar, Mq, PP, P, Y, Fz, u0, lag, w0, w1, tau0, h, H, atol, rtol, level, wf, wi):
     """One SDIRK2 step of length h = H/2^level starting at τ0 (relative to the macro step of length H), with
     the level matrices Ainv, Bbar, Mq, PP of this h. Y and the force guess Fz are updated only on success; the
-    effective commands at the stages follow exactly from u0 at τ = 0 and the delayed commands (Vd rows 10-12).
+    effective commands at the stages follow exactly from u0 at τ = 0 and the delayed commands (Vd rows VD_VA..VD_TS).
 
     The factorised Newton matrix of an earlier step of the same length starts the iterations (refreshed as
     soon as convergence slows). Returns (converged, error estimate in units of the tolerance)."""
@@ -247,9 +249,9 @@ def sdirk_step(C, D, Ainv, Bbar, Mq, PP, P, Y, Fz, u0, lag, w0, w1, tau0, h, H, 
     F1 = Vd[5]
     u1 = Vd[8]
     u2 = Vd[9]
-    va = Vd[10]
-    vb = Vd[11]
-    ts = Vd[12]
+    va = Vd[VD_VA]
+    vb = Vd[VD_VB]
+    ts = Vd[VD_TS]
     for i in range(n):
         R[i] = Y[i]
         Z1[i] = Y[i]
@@ -346,8 +348,8 @@ def _interpolate(w0, w1, frac, out):
 
 @nb.njit(cache=True)
 def macro_step(C, D, Ainv, Bbar, Mq, PP, P, lag, Y, U, Fz, w0, w1, dt, max_level, nsub, atol, rtol, wf, wi):
-    """Advance one system by dt (inputs w0 → w1; the delayed commands of the step in rows 10-12 of the scratch
-    Vd, see :func:`delayed_commands`), splitting the step into 2^k sub-steps as the error estimate asks
+    """Advance one system by dt (inputs w0 → w1; the delayed commands of the step in rows VD_VA..VD_TS of the
+    scratch Vd, see :func:`delayed_commands`), splitting the step into 2^k sub-steps as the error estimate asks
     (k ≤ max_level), starting from ``nsub`` sub-steps.
 
     Y, U (effective commands) and Fz (forces) are updated in place. Returns (status, sub-steps used, sub-steps
@@ -399,7 +401,7 @@ def macro_step(C, D, Ainv, Bbar, Mq, PP, P, lag, Y, U, Fz, w0, w1, dt, max_level
         level += 1
     # exact command lag over the whole step, then the forces at its end
     for j in range(nd):
-        U[j] = _lag_value(u0[j], Vd[10, j], Vd[11, j], Vd[12, j], lag[j, 0], lag[j, 1], dt)
+        U[j] = _lag_value(u0[j], Vd[VD_VA, j], Vd[VD_VB, j], Vd[VD_TS, j], lag[j, 0], lag[j, 1], dt)
     status = end_forces(C, D, P, Y, U, w1, Fz, Vd)
     used = 1 << level
     return status, used, (used // 2 if (level > 0 and 8.0 * worst < 0.8) else used)
@@ -428,11 +430,11 @@ def end_forces(C, D, P, Y, U, w, Fz, Vd):
 
 @nb.njit(inline='always')
 def delayed_commands(queue, pos, lag, dt, Vd):
-    """The commands of the step (rows 10-12 of Vd: va until ts, then vb) from each damper's queue of past
+    """The commands of the step (rows VD_VA, VD_VB, VD_TS of Vd: va until ts, then vb) from each damper's queue of past
     commands (Q, nd), the newest at ``pos``, for the delays τ = lag[j, 2] (:mod:`mrd_env.command_lag`)."""
     Q = queue.shape[0]
     for j in range(queue.shape[1]):
         m, s = _delay_split(lag[j, 2], dt)
-        Vd[11, j] = queue[(pos - m) % Q, j]
-        Vd[10, j] = queue[(pos - m - 1) % Q, j]
-        Vd[12, j] = s
+        Vd[VD_VB, j] = queue[(pos - m) % Q, j]
+        Vd[VD_VA, j] = queue[(pos - m - 1) % Q, j]
+        Vd[VD_TS, j] = s

@@ -1,0 +1,119 @@
+"""The code generator: one compiled stepping module per damper model, written from the templates and cached on
+disk (the source in the kernel folder, numba's compilation of it beside it), so that a new process loads it
+instead of compiling again."""
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import inspect
+import os
+import re
+import sys
+import tempfile
+from pathlib import Path
+
+HERE = Path(__file__).parent
+KERNEL_TEMPLATES = (HERE / "_kernel_template.py", HERE / "_driver_template.py")
+#: Lines of a template ending with this comment import what the generated module defines itself (see
+#: :mod:`mrd_env.stepping.injected`); :func:`render` drops them.
+INJECTED = "# injected"
+# Files the kernel's code comes from besides the templates: the scheme's constants, the LU helpers, the layout's
+# slot numbers and the command lag. The cache key covers them, so an edit never meets a stale kernel.
+_SHARED = (HERE / "scheme.py", HERE / "matrices.py", HERE / "layout.py", HERE.parent / "command_lag.py")
+
+_KERNELS: dict = {}
+
+
+def kernel_dir() -> Path:
+    """Where generated kernels (and numba's cache of them) live: $MRD_ENV_CACHE_DIR, else the user cache."""
+    env = os.environ.get("MRD_ENV_CACHE_DIR")
+    base = Path(env) if env else Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "mrd-env"
+    d = base / "kernels"
+    try:
+        d.mkdir(parents=True, exist_ok=True)
+        probe = d / f".probe-{os.getpid()}"
+        probe.write_text("")
+        probe.unlink()
+    except OSError:  # read-only home: fall back to the temporary directory
+        d = Path(tempfile.gettempdir()) / f"mrd-env-kernels-{os.getuid() if hasattr(os, 'getuid') else 0}"
+        d.mkdir(parents=True, exist_ok=True)
+    return d
+
+
+def render(template: Path, header: str, footer: str = "") -> str:
+    """``header`` + the template without its ``# injected`` lines + ``footer``."""
+    lines = template.read_text(encoding="utf-8").splitlines(keepends=True)
+    kept = [ln for ln in lines if not ln.rstrip().endswith(INJECTED)]
+    if len(kept) == len(lines):
+        raise ValueError(f"{template.name} has no '{INJECTED}' line: what does it take from the generator?")
+    return header + "".join(kept) + footer
+
+
+def kernel_source(model_cls) -> tuple[str, str]:
+    """(source, cache key) of a damper model's stepping module: the model's functions, then the kernel and
+    driver templates."""
+    fns = {"rhs": model_cls.rhs, "force": model_cls.force_law, "project": model_cls.project}
+    analytic = getattr(model_cls, "partials", None)
+    if analytic is not None:
+        fns["partials"] = analytic
+    # the model's functions are compiled again inline: one function per step, no calls in the Newton loop
+    header = "".join(f"from {f.py_func.__module__} import {f.py_func.__name__} as _{name}_dispatcher\n"
+                     f"{name} = nb.njit(inline='always')(_{name}_dispatcher.py_func)\n" for name, f in fns.items())
+    header = "import numba as nb\n" + header + f"ns = {len(model_cls.state_names)}\n"
+    kernel, driver = KERNEL_TEMPLATES
+    footer = "" if analytic is not None else "\npartials = fd_partials  # the model has no analytic derivatives\n"
+    source = render(kernel, header) + "\n\n" + render(driver, "", footer)
+    # the key covers the templates, the shared files and the model's own modules, so an edited model never
+    # meets a stale kernel and editing one model recompiles only its kernel
+    h = hashlib.sha256(source.encode())
+    for shared in _SHARED:
+        h.update(shared.read_bytes())
+    for module in sorted(model_modules(model_cls)):
+        h.update(Path(module).read_bytes())
+    return source, h.hexdigest()[:16]
+
+
+def model_modules(model_cls) -> set[str]:
+    """Source files of the model's class and of every function its kernel calls, followed through the imports of
+    the damper package (e.g. the shared Bouc–Wen hysteresis)."""
+    files = {inspect.getsourcefile(model_cls)}
+    pkg = HERE.parent / "dampers"
+    todo = list(files)
+    while todo:
+        text = Path(todo.pop()).read_text(encoding="utf-8")
+        for name in re.findall(r"^from \.(\w+) import", text, flags=re.M):
+            f = str(pkg / f"{name}.py")
+            if f not in files and Path(f).exists():
+                files.add(f)
+                todo.append(f)
+    return files
+
+
+def kernel_module(model_cls):
+    """The compiled module of a damper model class (``macro_step``, ``core_step``, ... of the templates).
+
+    Built once per process from a generated module whose numba compilation is cached on disk, so a new
+    process loads it instead of compiling again.
+    """
+    module = _KERNELS.get(model_cls)
+    if module is None:
+        module = _KERNELS[model_cls] = load_generated_module(f"mrd_env_kernel_{model_cls.name}",
+                                                             *kernel_source(model_cls))
+    return module
+
+
+def load_generated_module(prefix: str, source: str, key: str):
+    """Write ``source`` as ``<prefix>_<key>.py`` in the kernel cache folder (if needed) and import it."""
+    mod_name = f"{prefix}_{key}"
+    if mod_name in sys.modules:
+        return sys.modules[mod_name]
+    path = kernel_dir() / f"{mod_name}.py"
+    if not path.exists() or path.read_text() != source:
+        tmp = path.with_suffix(f".{os.getpid()}.tmp")
+        tmp.write_text(source)
+        os.replace(tmp, path)  # atomic: concurrent processes never see half a file
+    spec = importlib.util.spec_from_file_location(mod_name, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[mod_name] = module
+    spec.loader.exec_module(module)
+    return module
