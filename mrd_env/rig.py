@@ -2,7 +2,7 @@
 
 Sinusoidal tests (the review's section 4 sinusoidal tester), band-limited random tests, and a user's own
 displacement/command record. Several records (e.g. one per command level) run as one vectorised batch
-through the shared stepping routine :func:`mrd_env.integrator.run`.
+through the shared stepping routine :func:`mrd_env.stepping.run`.
 """
 from __future__ import annotations
 

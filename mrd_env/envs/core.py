@@ -1,5 +1,5 @@
 """The environment core shared by the scalar and the vector environments: an :class:`Assembly` of parts turned
-into one compiled :class:`~mrd_env.driver.Driver` of N systems.
+into one compiled :class:`~mrd_env.stepping.Driver` of N systems.
 
 An assembly is what a plant's environment module builds from the user's options (see
 :mod:`.quarter_car`, :mod:`.shear_building`): the damper, the linear plant and their coupling, the named

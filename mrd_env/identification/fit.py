@@ -20,7 +20,7 @@ the parameter bounds, all with a tqdm progress bar:
   pooled objective). Parameters are scaled to [0, 1] by their bounds; the Jacobian is a central difference
   in that scale (one-sided at a bound), its columns simulated as one batch.
 * ``"differential_evolution"`` — ``scipy.optimize.differential_evolution`` with ``vectorized=True``: each
-  generation is one batched simulation of the whole population (``integrator.run``'s per-system P).
+  generation is one batched simulation of the whole population (``mrd_env.stepping.run``'s per-system P).
 * ``"pso"`` — particle swarm from pymoo (``pymoo.algorithms.soo.nonconvex.pso.PSO``, an optional
   dependency), one batched simulation per swarm generation.
 

@@ -3,7 +3,7 @@
 At each sample t_k the inverse gets the desired force of the next sample f_d(t_{k+1}), the measured motion
 x(t_k), ẋ(t_k) and the damper's force f(t_k); its command is held over [t_k, t_{k+1}] while the damper — any
 :class:`~mrd_env.dampers.DamperModel`, the "plant", stepped by the project's stepping routine
-(:class:`~mrd_env.integrator.Stepper`) on the rig — follows the motion. The tracking error is scored from the
+(:class:`~mrd_env.stepping.Stepper`) on the rig — follows the motion. The tracking error is scored from the
 second sample on (the first cannot be commanded):
 
 * NRMSE = sqrt(mean (f − f_d)²) / sqrt(mean f_d²) (the project's normalised RMS error), and

@@ -317,7 +317,7 @@ class CoupledModel:
 
     def sdirk_residual(self, Y0, Z1, Y1, w0, w1, u0, va, vb, ts: float, h: float):
         """The residuals (2·ny) of one SDIRK2 step of length h from Y0 with stage value Z1 and result Y1 — the
-        stepping routine's scheme (:mod:`mrd_env.integrator`):
+        stepping routine's scheme (:mod:`mrd_env.stepping`):
 
             Z1 = Y0 + hγ f(t + γh, Z1),     Y1 = Y0 + (1 − γ)/γ (Z1 − Y0) + hγ f(t + h, Y1)
 

@@ -10,7 +10,7 @@ A plant with n degrees of freedom q, n_d dampers and exogenous inputs w (road or
 minimum command: the damper's static force at rest F_static (an accumulator preload such as k1·x0) is
 balanced by a constant term, so a plant at rest stays at rest. A damper's inertance m_d (a force term
 m_d·ẍ_d) is added to the mass matrix as m_d Sᵀ S. The coupled first-order system is handed to the shared
-stepping routine (:mod:`mrd_env.integrator`), which advances plant and damper states together.
+stepping routine (:mod:`mrd_env.stepping`), which advances plant and damper states together.
 """
 from __future__ import annotations
 
