@@ -19,7 +19,7 @@ import numpy as np
 
 AGENT_FORMAT = "mrd-env-agent"
 #: Options of the environment that define what an agent sees and does (kept whatever the scenario).
-OBSERVATION_OPTIONS = ("sensors", "sensor_noise", "sensor_delay", "history", "control_dt", "dt", "action_mode",
+OBSERVATION_OPTIONS = ("sensors", "sensor_noise", "sensor_delay", "history", "preview", "control_dt", "dt", "action_mode",
                        "damper", "damper_preset", "damper_params", "plant_preset", "plant_params", "damper_floors")
 SHIPPED = Path(__file__).with_name("agents")
 
@@ -112,17 +112,28 @@ class TrainedAgent:
     def bind(self, env):
         """This agent as a :class:`~controllers.base.AgentController` of ``env`` (one or a vector of them), after
         checking that ``env`` shows it the observation it was trained on."""
-        from .base import AgentController
-
         base = getattr(env, "unwrapped", env)
         shape = tuple(getattr(base, "single_observation_space", base.observation_space).shape)
+        if self.meta.get("residual"):  # a residual agent also sees its law's commands
+            shape = (shape[0] + int(base.n_dampers),)
         if self._mean is not None and shape != tuple(np.shape(self._mean)):
             raise ValueError(f"agent {self.name}: the environment's observation has shape {shape}, the agent was "
                              f"trained on {tuple(np.shape(self._mean))}; build it with agent.observation_kwargs")
         if abs(float(base.control_dt) - float(self.env_kwargs.get("control_dt", 1e-3))) > 1e-12:
             raise ValueError(f"agent {self.name}: the environment steps every {base.control_dt:g} s, the agent was "
                              f"trained at {self.env_kwargs.get('control_dt', 1e-3):g} s")
-        return AgentController(env, self, name=self.name, env_kwargs=self.env_kwargs)
+        return agent_controller(env, self, self.meta.get("residual"), name=self.name, env_kwargs=self.env_kwargs)
+
+
+def agent_controller(env, model, residual: dict | None = None, **options):
+    """``model`` (SB3's ``predict`` on raw observations) as a controller of ``env``: its actions are the
+    environment's (:class:`~controllers.base.AgentController`) or, with ``residual`` = {"law": name, "scale": s},
+    corrections to that law's command (:class:`~controllers.residual.ResidualController`)."""
+    if residual:
+        from .residual import ResidualController
+        return ResidualController(env, model, residual["law"], residual.get("scale", 1.0), **options)
+    from .base import AgentController
+    return AgentController(env, model, **options)
 
 
 def load_agent(path: str | Path) -> TrainedAgent:

@@ -41,8 +41,14 @@ HYPERPARAMS = Path(__file__).with_name("hyperparams")
 def available_algos() -> list[str]:
     """The algorithms ``--algo`` offers: those with a shipped hyperparameter file (others need ``--hyperparams``)."""
     return sorted(a for a in ALGOS if (HYPERPARAMS / f"{a}.yml").exists())
-#: Keys of a hyperparameter entry that are not the algorithm's keyword arguments (RL Zoo's conventions).
-_ZOO_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "env_kwargs")
+#: Keys of a hyperparameter entry that are not the algorithm's keyword arguments: RL Zoo's, and ours —
+#: ``residual`` (a law's name, or {law, scale}: the agent learns a correction to it, :mod:`controllers.residual`)
+#: and ``paired_baseline`` (a law's name: rewards relative to it on the same disturbance,
+#: :class:`controllers.training_wrappers.PairedBaselineVecEnv`).
+_ZOO_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "env_kwargs", "noise_type", "noise_std", "residual",
+             "paired_baseline")
+#: RL Zoo's ``noise_type`` values (action noise of the off-policy algorithms, std ``noise_std`` in action units).
+NOISE_TYPES = ("normal", "ornstein-uhlenbeck")
 
 
 def agent_metadata(path: str | Path) -> dict:
@@ -92,11 +98,59 @@ def check_hyperparameters(algo: str, hyper: dict) -> dict:
                          f"{sorted(_ZOO_KEYS)} and {sorted(accepted)}")
     for v in hyper.values():
         schedule(v)  # a malformed lin_ schedule is refused before training
+    residual_spec(hyper.get("residual"))
+    if hyper.get("noise_type") is not None and hyper["noise_type"] not in NOISE_TYPES:
+        raise ValueError(f"hyperparameter noise_type must be one of {list(NOISE_TYPES)}, got {hyper['noise_type']!r}")
+    std = hyper.get("noise_std", 0.1)
+    if isinstance(std, bool) or not isinstance(std, (int, float)) or not std > 0:
+        raise ValueError(f"hyperparameter noise_std must be a number > 0, got {std!r}")
+    if hyper.get("paired_baseline") is not None and not isinstance(hyper["paired_baseline"], str):
+        raise ValueError(f"hyperparameter paired_baseline must be a law's name, got {hyper['paired_baseline']!r}")
     for key in ("n_envs", "n_timesteps"):
         v = hyper.get(key, 1)
         if isinstance(v, bool) or not isinstance(v, (int, float)) or v < 1 or float(v) != int(v):
             raise ValueError(f"hyperparameter {key} must be an integer >= 1, got {v!r}")
     return hyper
+
+
+def residual_spec(value) -> dict | None:
+    """The ``residual`` entry as {"law": name, "scale": s} (None: no residual); ``ValueError`` if malformed."""
+    if value is None or value is False:
+        return None
+    spec = {"law": value} if isinstance(value, str) else dict(value) if isinstance(value, dict) else None
+    if spec is None or not isinstance(spec.get("law"), str) or set(spec) - {"law", "scale"}:
+        raise ValueError(f"hyperparameter residual must be a law's name or {{law: name, scale: s}}, got {value!r}")
+    scale = spec.setdefault("scale", 1.0)
+    if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not 0 < scale <= 1:
+        raise ValueError(f"the residual's scale must be a number in (0, 1], got {scale!r}")
+    return spec
+
+
+def check_laws(hyper: dict, env_id: str, env_kwargs: dict) -> None:
+    """The residual's and the paired baseline's laws exist and apply to the environment (``ValueError`` naming
+    the option and the valid laws otherwise), before any training starts."""
+    from controllers import available_controllers
+    from controllers.residual import Residual
+
+    import gymnasium as gym
+
+    laws = [("residual", (residual_spec(hyper.get("residual")) or {}).get("law")),
+            ("paired_baseline", hyper.get("paired_baseline"))]
+    laws = [(k, law) for k, law in laws if law is not None]
+    if not laws:
+        return
+    for key, law in laws:
+        if law not in available_controllers():
+            raise ValueError(f"{key} must be one of {available_controllers()}, got {law!r}")
+    env = gym.make(env_id, **env_kwargs)
+    try:
+        for key, law in laws:
+            try:
+                Residual(env, law)
+            except ValueError as exc:
+                raise ValueError(f"{key} {law!r} does not apply to {env_id}: {exc}") from None
+    finally:
+        env.close()
 
 
 def check_with_sb3(algo: str, hyper: dict, env_id: str, env_kwargs: dict) -> None:
@@ -106,9 +160,9 @@ def check_with_sb3(algo: str, hyper: dict, env_id: str, env_kwargs: dict) -> Non
 
     from mrd_env.envs.sb3 import make_sb3_vec_env
 
-    kwargs = {k: schedule(v) for k, v in hyper.items() if k not in _ZOO_KEYS}
     cls = _algorithm(ALGOS[algo])
     venv = make_sb3_vec_env(env_id, n_envs=1, seed=0, **env_kwargs)
+    kwargs = algorithm_kwargs(hyper, venv.action_space.shape[0])
     policy = hyper.get("policy", "MlpPolicy")
 
     def builds(kw: dict) -> Exception | None:
@@ -129,9 +183,22 @@ def check_with_sb3(algo: str, hyper: dict, env_id: str, env_kwargs: dict) -> Non
         culprits = [k for k in kwargs if builds({k: kwargs[k]}) is not None] or sorted(kwargs)
         detail = " ".join(str(error).split())[:160] or type(error).__name__
         raise ValueError(f"{ALGOS[algo]} rejects hyperparameter(s) "
-                         f"{', '.join(f'{k}={hyper[k]!r}' for k in culprits)}: {detail}")
+                         f"{', '.join(f'{k}={hyper.get(k, kwargs[k])!r}' for k in culprits)}: {detail}")
     finally:
         venv.close()
+
+
+def algorithm_kwargs(hyper: dict, n_actions: int) -> dict:
+    """The algorithm's keyword arguments of a hyperparameter entry: its own keys (``lin_`` schedules made
+    SB3's), and RL Zoo's ``noise_type``/``noise_std`` as an ``action_noise``."""
+    kwargs = {k: schedule(v) for k, v in hyper.items() if k not in _ZOO_KEYS}
+    if hyper.get("noise_type"):
+        from stable_baselines3.common.noise import NormalActionNoise, OrnsteinUhlenbeckActionNoise
+
+        cls = NormalActionNoise if hyper["noise_type"] == "normal" else OrnsteinUhlenbeckActionNoise
+        std = float(hyper.get("noise_std", 0.1))
+        kwargs["action_noise"] = cls(mean=np.zeros(n_actions), sigma=std * np.ones(n_actions))
+    return kwargs
 
 
 def schedule(value):
@@ -207,13 +274,13 @@ class _Live:
 
 
 def _callbacks(run_dir: Path, model_saver, vecnorm, scenarios: list[Scenario], obs_kwargs: dict, eval_freq: int,
-               checkpoint_freq: int, timesteps: int, progress: bool, report=None):
+               checkpoint_freq: int, timesteps: int, progress: bool, report=None, residual: dict | None = None):
     """Validation with best-agent saving, checkpoints and a progress bar (SB3 callbacks); ``report(timesteps,
     validation_return) -> bool`` is told every validation and stops the training when it returns False (a
     hyperparameter search's pruning)."""
     from stable_baselines3.common.callbacks import BaseCallback
 
-    from controllers.base import AgentController
+    from controllers.agents import agent_controller
 
     from .evaluation import evaluate_batch
 
@@ -229,7 +296,7 @@ def _callbacks(run_dir: Path, model_saver, vecnorm, scenarios: list[Scenario], o
             live = _Live(self.model, vecnorm)
             returns = []
             for sc in scenarios:
-                eps = evaluate_batch(lambda v: AgentController(v, live, name="live"), sc, "", **obs_kwargs)
+                eps = evaluate_batch(lambda v: agent_controller(v, live, residual, name="live"), sc, "", **obs_kwargs)
                 returns += [e.episode_return for e in eps]
             mean = float(np.mean(returns))
             self.rows.append({"timesteps": self.num_timesteps, "validation_return": mean,
@@ -294,6 +361,15 @@ def _write_csv(path: Path, rows: list[dict]) -> None:
         w.writerows(rows)
 
 
+def run_name(plant: str, algo: str, hyper: dict, env_kwargs: dict) -> str:
+    """``<plant>_<algo>`` with the variant's tags: ``-residual``, ``-paired``, ``-h<k>`` (history), ``-preview``."""
+    tags = (["residual"] if residual_spec(hyper.get("residual")) else []) + \
+        (["paired"] if hyper.get("paired_baseline") else []) + \
+        ([f"h{int(env_kwargs['history'])}"] if int(env_kwargs.get("history", 1)) > 1 else []) + \
+        (["preview"] if env_kwargs.get("preview") else [])
+    return "_".join((plant, "-".join([algo, *tags])))
+
+
 def train_one(plant: str, algo: str, seed: int, *, out: Path, timesteps: int | None = None,
               hyper: dict | None = None, env_kwargs: dict | None = None, eval_freq: int = 20_000,
               eval_episodes: int = 8, checkpoint_freq: int = 0, tensorboard: bool = False, progress: bool = False,
@@ -313,6 +389,8 @@ def train_one(plant: str, algo: str, seed: int, *, out: Path, timesteps: int | N
     from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
 
     from controllers.agents import AGENT_FORMAT, _algorithm
+    from controllers.residual import zero_policy_output
+    from controllers.training_wrappers import PairedBaselineVecEnv, ResidualVecEnv
 
     from mrd_env.envs.sb3 import make_sb3_vec_env
 
@@ -328,18 +406,25 @@ def train_one(plant: str, algo: str, seed: int, *, out: Path, timesteps: int | N
     timesteps = int(timesteps if timesteps is not None else float(hyper.get("n_timesteps", 100_000)))
     if timesteps < 1:
         raise ValueError(f"timesteps must be >= 1, got {timesteps}")
-    run_dir = Path(out) / f"{plant}_{algo}_s{seed}"
+    run_dir = Path(out) / f"{run_name(plant, algo, hyper, env_kwargs)}_s{seed}"
     run_dir.mkdir(parents=True, exist_ok=True)
     torch.set_num_threads(1)  # the environments take the other core
-    venv = VecMonitor(make_sb3_vec_env(env_id, n_envs=n_envs, seed=seed, **env_kwargs),
-                      filename=str(run_dir / "training"))
+    residual = residual_spec(hyper.get("residual"))
+    venv = make_sb3_vec_env(env_id, n_envs=n_envs, seed=seed, **env_kwargs)
+    if residual:
+        venv = ResidualVecEnv(venv, residual["law"], residual["scale"])
+    venv = VecMonitor(venv, filename=str(run_dir / "training"))  # the environment's own returns
+    if hyper.get("paired_baseline"):
+        venv = PairedBaselineVecEnv(venv, hyper["paired_baseline"])
     normalize = hyper.get("normalize", True)
     norm_kw = normalize if isinstance(normalize, dict) else {}
     vecnorm = VecNormalize(venv, gamma=float(hyper.get("gamma", 0.99)), **norm_kw) if normalize else None
     train_env = vecnorm if vecnorm is not None else venv
-    kwargs = {k: schedule(v) for k, v in hyper.items() if k not in _ZOO_KEYS}
+    kwargs = algorithm_kwargs(hyper, venv.action_space.shape[0])
     model = _algorithm(ALGOS[algo])(hyper.get("policy", "MlpPolicy"), train_env, seed=seed, device="cpu", verbose=0,
                                     tensorboard_log=str(Path(out) / "tensorboard") if tensorboard else None, **kwargs)
+    if residual:  # the untrained agent is its law exactly
+        zero_policy_output(model)
     t_start = time.perf_counter()
 
     def save(folder: Path, extra: dict) -> None:
@@ -347,7 +432,7 @@ def train_one(plant: str, algo: str, seed: int, *, out: Path, timesteps: int | N
         model.save(folder / "model.zip")
         meta = {"format": AGENT_FORMAT, "name": f"{ALGOS[algo]} s{seed}", "plant": plant, "env_id": env_id,
                 "algo": ALGOS[algo], "recurrent": algo == "recurrentppo", "seed": seed, "timesteps": timesteps,
-                "env_kwargs": env_kwargs, "hyperparameters": hyper, "model": "model.zip",
+                "env_kwargs": env_kwargs, "hyperparameters": hyper, "model": "model.zip", "residual": residual,
                 "normalization": None, "command": command, "wall_time_s": time.perf_counter() - t_start, **extra}
         if vecnorm is not None:
             rms = vecnorm.obs_rms
@@ -360,7 +445,7 @@ def train_one(plant: str, algo: str, seed: int, *, out: Path, timesteps: int | N
     val, obs_kwargs = validation_split(plant, env_kwargs, eval_episodes)
     scenarios = [val]
     callbacks = _callbacks(run_dir, save, vecnorm, scenarios, obs_kwargs, eval_freq, checkpoint_freq, timesteps,
-                           progress, report)
+                           progress, report, residual)
     try:
         model.learn(total_timesteps=timesteps, callback=list(callbacks), tb_log_name=run_dir.name)
     except KeyboardInterrupt:  # the run so far is an agent: evaluate takes the folder
@@ -464,10 +549,11 @@ def train(plant: str, algo: str, seeds, *, backend: str = "serial", jobs: int | 
     folders = run_tasks(tasks, backend=backend, jobs=jobs, address=address,
                         progress=kw.get("progress", False) and parallel, desc=f"train {plant} {algo}")
     if len(folders) > 1:
-        env_kwargs = {**(kw.get("env_kwargs") or env_options(plant)),
-                      **((kw.get("hyper") or {}).get("env_kwargs") or {})}
+        hyper = kw.get("hyper") or {}
+        env_kwargs = {**(kw.get("env_kwargs") or env_options(plant)), **(hyper.get("env_kwargs") or {})}
         refs = law_references(plant, env_kwargs, kw.get("eval_episodes", 8)) if kw.get("eval_freq") else None
-        plot_seed_curves(folders, Path(kw["out"]) / f"{plant}_{algo}_learning_curves.png", refs)
+        plot_seed_curves(folders, Path(kw["out"]) / f"{run_name(plant, algo, hyper, env_kwargs)}_learning_curves.png",
+                         refs)
     return folders
 
 
@@ -507,6 +593,16 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--control-dt", type=float, default=0.01, help="agent step in s (a multiple of 1 ms; default 0.01)")
     p.add_argument("--sensors", nargs="+", default=None, help="sensor names (default: the plant's measured set)")
     p.add_argument("--history", type=int, default=1, help="control steps stacked in the observation (default 1)")
+    p.add_argument("--preview", action="store_true",
+                   help="quarter car: the agent also sees the road 10..100 ms ahead (the road_preview sensor)")
+    p.add_argument("--residual", default=None, metavar="LAW",
+                   help="the agent learns a correction to this law's command, starting exactly at the law "
+                        "(default: the YAML's residual, if any; 'none' to switch it off)")
+    p.add_argument("--residual-scale", type=float, default=None,
+                   help="largest correction as a share of the command range, in (0, 1] (default 1)")
+    p.add_argument("--paired-baseline", default=None, metavar="LAW",
+                   help="variance reduction: rewards relative to this law on the same disturbance "
+                        "(default: the YAML's paired_baseline; 'none' to switch it off)")
     p.add_argument("--damper", default=None,
                    help="damper model name or preset file (fitted.json from mrd-env identify; default: the plant's)")
     p.add_argument("--disturbance", default=None,
@@ -558,10 +654,26 @@ def run(args: argparse.Namespace) -> int:
         damper_class(args.damper)  # ValueError naming the models, or the preset file's problem
         # a preset file by its absolute path, so that the agent's record finds it from anywhere
         env_kwargs["damper"] = str(Path(args.damper).resolve()) if is_preset_file(args.damper) else args.damper
+    if args.preview:
+        from .scenarios import preview_options
+        env_kwargs = preview_options(args.plant, env_kwargs)
     env_id = ENV_IDS[args.plant]
-    hyper = hyperparameters(args.algo, env_id, args.hyperparams, _parse_overrides(args.set))
+    overrides = _parse_overrides(args.set)
+    if args.residual is not None:
+        overrides["residual"] = None if args.residual == "none" else \
+            {"law": args.residual, **({"scale": args.residual_scale} if args.residual_scale is not None else {})}
+    elif args.residual_scale is not None:
+        raise ValueError("--residual-scale needs --residual LAW")
+    if args.paired_baseline is not None:
+        overrides["paired_baseline"] = None if args.paired_baseline == "none" else args.paired_baseline
+    if args.algo == "cmaes" and (overrides.get("residual") or overrides.get("paired_baseline")):
+        raise ValueError("--residual and --paired-baseline apply to the SB3 algorithms, not to cmaes "
+                         "(CMA-ES warm-starts from a law with --warm-start)")
+    hyper = hyperparameters(args.algo, env_id, args.hyperparams, overrides)
     if args.algo != "cmaes":
-        check_with_sb3(args.algo, hyper, env_id, {**env_kwargs, **(hyper.get("env_kwargs") or {})})
+        full_kwargs = {**env_kwargs, **(hyper.get("env_kwargs") or {})}
+        check_laws(hyper, env_id, full_kwargs)
+        check_with_sb3(args.algo, hyper, env_id, full_kwargs)
     if args.tensorboard:
         import importlib.util
         if importlib.util.find_spec("tensorboard") is None:

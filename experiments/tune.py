@@ -47,6 +47,9 @@ def sample(trial, algo: str, base: dict) -> dict:
         h["gamma"] = trial.suggest_categorical("gamma", [0.9, 0.95, 0.98, 0.99, 0.995])
         h["tau"] = trial.suggest_categorical("tau", [0.005, 0.01, 0.02, 0.05])
         h["train_freq"] = trial.suggest_categorical("train_freq", [1, 4, 8, 16])
+        if algo == "td3":  # RL Zoo's action noise
+            h["noise_type"] = h.get("noise_type") or "normal"
+            h["noise_std"] = trial.suggest_float("noise_std", 0.01, 0.3, log=True)
     else:
         raise ValueError(f"no search space for {algo!r}; searchable: {', '.join(SEARCHABLE)}")
     return h

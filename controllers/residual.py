@@ -1,0 +1,140 @@
+"""Residual policies: an agent's action is a correction added to a classical law's command.
+
+Residual policy learning (Silver et al. 2018, arXiv:1812.06298; Johannink et al., ICRA 2019): the command is
+
+    u = clip(u_law(y) + scale · (u_max − u_min) · a,  u_min, u_max),     a ∈ [−1, 1]^nd,
+
+with ``u_law`` the command of a law (skyhook, clipped-optimal, any :class:`~controllers.base.Controller`) on the
+same observation y; the agent sees y and u_law (:meth:`Residual.observe`). An agent whose output is zero is the law exactly; ``mrd-env train --residual LAW`` zeroes the
+last layer of the policy (:func:`zero_policy_output`), so that training starts at the law and learns only the
+correction, and exploration starts from a good policy. With ``scale = 1`` any command is reachable from any law
+command.
+
+One rule (:class:`Residual`) in two places: :class:`controllers.training_wrappers.ResidualVecEnv` (an SB3
+``VecEnvWrapper`` whose actions are the corrections a: training, any algorithm) and :class:`ResidualController`
+(a trained residual agent behind the controllers' interface: what :meth:`controllers.agents.TrainedAgent.bind`
+returns for an agent trained with a residual).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .base import Controller
+
+
+class Residual:
+    """The rule above for the environment ``env`` (scalar or vector; commands or normalised actions, not force
+    mode): ``actions(obs, a, episode_start)`` → the environment's actions. ``law``: a controller's name (with
+    ``law_options``) or a :class:`~controllers.base.Controller` built for ``env``."""
+
+    def __init__(self, env, law: str | Controller, scale: float = 1.0, **law_options):
+        from . import make_controller
+        from mrd_env.validation import check_scalar
+
+        base = getattr(env, "unwrapped", env)
+        if getattr(base, "action_mode", "physical") == "force":
+            raise ValueError("a residual policy adds to a law's command: build the environment with action_mode "
+                             "'physical' or 'normalized', not 'force'")
+        self.scale = check_scalar("residual scale", scale, 0.0, lo_open=True)
+        if isinstance(law, Controller):
+            if law_options:
+                raise ValueError(f"options {sorted(law_options)} apply to a law given by name")
+            self.law = law
+        else:
+            self.law = make_controller(law, base, **law_options)
+        if self.law.acts_in_env_space:
+            raise ValueError(f"the residual's base must be a classical law, not the agent {self.law.name!r}")
+        self.name = self.law.name
+        self.n_dampers = self.law.n_dampers
+        self.v_min, self.v_max = self.law.v_min, self.law.v_max
+        self.normalized = self.law.normalized
+
+    def reset(self, mask=None) -> None:
+        self.law.reset(mask)
+
+    def law_command(self, obs, episode_start=None) -> np.ndarray:
+        """The law's physical command u_law for observations ``obs`` (n_obs,) or (N, n_obs); ``episode_start``:
+        rows whose episode has just begun (the law forgets them)."""
+        law_a = np.asarray(self.law.predict(obs, episode_start=episode_start)[0], dtype=np.float64)
+        return self.v_min + (law_a + 1.0) * 0.5 * (self.v_max - self.v_min) if self.normalized else law_a
+
+    def observe(self, obs, u_law) -> np.ndarray:
+        """What the agent sees: the observation with the law's command appended, mapped to [−1, 1] — the agent
+        can then tell where the law saturates (a correction beyond the range does nothing there), from the same
+        sensors, so no information is added."""
+        v = 2.0 * (np.asarray(u_law) - self.v_min) / (self.v_max - self.v_min) - 1.0
+        return np.concatenate([np.asarray(obs, dtype=np.float32), v.astype(np.float32)], axis=-1)
+
+    def combine(self, u_law, a) -> np.ndarray:
+        """The environment's actions for the law's commands ``u_law`` and corrections ``a`` in [−1, 1]."""
+        u_law = np.asarray(u_law, dtype=np.float64)
+        a = np.clip(np.asarray(a, dtype=np.float64).reshape(u_law.shape), -1.0, 1.0)
+        u = u_law + self.scale * (self.v_max - self.v_min) * a
+        # reflected at the range's ends rather than clipped: where the law saturates, a correction beyond the end
+        # acts like the same correction inwards, so the exploration noise of a stochastic policy costs alike on
+        # both sides and does not pull its mean outwards (clipping does: the outward half of the noise is free)
+        u = np.where(u < self.v_min, 2.0 * self.v_min - u, u)
+        u = np.where(u > self.v_max, 2.0 * self.v_max - u, u)
+        return self.law._to_action(u)
+
+    def actions(self, obs, a, episode_start=None) -> np.ndarray:
+        """The environment's actions for observations ``obs`` and corrections ``a`` (see :meth:`combine`)."""
+        return self.combine(self.law_command(obs, episode_start), a)
+
+
+class ResidualController(Controller):
+    """A trained residual agent (``agent``: anything with SB3's ``predict`` whose actions are corrections in
+    [−1, 1]) on the law ``law`` with ``scale``, behind the controllers' interface."""
+
+    name = "residual"
+
+    def __init__(self, env, agent, law: str, scale: float = 1.0, name: str | None = None,
+                 env_kwargs: dict | None = None, **law_options):
+        super().__init__(env)
+        self.residual = Residual(env, law, scale, **law_options)
+        self.agent = agent
+        self.name = name or f"residual {law}"
+        self.env_kwargs = dict(env_kwargs or {})
+        self._state = None
+
+    def reset(self, mask=None) -> None:
+        self.residual.reset(mask)
+        self._state = None
+        if hasattr(self.agent, "reset"):
+            self.agent.reset(mask)
+
+    def command(self, obs):  # predict() is overridden: the law's memory and the agent's state are kept there
+        raise NotImplementedError
+
+    def predict(self, observation, state=None, episode_start=None, deterministic: bool = True):
+        u_law = self.residual.law_command(observation, episode_start)
+        a, self._state = self.agent.predict(self.residual.observe(observation, u_law),
+                                            state=state if state is not None else self._state,
+                                            episode_start=episode_start, deterministic=deterministic)
+        return self.residual.combine(u_law, a), self._state
+
+
+def zero_policy_output(model) -> None:
+    """Zero the last layer of an SB3 (or sb3-contrib) policy, so that its deterministic action is 0 — a residual
+    agent that is exactly its law (PPO, A2C, RecurrentPPO: ``action_net``; SAC, TQC: ``actor.mu``; TD3, DDPG:
+    the actor's last linear layer, and the target actor's)."""
+    import torch
+
+    policy = model.policy
+    layers = []
+    if hasattr(policy, "action_net"):
+        layers.append(policy.action_net)
+    for actor in (getattr(policy, "actor", None), getattr(policy, "actor_target", None)):
+        if actor is None:
+            continue
+        mu = getattr(actor, "mu", None)
+        if isinstance(mu, torch.nn.Sequential):
+            mu = [m for m in mu if isinstance(m, torch.nn.Linear)][-1]
+        if mu is not None:
+            layers.append(mu)
+    if not layers:
+        raise ValueError(f"cannot find the output layer of the {type(policy).__name__} policy to start it at zero")
+    with torch.no_grad():
+        for layer in layers:
+            layer.weight.zero_()
+            layer.bias.zero_()

@@ -1,0 +1,141 @@
+"""Residual policies and the paired baseline (issue 23): an agent with zero output is its law exactly, a residual
+agent trains and loads through the tooling, paired rewards are the agent's minus the law's on the same
+disturbance, and bad options are refused before any training."""
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import mrd_env  # noqa: F401
+from controllers import load_agent, make_controller
+from controllers.residual import Residual, ResidualController
+from controllers.training_wrappers import PairedBaselineVecEnv, ResidualVecEnv
+from experiments.cli import main
+from experiments.train import env_options, train_one
+from mrd_env.envs.sb3 import make_sb3_vec_env
+
+CAR = "mrd_env/QuarterCar-v0"
+
+
+class Constant:
+    """A stand-in agent: the same correction for every observation."""
+
+    def __init__(self, value):
+        self.value = value
+
+    def predict(self, obs, state=None, episode_start=None, deterministic=True):
+        obs = np.asarray(obs)
+        return np.full(obs.shape[:-1] + (1,), self.value, dtype=np.float32), None
+
+
+def _kw(**extra):
+    return {**env_options("quarter_car"), "episode_seconds": 0.5, **extra}
+
+
+@pytest.mark.parametrize("mode", ["normalized", "physical"])
+def test_a_zero_correction_is_the_law_step_for_step(mode):
+    kw = _kw(action_mode=mode)
+    rewards = []
+    for make in (lambda e: make_controller("skyhook_continuous", e),
+                 lambda e: ResidualController(e, Constant(0.0), "skyhook_continuous", scale=0.7)):
+        env = gym.make(CAR, **kw)
+        ctrl = make(env)
+        obs, _ = env.reset(seed=3)
+        out, done = [], False
+        while not done:
+            obs, r, term, trunc, _ = env.step(ctrl.predict(obs)[0])
+            out.append(r)
+            done = term or trunc
+        rewards.append(np.array(out))
+    np.testing.assert_array_equal(rewards[0], rewards[1])
+
+
+def test_a_correction_moves_the_command_by_its_share_of_the_range():
+    env = gym.make(CAR, **_kw(action_mode="physical"))
+    obs, _ = env.reset(seed=0)
+    res = Residual(env, "passive_off", scale=0.5)
+    spec = env.unwrapped.command_spec
+    span = spec.v_max - spec.v_min
+    np.testing.assert_allclose(res.actions(obs, [0.4]), [spec.v_min + 0.2 * span], rtol=1e-6)
+    # reflected at the range's end: -0.2 of the range below u_min acts as +0.2 above it
+    np.testing.assert_allclose(res.actions(obs, [-0.4]), [spec.v_min + 0.2 * span], rtol=1e-6)
+
+
+def _paired_run(correction, steps, seed=0):
+    venv = ResidualVecEnv(make_sb3_vec_env(CAR, n_envs=3, seed=seed, **_kw()), "skyhook_continuous")
+    venv = PairedBaselineVecEnv(venv, "skyhook_continuous")
+    venv.reset()
+    paired, raw, done_at = np.zeros(3), [], []
+    for k in range(steps):
+        _, r, d, infos = venv.step(np.full((3, 1), correction, np.float32))
+        paired += r
+        for i in np.flatnonzero(d):
+            raw.append(infos[i]["episode"]["r"])
+            done_at.append(k)
+    return paired, np.array(raw)
+
+
+def test_paired_rewards_are_the_agent_minus_the_law_on_the_same_road():
+    # a zero correction is the law: every paired reward is exactly 0, across automatic resets
+    paired, raw = _paired_run(0.0, 120)
+    assert np.all(paired == 0.0) and raw.size == 6 and np.all(raw < 0)   # the episode infos keep the raw return
+    # a constant correction: paired return = its raw return - the law's raw return on the same roads
+    paired, raw = _paired_run(0.3, 50)
+    _, law = _paired_run(0.0, 50)
+    np.testing.assert_allclose(paired, raw - law, rtol=1e-4, atol=1e-5)
+    assert np.all(paired < 0)   # a firmer command than skyhook's on every road costs (skyhook is near-optimal)
+
+
+def test_a_residual_agent_trains_starts_at_its_law_and_loads(tmp_path):
+    kw = _kw()
+    run = train_one("quarter_car", "ppo", 0, out=tmp_path, timesteps=64, env_kwargs=kw, eval_freq=10_000,
+                    eval_episodes=1, hyper={"n_steps": 32, "batch_size": 32, "n_envs": 2,
+                                            "residual": {"law": "skyhook_continuous", "scale": 0.5},
+                                            "paired_baseline": "skyhook_continuous"})
+    assert run.name == "quarter_car_ppo-residual-paired_s0"
+    # its first validation, before any update, is the law's own validation return
+    import csv
+
+    from experiments.train import law_references
+    first = float(next(csv.DictReader((run / "validation.csv").open()))["validation_return"])
+    assert first == law_references("quarter_car", kw, 1)["skyhook_continuous @ 10 ms"]
+    # the saved agent acts as its law plus its correction
+    agent = load_agent(run)
+    env = gym.make(CAR, **kw)
+    ctrl = agent.bind(env)
+    assert isinstance(ctrl, ResidualController)
+    rule = Residual(env, "skyhook_continuous", scale=0.5)
+    obs, _ = env.reset(seed=5)
+    for _ in range(20):
+        a = ctrl.predict(obs)[0]
+        u_law = rule.law_command(obs)
+        np.testing.assert_array_equal(a, rule.combine(u_law, agent.predict(rule.observe(obs, u_law))[0]))
+        obs, *_ = env.step(a)
+
+
+@pytest.mark.parametrize("algo", ["sac", "td3"])
+def test_off_policy_residual_agents_start_at_their_law(algo):
+    from controllers.agents import _algorithm
+    from controllers.residual import zero_policy_output
+    from experiments.train import ALGOS
+
+    venv = ResidualVecEnv(make_sb3_vec_env(CAR, n_envs=1, seed=0, **_kw()), "skyhook_continuous")
+    model = _algorithm(ALGOS[algo])("MlpPolicy", venv, device="cpu", learning_starts=10)
+    zero_policy_output(model)
+    obs = venv.reset()
+    assert np.all(model.predict(obs, deterministic=True)[0] == 0.0)
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--residual", "banana"], "residual must be one of"),
+    (["--paired-baseline", "banana"], "paired_baseline must be one of"),
+    (["--residual", "skyhook_continuous", "--residual-scale", "2"], "scale must be a number in (0, 1]"),
+    (["--residual-scale", "0.5"], "--residual-scale needs --residual"),
+    (["--plant", "building", "--residual", "groundhook"], "does not apply"),
+    (["--algo", "cmaes", "--residual", "skyhook_continuous"], "not to cmaes"),
+    (["--plant", "building", "--preview"], "road preview is a sensor of the quarter car"),
+])
+def test_bad_residual_options_are_one_line_before_training(args, message, capsys, tmp_path):
+    assert main(["train", *args, "--out", str(tmp_path), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1 and "Traceback" not in err
+    assert not any(tmp_path.iterdir())
