@@ -21,17 +21,15 @@ from mrd_env.report import markdown_table, write_table
 
 from . import sweep, yardstick
 from .evaluation import Episode, controller_episodes, evaluate, evaluate_batch, response_of  # noqa: F401
+from .plants import PLANTS, chosen_plants, plant_choices, profile
 from .scenarios import Scenario, held_out_scenarios  # noqa: F401  (Scenario: re-exported)
 
-QC_CONTROLLERS = ("passive_off", "passive_on", "skyhook_on_off", "skyhook_continuous", "groundhook", "hybrid",
-                  "clipped_optimal")
-# (skyhook is left out for the building: with the damper at the ground floor, the floor velocity relative to
-# the ground and the damper velocity are the same signal, so the law degenerates to passive-on)
-# clipped-optimal also with each inverse model turning its desired force into the command (mrd_env.inverse)
-BUILDING_CONTROLLERS = ("passive_off", "passive_on", "clipped_optimal", "clipped_optimal+sid", "clipped_optimal+model",
-                        "clipped_optimal+neural", "lyapunov", "max_energy_dissipation", "modulated_friction")
-QC_METRICS = ("acc_weighted_rms", "travel_rms", "travel_peak", "tyre_load_rms")
-BUILDING_METRICS = ("J1", "J2", "J3", "J4", "J5", "J6", "drift_peak", "acc_peak", "damper_force_peak")
+#: The controllers and metric columns of each plant (:attr:`.plants.PlantProfile.benchmark_laws`,
+#: ``benchmark_metrics``); the two published plants' under their former names.
+QC_CONTROLLERS = PLANTS["quarter_car"].benchmark_laws
+BUILDING_CONTROLLERS = PLANTS["building"].benchmark_laws
+QC_METRICS = PLANTS["quarter_car"].benchmark_metrics
+BUILDING_METRICS = PLANTS["building"].benchmark_metrics
 
 
 def run_benchmark(plant: str, controllers=None, scenarios=None, *, damper: str = "spencer_dyke",
@@ -44,9 +42,9 @@ def run_benchmark(plant: str, controllers=None, scenarios=None, *, damper: str =
     1500 N·s/m for set A) as a baseline."""
     from mrd_env.executor import Task, run_tasks
 
-    controllers = list(controllers or (QC_CONTROLLERS if plant == "quarter_car" else BUILDING_CONTROLLERS))
+    controllers = list(controllers or profile(plant).benchmark_laws)
     controllers += [Path(a) for a in agents]
-    if plant == "quarter_car" and reference_passive:
+    if profile(plant).passive_reference and reference_passive:
         controllers.append("passive_ref")
     scenarios = scenarios or held_out_scenarios(plant, quick=quick)
     tasks = [Task(controller_episodes, (c, sc, response_of(sc.options, plant)), {"damper": damper},
@@ -67,7 +65,7 @@ def run_benchmark(plant: str, controllers=None, scenarios=None, *, damper: str =
 
 #: Units of the metric columns (the headers carry them); J1–J6 and "/off" columns are ratios.
 UNITS = {"acc_weighted_rms": "m/s²", "travel_rms": "m", "travel_peak": "m", "tyre_load_rms": "N",
-         "drift_peak": "m", "acc_peak": "m/s²", "damper_force_peak": "N"}
+         "drift_peak": "m", "acc_peak": "m/s²", "damper_force_peak": "N", "pitch_acc_rms": "rad/s²"}
 
 
 def _header(k: str) -> str:
@@ -77,15 +75,16 @@ def _header(k: str) -> str:
 def _rows(plant: str, episodes: list[Episode]) -> list[dict]:
     """One row per episode (scenario label, controller): the return and the metrics, the car's also over
     passive-off on the same episode."""
-    keys = QC_METRICS if plant == "quarter_car" else BUILDING_METRICS
+    prof = profile(plant)
+    keys = prof.benchmark_metrics
     rows = []
     for ep in episodes:
         row = {"scenario": ep.scenario, "controller": ep.controller, "return": float(ep.episode_return)}
         for k in keys:
             row[k] = float(ep.metrics.get(k, float("nan")))
-        if plant == "quarter_car":  # normalise by passive-off on the same episode
+        if prof.normalise_by_passive_off:  # normalise by passive-off on the same episode
             ref = next((e for e in episodes if e.scenario == ep.scenario and e.controller == "passive_off"), None)
-            for k in QC_METRICS:
+            for k in keys:
                 if ref is not None and ref.metrics.get(k):
                     row[f"{k}/off"] = row[k] / ref.metrics[k]
         row["terminated"] = ep.metrics.get("terminated", "")
@@ -156,12 +155,8 @@ def write_reports(plant: str, episodes: list[Episode], out: Path, response: str 
     (out / f"{plant}_benchmark_worst.md").write_text(markdown_table(_with_units(worst), floatfmt=".4g",
                                                                     title=f"{plant}: worst case over scenarios"))
     figs = []
-    if plant == "quarter_car":
-        ylabel = "sprung acceleration (m/s²)"
-    else:
-        storey = int(response.partition("[")[2].rstrip("]") or 0) + 1
-        ylabel = f"storey-{storey} drift (mm)"
-    scale = 1.0 if plant == "quarter_car" else 1e3
+    prof = profile(plant)
+    ylabel, scale = prof.response_axis(response)
     for sc in dict.fromkeys(e.scenario for e in episodes):
         eps = history_selection([e for e in episodes if e.scenario == sc and e.t.size])  # a scenario's first seed
         if not eps:
@@ -188,7 +183,7 @@ def write_reports(plant: str, episodes: list[Episode], out: Path, response: str 
         ax.grid(alpha=0.3)
         figs.append(save_figure(fig, out / f"{plant}_loops_{_slug(sc)}.png"))
     # one quantity on the axis: every bar is a ratio (car: over passive-off; building: over the uncontrolled)
-    keys = [f"{k}/off" for k in QC_METRICS] if plant == "quarter_car" else ["J1", "J2", "J3", "J4", "J5", "J6"]
+    keys = list(prof.bar_metrics)
     fig, ax = figure(figsize=(10, 4.5))
     ctrls = [r["controller"] for r in worst]
     width = 0.8 / max(len(keys), 1)
@@ -196,9 +191,9 @@ def write_reports(plant: str, episodes: list[Episode], out: Path, response: str 
         ax.bar(np.arange(len(ctrls)) + i * width, [r.get(k, np.nan) for r in worst], width, label=k)
     ax.set_xticks(np.arange(len(ctrls)) + 0.4 - width / 2, ctrls, rotation=20, fontsize=8)
     ax.axhline(1.0, color="k", lw=0.8)
-    ax.set_ylabel("ratio to passive-off (1)" if plant == "quarter_car" else "ratio to the uncontrolled building (1)")
+    ax.set_ylabel(prof.bar_ylabel)
     ax.set_title(f"{plant}: worst case over the test scenarios (smaller is better)")
-    ax.legend(fontsize=8, ncol=3 if plant == "building" else 4)
+    ax.legend(fontsize=8, ncol=prof.bar_legend_columns)
     figs.append(save_figure(fig, out / f"{plant}_bars.png"))
     return {"markdown": md, "csv": csv_path, "figures": figs}
 
@@ -211,7 +206,8 @@ def _slug(s: str) -> str:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--plant", choices=["building", "quarter_car", "both"], default="both")
+    p.add_argument("--plant", choices=plant_choices(both=True), default="both",
+                   help="a plant, both (building and quarter car) or all")
     p.add_argument("--controllers", nargs="+", default=None, help="controller names (default: all that apply)")
     p.add_argument("--damper", default="spencer_dyke", help="damper model name")
     p.add_argument("--quick", action="store_true", help="short scenarios (a smoke run)")
@@ -233,7 +229,7 @@ def scenario_rows(scenarios) -> list[dict]:
 def run(args: argparse.Namespace) -> int:
     from .train import agent_metadata
 
-    plants = ["building", "quarter_car"] if args.plant == "both" else [args.plant]
+    plants = chosen_plants(args.plant)
     agents = {path: agent_metadata(path)["plant"] for path in args.agent}  # ValueError for a bad path
     for path, plant in agents.items():
         if plant not in plants:

@@ -22,25 +22,14 @@ from mrd_env.report import figure, save_figure, write_table
 
 from . import sweep, yardstick
 from .evaluation import Episode, controller_episodes, mean_ci
+from .plants import PLANTS, chosen_plants, plant_choices, profile
 from .scenarios import held_out_scenarios, preview_options
 
-METRICS = {"quarter_car": ("acc_weighted_rms", "travel_peak", "tyre_load_ratio"),
-           "building": ("J1", "J2", "J3", "J4", "J5", "J6")}
-LAWS = {"quarter_car": ("random", "passive_off", "passive_on", "skyhook_on_off", "skyhook_continuous", "groundhook", "hybrid",
-                        "clipped_optimal"),
-        "building": ("random", "passive_off", "passive_on", "clipped_optimal", "lyapunov", "max_energy_dissipation",
-                     "modulated_friction")}
-#: Model predictive control: (label, control step (None: the comparison's), controller options, preview). The
-#: objective's MPC at the comparison's step; with the reward's own cost (``weights="reward"``, settings tuned on the
-#: validation roads, see :class:`controllers.mpc.MPC`) with road preview at the comparison's step and at 1 ms, and
-#: without preview at 1 ms. A preview row measures the road ahead (``scenarios.PREVIEW``): the only rows with
-#: information the others lack, and never "the best law".
-_REWARD = {"weights": "reward", "f_max": 1e5}
-MPC = {"quarter_car": [("mpc", None, {}, False),
-                       ("mpc+preview (reward)", None, {**_REWARD, "force_ref": 200.0, "horizon": 10}, True),
-                       ("mpc (reward)", 1e-3, {**_REWARD, "force_ref": 1000.0, "horizon": 10}, False),
-                       ("mpc+preview (reward)", 1e-3, {**_REWARD, "force_ref": 1000.0, "horizon": 100}, True)],
-       "building": [("mpc", None, {}, False), ("mpc (reward)", 1e-3, {"weights": "reward"}, False)]}
+#: Per plant: the metric columns, the classical laws compared by default and the model predictive control rows —
+#: (label, control step (None: the comparison's), controller options, preview) — of :mod:`.plants`.
+METRICS = {name: p.evaluation_metrics for name, p in PLANTS.items()}
+LAWS = {name: p.laws for name, p in PLANTS.items()}
+MPC = {name: [tuple(row) for row in p.mpc] for name, p in PLANTS.items()}
 
 
 def evaluate(plant: str, agents=(), laws=None, *, seeds: int = 3, control_dt: float | None = None,
@@ -80,9 +69,9 @@ def evaluate(plant: str, agents=(), laws=None, *, seeds: int = 3, control_dt: fl
             kw = {**law_kw, "control_dt": dt if step is None else step}
             rows.append((f"{label} @ {kw['control_dt'] * 1e3:g} ms", ("mpc", options),
                          preview_options(plant, kw) if preview else kw))
-    response = "sprung_acc" if plant == "quarter_car" else "drift"
     scenarios = held_out_scenarios(plant, seeds=seeds, quick=quick)
-    tasks = [Task(controller_episodes, (ctrl, sc, response), kw, label=f"{sc.name} / {label}")
+    tasks = [Task(controller_episodes, (ctrl, sc, profile(plant).response(sc.options)), kw,
+                  label=f"{sc.name} / {label}")
              for sc in scenarios for label, ctrl, kw in rows]
     results = iter(run_tasks(tasks, backend=backend, jobs=jobs, address=address, progress=progress,
                              desc=f"evaluate {plant}"))
@@ -203,7 +192,8 @@ def plot(plant: str, rows: list[dict], path: Path) -> Path:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--plant", choices=["building", "quarter_car", "both"], default="both")
+    p.add_argument("--plant", choices=plant_choices(both=True), default="both",
+                   help="a plant, both (building and quarter car) or all")
     p.add_argument("--agents", type=Path, nargs="*", default=None,
                    help="agent folders (or files in them) written by mrd-env train (default: the shipped agents)")
     p.add_argument("--laws", nargs="*", default=None, help="classical laws (default: all that apply)")
@@ -231,7 +221,7 @@ def run(args: argparse.Namespace) -> int:
     unknown = [c for c in args.laws or () if c not in CONTROLLERS]
     if unknown:
         raise ValueError(f"--laws: unknown controller(s) {unknown}; available: {sorted(CONTROLLERS)}")
-    plants = ["building", "quarter_car"] if args.plant == "both" else [args.plant]
+    plants = chosen_plants(args.plant)
     executor = sweep.options(args)
     if args.damper is not None:
         from mrd_env.dampers import damper_class
@@ -241,9 +231,8 @@ def run(args: argparse.Namespace) -> int:
         import gymnasium as gym
 
         import mrd_env  # noqa: F401
-        from .scenarios import ENV_IDS
         for p in plants:
-            gym.make(ENV_IDS[p], control_dt=args.control_dt).close()
+            gym.make(profile(p).env_id, control_dt=args.control_dt).close()
     chosen = {p: [] for p in plants}
     if args.agents is None:
         for p in plants:

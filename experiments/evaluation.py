@@ -24,12 +24,11 @@ def response_channel(layout: dict, response: str) -> tuple[slice | None, int]:
 
 
 def response_of(scenario_options: dict, plant: str) -> str:
-    """The key response of a plant's histories: the car's sprung acceleration; the drift of the storey that holds
-    the (first) damper."""
-    if plant == "quarter_car":
-        return "sprung_acc"
-    floors = scenario_options.get("damper_floors") or (1,)
-    return f"drift[{int(floors[0]) - 1}]"
+    """The key response of a plant's histories (:attr:`.plants.PlantProfile.response`): the car's sprung
+    acceleration; the drift of the storey that holds the (first) damper; the half car's body acceleration."""
+    from .plants import profile
+
+    return profile(plant).response(scenario_options)
 
 
 @dataclass

@@ -19,7 +19,7 @@ import argparse
 from pathlib import Path
 
 from . import sweep
-from .scenarios import ENV_IDS
+from .plants import plant_choices, profile
 from .train import ALGOS, env_options, hyperparameters
 
 
@@ -69,7 +69,7 @@ def worker(plant: str, algo: str, study: str, out: Path, n_trials: int, timestep
 
     from .train import train_one
 
-    env_id = ENV_IDS[plant]
+    env_id = profile(plant).env_id
     base = hyperparameters(algo, env_id, hyperparams)
     st = optuna.load_study(study_name=study, storage=_storage(out / f"{study}.log"),
                            sampler=optuna.samplers.TPESampler(seed=seed))
@@ -139,7 +139,7 @@ def report_study(st, algo: str, env_id: str, out: Path, hyperparams: Path | None
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--plant", choices=sorted(ENV_IDS), default="quarter_car")
+    p.add_argument("--plant", choices=plant_choices(), default="quarter_car")
     p.add_argument("--algo", choices=sorted(ALGOS), default="ppo")
     p.add_argument("--trials", type=int, default=20, help="trials in all (default 20)")
     p.add_argument("--timesteps", type=int, default=300_000, help="environment steps per trial")
@@ -167,7 +167,7 @@ def run(args: argparse.Namespace) -> int:
         import optuna  # noqa: F401
     except ImportError:
         raise ImportError("mrd-env tune needs Optuna (pip install 'mrd-env[tune]')") from None
-    env_id = ENV_IDS[args.plant]
+    env_id = profile(args.plant).env_id
     hyperparameters(args.algo, env_id, args.hyperparams)  # the base entry exists and is valid
     st = tune(args.plant, args.algo, trials=args.trials, timesteps=args.timesteps, out=args.out, study=args.study,
               eval_freq=args.eval_freq, eval_episodes=args.eval_episodes, seed=args.seed,

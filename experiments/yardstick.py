@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from .evaluation import Episode, mean_ci
+from .plants import PLANTS, chosen_plants, plant_choices, profile
 from .scenarios import Scenario, held_out_scenarios
 
 #: The clairvoyant's control step: every controller's rate (1 ms, 10 ms) is a multiple of it, so its command
@@ -40,11 +41,16 @@ VERSION = 2
 RETRY_STARTS = 3
 #: Constant commands tried for the best passive setting (fractions of the command range).
 PASSIVE_GRID = np.linspace(0.0, 1.0, 9)
-#: The laws whose commands warm-start the clairvoyant (their own 1 ms rate), per plant.
-WARM_LAWS = {"quarter_car": ("passive_off", "passive_on", "skyhook_on_off", "skyhook_continuous", "groundhook",
-                             "hybrid", "clipped_optimal"),
-             "building": ("passive_off", "passive_on", "clipped_optimal", "lyapunov", "max_energy_dissipation",
-                          "modulated_friction")}
+#: The laws whose commands warm-start the clairvoyant (their own 1 ms rate), per plant that has a yardstick
+#: (:attr:`.plants.PlantProfile.warm_laws`).
+WARM_LAWS = {name: p.warm_laws for name, p in PLANTS.items() if p.warm_laws}
+
+
+def check_plant(plant: str) -> None:
+    """``ValueError`` (one line) if ``plant`` has no yardstick."""
+    p = profile(plant)
+    if not p.warm_laws:
+        raise ValueError(f"the yardstick does not support the {p.title}: {p.no_yardstick}")
 
 
 @dataclass
@@ -86,6 +92,7 @@ def warm_starts(problem, plant: str, agents=()) -> dict[str, np.ndarray]:
     from controllers import load_agent, make_controller
 
     out = {}
+    check_plant(plant)
     for name in WARM_LAWS[plant]:
         out[name] = problem.commands_of(lambda env, n=name: make_controller(n, env))
     for path in agents:
@@ -218,6 +225,8 @@ def report(plant: str, results: dict[str, list[Episode]], scenarios: list[Scenar
 
     if mode == "off":
         return ""
+    if not profile(plant).warm_laws:
+        return f"{plant}: no yardstick ({profile(plant).no_yardstick})"
     ys = yardsticks(plant, scenarios, agents=shipped_agents(plant), solve=mode == "solve", progress=progress,
                     **executor)
     n_eps = sum(len(sc.seeds) for sc in scenarios)
@@ -255,7 +264,8 @@ def add_mode_argument(p: argparse.ArgumentParser) -> None:
 def add_arguments(p: argparse.ArgumentParser) -> None:
     from . import sweep
 
-    p.add_argument("--plant", choices=["building", "quarter_car", "both"], default="both")
+    p.add_argument("--plant", choices=plant_choices(both=True), default="both",
+                   help="a plant with a yardstick, or both (building and quarter car)")
     p.add_argument("--seeds", type=int, default=3, help="episodes per random test scenario (default 3)")
     p.add_argument("--quick", action="store_true", help="short scenarios (a smoke run)")
     p.add_argument("--no-bound", action="store_true", help="skip the active-actuator bound")
@@ -273,9 +283,12 @@ def run(args: argparse.Namespace) -> int:
 
     if args.seeds < 1:
         raise ValueError(f"--seeds must be >= 1, got {args.seeds}")
+    plants = [p for p in chosen_plants(args.plant) if args.plant != "all" or profile(p).warm_laws]
+    for plant in plants:
+        check_plant(plant)
     executor = sweep.options(args)
     args.out.mkdir(parents=True, exist_ok=True)
-    for plant in (["building", "quarter_car"] if args.plant == "both" else [args.plant]):
+    for plant in plants:
         scen = held_out_scenarios(plant, seeds=args.seeds, quick=args.quick)
         agents = shipped_agents(plant)
         t0 = time.perf_counter()
