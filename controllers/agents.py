@@ -9,6 +9,10 @@ action mode), which an evaluation must keep while it changes the disturbance.
 
 An agent is recognised by its metadata file, never by its file name. The agents shipped with the project live
 in ``controllers/agents/`` (:func:`shipped_agents`).
+
+This module owns the agent folder's format: :func:`write_agent` writes it (every trainer of ``mrd-env train``
+calls it) and :func:`load_agent` reads it; and the observation normaliser (:class:`ObservationNormalizer`: the
+statistics of ``normalization.npz``, applied the same way during training, validation and evaluation).
 """
 from __future__ import annotations
 
@@ -22,6 +26,68 @@ AGENT_FORMAT = "mrd-env-agent"
 OBSERVATION_OPTIONS = ("sensors", "sensor_noise", "sensor_delay", "history", "preview", "control_dt", "dt", "action_mode",
                        "damper", "damper_preset", "damper_params", "plant_preset", "plant_params", "damper_floors")
 SHIPPED = Path(__file__).with_name("agents")
+#: The agent folder's metadata and observation statistics files.
+METADATA_FILE = "agent.json"
+NORMALIZATION_FILE = "normalization.npz"
+
+
+class ObservationNormalizer:
+    """Observations as a policy was trained on them: (o − mean)/√(var + ε), clipped to ±clip (float64) —
+    SB3's ``VecNormalize`` rule, the statistics of an agent's ``normalization.npz``."""
+
+    def __init__(self, mean, var, clip: float = 10.0, epsilon: float = 1e-8):
+        self.mean, self.var = np.asarray(mean), np.asarray(var)
+        self.clip, self.epsilon = float(clip), float(epsilon)
+        self.scale = np.sqrt(self.var + self.epsilon)
+
+    def __call__(self, obs) -> np.ndarray:
+        return np.clip((np.asarray(obs, dtype=np.float64) - self.mean) / self.scale, -self.clip, self.clip)
+
+    @property
+    def shape(self) -> tuple:
+        return tuple(np.shape(self.mean))
+
+    @classmethod
+    def from_vecnormalize(cls, vecnorm) -> "ObservationNormalizer":
+        """The current statistics of an SB3 ``VecNormalize`` (a snapshot: its running statistics move on)."""
+        rms = vecnorm.obs_rms
+        return cls(rms.mean, rms.var, vecnorm.clip_obs, vecnorm.epsilon)
+
+    def save(self, path: str | Path) -> Path:
+        np.savez(path, mean=self.mean, var=self.var, clip=self.clip, epsilon=self.epsilon)
+        return Path(path)
+
+    @classmethod
+    def load(cls, path: str | Path) -> "ObservationNormalizer":
+        with np.load(path) as z:
+            return cls(z["mean"], z["var"], float(z["clip"]), float(z["epsilon"]))
+
+
+def _jsonable(v):
+    if isinstance(v, (np.floating, np.integer)):
+        return v.item()
+    if isinstance(v, tuple):
+        return list(v)
+    raise TypeError(f"not JSON serialisable: {type(v).__name__}")
+
+
+def write_agent(folder: str | Path, meta: dict, normalizer: ObservationNormalizer | None = None) -> Path:
+    """Write an agent folder's metadata (``agent.json``: ``meta`` with the format tag; it must name the plant, the
+    environment id, the algorithm, the environment options and the model file the trainer saved in ``folder``)
+    and its observation statistics (``normalization.npz``, when the policy was trained on normalised
+    observations). The folder is what :func:`load_agent` reads; returns it."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    missing = [k for k in ("plant", "env_id", "algo", "env_kwargs", "model") if k not in meta]
+    if missing:
+        raise ValueError(f"an agent's metadata needs {missing}")
+    meta = {"format": AGENT_FORMAT, **meta}
+    meta["normalization"] = None
+    if normalizer is not None:
+        normalizer.save(folder / NORMALIZATION_FILE)
+        meta["normalization"] = NORMALIZATION_FILE
+    (folder / METADATA_FILE).write_text(json.dumps(meta, indent=2, default=_jsonable), encoding="utf-8")
+    return folder
 
 
 def agent_files(path: str | Path) -> tuple[Path, dict]:
@@ -31,7 +97,7 @@ def agent_files(path: str | Path) -> tuple[Path, dict]:
     if not path.exists():
         raise ValueError(f"agent {path}: no such file or folder")
     folder = path if path.is_dir() else path.parent
-    meta_path = folder / "agent.json"
+    meta_path = folder / METADATA_FILE
     if not meta_path.exists():
         raise ValueError(f"agent {path}: no agent.json in {folder} (mrd-env train writes it next to the model)")
     try:
@@ -53,7 +119,8 @@ def agent_files(path: str | Path) -> tuple[Path, dict]:
     return folder, meta
 
 
-def _algorithm(name: str):
+def algorithm_class(name: str):
+    """The Stable-Baselines3 (or sb3-contrib) class of an algorithm's name ("PPO", "RecurrentPPO", ...)."""
     import stable_baselines3 as sb3
 
     if hasattr(sb3, name):
@@ -65,6 +132,9 @@ def _algorithm(name: str):
     if not hasattr(sb3_contrib, name):
         raise ValueError(f"unknown algorithm {name!r} in agent.json")
     return getattr(sb3_contrib, name)
+
+
+_algorithm = algorithm_class  # the former name (tests and other sessions' modules use it)
 
 
 class TrainedAgent:
@@ -82,21 +152,15 @@ class TrainedAgent:
             from .mlp_policy import MLPPolicy
             self.model = MLPPolicy.load(folder / meta["model"])
         else:
-            self.model = _algorithm(meta["algo"]).load(folder / meta["model"], device="cpu")
+            self.model = algorithm_class(meta["algo"]).load(folder / meta["model"], device="cpu")
         norm = meta.get("normalization")
-        if norm:
-            with np.load(folder / norm) as z:
-                self._mean, self._var = z["mean"], z["var"]
-                self._clip, self._eps = float(z["clip"]), float(z["epsilon"])
-        else:
-            self._mean = None
+        self.normalizer = ObservationNormalizer.load(folder / norm) if norm else None
         self._state = None
 
     def normalize(self, obs) -> np.ndarray:
-        o = np.asarray(obs, dtype=np.float64)
-        if self._mean is None:
-            return o.astype(np.float32)
-        return np.clip((o - self._mean) / np.sqrt(self._var + self._eps), -self._clip, self._clip).astype(np.float32)
+        """The observation as the policy takes it (normalised as in training; float32)."""
+        o = np.asarray(obs, dtype=np.float64) if self.normalizer is None else self.normalizer(obs)
+        return o.astype(np.float32)
 
     def reset(self, mask=None) -> None:
         self._state = None
@@ -116,9 +180,9 @@ class TrainedAgent:
         shape = tuple(getattr(base, "single_observation_space", base.observation_space).shape)
         if self.meta.get("residual"):  # a residual agent also sees its law's commands
             shape = (shape[0] + int(base.n_dampers),)
-        if self._mean is not None and shape != tuple(np.shape(self._mean)):
+        if self.normalizer is not None and shape != self.normalizer.shape:
             raise ValueError(f"agent {self.name}: the environment's observation has shape {shape}, the agent was "
-                             f"trained on {tuple(np.shape(self._mean))}; build it with agent.observation_kwargs")
+                             f"trained on {self.normalizer.shape}; build it with agent.observation_kwargs")
         if abs(float(base.control_dt) - float(self.env_kwargs.get("control_dt", 1e-3))) > 1e-12:
             raise ValueError(f"agent {self.name}: the environment steps every {base.control_dt:g} s, the agent was "
                              f"trained at {self.env_kwargs.get('control_dt', 1e-3):g} s")

@@ -16,12 +16,12 @@ the law's noisy rollouts, see :mod:`.warm_start`); it is the same kind of agent 
 sensors, the same control step, a policy network that ``predict`` runs on one observation.
 
 Validation (unseen seeds of the training distribution; the first one scores the cloned law), best-agent saving,
-learning curves and the agent folder are those of every ``mrd-env train`` run; ``training.monitor.csv`` has one
+learning curves and the agent folder are those of every ``mrd-env train`` run (:mod:`.trainers`, whose interface
+this trainer implements: :func:`train_cmaes` and :func:`check_entry`); ``training.monitor.csv`` has one
 row per generation (the population's mean return, its environment steps).
 """
 from __future__ import annotations
 
-import json
 import sys
 import time
 from pathlib import Path
@@ -58,14 +58,21 @@ def check(hyper: dict) -> dict:
     return h
 
 
+def check_entry(algo: str, hyper: dict) -> dict:
+    """The trainer interface's check (:class:`~experiments.trainers.Trainer`): ``hyper`` completed with the
+    defaults, every value checked."""
+    return check(hyper)
+
+
 class NormalizedPolicy:
-    """A policy on raw observations: (o − mean)/√(var + ε), clipped, then the MLP."""
+    """A policy on raw observations: (o − mean)/√(var + ε), clipped
+    (:class:`controllers.agents.ObservationNormalizer`), then the MLP."""
 
     def __init__(self, policy, mean, var, clip: float, eps: float = 1e-8):
-        self.policy, self.mean, self.scale, self.clip = policy, mean, np.sqrt(var + eps), clip
+        from controllers.agents import ObservationNormalizer
 
-    def normalize(self, obs):
-        return np.clip((np.asarray(obs, dtype=np.float64) - self.mean) / self.scale, -self.clip, self.clip)
+        self.policy = policy
+        self.normalize = ObservationNormalizer(mean, var, clip, eps)
 
     def predict(self, obs, state=None, episode_start=None, deterministic=True):
         return self.policy.predict(self.normalize(obs), state)
@@ -116,24 +123,25 @@ def _clone(policy, law: str, env_id: str, env_kwargs: dict, n_envs: int, seed: i
     return mean, var
 
 
-def train_cmaes(plant: str, seed: int, *, out: Path, timesteps: int | None = None, hyper: dict | None = None,
+def train_cmaes(plant: str, algo: str, seed: int, *, out: Path, timesteps: int | None = None, hyper: dict | None = None,
                 env_kwargs: dict | None = None, eval_freq: int = 20_000, eval_episodes: int = 8,
                 progress: bool = False, command: str = "", warm_start: str | None = None) -> Path:
-    """Train one CMA-ES agent (see the module docstring); return its folder."""
+    """Train one CMA-ES agent (see the module docstring; ``algo`` is "cmaes"); return its folder."""
     import cma
     import gymnasium as gym
 
-    from controllers.agents import AGENT_FORMAT
+    from controllers.agents import ObservationNormalizer, write_agent
     from controllers.base import AgentController
     from controllers.mlp_policy import MLPPolicy
 
     from .evaluation import evaluate_batch
-    from .scenarios import ENV_IDS, HELD_OUT_SEED
-    from .train import _jsonable, _write_csv, env_options, plot_learning_curve, say_validation, validation_split
+    from .plants import profile
+    from .scenarios import HELD_OUT_SEED
+    from .trainers import env_options, plot_learning_curve, say_validation, validation_split, write_csv
 
     import mrd_env  # noqa: F401
     h = check(dict(hyper or {}))
-    env_id = ENV_IDS[plant]
+    env_id = profile(plant).env_id
     env_kwargs = dict(env_kwargs if env_kwargs is not None else env_options(plant))
     env_kwargs.update(h.get("env_kwargs") or {})
     law = warm_start if warm_start is not None else h["warm_start"]
@@ -157,13 +165,12 @@ def train_cmaes(plant: str, seed: int, *, out: Path, timesteps: int | None = Non
     def save(folder: Path, theta: np.ndarray, extra: dict) -> None:
         folder.mkdir(parents=True, exist_ok=True)
         MLPPolicy(policy.sizes, theta).save(folder / "policy.npz")
-        np.savez(folder / "normalization.npz", mean=mean, var=var, clip=float(h["obs_clip"]), epsilon=1e-8)
-        meta = {"format": AGENT_FORMAT, "name": f"CMA-ES s{seed}", "plant": plant, "env_id": env_id,
+        meta = {"name": f"CMA-ES s{seed}", "plant": plant, "env_id": env_id,
                 "algo": "CMA-ES", "recurrent": False, "seed": seed, "timesteps": timesteps, "env_kwargs": env_kwargs,
                 "hyperparameters": {**h, "warm_start": law}, "model": "policy.npz",
-                "normalization": "normalization.npz", "command": command,
+                "normalization": None, "command": command,
                 "wall_time_s": time.perf_counter() - t_start, **extra}
-        (folder / "agent.json").write_text(json.dumps(meta, indent=2, default=_jsonable), encoding="utf-8")
+        write_agent(folder, meta, ObservationNormalizer(mean, var, float(h["obs_clip"]), 1e-8))
 
     rows, best = [], -np.inf
 
@@ -174,7 +181,7 @@ def train_cmaes(plant: str, seed: int, *, out: Path, timesteps: int | None = Non
         r = np.array([e.episode_return for e in eps])
         rows.append({"timesteps": steps, "validation_return": float(r.mean()),
                      "validation_return_std": float(r.std())})
-        _write_csv(run_dir / "validation.csv", rows)
+        write_csv(run_dir / "validation.csv", rows)
         if r.mean() > best:
             best = float(r.mean())
             save(run_dir / "best", theta, {"validation_return": best, "timesteps": steps})
