@@ -116,14 +116,17 @@ class ResidualController(Controller):
 
 def zero_policy_output(model) -> None:
     """Zero the last layer of an SB3 (or sb3-contrib) policy, so that its deterministic action is 0 — a residual
-    agent that is exactly its law (PPO, A2C, RecurrentPPO: ``action_net``; SAC, TQC: ``actor.mu``; TD3, DDPG:
+    agent that is exactly its law (PPO, A2C, RecurrentPPO, ARS: ``action_net``; SAC, TQC: ``actor.mu``; TD3, DDPG:
     the actor's last linear layer, and the target actor's)."""
     import torch
 
     policy = model.policy
     layers = []
-    if hasattr(policy, "action_net"):
-        layers.append(policy.action_net)
+    net = getattr(policy, "action_net", None)
+    if isinstance(net, torch.nn.Sequential):  # ARS's MLP policy
+        net = [m for m in net if isinstance(m, torch.nn.Linear)][-1]
+    if net is not None:
+        layers.append(net)
     for actor in (getattr(policy, "actor", None), getattr(policy, "actor_target", None)):
         if actor is None:
             continue
@@ -137,4 +140,5 @@ def zero_policy_output(model) -> None:
     with torch.no_grad():
         for layer in layers:
             layer.weight.zero_()
-            layer.bias.zero_()
+            if layer.bias is not None:  # ARS's linear policy has none
+                layer.bias.zero_()

@@ -65,7 +65,8 @@ class Trainer:
         return self._load(self.entry_point)(plant, self.algo, seed, **kw)
 
 
-_SB3 = {"ppo": "PPO", "sac": "SAC", "td3": "TD3", "a2c": "A2C", "recurrentppo": "RecurrentPPO", "tqc": "TQC"}
+_SB3 = {"ppo": "PPO", "sac": "SAC", "td3": "TD3", "a2c": "A2C", "recurrentppo": "RecurrentPPO", "tqc": "TQC",
+        "ars": "ARS"}
 #: Every trainer by ``--algo``.
 TRAINERS: dict[str, Trainer] = {
     **{algo: Trainer(algo, label, "experiments.sb3_trainer:train_sb3", "experiments.sb3_trainer:check",

@@ -139,3 +139,21 @@ def test_bad_residual_options_are_one_line_before_training(args, message, capsys
     err = capsys.readouterr().err
     assert message in err and err.count("\n") == 1 and "Traceback" not in err
     assert not any(tmp_path.iterdir())
+
+
+def test_a_preview_agent_with_history_keeps_what_it_sees_through_evaluation(tmp_path):
+    """--preview and --history reach the agent's record, and an evaluation rebuilds that observation."""
+    from experiments.evaluation import evaluate_batch
+    from experiments.scenarios import held_out_scenarios, preview_options
+
+    kw = {**preview_options("quarter_car", _kw(history=2))}
+    run = train_one("quarter_car", "ppo", 0, out=tmp_path, timesteps=64, env_kwargs=kw, eval_freq=10_000,
+                    eval_episodes=1, hyper={"n_steps": 32, "batch_size": 32, "n_envs": 2,
+                                            "residual": "skyhook_continuous"})
+    assert run.name == "quarter_car_ppo-residual-h2-preview_s0"
+    agent = load_agent(run)
+    seen = agent.observation_kwargs
+    assert tuple(seen["preview"]) == tuple(kw["preview"]) and "road_preview" in seen["sensors"] and seen["history"] == 2
+    sc = held_out_scenarios("quarter_car", quick=True)[0]
+    eps = evaluate_batch(lambda v: agent.bind(v), sc, "", name=agent.name, **seen, episode_seconds=0.3)
+    assert len(eps) == 1 and np.isfinite(eps[0].episode_return)
