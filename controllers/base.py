@@ -20,6 +20,8 @@ from typing import ClassVar, Sequence
 
 import numpy as np
 
+from mrd_env.envs.sensors import newest_layout
+
 
 class Controller(ABC):
     """Base class. Subclasses set ``roles`` (the roles of the signals they read, see ``env.roles``) or
@@ -35,7 +37,7 @@ class Controller(ABC):
     def __init__(self, env):
         base = getattr(env, "unwrapped", env)
         self.env = base
-        self.layout = {name: sl for name, sl, *_ in base.sensor_layout}
+        self.layout = newest_layout(base)  # a law reads the newest measurement of a stacked history
         declared = dict(getattr(base, "roles", {}))
         missing_roles = [r for r in self.needs_roles if r not in declared]
         if missing_roles:

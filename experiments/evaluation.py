@@ -13,6 +13,8 @@ from dataclasses import dataclass
 import gymnasium as gym
 import numpy as np
 
+from mrd_env.envs.sensors import newest_layout
+
 from .scenarios import Scenario
 
 
@@ -48,7 +50,7 @@ class Episode:
 def evaluate(controller, env, seed: int, response: str) -> Episode:
     """Run one episode of a scalar environment with ``controller`` (classical laws and agents alike)."""
     base = env.unwrapped
-    layout = {n: sl for n, sl, *_ in base.sensor_layout}
+    layout = newest_layout(base)
     rate = base.roles.get("damper_velocity", "")
 
     def first(o, name):
@@ -89,7 +91,7 @@ def evaluate_batch(make, scenario: Scenario, response: str, name: str | None = N
     venv = gym.make_vec(scenario.env_id, num_envs=N, vectorization_mode="vector_entry_point",
                         **{**scenario.options, **env_options})
     ctrl = make(venv)
-    layout = {n: sl for n, sl, *_ in venv.sensor_layout}
+    layout = newest_layout(venv)
     rate = venv.roles.get("damper_velocity", "")
 
     def first(o, key):

@@ -157,3 +157,19 @@ def test_a_preview_agent_with_history_keeps_what_it_sees_through_evaluation(tmp_
     sc = held_out_scenarios("quarter_car", quick=True)[0]
     eps = evaluate_batch(lambda v: agent.bind(v), sc, "", name=agent.name, **seen, episode_seconds=0.3)
     assert len(eps) == 1 and np.isfinite(eps[0].episode_return)
+
+
+@pytest.mark.parametrize("law", ["skyhook_continuous", "clipped_optimal", "groundhook"])
+def test_a_law_reads_the_newest_measurement_of_a_stacked_history(law):
+    """With history > 1 a law acts as it does on the plain observation (it found the oldest block before)."""
+    out = []
+    for history in (1, 3):
+        env = gym.make(CAR, **_kw(history=history))
+        ctrl = make_controller(law, env)
+        obs, _ = env.reset(seed=2)
+        rewards = []
+        for _ in range(30):
+            obs, r, *_ = env.step(ctrl.predict(obs)[0])
+            rewards.append(r)
+        out.append(rewards)
+    np.testing.assert_array_equal(out[0], out[1])

@@ -19,6 +19,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from ..inverse import Inverse, make_inverse
+from .sensors import newest_layout
 
 
 class ForceActuation:
@@ -58,13 +59,12 @@ class ForceActuation:
             raise ValueError(f"the {self.inverse.name!r} inverse needs the damper's {missing}, which the environment "
                              f"does not declare (its roles: {roles})")
         self.sensors = {r: roles[r] for r in wanted}
-        layout = {name: sl for name, sl, *_ in base.sensor_layout}
+        layout = newest_layout(base)
         absent = [s for s in self.sensors.values() if s not in layout]
         if absent:
             raise ValueError(f"the {self.inverse.name!r} inverse needs the sensor(s) {absent}, but the environment "
                              f"measures {list(layout)}; create it with sensors=(..., "
                              f"{', '.join(map(repr, absent))})")
-        # the newest measurement of each damper (the last entries of a stacked history)
         self._index = {r: np.arange(layout[s].start, layout[s].stop)[-self.n_dampers:] for r, s in self.sensors.items()}
 
     def reset(self, mask=None) -> None:

@@ -78,3 +78,13 @@ def _stds(value) -> np.ndarray | None:
         return np.asarray(value, dtype=float)
     except (TypeError, ValueError, OverflowError):
         return None
+
+
+def newest_layout(env) -> dict[str, slice]:
+    """Where each sensor's newest measurement sits in the observations of ``env`` (scalar or vector): its
+    ``sensor_layout`` describes one measurement, and with ``history`` > 1 the observation stacks that many,
+    oldest first, so the newest is the last block."""
+    base = getattr(env, "unwrapped", env)
+    width = max(sl.stop for _, sl, *_ in base.sensor_layout)
+    offset = getattr(base, "single_observation_space", base.observation_space).shape[-1] - width
+    return {name: slice(sl.start + offset, sl.stop + offset) for name, sl, *_ in base.sensor_layout}
