@@ -86,8 +86,28 @@ def write_agent(folder: str | Path, meta: dict, normalizer: ObservationNormalize
     if normalizer is not None:
         normalizer.save(folder / NORMALIZATION_FILE)
         meta["normalization"] = NORMALIZATION_FILE
-    (folder / METADATA_FILE).write_text(json.dumps(meta, indent=2, default=_jsonable), encoding="utf-8")
+    (folder / METADATA_FILE).write_text(json.dumps(tag_tuples(meta), indent=2, default=_jsonable), encoding="utf-8")
     return folder
+
+
+#: JSON has no tuple, and the environments read a tuple (lo, hi) as a range to draw from but a list as choices:
+#: agent.json writes a tuple as {"__tuple__": [...]}, so that ``env_kwargs`` rebuilds the training distribution.
+TUPLE_TAG = "__tuple__"
+
+
+def tag_tuples(value):
+    """``value`` with every tuple, at any depth, as {TUPLE_TAG: [...]} (JSON-ready)."""
+    if isinstance(value, tuple):
+        return {TUPLE_TAG: [tag_tuples(v) for v in value]}
+    if isinstance(value, list):
+        return [tag_tuples(v) for v in value]
+    if isinstance(value, dict):
+        return {k: tag_tuples(v) for k, v in value.items()}
+    return value
+
+
+def _untag(obj: dict):
+    return tuple(obj[TUPLE_TAG]) if set(obj) == {TUPLE_TAG} else obj
 
 
 def agent_files(path: str | Path) -> tuple[Path, dict]:
@@ -101,7 +121,7 @@ def agent_files(path: str | Path) -> tuple[Path, dict]:
     if not meta_path.exists():
         raise ValueError(f"agent {path}: no agent.json in {folder} (mrd-env train writes it next to the model)")
     try:
-        meta = json.loads(meta_path.read_text(encoding="utf-8"))
+        meta = json.loads(meta_path.read_text(encoding="utf-8"), object_hook=_untag)
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise ValueError(f"agent {path}: agent.json is not valid JSON ({exc})") from None
     if not isinstance(meta, dict) or meta.get("format") != AGENT_FORMAT:
@@ -210,7 +230,7 @@ def shipped_agents(plant: str | None = None) -> list[Path]:
     """Folders of the agents shipped with the project (for ``plant``, or all)."""
     out = []
     for meta_path in sorted(SHIPPED.glob("*/agent.json")):
-        meta = json.loads(meta_path.read_text(encoding="utf-8"))
+        meta = json.loads(meta_path.read_text(encoding="utf-8"), object_hook=_untag)
         if plant is None or meta.get("plant") == plant:
             out.append(meta_path.parent)
     return out

@@ -173,3 +173,64 @@ def test_a_law_reads_the_newest_measurement_of_a_stacked_history(law):
             rewards.append(r)
         out.append(rewards)
     np.testing.assert_array_equal(out[0], out[1])
+
+
+def test_the_twin_meets_the_agents_next_road_whoever_ends_first():
+    """With a tight stroke limit the agent's episodes and the reference's end at different steps (either first);
+    after each of the agent's episodes the twin starts the same road as the agent's next one."""
+    kw = _kw(episode_seconds=1.0, stroke_limit=0.02)
+    venv = PairedBaselineVecEnv(ResidualVecEnv(make_sb3_vec_env(CAR, n_envs=4, seed=1, **kw), "skyhook_continuous"),
+                                "skyhook_continuous")
+    venv.reset()
+    native = venv._native
+    corrections = np.array([[1.0], [-1.0], [0.5], [0.0]], np.float32)
+    rng = np.random.default_rng(0)
+    twin_first = agent_ends = 0
+    for _ in range(300):
+        waiting = venv._waiting.copy()
+        _, _, dones, infos = venv.step(corrections * (rng.random((4, 1)) < 0.5))
+        twin_first += int((venv._waiting & ~waiting).sum())
+        for b in np.flatnonzero(dones):
+            agent_ends += 1
+            np.testing.assert_array_equal(native.core.episodes[b].record.data,
+                                          venv.twin.core.episodes[b].record.data)
+            assert not venv._waiting[b]
+    assert twin_first > 0 and agent_ends > twin_first   # both orders happened
+
+
+def test_an_agents_environment_options_survive_its_json(tmp_path):
+    """agent.json keeps tuples (ranges drawn from) apart from lists (choices): env_kwargs rebuilds the training
+    distribution, for a new agent and for the shipped ones."""
+    from controllers import shipped_agents
+    from controllers.agents import agent_files, write_agent
+
+    kw = env_options("quarter_car")
+    assert isinstance(kw["road"]["speed"], tuple) and isinstance(kw["road"]["road_class"], list)
+    write_agent(tmp_path, {"plant": "quarter_car", "env_id": CAR, "algo": "PPO", "env_kwargs": kw,
+                           "model": "agent.json"})  # any file of the folder stands in for the model here
+    assert agent_files(tmp_path)[1]["env_kwargs"] == kw
+    for folder in shipped_agents():
+        agent = load_agent(folder)
+        assert agent.env_kwargs == {**env_options(agent.plant), **agent.observation_kwargs}
+
+
+class Counter:
+    """A stand-in recurrent agent: its state counts the steps of each row since its episode began."""
+
+    def predict(self, obs, state=None, episode_start=None, deterministic=True):
+        n = np.zeros(len(obs)) if state is None else state.copy()
+        if episode_start is not None:
+            n[np.asarray(episode_start, bool)] = 0
+        return np.zeros((len(obs), 1), np.float32), n + 1
+
+
+def test_reset_of_some_rows_keeps_the_other_rows_memory():
+    venv = gym.make_vec(CAR, num_envs=3, vectorization_mode="vector_entry_point", **_kw())
+    ctrl = ResidualController(venv, Counter(), "skyhook_continuous")
+    obs, _ = venv.reset(seed=[1, 2, 3])
+    for _ in range(4):
+        _, state = ctrl.predict(obs)
+    ctrl.reset(np.array([False, True, False]))
+    np.testing.assert_array_equal(ctrl.predict(obs)[1], [5, 1, 5])
+    ctrl.reset()
+    np.testing.assert_array_equal(ctrl.predict(obs)[1], [1, 1, 1])
