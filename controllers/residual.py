@@ -96,17 +96,25 @@ class ResidualController(Controller):
         self.name = name or f"residual {law}"
         self.env_kwargs = dict(env_kwargs or {})
         self._state = None
+        self._starts = None  # rows reset(mask) cleared: SB3's episode_start at the next predict
 
     def reset(self, mask=None) -> None:
         self.residual.reset(mask)
-        self._state = None
-        if hasattr(self.agent, "reset"):
-            self.agent.reset(mask)
+        if mask is None or self._state is None:
+            self._state, self._starts = None, None
+            if hasattr(self.agent, "reset"):
+                self.agent.reset(mask)
+        else:  # a recurrent agent's other rows keep their state; the masked ones restart at the next predict
+            m = np.asarray(mask, dtype=bool)
+            self._starts = m if self._starts is None else self._starts | m
 
     def command(self, obs):  # predict() is overridden: the law's memory and the agent's state are kept there
         raise NotImplementedError
 
     def predict(self, observation, state=None, episode_start=None, deterministic: bool = True):
+        if self._starts is not None:
+            episode_start = self._starts if episode_start is None else np.asarray(episode_start, bool) | self._starts
+            self._starts = None
         u_law = self.residual.law_command(observation, episode_start)
         a, self._state = self.agent.predict(self.residual.observe(observation, u_law),
                                             state=state if state is not None else self._state,

@@ -4,8 +4,8 @@ Both wrap the SB3 bridge (:func:`mrd_env.envs.sb3.make_sb3_vec_env`) directly, b
 ``VecNormalize``, because they read raw observations and rewards::
 
     venv = make_sb3_vec_env("mrd_env/QuarterCar-v0", n_envs=16, seed=0, action_mode="normalized", control_dt=0.01)
-    venv = PairedBaselineVecEnv(ResidualVecEnv(venv, "skyhook_continuous"), "skyhook_continuous")
-    venv = VecNormalize(VecMonitor(venv))
+    venv = VecMonitor(ResidualVecEnv(venv, "skyhook_continuous"))   # below the paired baseline: the own returns
+    venv = VecNormalize(PairedBaselineVecEnv(venv, "skyhook_continuous"))
 
 - :class:`ResidualVecEnv`: the agent's actions are corrections to a law's command (:mod:`controllers.residual`).
 - :class:`PairedBaselineVecEnv`: variance reduction by a paired baseline. A twin of the environments, a copy taken
@@ -13,8 +13,11 @@ Both wrap the SB3 bridge (:func:`mrd_env.envs.sb3.make_sb3_vec_env`) directly, b
   agent's reward is r_t − r_t^ref. The reference rewards depend on the disturbance only, never on the agent's
   actions, so within an episode of fixed length the return changes by a policy-independent amount and the best
   policy is unchanged, while the disturbance's share of the return's variance — which dominates the advantages
-  on random roads — cancels (an input-driven baseline, Mao et al., ICLR 2019, arXiv:1807.02264). The episode
-  infos (``infos[i]["episode"]``) still hold the environment's own return.
+  on random roads — cancels (an input-driven baseline, Mao et al., ICLR 2019, arXiv:1807.02264). An episode the
+  agent ends early (a stroke limit) is not of fixed length: it forgoes the reference's remaining −Σ r_ref > 0, an
+  extra termination penalty of the law's remaining cost (same sign as the environment's own). The episode infos
+  (``infos[i]["episode"]``) hold the environment's own return when a ``VecMonitor`` sits below this wrapper (as
+  above; one above it would record the paired return).
 """
 from __future__ import annotations
 
