@@ -298,8 +298,10 @@ def train_sb3(plant: str, algo: str, seed: int, *, out: Path, timesteps: int | N
                 "algo": label, "recurrent": algo == "recurrentppo", "seed": seed, "timesteps": timesteps,
                 "env_kwargs": env_kwargs, "hyperparameters": hyper, "model": "model.zip", "residual": residual,
                 "normalization": None, "command": command, "wall_time_s": time.perf_counter() - t_start, **extra}
-        # the statistics VecNormalize holds now (saved even where it does not normalise observations, as before)
-        write_agent(folder, meta, ObservationNormalizer.from_vecnormalize(vecnorm) if vecnorm is not None else None)
+        # the statistics VecNormalize holds now, where it normalises observations (with norm_obs false they stay
+        # at mean 0, variance 1, and a loaded agent would clip raw observations at ±clip_obs)
+        normalizes = vecnorm is not None and vecnorm.norm_obs
+        write_agent(folder, meta, ObservationNormalizer.from_vecnormalize(vecnorm) if normalizes else None)
 
     # validation: the training distribution itself on seeds training never draws
     val, obs_kwargs = validation_split(plant, env_kwargs, eval_episodes)

@@ -238,14 +238,20 @@ def run(args: argparse.Namespace) -> int:
     if args.residual is not None:
         overrides["residual"] = None if args.residual == "none" else \
             {"law": args.residual, **({"scale": args.residual_scale} if args.residual_scale is not None else {})}
-    elif args.residual_scale is not None:
-        raise ValueError("--residual-scale needs --residual LAW")
+        if args.residual == "none" and args.residual_scale is not None:
+            raise ValueError("--residual-scale applies to a residual; it is switched off by --residual none")
     if args.paired_baseline is not None:
         overrides["paired_baseline"] = None if args.paired_baseline == "none" else args.paired_baseline
     if args.algo == "cmaes" and (overrides.get("residual") or overrides.get("paired_baseline")):
         raise ValueError("--residual and --paired-baseline apply to the SB3 algorithms, not to cmaes "
                          "(CMA-ES warm-starts from a law with --warm-start)")
     hyper = hyperparameters(args.algo, env_id, args.hyperparams, overrides)
+    if args.residual is None and args.residual_scale is not None:  # the scale of the YAML's residual
+        spec = residual_spec(hyper.get("residual"))
+        if spec is None:
+            raise ValueError("--residual-scale needs a residual: --residual LAW, or a hyperparameter file with one")
+        hyper = hyperparameters(args.algo, env_id, args.hyperparams,
+                                {**overrides, "residual": {**spec, "scale": args.residual_scale}})
     if args.algo != "cmaes":
         full_kwargs = {**env_kwargs, **(hyper.get("env_kwargs") or {})}
         check_laws(hyper, env_id, full_kwargs)

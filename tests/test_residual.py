@@ -129,7 +129,7 @@ def test_off_policy_residual_agents_start_at_their_law(algo):
     (["--residual", "banana"], "residual must be one of"),
     (["--paired-baseline", "banana"], "paired_baseline must be one of"),
     (["--residual", "skyhook_continuous", "--residual-scale", "2"], "scale must be a number in (0, 1]"),
-    (["--residual-scale", "0.5"], "--residual-scale needs --residual"),
+    (["--residual-scale", "0.5"], "--residual-scale needs a residual"),
     (["--plant", "building", "--residual", "groundhook"], "does not apply"),
     (["--algo", "cmaes", "--residual", "skyhook_continuous"], "not to cmaes"),
     (["--plant", "building", "--preview"], "road preview is a sensor of the quarter car"),
