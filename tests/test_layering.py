@@ -94,7 +94,6 @@ def import_cycles(graph: dict[str, set[str]]) -> list[set[str]]:
 
 
 # Circles that exist and are known (each lazily resolved inside functions); remove an entry when it is untangled.
-KNOWN_CYCLES = [{"mrd_env.dampers.preset_file", "mrd_env.dampers.registry"}]
 
 
 def test_import_cycles_are_found():
@@ -104,10 +103,7 @@ def test_import_cycles_are_found():
 
 def test_library_has_no_new_import_circle():
     cycles = import_cycles(import_graph())
-    new = [c for c in cycles if c not in KNOWN_CYCLES]
-    assert not new, f"import circles in mrd_env: {[sorted(c) for c in new]}"
-    gone = [c for c in KNOWN_CYCLES if c not in cycles]
-    assert not gone, f"untangled, remove from KNOWN_CYCLES: {[sorted(c) for c in gone]}"
+    assert not cycles, f"import circles in mrd_env: {[sorted(c) for c in cycles]}"
 
 
 def test_stepping_imports_nothing_above_it():

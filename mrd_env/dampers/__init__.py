@@ -5,8 +5,8 @@ Dampers and Their Characterization Methods" (the seed review of this project); e
 numbers are that paper's.
 """
 from .base import AUTOMOTIVE_COMMAND, PROTOTYPE_COMMAND, CommandSpec, DamperModel, DamperParams, Preset, command_spec
-from .preset_file import is_preset_file, load_damper_preset
-from .registry import available_dampers, damper_class, make_damper, register
+from .preset_file import is_preset_file
+from .registry import available_dampers, damper_class, load_damper_preset, make_damper, register
 
 __all__ = ["is_preset_file", "load_damper_preset", "CommandSpec", "PROTOTYPE_COMMAND", "AUTOMOTIVE_COMMAND", "DamperModel", "DamperParams", "Preset", "command_spec", "available_dampers", "damper_class",
            "make_damper", "register"]

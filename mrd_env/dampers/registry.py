@@ -3,6 +3,9 @@ from __future__ import annotations
 
 import importlib
 import pkgutil
+from pathlib import Path
+
+from .preset_file import NEURAL_MODEL, is_preset_file, preset_model, read_preset
 
 _MODELS: dict[str, type] = {}
 
@@ -30,8 +33,6 @@ def available_dampers() -> list[str]:
 
 def damper_class(name: str):
     """The model class of a name, or of the model a preset file holds (``"fitted.json"``)."""
-    from .preset_file import is_preset_file, preset_model
-
     _load_all()
     if is_preset_file(name):
         return damper_class(preset_model(name))
@@ -50,7 +51,6 @@ def make_damper(name: str = "spencer_dyke", preset: str | None = None, *, comman
     >>> d = make_damper("spencer_dyke", preset="spencer1997", c0a=2000.0, command={"eta": 100.0})
     """
     from .base import command_spec
-    from .preset_file import is_preset_file, load_damper_preset
 
     if is_preset_file(name):
         if preset is not None:
@@ -62,3 +62,40 @@ def make_damper(name: str = "spencer_dyke", preset: str | None = None, *, comman
     base = cls.preset(preset)
     params = base.params.replace(**overrides) if overrides else base.params
     return cls(params, command_spec(command, base.command))
+
+
+def load_damper_preset(path: str | Path):
+    """The parametric :class:`~.base.DamperModel` of a preset file, parameters exactly as saved.
+
+    ``ValueError`` for an unknown model, missing or extra parameters, a unit that differs from the model's
+    declared SI unit, or a neural forward model (a network, read by :func:`mrd_env.identification.load_preset`,
+    not a damper model of the environments).
+    """
+    from .base import CommandSpec
+
+    path = Path(path)
+    doc = read_preset(path)
+    if doc.get("model") == NEURAL_MODEL:
+        raise ValueError(f"{path} holds a neural forward model (mrd_env.identification.load_preset reads it): the "
+                         "environments, the rig and the inverses need a parametric damper model (fit one with "
+                         "mrd-env identify --model <name>)")
+    cls = damper_class(doc.get("model", ""))
+    units = cls.Params.units()
+    pars = doc.get("parameters", {})
+    missing = [k for k in units if k not in pars]
+    extra = [k for k in pars if k not in units]
+    if missing or extra:
+        raise ValueError(f"{path}: parameters of {cls.name!r} do not match (missing {missing}, unknown {extra})")
+    values = {}
+    for k, entry in pars.items():
+        if entry.get("unit") != units[k]:
+            raise ValueError(f"{path}: parameter {k!r} is in {entry.get('unit')!r}, expected {units[k]!r} (SI)")
+        values[k] = float(entry["value"])
+    c = doc.get("command", {})
+    try:
+        fall = c.get("eta_fall")
+        command = CommandSpec(c["unit"], float(c["v_min"]), float(c["v_max"]), float(c["eta"]),
+                              None if fall is None else float(fall), float(c.get("delay_s", 0.0)))
+    except KeyError as exc:
+        raise ValueError(f"{path}: command channel lacks {exc}") from None
+    return cls(cls.Params(**values), command)

@@ -6,7 +6,8 @@ import json
 from pathlib import Path
 
 from ..dampers import DamperModel
-from ..dampers.preset_file import PRESET_FORMAT, load_damper_preset, read_preset  # noqa: F401  (re-exported)
+from ..dampers.preset_file import PRESET_FORMAT, read_preset  # noqa: F401  (re-exported)
+from ..dampers.registry import load_damper_preset
 from .neural import NeuralForwardModel
 from .result import FitResult
 
