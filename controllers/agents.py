@@ -24,7 +24,8 @@ import numpy as np
 AGENT_FORMAT = "mrd-env-agent"
 #: Options of the environment that define what an agent sees and does (kept whatever the scenario).
 OBSERVATION_OPTIONS = ("sensors", "sensor_noise", "sensor_delay", "history", "preview", "control_dt", "dt", "action_mode",
-                       "damper", "damper_preset", "damper_params", "plant_preset", "plant_params", "damper_floors")
+                       "damper", "damper_preset", "damper_params", "plant_preset", "plant_params", "damper_floors", "inverse",
+                       "force_range")
 SHIPPED = Path(__file__).with_name("agents")
 #: The agent folder's metadata and observation statistics files.
 METADATA_FILE = "agent.json"

@@ -173,6 +173,7 @@ class AgentController(Controller):
         self.name = name
         self.env_kwargs = dict(env_kwargs or {})
         self._state = None
+        self._starts = None  # rows reset(mask) cleared: SB3's episode_start at the next predict
 
     def command(self, obs):
         """The agent's actions as physical commands, or desired forces in force mode (predict() passes its actions
@@ -183,9 +184,24 @@ class AgentController(Controller):
         return self.v_min + (a + 1.0) * 0.5 * (self.v_max - self.v_min) if self.normalized else a
 
     def reset(self, mask=None) -> None:
-        self._state = None
+        if mask is None or self._state is None:
+            self._state, self._starts = None, None
+            if hasattr(self.model, "reset"):
+                self.model.reset(mask)
+        else:  # a recurrent agent's other rows keep their state; the masked ones restart at the next predict
+            m = np.asarray(mask, dtype=bool)
+            self._starts = m if self._starts is None else self._starts | m
+
+    def episode_starts(self, episode_start):
+        """``episode_start`` with the rows :meth:`reset` cleared since the last predict."""
+        if self._starts is None:
+            return episode_start
+        out = self._starts if episode_start is None else np.asarray(episode_start, bool) | self._starts
+        self._starts = None
+        return out
 
     def predict(self, observation, state=None, episode_start=None, deterministic: bool = True):
         action, self._state = self.model.predict(observation, state=state if state is not None else self._state,
-                                                 episode_start=episode_start, deterministic=deterministic)
+                                                 episode_start=self.episode_starts(episode_start),
+                                                 deterministic=deterministic)
         return action, self._state

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import Controller
+from .base import AgentController, Controller
 
 
 class Residual:
@@ -82,7 +82,7 @@ class Residual:
         return self.combine(self.law_command(obs, episode_start), a)
 
 
-class ResidualController(Controller):
+class ResidualController(AgentController):
     """A trained residual agent (``agent``: anything with SB3's ``predict`` whose actions are corrections in
     [−1, 1]) on the law ``law`` with ``scale``, behind the controllers' interface."""
 
@@ -90,33 +90,17 @@ class ResidualController(Controller):
 
     def __init__(self, env, agent, law: str, scale: float = 1.0, name: str | None = None,
                  env_kwargs: dict | None = None, **law_options):
-        super().__init__(env)
         self.residual = Residual(env, law, scale, **law_options)
-        self.agent = agent
-        self.name = name or f"residual {law}"
-        self.env_kwargs = dict(env_kwargs or {})
-        self._state = None
-        self._starts = None  # rows reset(mask) cleared: SB3's episode_start at the next predict
+        super().__init__(env, agent, name=name or f"residual {law}", env_kwargs=env_kwargs)
 
     def reset(self, mask=None) -> None:
         self.residual.reset(mask)
-        if mask is None or self._state is None:
-            self._state, self._starts = None, None
-            if hasattr(self.agent, "reset"):
-                self.agent.reset(mask)
-        else:  # a recurrent agent's other rows keep their state; the masked ones restart at the next predict
-            m = np.asarray(mask, dtype=bool)
-            self._starts = m if self._starts is None else self._starts | m
-
-    def command(self, obs):  # predict() is overridden: the law's memory and the agent's state are kept there
-        raise NotImplementedError
+        super().reset(mask)
 
     def predict(self, observation, state=None, episode_start=None, deterministic: bool = True):
-        if self._starts is not None:
-            episode_start = self._starts if episode_start is None else np.asarray(episode_start, bool) | self._starts
-            self._starts = None
+        episode_start = self.episode_starts(episode_start)
         u_law = self.residual.law_command(observation, episode_start)
-        a, self._state = self.agent.predict(self.residual.observe(observation, u_law),
+        a, self._state = self.model.predict(self.residual.observe(observation, u_law),
                                             state=state if state is not None else self._state,
                                             episode_start=episode_start, deterministic=deterministic)
         return self.residual.combine(u_law, a), self._state
