@@ -7,10 +7,12 @@ this text, so that every step below is the project's stepping routine (SDIRK2 wi
 integrated exactly) on the virtual rig: no plant, the damper driven by its stroke, velocity and acceleration
 w = (x, ẋ, ẍ), interpolated linearly inside the step.
 
-Arguments shared by the functions: the rig's system arrays C, D and level matrices Ainv, Bbar, Mq, PP
-(:meth:`mrd_env.stepping.SystemMatrices.levels`), the parameter vector P (1, n_params), the command dynamics
-lag (1, 3) (η_rise, η_fall, τ; the delay τ is not modelled here), the step dt, the finest sub-step level, the
-tolerances, and scratch buffers wf, wi (one system's workspace).
+Arguments shared by the functions (the records of :mod:`mrd_env.stepping.layout`): ``plant``, the rig's system
+arrays and level matrices (``PlantArrays``, :meth:`mrd_env.stepping.SystemMatrices.levels`); ``damper``, the
+parameter vector P (1, n_params) and the command dynamics lag (1, 3) (η_rise, η_fall, τ; the delay τ is not
+modelled here) (``DamperArrays``); ``state``, the dampers' internal states Y (N, ns), effective commands U (N, 1)
+and forces F (N, 1) (``SystemState``); ``control``, the step dt, the finest sub-step level and the tolerances
+(``StepControl``); and scratch buffers wf, wi (one system's workspace).
 """
 import math
 
@@ -19,26 +21,26 @@ import numpy as np
 
 from mrd_env.stepping._kernel_template import macro_step, workspace_views  # injected
 from mrd_env.stepping.injected import ns  # injected
-from mrd_env.stepping.layout import VD_TS, VD_VA, VD_VB
+from mrd_env.stepping.layout import VD_TS, VD_VA, VD_VB, SystemState
 
 
 @nb.njit(cache=True)
-def advance(C, D, Ainv, Bbar, Mq, PP, P, lag, Y, U, F, W, V, x1, v1, dt, max_level, nsub, atol, rtol, wf, wi,
-            status):
+def advance(plant, damper, state, W, V, x1, v1, control, nsub, wf, wi, status):
     """Advance N dampers by one step with the commands V[b] held, from their motion W[b] = (x, ẋ, ẍ) to the
-    measured x1[b], v1[b] (ẍ: the backward difference of the velocities): states Y (N, ns), effective commands
-    U (N, 1), forces F (N, 1) and W in place; status[b] is the kernel's (0: OK)."""
+    measured x1[b], v1[b] (ẍ: the backward difference of the velocities): the state and W in place; status[b]
+    is the kernel's (0: OK)."""
+    Y, U, F = state
+    dt = control.dt
     m = ns + 1
     w1 = np.empty(3)
-    Vd = workspace_views(wf, wi, C.shape[2], 1, Y.shape[1], D.shape[2])[1]
+    Vd = workspace_views(wf, wi, plant.C.shape[2], 1, Y.shape[1], plant.D.shape[2]).Vd
     for b in range(Y.shape[0]):
         wi[m] = -1  # the Newton matrix of another system is not reused
         hold(Vd, V[b])
         w1[0] = x1[b]
         w1[1] = v1[b]
         w1[2] = (v1[b] - W[b, 1]) / dt
-        st, used, nxt = macro_step(C, D, Ainv, Bbar, Mq, PP, P, lag, Y[b], U[b], F[b], W[b], w1, dt, max_level,
-                                   nsub[b], atol, rtol, wf, wi)
+        st, used, nxt = macro_step(plant, damper, SystemState(Y[b], U[b], F[b]), W[b], w1, control, nsub[b], wf, wi)
         nsub[b] = nxt
         status[b] = st
         for i in range(3):
@@ -63,46 +65,44 @@ def extrapolate(w0, dt, w1):
 
 
 @nb.njit(cache=True)
-def step_force(C, D, Ainv, Bbar, Mq, PP, P, lag, Y, U, F, v, w0, w1, dt, max_level, atol, rtol, wf, wi, Ys, Us,
-               Fs):
-    """The force at the end of one step from the state (Y, U, F) of one damper with the command v held and the
-    motion w0 → w1, leaving that state unchanged (NaN if the step fails)."""
+def step_force(plant, damper, state, v, w0, w1, control, wf, wi, scratch):
+    """The force at the end of one step from the ``state`` (Y, U, F) of one damper with the command v held and
+    the motion w0 → w1, leaving that state unchanged (NaN if the step fails); ``scratch``: a ``SystemState`` of
+    the same shapes to step."""
+    Y, U, F = state
+    Ys, Us, Fs = scratch
     for i in range(Y.shape[0]):
         Ys[i] = Y[i]
     Us[0] = U[0]
     Fs[0] = F[0]
-    hold(workspace_views(wf, wi, C.shape[2], 1, Y.shape[0], D.shape[2])[1], v)
+    hold(workspace_views(wf, wi, plant.C.shape[2], 1, Y.shape[0], plant.D.shape[2]).Vd, v)
     nsub = np.ones(1, dtype=np.int64)  # an int64, not the literal 1: the call then shares the driver's compilation
     wi[ns + 1] = -1
-    st, used, nxt = macro_step(C, D, Ainv, Bbar, Mq, PP, P, lag, Ys, Us, Fs, w0, w1, dt, max_level, nsub[0],
-                               atol, rtol, wf, wi)
+    st, used, nxt = macro_step(plant, damper, scratch, w0, w1, control, nsub[0], wf, wi)
     if st != 0:
         return math.nan
     return Fs[0]
 
 
 @nb.njit(cache=True)
-def nearest_commands(C, D, Ainv, Bbar, Mq, PP, P, lag, Y, U, F, W, target, grid, n_refine, dt, max_level,
-                     atol, rtol, wf, wi, out, predicted):
+def nearest_commands(plant, damper, state, W, target, grid, n_refine, control, wf, wi, out, predicted):
     """For each damper b, the command whose force at the end of the next step — the motion extrapolated from
     W[b] at constant acceleration — is nearest ``target[b]``: the forces of
     the ``grid`` commands, then ``n_refine`` Illinois (regula falsi) steps inside the grid interval that brackets
     the target next to the best grid point (none if no interval brackets it: the target is out of reach and the
     best grid command, an end of the range when the force is monotone in the command, is kept)."""
+    Y, U, F = state
     K = grid.shape[0]
-    n = Y.shape[1]
-    Ys = np.empty(n)
-    Us = np.empty(1)
-    Fs = np.empty(1)
+    scratch = SystemState(np.empty(Y.shape[1]), np.empty(1), np.empty(1))
     Fk = np.empty(K)
     w1 = np.empty(3)
     for b in range(Y.shape[0]):
         f = target[b]
-        extrapolate(W[b], dt, w1)
+        one = SystemState(Y[b], U[b], F[b])
+        extrapolate(W[b], control.dt, w1)
         best = -1
         for k in range(K):
-            Fk[k] = step_force(C, D, Ainv, Bbar, Mq, PP, P, lag, Y[b], U[b], F[b], grid[k], W[b], w1, dt,
-                               max_level, atol, rtol, wf, wi, Ys, Us, Fs)
+            Fk[k] = step_force(plant, damper, one, grid[k], W[b], w1, control, wf, wi, scratch)
             if math.isfinite(Fk[k]) and (best < 0 or abs(Fk[k] - f) < abs(Fk[best] - f)):
                 best = k
         if best < 0:  # every prediction failed: keep the lowest command
@@ -124,8 +124,7 @@ def nearest_commands(C, D, Ainv, Bbar, Mq, PP, P, lag, Y, U, F, W, target, grid,
                 if fs == ft:
                     break
                 r = (s * ft - t * fs) / (ft - fs)
-                fr = step_force(C, D, Ainv, Bbar, Mq, PP, P, lag, Y[b], U[b], F[b], r, W[b], w1, dt,
-                                max_level, atol, rtol, wf, wi, Ys, Us, Fs)
+                fr = step_force(plant, damper, one, r, W[b], w1, control, wf, wi, scratch)
                 if not math.isfinite(fr):
                     break
                 if abs(fr - f) < abs(F_best - f):
@@ -149,14 +148,12 @@ def nearest_commands(C, D, Ainv, Bbar, Mq, PP, P, lag, Y, U, F, W, target, grid,
 
 
 @nb.njit(cache=True)
-def step_forces(C, D, Ainv, Bbar, Mq, PP, P, lag, Y, U, F, W, W1, V, dt, max_level, atol, rtol, wf, wi, out):
+def step_forces(plant, damper, state, W, W1, V, control, wf, wi, out):
     """out[b, k]: damper b's force at the end of one step with the command V[b, k] held and the motion going
     from W[b] to W1[b], from its current state (left unchanged; NaN where the step fails)."""
-    n = Y.shape[1]
-    Ys = np.empty(n)
-    Us = np.empty(1)
-    Fs = np.empty(1)
+    Y, U, F = state
+    scratch = SystemState(np.empty(Y.shape[1]), np.empty(1), np.empty(1))
     for b in range(Y.shape[0]):
+        one = SystemState(Y[b], U[b], F[b])
         for k in range(V.shape[1]):
-            out[b, k] = step_force(C, D, Ainv, Bbar, Mq, PP, P, lag, Y[b], U[b], F[b], V[b, k], W[b], W1[b], dt,
-                                   max_level, atol, rtol, wf, wi, Ys, Us, Fs)
+            out[b, k] = step_force(plant, damper, one, V[b, k], W[b], W1[b], control, wf, wi, scratch)

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ..stepping.codegen import kernel_module, load_generated_module, render
+from ..stepping.layout import DamperArrays, PlantArrays, StepControl, SystemState
 from ..stepping.matrices import SystemMatrices
 from ..stepping.scheme import ATOL, RTOL, max_level_of
 from ..stepping.stepper import diverged_error
@@ -56,7 +57,7 @@ class OneStep:
         self.max_level = max_level_of(self.max_substeps)
         self.rtol, self.atol = float(rtol), float(atol)
         ns = damper.n_states
-        self._sys = (_RIG.C, _RIG.D, *_RIG.levels(self.dt, self.max_level))
+        self._plant = PlantArrays(_RIG.C, _RIG.D, *_RIG.levels(self.dt, self.max_level))
         self.P = damper.params.as_array()[None, :]
         self.lag = damper.command.lag_vector().reshape(1, 3)
         wf, wi = kernel_module(type(damper)).workspace_len(0, 1, ns, 3)
@@ -96,11 +97,19 @@ class OneStep:
             self.Y[b] = s
             self.F[b, 0] = d.force_law(p, s, x, v, a, float(u0[b]))
 
+    @property
+    def _control(self) -> StepControl:
+        return StepControl(self.dt, self.max_level, self.atol, self.rtol)
+
+    def _records(self) -> tuple:
+        """(plant, damper, state) as the compiled routines take them (:mod:`mrd_env.stepping.layout`)."""
+        return self._plant, DamperArrays(self.P, self.lag), SystemState(self.Y, self.U, self.F)
+
     def advance(self, command: np.ndarray, x: np.ndarray, v: np.ndarray) -> None:
         """One step with the commands ``command`` (N,) held, the motion going linearly from ``W`` to the
         measured stroke ``x`` and velocity ``v`` (N,) (acceleration: the backward difference of the velocities)."""
-        self.module.advance(*self._sys, self.P, self.lag, self.Y, self.U, self.F, self.W, command, x, v, self.dt,
-                            self.max_level, self._nsub, self.atol, self.rtol, self._wf, self._wi, self._status)
+        self.module.advance(*self._records(), self.W, command, x, v, self._control, self._nsub, self._wf, self._wi,
+                            self._status)
         self.t += self.dt
         if self._status.any():
             b = int(np.flatnonzero(self._status)[0])
@@ -112,8 +121,7 @@ class OneStep:
         ``_onestep_template.nearest_commands``)."""
         out = np.empty(self.N)
         predicted = np.empty(self.N)
-        self.module.nearest_commands(*self._sys, self.P, self.lag, self.Y, self.U, self.F, self.W, target, grid,
-                                     int(n_refine), self.dt, self.max_level, self.atol, self.rtol, self._wf,
+        self.module.nearest_commands(*self._records(), self.W, target, grid, int(n_refine), self._control, self._wf,
                                      self._wi, out, predicted)
         return out, predicted
 
@@ -122,9 +130,8 @@ class OneStep:
         to the measured x1, v1 (N,) (acceleration: their backward difference); the state is left unchanged."""
         W1 = np.stack([x1, v1, (v1 - self.W[:, 1]) / self.dt], axis=1)
         out = np.empty(commands.shape)
-        self.module.step_forces(*self._sys, self.P, self.lag, self.Y, self.U, self.F, self.W, W1,
-                                np.ascontiguousarray(commands, dtype=np.float64), self.dt, self.max_level, self.atol,
-                                self.rtol, self._wf, self._wi, out)
+        self.module.step_forces(*self._records(), self.W, W1, np.ascontiguousarray(commands, dtype=np.float64),
+                                self._control, self._wf, self._wi, out)
         return out
 
 

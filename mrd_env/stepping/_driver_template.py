@@ -27,7 +27,7 @@ from mrd_env.stepping.layout import (
     RUNNING, S_CMD, S_CMDQ, S_DOSE, S_F, S_FIFO, S_LAG, S_P, S_RING, S_ROW, S_RSCALE, S_REWARD, S_STATS, S_U, S_Y,
     S_ZI, SC_ATOL, SC_DT, SC_PEN_CONST, SC_PEN_STEP, SC_RTOL, SC_VMAX, SC_VMIN, T_CMDQ_POS, T_COUNTER, T_FAIL_STEP,
     T_FIFO_POS, T_K, T_KEY, T_NSTEPS, T_NSUB, T_REASON, T_RING_POS, T_ROWS, T_STATUS, T_SUBSTEPS, TERMINATED,
-    TRUNCATED, CoreArrays, OutputArrays, PlantArrays)
+    TRUNCATED, CoreArrays, DamperArrays, OutputArrays, PlantArrays, StepControl, SystemState)
 from mrd_env.stepping.scheme import OK
 
 
@@ -213,7 +213,8 @@ def core_reset(fc, ic, fs, is_, W, H, obs, mask):
 def _advance_one(b, core, plant, outputs, wf, wi):
     """One period of system b (see the module docstring) with the scratch wf, wi; returns its status."""
     fc, ic, fs, is_, W, H, action, obs = core
-    C, D, Ainv, Bbar, Mq, PP = plant
+    C = plant.C
+    D = plant.D
     G, sos, filt, scal, noise, limits = outputs
     nd = C.shape[1]
     n = ic[D_DIMS + DIM_N]
@@ -245,6 +246,9 @@ def _advance_one(b, core, plant, outputs, wf, wi):
     dose = _state(fs, ic, b, S_DOSE)
     ring = _state(fs, ic, b, S_RING)
     h = _state(fs, ic, b, S_ROW)
+    damper = DamperArrays(P, lag)
+    state = SystemState(Y, U, Fz)
+    control = StepControl(dt, max_level, scal[SC_ATOL], scal[SC_RTOL])
     # the action: validated, clipped to the Box and mapped onto [v_min, v_max] when normalised
     if cmd_col < 0:
         for j in range(nd):
@@ -270,8 +274,7 @@ def _advance_one(b, core, plant, outputs, wf, wi):
         for j in range(nd):
             queue[pos, j] = cmd[j]
         delayed_commands(queue, pos, lag, dt, Vd)
-        stat, used, nsub = macro_step(C, D, Ainv, Bbar, Mq, PP, P, lag, Y, U, Fz, W[b, r], W[b, r + 1], dt,
-                                      max_level, nsub, scal[SC_ATOL], scal[SC_RTOL], wf, wi)
+        stat, used, nsub = macro_step(plant, damper, state, W[b, r], W[b, r + 1], control, nsub, wf, wi)
         if stat != OK:
             is_[b, T_REASON] = stat
             is_[b, T_FAIL_STEP] = r

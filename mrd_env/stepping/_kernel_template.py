@@ -29,7 +29,7 @@ import numba as nb
 
 from mrd_env.command_lag import delay_split as _delay_split_dispatcher, lag_value as _lag_value_dispatcher
 from mrd_env.stepping.injected import force, ns, partials, project, rhs  # injected
-from mrd_env.stepping.layout import VD_TS, VD_VA, VD_VB
+from mrd_env.stepping.layout import VD_TS, VD_VA, VD_VB, PlantArrays, Workspace
 from mrd_env.stepping.matrices import lu_factor as _lu_factor_dispatcher, lu_solve as _lu_solve_dispatcher
 from mrd_env.stepping.scheme import GAMMA, NO_CONVERGENCE, NONFINITE, OK
 
@@ -54,8 +54,8 @@ def workspace_len(nq, nd, n, nw):
 
 @nb.njit(inline='always')
 def workspace_views(wf, wi, nq, nd, n, nw):
-    """(Vn, Vd, Vx, K, Iw, Jd) of one system's step as views of the scratch buffers wf, wi (see the module
-    docstring); the scratch is allocated once, by the caller."""
+    """The :class:`~mrd_env.stepping.layout.Workspace` (Vn, Vd, Vx, K, Iw, Jd) of one system's step as views of
+    the scratch buffers wf, wi (see the module docstring); the scratch is allocated once, by the caller."""
     m = max(nd * (ns + 1), 1)
     L1 = max(n, m)
     L = max(nw, 2 * ns + 2, nq, 1)
@@ -69,7 +69,7 @@ def workspace_views(wf, wi, nq, nd, n, nw):
     K = wf[o:o + m * m].reshape((m, m))
     o += m * m
     Jd = wf[o:o + nd * (ns + 1) * (ns + 2)].reshape((nd, ns + 1, ns + 2))
-    return Vn, Vd, Vx, K, wi[:m + 1], Jd
+    return Workspace(Vn, Vd, Vx, K, wi[:m + 1], Jd)
 
 
 @nb.njit(inline='always')
@@ -125,10 +125,13 @@ def kinematics(C, D, q, w, xs, vs, As):
 
 
 @nb.njit(inline='always')
-def solve_stage(C, D, Ainv, Bbar, Mq, PP, P, R, u, w, hg, Z, Fz, atol, rtol, reuse, Vn, Vd, Vx, K, Iw, Jd):
-    """Solve the stage equation Z = R + hγ f(Z) with the plant eliminated; Fz holds the forces (guess in,
-    solution out). ``reuse``: start from the factorised Newton matrix already in K (the two stages of a step
-    share it). Returns False if Newton's method does not converge."""
+def solve_stage(lv, P, R, u, w, hg, Z, Fz, atol, rtol, reuse, ws):
+    """Solve the stage equation Z = R + hγ f(Z) with the plant eliminated (``lv``: the plant's matrices at this
+    sub-step level, ``ws``: the workspace); Fz holds the forces (guess in, solution out). ``reuse``: start from
+    the factorised Newton matrix already in K (the two stages of a step share it). Returns False if Newton's
+    method does not converge."""
+    C, D, Ainv, Bbar, Mq, PP = lv
+    Vn, Vd, Vx, K, Iw, Jd = ws
     nd = C.shape[1]
     nq = C.shape[2]
     m = nd * (ns + 1)
@@ -227,18 +230,24 @@ def solve_stage(C, D, Ainv, Bbar, Mq, PP, P, R, u, w, hg, Z, Fz, atol, rtol, reu
 
 
 @nb.njit(cache=True)
-def sdirk_step(C, D, Ainv, Bbar, Mq, PP, P, Y, Fz, u0, lag, w0, w1, tau0, h, H, atol, rtol, level, wf, wi):
-    """One SDIRK2 step of length h = H/2^level starting at τ0 (relative to the macro step of length H), with
-    the level matrices Ainv, Bbar, Mq, PP of this h. Y and the force guess Fz are updated only on success; the
-    effective commands at the stages follow exactly from u0 at τ = 0 and the delayed commands (Vd rows VD_VA..VD_TS).
+def sdirk_step(lv, damper, state, w0, w1, tau0, h, control, level, ws):
+    """One SDIRK2 step of length h = H/2^level starting at τ0 (relative to the macro step of length
+    H = ``control.dt``), with ``lv`` the plant's matrices of this h. The states Y and the force guess Fz of
+    ``state`` are updated only on success; the effective commands at the stages follow exactly from U (its
+    value at τ = 0, which the macro step updates only at its end) and the delayed commands (Vd rows
+    VD_VA..VD_TS).
 
     The factorised Newton matrix of an earlier step of the same length starts the iterations (refreshed as
     soon as convergence slows). Returns (converged, error estimate in units of the tolerance)."""
+    C, D, Ainv, Bbar, Mq, PP = lv
+    P, lag = damper
+    Y, u0, Fz = state
+    H, _, atol, rtol = control
+    Vn, Vd, Vx, K, Iw, Jd = ws
     nd = C.shape[1]
     nq = C.shape[2]
     n = Y.shape[0]
     m = nd * (ns + 1)
-    Vn, Vd, Vx, K, Iw, Jd = workspace_views(wf, wi, nq, nd, n, D.shape[2])
     hg = h * GAMMA
     Z1 = Vn[0]
     Z2 = Vn[1]
@@ -276,8 +285,8 @@ def sdirk_step(C, D, Ainv, Bbar, Mq, PP, P, Y, Fz, u0, lag, w0, w1, tau0, h, H, 
         for j in range(nd):
             u[j] = _lag_value(u0[j], va[j], vb[j], ts[j], lag[j, 0], lag[j, 1], tau)
         w = _interpolate(w0, w1, tau / H, Vx[3])
-        if not solve_stage(C, D, Ainv, Bbar, Mq, PP, P, R, u, w, hg, Z, F1, NEWTON_TOL * atol,
-                           NEWTON_TOL * rtol, reuse or stage == 1, Vn, Vd, Vx, K, Iw, Jd):
+        if not solve_stage(lv, P, R, u, w, hg, Z, F1, NEWTON_TOL * atol, NEWTON_TOL * rtol, reuse or stage == 1,
+                           ws):
             Iw[m] = -1
             return False, math.inf
     # local error: SDIRK2 minus the embedded backward-Euler-like solution Y + h f(Z1), filtered by
@@ -347,24 +356,29 @@ def _interpolate(w0, w1, frac, out):
 
 
 @nb.njit(cache=True)
-def macro_step(C, D, Ainv, Bbar, Mq, PP, P, lag, Y, U, Fz, w0, w1, dt, max_level, nsub, atol, rtol, wf, wi):
-    """Advance one system by dt (inputs w0 → w1; the delayed commands of the step in rows VD_VA..VD_TS of the
-    scratch Vd, see :func:`delayed_commands`), splitting the step into 2^k sub-steps as the error estimate asks
-    (k ≤ max_level), starting from ``nsub`` sub-steps.
+def macro_step(plant, damper, state, w0, w1, control, nsub, wf, wi):
+    """Advance one system by dt = ``control.dt`` (inputs w0 → w1; the delayed commands of the step in rows
+    VD_VA..VD_TS of the scratch Vd, see :func:`delayed_commands`), splitting the step into 2^k sub-steps as the
+    error estimate asks (k ≤ ``control.max_level``), starting from ``nsub`` sub-steps. ``plant``: the
+    :class:`~mrd_env.stepping.layout.PlantArrays` (per level), ``damper``: ``DamperArrays``, ``state``:
+    ``SystemState``, ``control``: ``StepControl`` (:mod:`mrd_env.stepping.layout`).
 
-    Y, U (effective commands) and Fz (forces) are updated in place. Returns (status, sub-steps used, sub-steps
-    to start the next step with: half as many when the error estimate says that twice the sub-step — eight times
-    the local error of this order-2 method — would still pass, else as many)."""
+    The state's Y, U (effective commands) and Fz (forces) are updated in place. Returns (status, sub-steps
+    used, sub-steps to start the next step with: half as many when the error estimate says that twice the
+    sub-step — eight times the local error of this order-2 method — would still pass, else as many)."""
+    C, D, Ainv, Bbar, Mq, PP = plant
+    P, lag = damper
+    Y, U, Fz = state
+    dt, max_level, _, _ = control
     nd = C.shape[1]
     n = Y.shape[0]
-    Vn, Vd, Vx, K, Iw, Jd = workspace_views(wf, wi, C.shape[2], nd, n, D.shape[2])
-    Ysave = Vn[5]
+    ws = workspace_views(wf, wi, C.shape[2], nd, n, D.shape[2])
+    Vd = ws.Vd
+    Ysave = ws.Vn[5]
     Fsave = Vd[6]
-    u0 = Vd[7]
     for i in range(n):
         Ysave[i] = Y[i]
     for j in range(nd):
-        u0[j] = U[j]
         Fsave[j] = Fz[j]
     level = 0
     k = max(1, nsub)
@@ -383,8 +397,8 @@ def macro_step(C, D, Ainv, Bbar, Mq, PP, P, lag, Y, U, Fz, w0, w1, dt, max_level
         if n > 0:
             for sidx in range(m):
                 # sub-steps restart the command lag from its exact value at their start
-                good, err = sdirk_step(C, D, Ainv[level], Bbar[level], Mq[level], PP[level], P, Y, Fz, u0, lag,
-                                       w0, w1, sidx * h, h, dt, atol, rtol, level, wf, wi)
+                lv = PlantArrays(C, D, Ainv[level], Bbar[level], Mq[level], PP[level])
+                good, err = sdirk_step(lv, damper, state, w0, w1, sidx * h, h, control, level, ws)
                 if not good:
                     ok = False
                     break
@@ -401,7 +415,7 @@ def macro_step(C, D, Ainv, Bbar, Mq, PP, P, lag, Y, U, Fz, w0, w1, dt, max_level
         level += 1
     # exact command lag over the whole step, then the forces at its end
     for j in range(nd):
-        U[j] = _lag_value(u0[j], Vd[VD_VA, j], Vd[VD_VB, j], Vd[VD_TS, j], lag[j, 0], lag[j, 1], dt)
+        U[j] = _lag_value(U[j], Vd[VD_VA, j], Vd[VD_VB, j], Vd[VD_TS, j], lag[j, 0], lag[j, 1], dt)
     status = end_forces(C, D, P, Y, U, w1, Fz, Vd)
     used = 1 << level
     return status, used, (used // 2 if (level > 0 and 8.0 * worst < 0.8) else used)

@@ -68,6 +68,13 @@ VD_VA, VD_VB, VD_TS = 10, 11, 12
 CoreArrays = namedtuple("CoreArrays", "fc ic fs is_ W H action obs")
 PlantArrays = namedtuple("PlantArrays", "C D Ainv Bbar Mq PP")
 OutputArrays = namedtuple("OutputArrays", "G sos filt scal noise limits")
+# ... and those of one step of one system: the dampers' parameters (nd, n_params) and command dynamics (nd, 3),
+# the state (Y plant and damper states, U effective commands, Fz forces), how a step is taken (dt, the finest
+# sub-step level, the tolerances) and the views of the scratch (see ``_kernel_template.workspace_views``).
+DamperArrays = namedtuple("DamperArrays", "P lag")
+SystemState = namedtuple("SystemState", "Y U Fz")
+StepControl = namedtuple("StepControl", "dt max_level atol rtol")
+Workspace = namedtuple("Workspace", "Vn Vd Vx K Iw Jd")
 
 
 def _check() -> None:
