@@ -23,7 +23,7 @@ import numpy as np
 
 from mrd_env.dampers import available_dampers, make_damper
 from mrd_env.identification.compare import fr_data, plot_fit, split_records, validate
-from mrd_env.identification.data import DamperRecord, load_record_csv
+from mrd_env.records import DamperRecord, load_record_csv
 from mrd_env.identification.faults import FaultsExcluded
 from mrd_env.identification.fit import OFFSET_REFERENCE, fit_model, reference_offset
 from mrd_env.identification.neural import NAME as NEURAL

@@ -1,11 +1,11 @@
 """Command-line options for reading a user's record: ``--columns`` and ``--units`` (shared by ``rig``,
-``identify`` and ``compare-models``), read through :func:`mrd_env.identification.read_columns`."""
+``identify`` and ``compare-models``), read through :func:`mrd_env.records.read_columns`."""
 from __future__ import annotations
 
 import argparse
 from pathlib import Path
 
-from mrd_env.identification.data import own_columns, read_columns
+from mrd_env.records import own_columns, read_columns
 
 ACCEPTED_UNITS = "t s|ms, x m|cm|mm, v m/s|cm/s|mm/s, force N|kN, command V|mV|A|mA"
 

@@ -2,60 +2,21 @@
 
 Sinusoidal tests (the review's section 4 sinusoidal tester), band-limited random tests, and a user's own
 displacement/command record. Several records (e.g. one per command level) run as one vectorised batch
-through the shared stepping routine :func:`mrd_env.stepping.run`.
+through the shared stepping routine :func:`mrd_env.stepping.run`. Every test returns damper records
+(:class:`~mrd_env.records.DamperRecord`, the container of a measured record too) with the rig's extras: the
+effective command ``u`` after the coil lag and the damper's ``model`` name.
 """
 from __future__ import annotations
 
-import csv
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from .command_lag import effective_command
 from .dampers import DamperModel, make_damper
+from .records import DamperRecord
 from .stepping import SystemMatrices, run
-from .validation import as_generator, check_array, check_n_samples, check_scalar
-
-
-@dataclass(frozen=True)
-class RigResult:
-    """One rig record on the fixed grid t_k = k·dt (SI units)."""
-
-    model: str
-    t: np.ndarray        # s
-    x: np.ndarray        # stroke, m (extension positive)
-    v: np.ndarray        # stroke velocity, m/s
-    command: np.ndarray  # commanded v (V or A), held over each step
-    u: np.ndarray        # effective command after the driver/coil lag
-    force: np.ndarray    # N, positive when resisting extension
-    command_unit: str
-    label: str = ""
-
-    @property
-    def dt(self) -> float:
-        return float(self.t[1] - self.t[0])
-
-    def steady_cycles(self, frequency: float, n_cycles: int = 1) -> slice:
-        """Index slice covering the last ``n_cycles`` periods (for loops and energy)."""
-        n = int(round(n_cycles / (frequency * self.dt)))
-        return slice(len(self.t) - n - 1, len(self.t))
-
-    def dissipated_energy(self, sl: slice | None = None) -> float:
-        """∮ F dx over the samples in ``sl`` (J), trapezoidal in time: ∫ F ẋ dt."""
-        sl = sl or slice(None)
-        return float(np.trapezoid(self.force[sl] * self.v[sl], self.t[sl]))
-
-    def to_csv(self, path: str | Path) -> Path:
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        with path.open("w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(["t_s", "x_m", "v_m_per_s", f"command_{self.command_unit}", f"u_{self.command_unit}",
-                        "force_N"])
-            for row in zip(self.t, self.x, self.v, self.command, self.u, self.force):
-                w.writerow([f"{val:.9g}" for val in row])
-        return path
+from .validation import MIN_RECORD_SAMPLES, as_generator, check_array, check_n_samples, check_scalar
 
 
 def _as_damper(damper: DamperModel | str) -> DamperModel:
@@ -83,7 +44,7 @@ def check_test_step(dt, damper: DamperModel, f_max: float, what: str) -> float:
 
 def simulate(damper: DamperModel | str, x: np.ndarray, command: np.ndarray, dt: float = 1e-3,
              v: np.ndarray | None = None, a: np.ndarray | None = None, *, labels=None,
-             **integrator_options) -> list[RigResult]:
+             **integrator_options) -> list[DamperRecord]:
     """Drive ``damper`` with strokes ``x`` (m) and commands ``command`` sampled every ``dt`` seconds.
 
     ``x`` and ``command`` are 1-D (one record) or 2-D (records × samples, run as one batch). Velocity ``v``
@@ -97,8 +58,9 @@ def simulate(damper: DamperModel | str, x: np.ndarray, command: np.ndarray, dt: 
         raise ValueError(f"x must be 1-D (one record) or 2-D (records × samples), got shape {x2.shape}")
     x2 = np.atleast_2d(x2)
     n_rec, n = x2.shape
-    if n < 2 or n_rec < 1:
-        raise ValueError(f"x must hold at least one record of at least 2 samples, got shape {x2.shape}")
+    if n < MIN_RECORD_SAMPLES or n_rec < 1:
+        raise ValueError(f"x must hold at least one record of at least {MIN_RECORD_SAMPLES} samples, got shape "
+                         f"{x2.shape}")
     c2 = np.atleast_2d(check_array("command", command))
     if c2.ndim == 2 and c2.shape[1] == 1:
         c2 = np.repeat(c2, n, axis=1)
@@ -127,12 +89,12 @@ def simulate(damper: DamperModel | str, x: np.ndarray, command: np.ndarray, dt: 
     u = np.array([effective_command(damper.command, c, dt) for c in c2])
     t = np.arange(n) * dt
     labels = labels or [""] * n_rec
-    return [RigResult(damper.name, t, x2[i], v2[i], c2[i], u[i], force[i], damper.command.unit, labels[i])
-            for i in range(n_rec)]
+    return [DamperRecord(t, x2[i], c2[i], force[i], v2[i], damper.command.unit, labels[i], u=u[i],
+                         model=damper.name) for i in range(n_rec)]
 
 
 def sinusoidal_test(damper: DamperModel | str, amplitude: float, frequency: float, commands=(0.0,), *,
-                    cycles: float = 3.0, dt: float = 1e-3, **integrator_options) -> list[RigResult]:
+                    cycles: float = 3.0, dt: float = 1e-3, **integrator_options) -> list[DamperRecord]:
     """x = X sin(2π f t) at constant command levels, one record per level (review section 4)."""
     damper = _as_damper(damper)
     X = check_scalar("amplitude", amplitude, 0.0, lo_open=True, unit="m")
@@ -144,8 +106,8 @@ def sinusoidal_test(damper: DamperModel | str, amplitude: float, frequency: floa
         raise ValueError(f"commands must be one command level or a 1-D list of them, got shape {cmds.shape}")
     # divided in turn: f·dt may underflow to 0
     steps = check_n_samples(cycles / f / dt, f"cycles / (frequency · dt) = {cycles:g} / ({f:g} Hz · {dt:g} s)")
-    if steps < 0.5:
-        raise ValueError(f"cycles = {cycles:g} at {f:g} Hz lasts less than one step dt = {dt:g} s: "
+    if steps < 1.5:
+        raise ValueError(f"cycles = {cycles:g} at {f:g} Hz lasts less than two steps dt = {dt:g} s: "
                          "give more cycles or a smaller dt")
     n = int(round(steps)) + 1
     t = np.arange(n) * dt
@@ -158,7 +120,7 @@ def sinusoidal_test(damper: DamperModel | str, amplitude: float, frequency: floa
 
 
 def random_test(damper: DamperModel | str, rms: float, bandwidth: float, duration: float, *, command=None,
-                switch_rate: float = 0.0, dt: float = 1e-3, rng=None, **integrator_options) -> RigResult:
+                switch_rate: float = 0.0, dt: float = 1e-3, rng=None, **integrator_options) -> DamperRecord:
     """Band-limited random stroke (Gaussian, flat spectrum up to ``bandwidth`` Hz, scaled to ``rms`` m).
 
     ``command``: a constant level, or None with ``switch_rate`` > 0 for a command switched at random
@@ -192,7 +154,7 @@ def random_test(damper: DamperModel | str, rms: float, bandwidth: float, duratio
     return simulate(damper, x, cmd, dt, v, a, labels=["random"], **integrator_options)[0]
 
 
-def plot_loops(results: list[RigResult], path: str | Path, *, last_cycles: slice | None = None,
+def plot_loops(results: list[DamperRecord], path: str | Path, *, last_cycles: slice | None = None,
                title: str = "") -> Path:
     """Force–displacement and force–velocity loops of several records on one figure (review Figs. 2, 5)."""
     from .report import figure, save_figure
@@ -201,7 +163,7 @@ def plot_loops(results: list[RigResult], path: str | Path, *, last_cycles: slice
     for r in results:
         sl = last_cycles or slice(None)
         ax1.plot(r.x[sl] * 1e3, r.force[sl] / 1e3, label=r.label or r.model)
-        ax2.plot(r.v[sl], r.force[sl] / 1e3, label=r.label or r.model)
+        ax2.plot(r.velocity()[sl], r.force[sl] / 1e3, label=r.label or r.model)
     ax1.set_xlabel("displacement x (mm)")
     ax2.set_xlabel("velocity ẋ (m/s)")
     for ax in (ax1, ax2):

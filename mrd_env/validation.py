@@ -71,6 +71,42 @@ def check_array(name: str, value, *, ndim: int | None = None, shape: tuple | Non
     return a
 
 
+#: The fewest samples a time series may hold: second-order differences at both ends need three.
+MIN_RECORD_SAMPLES = 3
+
+
+def check_signal(label: str, value, *, n: int | None = None, item: str = "index") -> np.ndarray:
+    """``value`` as a 1-D float64 array of finite numbers (of length ``n`` if given), else ``ValueError``."""
+    try:
+        if np.iscomplexobj(value):  # a float cast would drop the imaginary part silently
+            raise TypeError("complex")
+        a = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError, OverflowError):
+        raise ValueError(f"{label} must be a 1-D array of real numbers") from None
+    if a.ndim != 1:
+        raise ValueError(f"{label} must be 1-D, got shape {a.shape}")
+    if n is not None and a.shape[0] != n:
+        raise ValueError(f"{label} has {a.shape[0]} samples, expected {n} (the length of the other columns)")
+    bad = np.flatnonzero(~np.isfinite(a))
+    if bad.size:
+        i = int(bad[0])
+        raise ValueError(f"{label} has a non-finite value ({a[i]}) at {item} {i}")
+    return a
+
+
+def check_time(label: str, t, *, n: int | None = None, item: str = "index") -> np.ndarray:
+    """A finite, strictly increasing time grid with at least three samples."""
+    t = check_signal(label, t, n=n, item=item)
+    if t.shape[0] < MIN_RECORD_SAMPLES:
+        raise ValueError(f"{label} must have at least {MIN_RECORD_SAMPLES} samples, got {t.shape[0]}")
+    bad = np.flatnonzero(np.diff(t) <= 0.0)
+    if bad.size:
+        i = int(bad[0]) + 1
+        raise ValueError(f"{label} is not strictly increasing at {item} {i} "
+                         f"({shown(t[i - 1])} followed by {shown(t[i])})")
+    return t
+
+
 #: The most samples one generated record may hold (0.8 GB per float64 channel): a larger count comes from a
 #: mistyped duration, cycle count or step, and would otherwise end in an unrelated memory error.
 MAX_SAMPLES = 100_000_000

@@ -21,7 +21,7 @@ from mrd_env.dampers import damper_class
 from mrd_env.disturbances import Record, bump, iso8608_road, kanai_tajimi, scale_record, sine_sweep
 from mrd_env.disturbances.record import n_samples_for
 from mrd_env.identification import DamperRecord, load_record_csv
-from mrd_env.identification.data import UNITS, read_columns
+from mrd_env.records import UNITS, read_columns
 from mrd_env.rig import random_test, simulate, sinusoidal_test
 from mrd_env.validation import as_real
 

@@ -55,7 +55,7 @@ print(damper.command)
 # Run the rig at X = 1.5 cm, f = 2.5 Hz for the commands 0, 0.75, 1.5 and 2.25 V (three cycles; use the last one,
 # when the loop has settled). Plot force against displacement and against velocity.
 #
-# *Hint:* `sinusoidal_test(damper, amplitude, frequency, commands, cycles=...)` returns one `RigResult` per
+# *Hint:* `sinusoidal_test(damper, amplitude, frequency, commands, cycles=...)` returns one `DamperRecord` per
 # command; `r.steady_cycles(f)` is the index slice of the last cycle.
 
 # %%

@@ -70,8 +70,8 @@ else:
     truth = make_damper("spencer_dyke", preset="spencer1997", alpha_b=60000.0, c0a=2500.0, c1a=25000.0,
                         command={"eta": 120.0})
     motion = random_test(truth, rms=0.004, bandwidth=10.0, duration=SECONDS, switch_rate=2.0, dt=2.5e-4, rng=1)
-    record = apply_sensors(motion.t, motion.x, motion.force, SensorSet(), rng=2,
-                           command=motion.command).to_record("virtual rig (Table 7 sensors)")
+    record = apply_sensors(motion.t, motion.x, motion.force, SensorSet(), rng=2, command=motion.command,
+                           label="virtual rig (Table 7 sensors)")
 print(f"record: {record.label}, {record.n} samples, dt = {record.dt * 1e3:.3f} ms, {record.duration:.2f} s")
 
 # %% [markdown]

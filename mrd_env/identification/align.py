@@ -28,7 +28,7 @@ MAX_OFFSET = 5  # samples searched on each side
 def best_offset(F_model: np.ndarray, prep: PreparedRecord, max_shift: int = MAX_OFFSET) -> int:
     """The offset in ±``max_shift`` samples for which the simulated force ``F_model`` (driven by ``prep``, whose
     force is already shifted by ``prep.offset``) matches the measured force best (mean square over the mask)."""
-    raw, _ = shift_channel(prep.force, -prep.offset)  # the force as measured
+    raw, _ = shift_channel(prep.series.force, -prep.offset)  # the force as measured
     best, best_err = 0, np.inf
     for s in range(-int(max_shift), int(max_shift) + 1):
         f, ok = shift_channel(raw, s)

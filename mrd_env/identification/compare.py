@@ -24,7 +24,7 @@ from ..errors import SimulationDivergedError
 from ..executor import Task, TaskFailed, resolve_backend, run_tasks
 from ..validation import check_scalar
 from ..validation import shown
-from .data import DamperRecord
+from ..records import DamperRecord
 from .fit import fit_model
 from .neural import NAME as NEURAL
 from .options import DataOptions, SearchOptions, as_options

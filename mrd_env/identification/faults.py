@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..validation import check_scalar
-from .data import DamperRecord
+from ..records import DamperRecord
 
 __all__ = ["Fault", "FaultsExcluded", "find_faults", "fault_mask", "describe_faults"]
 

@@ -111,8 +111,8 @@ def fit_model(model: str | DamperModel, records, *, preset: str | None = None, f
     offsets = [data.offset or 0] * len(recs)
     preps = [prepare_record(r, command, offset=o, **data.prepare_kwargs()) for r, o in zip(recs, offsets)]
     if data.command_range == "widen":
-        cmin = min(command.v_min, *(float(p.command.min()) for p in preps))
-        cmax = max(command.v_max, *(float(p.command.max()) for p in preps))
+        cmin = min(command.v_min, *(float(p.series.command.min()) for p in preps))
+        cmax = max(command.v_max, *(float(p.series.command.max()) for p in preps))
         command = dataclasses.replace(command, v_min=cmin, v_max=cmax)
 
     def solve(preps, x0):

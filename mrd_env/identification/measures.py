@@ -17,46 +17,9 @@ import math
 import numpy as np
 from scipy.integrate import trapezoid
 
-from ..validation import shown
+from ..validation import check_signal, check_time
 
 __all__ = ["error_time", "error_displacement", "error_velocity", "j1", "j2", "error_measures"]
-
-_MIN_SAMPLES = 3  # second-order differences at both ends need three points
-
-
-# --- shared input checks (also used by the data module) -------------------------------------------------------
-
-def check_signal(label: str, value, *, n: int | None = None, item: str = "index") -> np.ndarray:
-    """``value`` as a 1-D float64 array of finite numbers (of length ``n`` if given), else ``ValueError``."""
-    try:
-        if np.iscomplexobj(value):  # a float cast would drop the imaginary part silently
-            raise TypeError("complex")
-        a = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError, OverflowError):
-        raise ValueError(f"{label} must be a 1-D array of real numbers") from None
-    if a.ndim != 1:
-        raise ValueError(f"{label} must be 1-D, got shape {a.shape}")
-    if n is not None and a.shape[0] != n:
-        raise ValueError(f"{label} has {a.shape[0]} samples, expected {n} (the length of the other columns)")
-    bad = np.flatnonzero(~np.isfinite(a))
-    if bad.size:
-        i = int(bad[0])
-        raise ValueError(f"{label} has a non-finite value ({a[i]}) at {item} {i}")
-    return a
-
-
-def check_time(label: str, t, *, n: int | None = None, item: str = "index") -> np.ndarray:
-    """A finite, strictly increasing time grid with at least three samples."""
-    t = check_signal(label, t, n=n, item=item)
-    if t.shape[0] < _MIN_SAMPLES:
-        raise ValueError(f"{label} must have at least {_MIN_SAMPLES} samples, got {t.shape[0]}")
-    bad = np.flatnonzero(np.diff(t) <= 0.0)
-    if bad.size:
-        i = int(bad[0]) + 1
-        raise ValueError(f"{label} is not strictly increasing at {item} {i} "
-                         f"({shown(t[i - 1])} followed by {shown(t[i])})")
-    return t
-
 
 def _forces_and_time(F_exp, F, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     F_exp = check_signal("F_exp", F_exp)

@@ -75,9 +75,9 @@ class NeuralOptions:
 
 def _windows(prep: PreparedRecord, lags: tuple[int, ...]) -> np.ndarray:
     """(n, 3·len(lags)) inputs: x, ẋ, command at each lag (before the record: its first sample)."""
-    idx = np.arange(prep.n)[:, None] - np.asarray(lags)[None, :]
-    idx = np.clip(idx, 0, prep.n - 1)
-    return np.concatenate([prep.x[idx], prep.v[idx], prep.command[idx]], axis=1)
+    rec = prep.series
+    idx = np.clip(np.arange(rec.n)[:, None] - np.asarray(lags)[None, :], 0, rec.n - 1)
+    return np.concatenate([rec.x[idx], rec.v[idx], rec.command[idx]], axis=1)
 
 
 class NeuralForwardModel:
@@ -102,8 +102,8 @@ class NeuralForwardModel:
     def predict_prepared(self, prep: PreparedRecord) -> np.ndarray:
         """The model force (N) at every sample of a prepared record (its grid step must be the training one)."""
         if not same_rate(prep.dt, self.dt):
-            raise ValueError(f"the neural model was trained at {_rate(self.dt)}; record {prep.label!r} is sampled "
-                             f"at {_rate(prep.dt)}: resample it to the model's step (dt = {self.dt:.6g} s)")
+            raise ValueError(f"the neural model was trained at {_rate(self.dt)}; record {prep.series.label!r} is "
+                             f"sampled at {_rate(prep.dt)}: resample it to the model's step (dt = {self.dt:.6g} s)")
         h = (_windows(prep, self.lags) - self.x_mean) / self.x_std
         W1, b1, W2, b2, W3, b3 = (w.astype(np.float64) for w in self.weights)
         h = np.tanh(h @ W1.T + b1)
@@ -156,11 +156,11 @@ def fit_neural(records, net: NeuralOptions, search, data):
         preps = [prepare_record(r, command, offset=data.offset, **kw) for r in records]
     other = next((p for p in preps if not same_rate(p.dt, preps[0].dt)), None)
     if other is not None:
-        raise ValueError(f"the neural model needs records of one sampling rate: {preps[0].label!r} is sampled at "
-                         f"{_rate(preps[0].dt)}, {other.label!r} at {_rate(other.dt)}; give dt (--dt) to resample "
-                         "them to one step")
+        raise ValueError(f"the neural model needs records of one sampling rate: {preps[0].series.label!r} is "
+                         f"sampled at {_rate(preps[0].dt)}, {other.series.label!r} at {_rate(other.dt)}; give dt "
+                         "(--dt) to resample them to one step")
     X = np.concatenate([_windows(p, net.lags)[p.mask] for p in preps])
-    y = np.concatenate([p.force[p.mask] for p in preps])
+    y = np.concatenate([p.series.force[p.mask] for p in preps])
     x_mean, x_std = X.mean(axis=0), X.std(axis=0)
     x_std[x_std == 0] = 1.0
     f_mean, f_std = float(y.mean()), float(y.std()) or 1.0

@@ -3,6 +3,7 @@ range, and the mask of samples that enter the objective and the error measures (
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import warnings
 from dataclasses import dataclass
@@ -12,15 +13,16 @@ import numpy as np
 
 from ..dampers import CommandSpec
 from ..validation import shown
-from .data import DamperRecord
+from ..records import DamperRecord
 from .faults import Fault, FaultsExcluded, describe_faults, find_faults, repair_spikes
 
 
 def as_record(rec: Any, i: int) -> DamperRecord:
-    """A DamperRecord from a DamperRecord or any object with t, x, command, force (and v) arrays (a RigResult,
-    a SensorReadout...); constructing the DamperRecord validates it (NaN, lengths, increasing time)."""
+    """``rec`` as a :class:`DamperRecord` labelled (``record i`` if it had no label): a DamperRecord (measured, from
+    the rig or from its sensors) is used as it is; any other object with t, x, command, force (and v) arrays is
+    converted, which validates it (NaN, lengths, increasing time)."""
     if isinstance(rec, DamperRecord):
-        return rec
+        return rec if rec.label else dataclasses.replace(rec, label=f"record {i}")
     try:
         return DamperRecord(rec.t, rec.x, rec.command, rec.force, getattr(rec, "v", None),
                             getattr(rec, "command_unit", "V"), getattr(rec, "label", "") or f"record {i}")
@@ -55,8 +57,7 @@ def uniform_record(record: DamperRecord, dt: float | None = None) -> DamperRecor
     if np.abs(record.t - grid).max() <= 0.5 * dt:
         if np.array_equal(grid, record.t):
             return record
-        return DamperRecord(grid, record.x, record.command, record.force, record.v, record.command_unit,
-                            record.label)
+        return dataclasses.replace(record, t=grid)
     try:
         return record.resample(dt)
     except ValueError:
@@ -68,29 +69,19 @@ def uniform_record(record: DamperRecord, dt: float | None = None) -> DamperRecor
 
 @dataclass(frozen=True, eq=False)
 class PreparedRecord:
-    """A record ready to drive a model: uniform grid, velocity, acceleration, command in the admissible range,
-    the force aligned with the motion (``offset`` samples, :mod:`.align`), and the mask of samples that enter the
-    objective and the error measures (after ``warmup``, outside the ``faults``)."""
+    """A record ready to drive a model (:func:`prepare_record`): ``series`` is the record on a uniform grid of step
+    ``dt`` (s) with its velocity, its command in the admissible range (``n_clipped`` samples clipped) and its force
+    aligned with the motion (``offset`` samples, :mod:`.align`); beside it the acceleration ``a`` (m/s²) and the
+    ``mask`` of samples that enter the objective and the error measures (after the warm-up, outside the
+    ``faults``)."""
 
-    record: DamperRecord
+    series: DamperRecord
     dt: float
-    x: np.ndarray
-    v: np.ndarray
     a: np.ndarray
-    command: np.ndarray
-    force: np.ndarray
     mask: np.ndarray
     n_clipped: int = 0
     faults: tuple[Fault, ...] = ()
     offset: int = 0
-
-    @property
-    def label(self) -> str:
-        return self.record.label
-
-    @property
-    def n(self) -> int:
-        return self.record.n
 
 
 FAULT_MODES = ("exclude", "keep", "raise")
@@ -123,9 +114,8 @@ def prepare_record(record: DamperRecord, command: CommandSpec, *, dt: float | No
     if found and faults == "raise":
         raise ValueError(f"record {record.label!r} has faults: " + "; ".join(str(f) for f in found))
     if found:
-        record = record._replace({"t": record.t, "x": repair_spikes(record.x, found, "x"),
-                                  "v": None if record.v is None else repair_spikes(record.v, found, "v"),
-                                  "command": record.command, "force": record.force})
+        record = dataclasses.replace(record, x=repair_spikes(record.x, found, "x"),
+                                     v=None if record.v is None else repair_spikes(record.v, found, "v"))
     r = uniform_record(record, dt)
     dt_r = r.dt if dt is None else float(dt)
     cmd = np.array(r.command, dtype=np.float64)
@@ -154,8 +144,8 @@ def prepare_record(record: DamperRecord, command: CommandSpec, *, dt: float | No
                   if on]
         raise ValueError(f"fewer than 3 samples of record {record.label!r} ({r.duration:g} s long) are left to score "
                          f"after {' and '.join(causes) or 'preparation'}")
-    return PreparedRecord(r, dt_r, np.array(r.x), v, a, cmd, force, mask,
-                          n_out if command_range == "clip" else 0, found, int(offset))
+    series = DamperRecord(r.t, r.x, cmd, force, v, r.command_unit, r.label)
+    return PreparedRecord(series, dt_r, a, mask, n_out if command_range == "clip" else 0, found, int(offset))
 
 
 def shift_channel(a: np.ndarray, offset: int) -> tuple[np.ndarray, np.ndarray]:

@@ -39,14 +39,14 @@ class Problem:
         self.hi = np.asarray(hi, dtype=np.float64)
         self.preps = list(preps)
         self.integrator_options = dict(integrator_options)
-        self.meas = [p.force[p.mask] for p in self.preps]
+        self.meas = [p.series.force[p.mask] for p in self.preps]
         self.n_obj = [m.size for m in self.meas]
         rms = [float(np.sqrt(np.mean(m ** 2))) for m in self.meas]
         if normalize:
             std = [float(np.std(m)) for m in self.meas]
             for p, s in zip(self.preps, std):
                 if not s > 0:
-                    raise ValueError(f"normalize=True needs a varying measured force; record {p.label!r} has a "
+                    raise ValueError(f"normalize=True needs a varying measured force; record {p.series.label!r} has a "
                                      "constant force")
             self.w = [1.0 / s for s in std]
         else:

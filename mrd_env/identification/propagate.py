@@ -18,10 +18,11 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from ..dampers import DamperModel, make_damper
-from ..rig import RigResult, random_test
-from .data import DamperRecord
+from ..records import DamperRecord
+from ..rig import random_test
 from .fit import fit_model
 from .parameters import COMMAND_PARAMS, initial_values
+from .prepare import as_record
 from .result import FitResult, record_measures, pooled_measures
 from .simulate import predict
 from .options import SearchOptions, as_options
@@ -33,7 +34,7 @@ _MEASURES = ("E_t", "E_x", "E_v", "J2")
 
 
 def default_excitation(damper: DamperModel, *, duration: float = 5.0, dt: float = 2.5e-4,
-                       rng=0) -> list[RigResult]:
+                       rng=0) -> list[DamperRecord]:
     """A band-limited random stroke (4 mm RMS, 8 Hz) with the command switched at random (2 Hz) between the
     preset's extremes, on a fine grid ``dt`` (finer than the sensors' sampling, which interpolates it)."""
     return [random_test(damper, rms=0.004, bandwidth=8.0, duration=duration, switch_rate=2.0, dt=dt,
@@ -105,9 +106,9 @@ class _Draw:
     def __call__(self, child: np.random.Generator) -> dict[str, float]:
         readouts = []
         for r, g in zip(self.truth, child.spawn(len(self.truth))):
-            ro = apply_sensors(r.t, r.x, r.force, self.sensors, g, command=r.command, command_unit=r.command_unit,
-                               overrange=self.overrange)
-            readouts.append(ro.to_record(label=f"{r.label} (measured)"))
+            readouts.append(apply_sensors(r.t, r.x, r.force, self.sensors, g, command=r.command,
+                                          command_unit=r.command_unit, overrange=self.overrange,
+                                          label=f"{r.label} (measured)"))
         fr: FitResult = fit_model(self.damper, readouts, free=self.free, initial=self.initial, search=self.search,
                                   data=self.data, integrator_options=self.integrator_options)
         out = dict(fr.free_values())
@@ -120,7 +121,7 @@ class _Draw:
 
 
 def propagate_sensor_errors(damper: DamperModel | str = "spencer_dyke", *,
-                            excitation: Sequence[RigResult] | None = None, sensors: SensorSet | None = None,
+                            excitation: Sequence[DamperRecord] | None = None, sensors: SensorSet | None = None,
                             n_draws: int = 20, rng=0,
                             search=None, data=None, free: Sequence[str] | None = None,
                             initial: Mapping[str, float] | None = None, integrator_options: Mapping | None = None,
@@ -145,8 +146,7 @@ def propagate_sensor_errors(damper: DamperModel | str = "spencer_dyke", *,
     true_recs = list(excitation) if excitation is not None else default_excitation(damper)
     if not true_recs:
         raise ValueError("excitation must not be empty")
-    truth = [DamperRecord(r.t, r.x, r.command, r.force, r.v, r.command_unit, r.label or f"true {i}")
-             for i, r in enumerate(true_recs)]
+    truth = [as_record(r, i) for i, r in enumerate(true_recs)]
     search = as_options(SearchOptions, search, "search")
     if search == SearchOptions():  # no progress bar per draw unless asked
         search = dataclasses.replace(search, progress=False)

@@ -121,9 +121,9 @@ class FitResult:
 
 def record_measures(prep: PreparedRecord, F_model: np.ndarray, sl=None) -> dict:
     m = prep.mask if sl is None else sl
-    t = prep.record.t[m]
-    em = error_measures(prep.force[m], F_model[m], t, v=prep.v[m])
-    return {"record": prep.label, "n": int(t.size), "duration_s": float(t[-1] - t[0]), **em}
+    t = prep.series.t[m]
+    em = error_measures(prep.series.force[m], F_model[m], t, v=prep.series.v[m])
+    return {"record": prep.series.label, "n": int(t.size), "duration_s": float(t[-1] - t[0]), **em}
 
 
 def pooled_measures(rows: Sequence[dict]) -> dict[str, float]:
@@ -141,6 +141,6 @@ def pooled_measures(rows: Sequence[dict]) -> dict[str, float]:
 
 def record_info(preps: list[PreparedRecord]) -> tuple[dict, ...]:
     """What a fit result keeps about each record: label, size, grid, clipped commands, faults and offset."""
-    return tuple({"label": p.label, "n": p.n, "dt_s": p.dt, "t0_s": float(p.record.t[0]),
-                  "duration_s": p.record.duration, "commands_clipped": p.n_clipped, "offset_samples": p.offset,
+    return tuple({"label": p.series.label, "n": p.series.n, "dt_s": p.dt, "t0_s": float(p.series.t[0]),
+                  "duration_s": p.series.duration, "commands_clipped": p.n_clipped, "offset_samples": p.offset,
                   "faults": [str(f) for f in p.faults], "samples_scored": int(p.mask.sum())} for p in preps)

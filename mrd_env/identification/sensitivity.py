@@ -9,7 +9,7 @@ import numpy as np
 
 from ..dampers import DamperModel
 from ..errors import SimulationDivergedError
-from .data import DamperRecord
+from ..records import DamperRecord
 from .parameters import fixed_by_default
 from .prepare import as_record, prepare_record
 from .simulate import simulate_batch

@@ -9,7 +9,7 @@ import numpy as np
 from ..dampers import CommandSpec, DamperModel
 from ..errors import SimulationDivergedError
 from ..stepping import Stepper, SystemMatrices
-from .data import DamperRecord
+from ..records import DamperRecord
 from .prepare import PreparedRecord, as_record, prepare_record
 
 _CHUNK = 32              # candidates per compiled call (bounds the memory of long records)
@@ -24,20 +24,21 @@ def simulate_batch(cls, command: CommandSpec, prep: PreparedRecord, P: np.ndarra
     delay) on one record, and a mask of the runs that did not diverge (their rows are NaN). One compiled call per
     chunk of candidates; a diverging candidate stops alone, the others of its chunk run on."""
     S = P.shape[0]
-    n = prep.n
+    rec = prep.series
+    n = rec.n
     F = np.full((S, n), np.nan)
     ok = np.ones(S, dtype=bool)
     if S == 0:
         return F, ok
-    W1 = np.stack([prep.x, prep.v, prep.a], axis=1)
-    V1 = prep.command[:-1, None]
+    W1 = np.stack([rec.x, rec.v, prep.a], axis=1)
+    V1 = rec.command[:-1, None]
     damper = _template(cls, command)
     for c0 in range(0, S, _CHUNK):
         sl = slice(c0, min(S, c0 + _CHUNK))
         m = sl.stop - c0
         st = Stepper(damper, _RIG, m, n - 1, prep.dt, P=P[sl, None, :], lag=lag[sl, None, :], **integrator_options)
         st.Y = np.array(Y0[sl], dtype=np.float64)
-        st.U = np.full((m, 1), prep.command[0])
+        st.U = np.full((m, 1), rec.command[0])
         Fc, _, good = st.advance(np.broadcast_to(V1, (m,) + V1.shape), np.broadcast_to(W1, (m,) + W1.shape))
         F[sl, 1:] = np.where(good[:, None], Fc[:, :, 0], np.nan)
         ok[sl] = good
@@ -46,8 +47,8 @@ def simulate_batch(cls, command: CommandSpec, prep: PreparedRecord, P: np.ndarra
     for i in range(S):
         if ok[i]:
             s0 = np.array(Y0[i], dtype=np.float64)
-            cls.project(P[i], s0, prep.x[0], prep.v[0], prep.command[0])
-            F[i, 0] = cls.force_law(P[i], s0, prep.x[0], prep.v[0], prep.a[0], prep.command[0])
+            cls.project(P[i], s0, rec.x[0], rec.v[0], rec.command[0])
+            F[i, 0] = cls.force_law(P[i], s0, rec.x[0], rec.v[0], prep.a[0], rec.command[0])
     ok &= np.all(np.isfinite(F), axis=1)
     return F, ok
 
@@ -83,6 +84,6 @@ def predict(damper, record: DamperRecord | PreparedRecord, *, dt: float | None =
     F, ok = simulate_batch(cls, damper.command, prep, P, damper.command.lag_vector()[None, :],
                            damper.initial_state()[None, :], integrator_options)
     if not ok[0]:
-        raise SimulationDivergedError(f"damper model {damper.name!r} diverged on record {prep.label!r}",
+        raise SimulationDivergedError(f"damper model {damper.name!r} diverged on record {prep.series.label!r}",
                                       model=damper.name)
     return prep, F[0]

@@ -17,12 +17,11 @@ from typing import Callable, Iterable, Mapping
 import numpy as np
 
 from ..executor import Task, TaskFailed, run_tasks
-from .data import DamperRecord, hold_previous, lowpass_zero_phase
-from .measures import check_signal, check_time
-from ..validation import as_generator
+from ..records import DamperRecord, hold_previous, lowpass_zero_phase
+from ..validation import as_generator, check_signal, check_time
 
 __all__ = [
-    "LoadCell", "DisplacementSensor", "SensorSet", "SensorReadout", "apply_sensors",
+    "LoadCell", "DisplacementSensor", "SensorSet", "apply_sensors",
     "Contribution", "UncertaintyBudget", "rss_budget", "table8_contributions", "TABLE8_DEFAULTS",
     "MonteCarloResult", "monte_carlo", "as_generator",
 ]
@@ -140,52 +139,30 @@ class SensorSet:
                                  f"be > 0 and < the Nyquist frequency {self.sample_rate_Hz / 2:g} Hz, or None")
 
 
-@dataclass(frozen=True, eq=False)
-class SensorReadout:
-    """What the rig records (SI): uniform ``t`` (s), ``x`` (m), ``v`` from x (m/s), ``force`` (N), the
-    command if one was given (zero-order hold), and masks of samples where a sensor saturated."""
+def apply_sensors(t, x, F, sensors: SensorSet, rng, *, command, command_unit: str = "V", overrange: str = "raise",
+                  label: str = "") -> DamperRecord:
+    """Record a true stroke ``x`` (m) and force ``F`` (N), given on time grid ``t`` (s), with ``sensors``: what
+    the rig records, as a :class:`~mrd_env.records.DamperRecord` on the acquisition grid t0 + k/sample_rate.
 
-    t: np.ndarray
-    x: np.ndarray
-    v: np.ndarray
-    force: np.ndarray
-    saturated_x: np.ndarray
-    saturated_force: np.ndarray
-    command: np.ndarray | None = None
-    command_unit: str = "V"
-
-    @property
-    def saturated(self) -> bool:
-        return bool(self.saturated_x.any() or self.saturated_force.any())
-
-    def to_record(self, label: str = "") -> DamperRecord:
-        if self.command is None:
-            raise ValueError("this readout has no command: pass command= to apply_sensors")
-        return DamperRecord(self.t, self.x, self.command, self.force, self.v, self.command_unit, label)
-
-
-def apply_sensors(t, x, F, sensors: SensorSet, rng, *, command=None, command_unit: str = "V",
-                  overrange: str = "raise") -> SensorReadout:
-    """Record a true stroke ``x`` (m) and force ``F`` (N), given on time grid ``t`` (s), with ``sensors``.
-
-    The true signals are interpolated linearly onto the acquisition grid t0 + k/sample_rate (give them on a
-    finer grid than the acquisition's), then each sensor adds its static error and noise, saturates at its
-    range and quantises (see ``_Sensor``). Velocity comes from the recorded stroke (see :class:`SensorSet`).
-    ``overrange``: "raise" — ``ValueError`` if a true value exceeds a sensor's range; "clip" — the reading
-    saturates and the samples are flagged in ``saturated_x`` / ``saturated_force`` (noise alone reaching the
-    range is flagged in either mode). ``rng``: Generator or int seed; each sensor draws from its own child
-    stream, so changing one sensor leaves the other's errors unchanged.
+    The true signals are interpolated linearly onto that grid (give them on a finer grid than the acquisition's),
+    then each sensor adds its static error and noise, saturates at its range and quantises (see ``_Sensor``).
+    Velocity comes from the recorded stroke (see :class:`SensorSet`); ``command`` (V or A: one level, or one
+    value per sample of ``t``) is recorded as given, held over each acquisition interval. ``overrange``: "raise"
+    — ``ValueError`` if a true value exceeds a sensor's range; "clip" — the reading saturates; the record's
+    ``saturated_x`` / ``saturated_force`` flag the saturated samples (noise alone reaching the range is flagged in
+    either mode). ``rng``: Generator or int seed; each sensor draws from its own child stream, so changing one
+    sensor leaves the other's errors unchanged.
     """
     if not isinstance(sensors, SensorSet):
         raise ValueError(f"sensors must be a SensorSet, got {type(sensors).__name__}")
     if overrange not in ("raise", "clip"):
         raise ValueError(f"overrange = {overrange!r} is invalid: must be 'raise' or 'clip'")
-    if command_unit not in ("V", "A"):
-        raise ValueError(f"command_unit = {command_unit!r} is invalid: must be 'V' or 'A'")
     rng = as_generator(rng)
     t = check_time("t", t)
     x = check_signal("x", x, n=t.shape[0])
     F = check_signal("F", F, n=t.shape[0])
+    command = check_signal("command", np.broadcast_to(command, t.shape) if np.ndim(command) == 0 else command,
+                           n=t.shape[0])
     if overrange == "raise":
         for what, sig, lim, unit in (("F", F, sensors.load_cell.range_N, "N"),
                                      ("x", x, sensors.displacement.range_m / 2, "m")):
@@ -208,11 +185,8 @@ def apply_sensors(t, x, F, sensors: SensorSet, rng, *, command=None, command_uni
     if sensors.velocity_cutoff_Hz is not None:
         xf = lowpass_zero_phase(xm, sensors.velocity_cutoff_Hz, sensors.sample_rate_Hz)
     vm = np.gradient(xf, dt, edge_order=2)
-    cmd = None
-    if command is not None:
-        command = check_signal("command", command, n=t.shape[0])
-        cmd = hold_previous(t, command, tm)
-    return SensorReadout(tm, xm, vm, Fm, sat_x, sat_f, cmd, command_unit)
+    return DamperRecord(tm, xm, hold_previous(t, command, tm), Fm, vm, command_unit, label, saturated_x=sat_x,
+                        saturated_force=sat_f)
 
 
 # --- uncertainty budget (review Table 8) --------------------------------------------------------------------

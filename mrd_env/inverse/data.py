@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..rig import RigResult, random_test, simulate
+from ..records import DamperRecord
+from ..rig import random_test, simulate
 from ..validation import as_generator, check_scalar
 from .base import as_damper
 
@@ -38,10 +39,10 @@ def random_command(n: int, dt: float, command, rng, *, mean_hold: float = 0.03,
 
 def achievable_forces(damper, *, duration: float = 4.0, dt: float = 1e-3, rms: float = 0.004,
                       bandwidth: float = 8.0, mean_hold: float = 0.03, on_off_fraction: float = 0.3,
-                      rng=None) -> RigResult:
+                      rng=None) -> DamperRecord:
     """The damper on the rig under a random stroke (``rms`` m, flat spectrum up to ``bandwidth`` Hz) and a
-    :func:`random_command` (its first step at v_min), as a :class:`~mrd_env.rig.RigResult`: its force is a
-    desired force the damper can produce exactly."""
+    :func:`random_command` (its first step at v_min), as a rig :class:`~mrd_env.records.DamperRecord`: its
+    force is a desired force the damper can produce exactly."""
     damper = as_damper(damper)
     rng = as_generator(rng)
     motion = random_test(damper, rms, bandwidth, duration, command=damper.command.v_min, dt=dt, rng=rng)

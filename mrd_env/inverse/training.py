@@ -107,7 +107,7 @@ def features(records: Sequence, damper, history: int, dt: float, *, rng=None) ->
         v = np.asarray(r.v if getattr(r, "v", None) is not None else np.gradient(r.x, t), dtype=np.float64)
         cmd = np.clip(np.asarray(r.command, dtype=np.float64), c.v_min, c.v_max)
         # the effective command as the inverse models it: the lag without the pure delay
-        u = (np.asarray(r.u, dtype=np.float64) if hasattr(r, "u")
+        u = (np.asarray(r.u, dtype=np.float64) if getattr(r, "u", None) is not None
              else effective_command(dataclasses.replace(c, delay=0.0), cmd, dt))
         rows.append((np.asarray(r.force, dtype=np.float64), np.asarray(r.x, dtype=np.float64), v, u))
 

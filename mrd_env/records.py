@@ -1,12 +1,15 @@
-"""Measured damper records: a validated SI container and a CSV loader with declared units.
+"""One damper's time series: the validated SI container :class:`DamperRecord` and a CSV loader with declared units.
 
-A :class:`DamperRecord` holds one test (time, stroke, optional measured velocity, command, force) in SI units.
-:func:`load_record_csv` reads a user's file with a header line; every selected column needs a declared unit
-(nothing is guessed) and is converted to SI exactly once, on loading.
+A :class:`DamperRecord` holds one test — time, stroke, command, force, optionally the velocity, the effective
+command after the coil lag and sensor-saturation flags — whatever produced it: a measured file
+(:func:`load_record_csv`), the virtual rig (:mod:`mrd_env.rig`) or the rig's sensors
+(:func:`mrd_env.identification.apply_sensors`). Every column of a file needs a declared unit (nothing is guessed)
+and is converted to SI exactly once, on loading.
 """
 from __future__ import annotations
 
 import csv
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -14,8 +17,7 @@ from typing import Mapping
 
 import numpy as np
 
-from ..validation import shown
-from .measures import check_signal, check_time
+from .validation import check_signal, check_time, shown
 
 __all__ = ["DamperRecord", "load_record_csv", "read_columns", "own_columns", "UNITS"]
 
@@ -32,6 +34,10 @@ _REQUIRED = ("t", "x", "command", "force")
 _OPTIONAL = ("v",)
 # Header of files written by DamperRecord.to_csv; read back by DamperRecord.read_csv.
 _OWN_HEADER = {"t": "t_s", "x": "x_m", "v": "v_m_per_s", "force": "force_N"}
+# The record's columns: the required four, the optional real ones, the optional boolean flags.
+_SIGNALS = ("x", "command", "force")
+_OPTIONAL_SIGNALS = ("v", "u")
+_FLAGS = ("saturated_x", "saturated_force")
 
 
 def lowpass_zero_phase(signal: np.ndarray, cutoff_Hz: float, fs_Hz: float) -> np.ndarray:
@@ -56,17 +62,29 @@ def hold_previous(t: np.ndarray, values: np.ndarray, t_new: np.ndarray) -> np.nd
 
 def _frozen(a: np.ndarray) -> np.ndarray:
     # a frozen record must not be changeable through its arrays either
-    a = np.array(a, dtype=np.float64, copy=True)
+    a = np.array(a, copy=True)
     a.flags.writeable = False
+    return a
+
+
+def _check_flags(label: str, value, n: int) -> np.ndarray:
+    a = np.asarray(value)
+    if a.dtype != np.bool_ or a.shape != (n,):
+        raise ValueError(f"{label} must be a 1-D boolean mask of {n} samples (the length of the other columns), "
+                         f"got {a.dtype} of shape {a.shape}")
     return a
 
 
 @dataclass(frozen=True, eq=False)
 class DamperRecord:
-    """One damper test in SI units: ``t`` (s), ``x`` stroke (m), ``command`` (V or A), ``force`` (N).
+    """One damper's time series in SI units: ``t`` (s), ``x`` stroke (m, extension positive), ``command`` (V or
+    A, held over each interval), ``force`` (N, positive when resisting extension).
 
-    ``v`` is an optional measured velocity (m/s); :meth:`velocity` falls back to dx/dt. All columns have the
-    same length (>= 3), are finite, and ``t`` is strictly increasing; the arrays are read-only copies.
+    Optional columns: ``v`` measured velocity (m/s; :meth:`velocity` falls back to dx/dt), ``u`` effective command
+    after the driver/coil lag (V or A; the rig knows it), ``saturated_x`` / ``saturated_force`` (boolean: the
+    sensor saturated at that sample; the rig's sensors know it). ``model`` names the damper model that produced
+    the record (the rig), empty for a measured one. All columns have the same length (>= 3) and are finite,
+    ``t`` is strictly increasing; the arrays are read-only copies.
     """
 
     t: np.ndarray
@@ -76,13 +94,19 @@ class DamperRecord:
     v: np.ndarray | None = None
     command_unit: str = "V"
     label: str = field(default="", compare=False)
+    u: np.ndarray | None = None
+    saturated_x: np.ndarray | None = None
+    saturated_force: np.ndarray | None = None
+    model: str = ""
 
     def __post_init__(self):
         t = check_time("column 't'", self.t, item="row")
         n = t.shape[0]
         cols = {"t": t}
-        for name in ("x", "command", "force") + (("v",) if self.v is not None else ()):
+        for name in _SIGNALS + tuple(k for k in _OPTIONAL_SIGNALS if getattr(self, k) is not None):
             cols[name] = check_signal(f"column '{name}'", getattr(self, name), n=n, item="row")
+        for name in (k for k in _FLAGS if getattr(self, k) is not None):
+            cols[name] = _check_flags(f"column '{name}'", getattr(self, name), n)
         if not isinstance(self.command_unit, str) or self.command_unit not in ("V", "A"):
             raise ValueError(f"command_unit = {shown(self.command_unit)} is invalid: must be 'V' or 'A'")
         for name, a in cols.items():
@@ -103,20 +127,30 @@ class DamperRecord:
         """Mean sampling interval (s)."""
         return self.duration / (self.n - 1)
 
+    def columns(self) -> tuple[str, ...]:
+        """Names of the columns this record holds (the required four and the optional ones present)."""
+        return ("t",) + _SIGNALS + tuple(k for k in _OPTIONAL_SIGNALS + _FLAGS if getattr(self, k) is not None)
+
     def velocity(self) -> np.ndarray:
         """Measured velocity if present, else dx/dt by second-order differences on ``t`` (m/s)."""
         if self.v is not None:
             return self.v
         return np.gradient(self.x, self.t, edge_order=2)
 
-    def _replace(self, idx_or_cols, label: str | None = None) -> DamperRecord:
-        if isinstance(idx_or_cols, dict):
-            cols = idx_or_cols
-        else:
-            cols = {k: getattr(self, k)[idx_or_cols] for k in ("t", "x", "command", "force")}
-            cols["v"] = None if self.v is None else self.v[idx_or_cols]
-        return DamperRecord(cols["t"], cols["x"], cols["command"], cols["force"], cols["v"], self.command_unit,
-                            self.label if label is None else label)
+    def steady_cycles(self, frequency: float, n_cycles: int = 1) -> slice:
+        """Index slice of the last ``n_cycles`` periods of a test at ``frequency`` (Hz), for loops and energy."""
+        n = int(round(n_cycles / (frequency * self.dt)))
+        return slice(self.n - n - 1, self.n)
+
+    def dissipated_energy(self, sl: slice | None = None) -> float:
+        """∮ F dx over the samples in ``sl`` (J), trapezoidal in time: ∫ F ẋ dt."""
+        sl = sl or slice(None)
+        return float(np.trapezoid(self.force[sl] * self.velocity()[sl], self.t[sl]))
+
+    def _replace(self, idx, label: str | None = None) -> DamperRecord:
+        """The samples ``idx`` (a slice or index array) of every column."""
+        return dataclasses.replace(self, label=self.label if label is None else label,
+                                   **{k: getattr(self, k)[idx] for k in self.columns()})
 
     # --- selections -------------------------------------------------------------------------------------------
 
@@ -146,11 +180,11 @@ class DamperRecord:
     def resample(self, dt: float, *, antialias: bool = True) -> DamperRecord:
         """Record on the uniform grid t0 + k·dt (s), k = 0.. while <= t_end.
 
-        x, v and force are interpolated linearly; the command, a switched signal, is held from the last sample
-        at or before each new time (zero-order hold) so steps stay steps. When downsampling (dt larger than the
-        mean interval) with ``antialias``, x, v and force first pass a zero-phase 4th-order Butterworth
-        low-pass at 0.8 × the new Nyquist frequency — the original grid must then be uniform up to rounding of
-        the time stamps (within half an interval of t0 + k·dt).
+        x, v, u and force are interpolated linearly; the command, a switched signal, and the saturation flags are
+        held from the last sample at or before each new time (zero-order hold) so steps stay steps. When
+        downsampling (dt larger than the mean interval) with ``antialias``, x, v, u and force first pass a
+        zero-phase 4th-order Butterworth low-pass at 0.8 × the new Nyquist frequency — the original grid must then
+        be uniform up to rounding of the time stamps (within half an interval of t0 + k·dt).
         """
         dt = float(dt)
         if not (math.isfinite(dt) and 0.0 < dt <= self.duration / 2):
@@ -158,9 +192,7 @@ class DamperRecord:
                              f"({self.duration / 2:g} s)")
         n_new = int(math.floor(self.duration / dt * (1 + 1e-12))) + 1
         t_new = self.t[0] + dt * np.arange(n_new)
-        signals = {"x": self.x, "force": self.force}
-        if self.v is not None:
-            signals["v"] = self.v
+        signals = {k: getattr(self, k) for k in ("x", "force") + _OPTIONAL_SIGNALS if getattr(self, k) is not None}
         if antialias and dt > self.dt * (1 + 1e-9):
             # time stamps rounded in the file are fine: only a real gap or rate change breaks the filter
             drift = np.abs(self.t - (self.t[0] + self.dt * np.arange(self.n))).max()
@@ -169,18 +201,19 @@ class DamperRecord:
                                  f"by {drift:g} s from a uniform grid of {self.dt:g} s); pass antialias=False")
             signals = {k: lowpass_zero_phase(s, 0.8 * (0.5 / dt), 1.0 / self.dt) for k, s in signals.items()}
         cols = {k: np.interp(t_new, self.t, s) for k, s in signals.items()}
-        cols.setdefault("v", None)
-        cols.update(t=t_new, command=hold_previous(self.t, self.command, t_new))
-        return self._replace(cols)
+        held = {k: hold_previous(self.t, getattr(self, k), t_new) for k in ("command",) + _FLAGS
+                if getattr(self, k) is not None}
+        return dataclasses.replace(self, t=t_new, **cols, **held)
 
     # --- files ------------------------------------------------------------------------------------------------
 
     def to_csv(self, path: str | Path) -> Path:
-        """Write SI columns ``t_s, x_m[, v_m_per_s], command_<unit>, force_N`` (round-trip exact)."""
+        """Write SI columns ``t_s, x_m[, v_m_per_s], command_<unit>[, u_<unit>], force_N``, round-trip exact
+        (:meth:`read_csv` reads them back but for ``u``; the saturation flags are not written)."""
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
-        names = ["t", "x"] + (["v"] if self.v is not None else []) + ["command", "force"]
-        header = [_OWN_HEADER.get(k, f"command_{self.command_unit}") for k in names]
+        names = [k for k in ("t", "x", "v", "command", "u", "force") if getattr(self, k) is not None]
+        header = [_OWN_HEADER.get(k, f"{k}_{self.command_unit}") for k in names]
         with path.open("w", newline="") as fh:
             w = csv.writer(fh)
             w.writerow(header)
@@ -196,9 +229,9 @@ class DamperRecord:
 
 
 def own_columns(path: str | Path, required: tuple[str, ...] = _REQUIRED) -> tuple[dict[str, str], dict[str, str]]:
-    """(columns, units) of a file written by mrd-env — :meth:`DamperRecord.to_csv`, ``RigResult.to_csv`` and
-    ``mrd-env rig`` — whose header names the SI unit of each column (``t_s``, ``x_m``, ``v_m_per_s``,
-    ``command_V`` or ``command_A``, ``force_N``); ``ValueError`` if the file lacks a ``required`` role."""
+    """(columns, units) of a file written by mrd-env — :meth:`DamperRecord.to_csv`, ``mrd-env rig`` — whose header
+    names the SI unit of each column (``t_s``, ``x_m``, ``v_m_per_s``, ``command_V`` or ``command_A``, ``force_N``);
+    ``ValueError`` if the file lacks a ``required`` role."""
     header, _, _ = _read_table(_as_path(path), True, max_rows=0)
     unit = next((h[len("command_"):] for h in header if h in ("command_V", "command_A")), None)
     columns = {k: v for k, v in _OWN_HEADER.items() if v in header}
