@@ -33,14 +33,15 @@ def advance(plant, damper, state, W, V, x1, v1, control, nsub, wf, wi, status):
     dt = control.dt
     m = ns + 1
     w1 = np.empty(3)
-    Vd = workspace_views(wf, wi, plant.C.shape[2], 1, Y.shape[1], plant.D.shape[2]).Vd
+    ws = workspace_views(wf, wi, plant.C.shape[2], 1, Y.shape[1], plant.D.shape[2])
+    Vd = ws.Vd
     for b in range(Y.shape[0]):
         wi[m] = -1  # the Newton matrix of another system is not reused
         hold(Vd, V[b])
         w1[0] = x1[b]
         w1[1] = v1[b]
         w1[2] = (v1[b] - W[b, 1]) / dt
-        st, used, nxt = macro_step(plant, damper, SystemState(Y[b], U[b], F[b]), W[b], w1, control, nsub[b], wf, wi)
+        st, used, nxt = macro_step(plant, damper, SystemState(Y[b], U[b], F[b]), W[b], w1, control, nsub[b], ws)
         nsub[b] = nxt
         status[b] = st
         for i in range(3):
@@ -75,10 +76,11 @@ def step_force(plant, damper, state, v, w0, w1, control, wf, wi, scratch):
         Ys[i] = Y[i]
     Us[0] = U[0]
     Fs[0] = F[0]
-    hold(workspace_views(wf, wi, plant.C.shape[2], 1, Y.shape[0], plant.D.shape[2]).Vd, v)
+    ws = workspace_views(wf, wi, plant.C.shape[2], 1, Y.shape[0], plant.D.shape[2])
+    hold(ws.Vd, v)
     nsub = np.ones(1, dtype=np.int64)  # an int64, not the literal 1: the call then shares the driver's compilation
     wi[ns + 1] = -1
-    st, used, nxt = macro_step(plant, damper, scratch, w0, w1, control, nsub[0], wf, wi)
+    st, used, nxt = macro_step(plant, damper, scratch, w0, w1, control, nsub[0], ws)
     if st != 0:
         return math.nan
     return Fs[0]

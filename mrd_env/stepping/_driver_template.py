@@ -137,7 +137,7 @@ def _measure_and_observe(ic, fs, is_, b, h, noise, obs_out):
             obs_out[b, s * n_meas + i] = fifo[slot, i]
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, _nrt=False)
 def core_reset(fc, ic, fs, is_, W, H, obs, mask):
     """Start an episode for every system with mask[b]: forces and outputs at the initial state (row 0),
     statistics from row 0, the FIFO filled with the first measurement (noise drawn), the observation."""
@@ -209,7 +209,7 @@ def core_reset(fc, ic, fs, is_, W, H, obs, mask):
                 obs[b, s * meas_n + i] = fifo[0, i]
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, _nrt=False)
 def _advance_one(b, core, plant, outputs, wf, wi):
     """One period of system b (see the module docstring) with the scratch wf, wi; returns its status."""
     fc, ic, fs, is_, W, H, action, obs = core
@@ -239,7 +239,8 @@ def _advance_one(b, core, plant, outputs, wf, wi):
     lag = _state(fs, ic, b, S_LAG).reshape((nd, 3))
     cmd = _state(fs, ic, b, S_CMD)
     queue = _state(fs, ic, b, S_CMDQ).reshape((-1, nd))
-    Vd = workspace_views(wf, wi, C.shape[2], nd, n, D.shape[2])[1]
+    ws = workspace_views(wf, wi, C.shape[2], nd, n, D.shape[2])
+    Vd = ws.Vd
     zi = _state(fs, ic, b, S_ZI).reshape((sos.shape[0], 2))
     rscale = _state(fs, ic, b, S_RSCALE)
     st = _state(fs, ic, b, S_STATS)
@@ -274,7 +275,7 @@ def _advance_one(b, core, plant, outputs, wf, wi):
         for j in range(nd):
             queue[pos, j] = cmd[j]
         delayed_commands(queue, pos, lag, dt, Vd)
-        stat, used, nsub = macro_step(plant, damper, state, W[b, r], W[b, r + 1], control, nsub, wf, wi)
+        stat, used, nsub = macro_step(plant, damper, state, W[b, r], W[b, r + 1], control, nsub, ws)
         if stat != OK:
             is_[b, T_REASON] = stat
             is_[b, T_FAIL_STEP] = r
@@ -330,7 +331,7 @@ def _advance_one(b, core, plant, outputs, wf, wi):
     return status
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, _nrt=False)
 def core_step(fc, ic, fs, is_, W, H, action, obs):
     """Advance every system whose status is RUNNING by one period; the others are left as they are. Returns
     the status of system 0 (the scalar environment's)."""
@@ -350,7 +351,7 @@ def core_step_parallel(fc, ic, fs, is_, W, H, action, obs):
     return is_[0, T_STATUS]
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, _nrt=False)
 def _run_chunk(fc, ic, fs, is_, W, H, action, obs, scratch, b0, b1):
     """Systems b0..b1−1, with the scratch row ``scratch`` of fs and is_ (see :mod:`mrd_env.stepping.layout`)."""
     core = CoreArrays(fc, ic, fs, is_, W, H, action, obs)

@@ -39,11 +39,14 @@ _lu_solve = nb.njit(inline='always')(_lu_solve_dispatcher.py_func)
 _lag_value = nb.njit(inline='always')(_lag_value_dispatcher.py_func)
 _delay_split = nb.njit(inline='always')(_delay_split_dispatcher.py_func)
 
+# The entry points here and in the driver are compiled without numba's reference counting (``_nrt=False``): they
+# allocate nothing (the scratch is the caller's), and with it every view of an array (Vn[0], Z[o:o + ns], ...) costs
+# an atomic increment and decrement of its owner's count — half of the step's time (experiments/bench_physics_step).
 NEWTON_TOL = 1e-2  # Newton stops when its last correction is below this fraction of the error tolerance
 MAX_ITER = 12
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, _nrt=False)
 def workspace_len(nq, nd, n, nw):
     """(floats, ints) needed by :func:`workspace_views`."""
     m = max(nd * (ns + 1), 1)
@@ -229,7 +232,7 @@ def solve_stage(lv, P, R, u, w, hg, Z, Fz, atol, rtol, reuse, ws):
     return False
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, _nrt=False)
 def sdirk_step(lv, damper, state, w0, w1, tau0, h, control, level, ws):
     """One SDIRK2 step of length h = H/2^level starting at τ0 (relative to the macro step of length
     H = ``control.dt``), with ``lv`` the plant's matrices of this h. The states Y and the force guess Fz of
@@ -355,13 +358,14 @@ def _interpolate(w0, w1, frac, out):
     return w
 
 
-@nb.njit(cache=True)
-def macro_step(plant, damper, state, w0, w1, control, nsub, wf, wi):
+@nb.njit(cache=True, _nrt=False)
+def macro_step(plant, damper, state, w0, w1, control, nsub, ws):
     """Advance one system by dt = ``control.dt`` (inputs w0 → w1; the delayed commands of the step in rows
     VD_VA..VD_TS of the scratch Vd, see :func:`delayed_commands`), splitting the step into 2^k sub-steps as the
     error estimate asks (k ≤ ``control.max_level``), starting from ``nsub`` sub-steps. ``plant``: the
     :class:`~mrd_env.stepping.layout.PlantArrays` (per level), ``damper``: ``DamperArrays``, ``state``:
-    ``SystemState``, ``control``: ``StepControl`` (:mod:`mrd_env.stepping.layout`).
+    ``SystemState``, ``control``: ``StepControl`` (:mod:`mrd_env.stepping.layout`), ``ws``: the system's
+    :func:`workspace_views` (made once per call of the driver: a view costs a numba reshape, ≈ 20 ns).
 
     The state's Y, U (effective commands) and Fz (forces) are updated in place. Returns (status, sub-steps
     used, sub-steps to start the next step with: half as many when the error estimate says that twice the
@@ -372,7 +376,6 @@ def macro_step(plant, damper, state, w0, w1, control, nsub, wf, wi):
     dt, max_level, _, _ = control
     nd = C.shape[1]
     n = Y.shape[0]
-    ws = workspace_views(wf, wi, C.shape[2], nd, n, D.shape[2])
     Vd = ws.Vd
     Ysave = ws.Vn[5]
     Fsave = Vd[6]
