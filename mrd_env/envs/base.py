@@ -133,7 +133,8 @@ class MRDamperEnv(PlantDeclarations, gym.Env):
         of the environment makes views separate arrays, so it binds them again)."""
         d = self.core.driver
         self._args = (d.fc, d.ic, d.fs, d.is_, d.W, d.H)
-        self._kstep = d.kernel.core_step
+        self._kstep = d.kernel.run_systems
+        self._systems = (d.N, 0, d.N)  # the serial call over the one system
         self._obs0 = self.core.obs[0]
         self._reward0 = d.state("REWARD")[0]
         self._force0 = d.state("F")[0]
@@ -177,7 +178,7 @@ class MRDamperEnv(PlantDeclarations, gym.Env):
                 raise ValueError("action must be finite (no NaN or infinity)")
         if self.actuation is not None:
             a = self.actuation.step_commands(a, self._obs0, self.assembly.force_range)
-        status = self._kstep(*self._args, a, self.core.obs)
+        status = self._kstep(*self._args, a, self.core.obs, *self._systems)
         if status == BAD_ACTION:  # a non-finite command from the force mode's inverse
             self.core.driver.int_state("STATUS")[0] = RUNNING
             raise ValueError("the inverse model returned a non-finite command")

@@ -291,7 +291,7 @@ class EnvCore:
 
     # --- copies (pickle, deepcopy, cloudpickle) ---------------------------------------------------------------
     _VIEWS = ("_status", "_k", "_reward", "_rscale", "_n_steps")
-    _CODE = ("kernel", "_step")  # the driver's compiled module and entry: loaded again from the damper's class
+    _CODE = ("kernel",)  # the driver's compiled module: loaded again from the damper's class
 
     def __getstate__(self) -> dict:
         state = {k: v for k, v in self.__dict__.items() if k not in self._VIEWS}
@@ -306,7 +306,6 @@ class EnvCore:
         d = cls.__new__(cls)
         d.__dict__.update(dstate)
         d.kernel = kernel_module(type(d.damper))
-        d._step = d.kernel.core_step_parallel if d.threads > 1 else d.kernel.core_step  # as Driver.__init__
         self.__dict__.update(state)
         self.driver = d
         self._bind_views()

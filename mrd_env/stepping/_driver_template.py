@@ -331,29 +331,27 @@ def _advance_one(b, core, plant, outputs, wf, wi):
     return status
 
 
-@nb.njit(cache=True, _nrt=False)
-def core_step(fc, ic, fs, is_, W, H, action, obs):
-    """Advance every system whose status is RUNNING by one period; the others are left as they are. Returns
-    the status of system 0 (the scalar environment's)."""
-    N = fs.shape[0] - ic[D_DIMS + DIM_SCRATCH]
-    _run_chunk(fc, ic, fs, is_, W, H, action, obs, N, 0, N)
-    return is_[0, T_STATUS]
-
-
 @nb.njit(cache=True, parallel=True)
 def core_step_parallel(fc, ic, fs, is_, W, H, action, obs):
-    """:func:`core_step` with the systems split into as many chunks as there are scratch rows, the chunks
-    running in parallel (numba threads); each system's result is the one the serial call gives."""
+    """Advance every system whose status is RUNNING by one period (the others are left as they are), the
+    systems split into as many chunks as there are scratch rows, the chunks running in parallel (numba
+    threads); each system's result is the one the serial call (:func:`run_systems` over all systems) gives.
+    Returns the status of system 0."""
     n_chunks = ic[D_DIMS + DIM_SCRATCH]
     N = fs.shape[0] - n_chunks
     for c in nb.prange(n_chunks):
-        _run_chunk(fc, ic, fs, is_, W, H, action, obs, N + c, c * N // n_chunks, (c + 1) * N // n_chunks)
+        run_systems(fc, ic, fs, is_, W, H, action, obs, N + c, c * N // n_chunks, (c + 1) * N // n_chunks)
     return is_[0, T_STATUS]
 
 
 @nb.njit(cache=True, _nrt=False)
-def _run_chunk(fc, ic, fs, is_, W, H, action, obs, scratch, b0, b1):
-    """Systems b0..b1−1, with the scratch row ``scratch`` of fs and is_ (see :mod:`mrd_env.stepping.layout`)."""
+def run_systems(fc, ic, fs, is_, W, H, action, obs, scratch, b0, b1):
+    """Advance systems b0..b1−1 whose status is RUNNING by one period, with the scratch row ``scratch`` of fs
+    and is_ (see :mod:`mrd_env.stepping.layout`; the serial call: scratch N, systems 0..N−1, what a scalar
+    environment makes). Returns the status of system 0 (the scalar environment's).
+
+    Python calls it directly (no thin wrapper above it: every compiled level re-links and re-generates the code
+    of the levels below it, 2–3 s of a first use's compilation)."""
     core = CoreArrays(fc, ic, fs, is_, W, H, action, obs)
     plant = PlantArrays(_f3(fc, ic, F_C), _f3(fc, ic, F_D), _f3(fc, ic, F_AINV), _f3(fc, ic, F_BBAR),
                         _f3(fc, ic, F_MQ), _f4(fc, ic, F_PP))
@@ -368,3 +366,4 @@ def _run_chunk(fc, ic, fs, is_, W, H, action, obs, scratch, b0, b1):
         wi[m] = -1
         status = _advance_one(b, core, plant, outputs, wf, wi)
         is_[b, T_STATUS] = status
+    return is_[0, T_STATUS]

@@ -90,7 +90,7 @@ def model_modules(model_cls) -> set[str]:
 
 
 def kernel_module(model_cls):
-    """The compiled module of a damper model class (``macro_step``, ``core_step``, ... of the templates).
+    """The compiled module of a damper model class (``macro_step``, ``run_systems``, ... of the templates).
 
     Built once per process from a generated module whose numba compilation is cached on disk, so a new
     process loads it instead of compiling again.

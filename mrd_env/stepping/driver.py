@@ -138,7 +138,6 @@ class Driver:
         # the last rows are the kernel's scratch, one per thread
         self.fs = np.zeros((N + self.threads, width))
         self.is_ = np.zeros((N + self.threads, max(len(LAYOUT["int_state"]), int(wi))), dtype=np.int64)
-        self._step = self.kernel.core_step_parallel if self.threads > 1 else self.kernel.core_step
         self.obs = np.zeros((N, pr.history * n_meas), dtype=np.float32)
         self.n_obs = pr.history * n_meas
         p = damper.params.as_array()
@@ -181,7 +180,11 @@ class Driver:
 
     def step(self, action: np.ndarray) -> int:
         """Advance the running systems by one period with ``action`` (N·nd,) float64; system 0's status."""
-        return self._step(self.fc, self.ic, self.fs, self.is_, self.W, self.H, action, self.obs)
+        if self.threads > 1:
+            return self.kernel.core_step_parallel(self.fc, self.ic, self.fs, self.is_, self.W, self.H, action,
+                                                  self.obs)
+        return self.kernel.run_systems(self.fc, self.ic, self.fs, self.is_, self.W, self.H, action, self.obs,
+                                       self.N, 0, self.N)
 
     def _threads(self, threads) -> int:
         """Threads of the parallel step: the given count, else numba's threads for batches of 64 systems or
