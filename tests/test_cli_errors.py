@@ -151,7 +151,7 @@ CASES = {
         ["--data", "{good}", "--plot-window", "nan"], ["--data", "{good}", "--backend", "gpu"],
         ["--data", "{good}", "--jobs", "0"], ["--data", "{good}", "--address", "ray://x:1"],
     ],
-    "warmup": [["--nope"], ["--models", "nope"], ["--models"]],
+    "warmup": [["--nope"], ["--models", "nope"], ["--models"], ["--jobs", "0"], ["--jobs", "x"]],
     "yardstick": [
         ["--nope"], ["--plant", "nope"], ["--seeds", "x"], ["--seeds", "0"], ["--backend", "gpu"], ["--jobs", "0"],
     ],
@@ -262,3 +262,10 @@ def test_warmup_compiles_a_model_and_says_so(capsys):
     assert main(["warmup", "--models", "bingham"]) == 0
     out = capsys.readouterr().out
     assert out.startswith("bingham") and "1 model(s) ready" in out
+
+
+def test_warmup_compiles_models_side_by_side(capsys):
+    """Two models on a pool of two processes: each reported once, in the order asked."""
+    assert main(["warmup", "--models", "bingham", "bi_viscous", "--jobs", "2"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert [ln.split()[0] for ln in lines[:2]] == ["bingham", "bi_viscous"] and "2 model(s) ready" in lines[-1]
