@@ -12,30 +12,8 @@ from .friction_laws import MaximumEnergyDissipation, ModulatedHomogeneousFrictio
 from .model_based import ClippedOptimal, KalmanEstimator, LinearDesign, Lyapunov
 from .mpc import MPC
 from .nmpc import NonlinearMPC
+from .registry import CONTROLLERS, VARIANTS, available_controllers, make_controller
 from .velocity_laws import Groundhook, Hybrid, SkyhookContinuous, SkyhookOnOff, force_gain
-
-CONTROLLERS = {c.name: c for c in (RandomCommand, PassiveOff, PassiveOn, SkyhookOnOff, SkyhookContinuous, Groundhook, Hybrid,
-                                   ClippedOptimal, MPC, NonlinearMPC, Lyapunov, MaximumEnergyDissipation,
-                                   ModulatedHomogeneousFriction)}
-
-
-#: name → (controller, options): clipped-optimal control with an inverse model turning f_c into the command
-VARIANTS = {f"clipped_optimal+{inv}": ("clipped_optimal", {"inverse": inv}) for inv in ("sid", "model", "neural")}
-
-
-def available_controllers() -> list[str]:
-    """Names accepted by :func:`make_controller`."""
-    return sorted(CONTROLLERS) + sorted(VARIANTS)
-
-
-def make_controller(name: str, env, **options) -> Controller:
-    """A controller by name (see ``CONTROLLERS`` and ``VARIANTS``) for ``env``, with its options."""
-    if name in VARIANTS:
-        name, fixed = VARIANTS[name]
-        options = {**fixed, **options}
-    if name not in CONTROLLERS:
-        raise ValueError(f"unknown controller {name!r}; available: {available_controllers()}")
-    return CONTROLLERS[name](env, **options)
 
 
 __all__ = ["NonlinearMPC", "AgentController", "CONTROLLERS", "ClippedOptimal", "Controller", "Groundhook", "Hybrid",

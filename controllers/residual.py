@@ -28,7 +28,7 @@ class Residual:
     ``law_options``) or a :class:`~controllers.base.Controller` built for ``env``."""
 
     def __init__(self, env, law: str | Controller, scale: float = 1.0, **law_options):
-        from . import make_controller
+        from .registry import make_controller
         from mrd_env.validation import check_scalar
 
         base = getattr(env, "unwrapped", env)

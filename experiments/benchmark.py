@@ -22,7 +22,7 @@ from mrd_env.report import markdown_table, write_table
 from . import sweep, yardstick
 from .evaluation import Episode, controller_episodes, evaluate, evaluate_batch, response_of  # noqa: F401
 from .plants import PLANTS, chosen_plants, plant_choices, profile
-from .scenarios import Scenario, held_out_scenarios  # noqa: F401  (Scenario: re-exported)
+from .scenarios import Scenario, base_scenario, held_out_scenarios  # noqa: F401  (Scenario: re-exported)
 
 #: The controllers and metric columns of each plant (:attr:`.plants.PlantProfile.benchmark_laws`,
 #: ``benchmark_metrics``); the two published plants' under their former names.
@@ -141,7 +141,6 @@ def history_selection(eps: list[Episode]) -> list[Episode]:
 def write_reports(plant: str, episodes: list[Episode], out: Path, response: str = "") -> dict:
     from mrd_env.report import figure, save_figure
 
-    from .evaluate_cmd import base_scenario
 
     out.mkdir(parents=True, exist_ok=True)
     rows = _rows(plant, episodes)

@@ -20,7 +20,7 @@ COMMANDS = {
     "train": ("experiments.train", "train agents (Stable-Baselines3, RL Zoo conventions): curves, best agent, "
                                    "checkpoints"),
     "warmup": ("experiments.warmup_cmd", "compile every damper model's kernels into the disk cache now (once)"),
-    "yardstick": ("experiments.yardstick", "the best any controller could do on each test episode (clairvoyant "
+    "yardstick": ("experiments.yardstick_cmd", "the best any controller could do on each test episode (clairvoyant "
                                            "optimum, active bound) and every controller's share of it"),
     "evaluate": ("experiments.evaluate_cmd", "agents and classical laws side by side on the held-out scenarios"),
     "tune": ("experiments.tune", "hyperparameter search for train (Optuna; pool or Ray workers)"),

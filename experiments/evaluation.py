@@ -9,11 +9,13 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
 
 from mrd_env.envs.sensors import newest_layout
+from mrd_env.report import figure, save_figure
 
 from .scenarios import Scenario
 
@@ -173,3 +175,48 @@ def mean_ci(values, confidence: float = 0.95, upper: float = math.inf) -> tuple[
         return m, m, m
     h = float(stats.sem(x) * stats.t.ppf(0.5 + confidence / 2, x.size - 1))
     return m, m - h, min(m + h, upper)
+
+
+def grouped_bars(rows: list[dict], value: str, lo: str, hi: str, path: Path, *, xlabel: str, title: str,
+                 refs: tuple[float, ...] = (), xlim: tuple[float, float] | None = None) -> Path:
+    """One panel per scenario, a horizontal bar of ``rows[value]`` per controller (one colour per law, its 1 ms row
+    hatched) with the interval [lo, hi] where there is one; vertical lines at ``refs``. With ``xlim``, a bar beyond
+    the axis is drawn to its edge and labelled with its value, so that one very poor controller does not squash
+    the others."""
+    import matplotlib
+
+    scen = list(dict.fromkeys(r["scenario"] for r in rows))
+    ctrls = list(dict.fromkeys(r["controller"] for r in rows))
+    ncol = min(len(scen), 4)
+    nrow = -(-len(scen) // ncol)
+    fig, axes = figure(nrow, ncol, figsize=(3.6 * ncol + 1.6, 0.22 * len(ctrls) * nrow + 1.4), sharey=True,
+                       squeeze=False)
+    bases = list(dict.fromkeys(c.split(" @ ")[0] for c in ctrls))
+    cmap = matplotlib.colormaps["tab20"]
+    y = np.arange(len(ctrls))[::-1]
+    for k, s in enumerate(scen):
+        ax = axes[k // ncol][k % ncol]
+        for i, c in enumerate(ctrls):
+            r = next((r for r in rows if r["scenario"] == s and r["controller"] == c), None)
+            if r is None:
+                continue
+            m = r[value]
+            shown = m if xlim is None else min(max(m, xlim[0]), xlim[1])
+            ax.barh(y[i], shown, 0.8, color=cmap(bases.index(c.split(" @ ")[0]) % 20),
+                    hatch="//" if c.endswith("@ 1 ms") else None, edgecolor="white", lw=0.3)
+            if shown != m:
+                ax.text(shown, y[i], f" {m:.2g} ", va="center", ha="left" if m < shown else "right", fontsize=7)
+            elif np.isfinite(r[lo]) and np.isfinite(r[hi]):
+                ax.errorbar(m, y[i], xerr=[[m - r[lo]], [r[hi] - m]], color="k", lw=0.8, capsize=2)
+        for j, ref in enumerate(refs):
+            ax.axvline(ref, color="k", lw=0.8, ls="--" if j else "-")
+        if xlim is not None:
+            ax.set_xlim(*xlim)
+        ax.set_title(s, fontsize=9)
+        ax.set_xlabel(xlabel, fontsize=8)
+        ax.grid(axis="x", alpha=0.3)
+    for ax in axes.flat[len(scen):]:
+        ax.set_visible(False)
+    axes[0][0].set_yticks(y, ctrls, fontsize=8)
+    fig.suptitle(title, fontsize=10)
+    return save_figure(fig, path)

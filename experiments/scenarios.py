@@ -76,3 +76,9 @@ def held_out_scenarios(plant: str, seeds: int = 3, quick: bool = False,
     s = tuple(HELD_OUT_SEED + i for i in range(1 if quick else seeds))
     return [Scenario(name, p.env_id, options, s) if seeded else Scenario(name, p.env_id, options)
             for name, options, seeded in p.tests(env_plant, quick)]
+
+
+def base_scenario(label: str) -> str:
+    """The scenario of an episode label (without the seed suffix)."""
+    head, _, tail = label.rpartition(" s")
+    return head if tail.isdigit() and head else label

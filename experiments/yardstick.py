@@ -1,5 +1,5 @@
-"""``mrd-env yardstick``: the best any controller could do on each held-out test episode, and every controller
-scored by the share of that achievable gain it captures.
+"""The yardstick (``mrd-env yardstick``: :mod:`.yardstick_cmd`): the best any controller could do on each held-out
+test episode, and every controller scored by the share of that achievable gain it captures.
 
 Per episode (a scenario and a seed):
 
@@ -28,9 +28,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .evaluation import Episode, mean_ci
-from .plants import PLANTS, chosen_plants, plant_choices, profile
-from .scenarios import Scenario, held_out_scenarios
+from .evaluation import Episode, grouped_bars, mean_ci
+from .plants import PLANTS, profile
+from .scenarios import Scenario, base_scenario
 
 #: The clairvoyant's control step: every controller's rate (1 ms, 10 ms) is a multiple of it, so its command
 #: sequences are candidate solutions and the optimum at 1 ms dominates them all.
@@ -207,7 +207,6 @@ def share_rows(results: dict[str, list[Episode]], ys: list[EpisodeYardstick], sc
 def plot_shares(plant: str, rows: list[dict], path: Path) -> Path:
     """Bars of the share of the achievable gain per controller, one group per scenario (intervals where there
     are repeats); 0: the best passive setting, dashed 1: the clairvoyant optimum."""
-    from .evaluate_cmd import grouped_bars
 
     return grouped_bars(rows, "share of achievable gain", "share lo95", "share hi95", path,
                         xlabel="share of the achievable gain (1)", refs=(0.0, 1.0), xlim=(-1.0, 1.05),
@@ -241,7 +240,6 @@ def write_report(plant: str, results: dict[str, list[Episode]], ys: list[Episode
     """Write the yardstick table, the shares table and their figure (see :func:`report`); the text to print."""
     from mrd_env.report import write_table
 
-    from .evaluate_cmd import base_scenario
 
     md, _ = write_table(yardstick_rows(ys), out / f"{plant}_yardstick", floatfmt=".4g",
                         title=f"{plant}: the yardstick per test episode (returns; solve times in s)")
@@ -258,46 +256,3 @@ def add_mode_argument(p: argparse.ArgumentParser) -> None:
     p.add_argument("--yardstick", choices=["auto", "solve", "off"], default="auto",
                    help="score every controller against the clairvoyant optimum: auto (cached yardsticks, see "
                         "mrd-env yardstick), solve (solve the missing ones: minutes per episode), off")
-
-
-# ---------------------------------------------------------------------------- CLI
-def add_arguments(p: argparse.ArgumentParser) -> None:
-    from . import sweep
-
-    p.add_argument("--plant", choices=plant_choices(both=True), default="both",
-                   help="a plant with a yardstick, or both (building and quarter car)")
-    p.add_argument("--seeds", type=int, default=3, help="episodes per random test scenario (default 3)")
-    p.add_argument("--quick", action="store_true", help="short scenarios (a smoke run)")
-    p.add_argument("--no-bound", action="store_true", help="skip the active-actuator bound")
-    p.add_argument("--no-cache", action="store_true", help="solve again even where a cached result exists")
-    p.add_argument("--out", type=Path, default=Path("results/yardstick"))
-    p.add_argument("--no-progress", action="store_true")
-    sweep.add_arguments(p)
-
-
-def run(args: argparse.Namespace) -> int:
-    from controllers import shipped_agents
-
-    from . import sweep
-    from .evaluate_cmd import evaluate
-
-    if args.seeds < 1:
-        raise ValueError(f"--seeds must be >= 1, got {args.seeds}")
-    plants = [p for p in chosen_plants(args.plant) if args.plant != "all" or profile(p).warm_laws]
-    for plant in plants:
-        check_plant(plant)
-    executor = sweep.options(args)
-    args.out.mkdir(parents=True, exist_ok=True)
-    for plant in plants:
-        scen = held_out_scenarios(plant, seeds=args.seeds, quick=args.quick)
-        agents = shipped_agents(plant)
-        t0 = time.perf_counter()
-        ys = yardsticks(plant, scen, agents=agents, bound=not args.no_bound, cache=not args.no_cache,
-                        progress=not args.no_progress, **executor)
-        print(f"{plant}: {len(ys)} yardsticks in {time.perf_counter() - t0:.0f} s")
-        # every controller on the same episodes: the laws at the agents' step and at 1 ms, MPC, the agents
-        res = evaluate(plant, agents, seeds=args.seeds, progress=not args.no_progress, quick=args.quick,
-                       **executor)
-        print(write_report(plant, res, ys, args.out, len(ys)))
-        print(f"wrote {args.out}/{plant}_yardstick.md/.csv, {plant}_shares.md/.csv/.png")
-    return 0
