@@ -1,8 +1,8 @@
 """``mrd-env tune``: hyperparameter search for ``mrd-env train`` with Optuna.
 
-Each trial draws hyperparameters (RL Zoo's search spaces for PPO and SAC), trains one agent for ``--timesteps``
-on the plant's training distribution and reports its validation returns (unseen seeds, never the test
-scenarios) as it goes; Optuna's TPE sampler proposes the next trial and its median pruner stops trials whose
+Each trial draws hyperparameters (RL Zoo's search spaces, or ``--space residual`` for a residual PPO agent),
+trains one agent for ``--timesteps`` on the plant's training distribution and reports its validation returns
+(unseen seeds, never the test scenarios) as it goes; Optuna's TPE sampler proposes the next trial and its median pruner stops trials whose
 validation falls behind. The study lives in a journal file (``<out>/<study>.log``), so several workers — the
 processes of a local pool or the tasks of a Ray cluster (``--backend``, ``--jobs``, ``--address``) — add
 trials to the same study; rerunning the command resumes it. Writes ``<out>/<study>_trials.md``/``.csv`` and
@@ -26,9 +26,59 @@ from .train import ALGOS, env_options, hyperparameters
 SEARCHABLE = ("ppo", "recurrentppo", "sac", "tqc", "td3")
 
 
-def sample(trial, algo: str, base: dict) -> dict:
-    """Hyperparameters of a trial: ``base`` (the YAML entry) with the searched keys drawn (RL Zoo's spaces)."""
+#: ``--space``: RL Zoo's search spaces, or the narrow one of a residual PPO agent (docs/rl-agents.md).
+SPACES = ("zoo", "residual")
+
+#: The residual space's draws: (name, kind, choices or (low, high[, log])). γ stays in [0.995, 0.999]: at 10 ms a
+#: lower discount drifts the agent to softer commands (docs/rl-agents.md); the exploration noise stays small.
+RESIDUAL_SPACE = (
+    ("learning_rate", "float", (3e-5, 1e-3, True)),
+    ("log_std_init", "float", (-3.5, -1.0)),
+    ("residual_scale", "float", (0.2, 1.0)),
+    ("gamma", "float", (0.995, 0.999)),
+    ("gae_lambda", "categorical", [0.95, 0.98, 0.99]),
+    ("n_epochs", "categorical", [5, 10, 20]),
+    ("batch_size", "categorical", [1024, 2048, 4096]),
+    ("n_steps", "categorical", [256, 512, 1024]),
+)
+
+
+def _set(h: dict, name: str, value) -> None:
+    """Put a searched value where the trainer reads it (``log_std_init`` in the policy's keywords,
+    ``residual_scale`` in the residual)."""
+    if name == "log_std_init":
+        h["policy_kwargs"] = {**(h.get("policy_kwargs") or {}), "log_std_init": value}
+    elif name == "residual_scale":
+        h["residual"] = {**h["residual"], "scale": value}
+    else:
+        h[name] = value
+
+
+def base_params(base: dict) -> dict:
+    """The residual space's parameters of the YAML entry ``base`` (its first trial: the recipe as it is)."""
+    return {"learning_rate": float(base["learning_rate"]),
+            "log_std_init": float((base.get("policy_kwargs") or {})["log_std_init"]),
+            "residual_scale": float(base["residual"].get("scale", 1.0)), "gamma": float(base["gamma"]),
+            "gae_lambda": base["gae_lambda"], "n_epochs": base["n_epochs"], "batch_size": base["batch_size"],
+            "n_steps": base["n_steps"]}
+
+
+def sample(trial, algo: str, base: dict, space: str = "zoo") -> dict:
+    """Hyperparameters of a trial: ``base`` (the YAML entry) with the searched keys drawn (RL Zoo's spaces, or
+    with ``space="residual"`` :data:`RESIDUAL_SPACE`)."""
     h = dict(base)
+    if space == "residual":
+        if algo not in ("ppo", "recurrentppo"):
+            raise ValueError(f"--space residual searches PPO and RecurrentPPO, not {algo!r}")
+        if not isinstance(h.get("residual"), dict):
+            raise ValueError("--space residual needs a hyperparameter entry with a residual: {law: ..., scale: ...}")
+        for name, kind, spec in RESIDUAL_SPACE:
+            if kind == "float":
+                value = trial.suggest_float(name, spec[0], spec[1], log=len(spec) > 2 and spec[2])
+            else:
+                value = trial.suggest_categorical(name, spec)
+            _set(h, name, value)
+        return h
     if algo in ("ppo", "recurrentppo"):
         h["n_steps"] = trial.suggest_categorical("n_steps", [64, 128, 256, 512])
         h["batch_size"] = trial.suggest_categorical("batch_size", [64, 128, 256, 512])
@@ -63,7 +113,7 @@ def _storage(path: Path):
 
 
 def worker(plant: str, algo: str, study: str, out: Path, n_trials: int, timesteps: int, eval_freq: int,
-           eval_episodes: int, seed: int, hyperparams: Path | None = None) -> int:
+           eval_episodes: int, seed: int, hyperparams: Path | None = None, space: str = "zoo") -> int:
     """Add ``n_trials`` trials to the study (one worker; several run side by side on one journal)."""
     import optuna
 
@@ -75,7 +125,7 @@ def worker(plant: str, algo: str, study: str, out: Path, n_trials: int, timestep
                            sampler=optuna.samplers.TPESampler(seed=seed))
 
     def objective(trial):
-        h = sample(trial, algo, base)
+        h = sample(trial, algo, base, space)
 
         def report(step, value):
             trial.report(value, step)
@@ -96,8 +146,10 @@ def worker(plant: str, algo: str, study: str, out: Path, n_trials: int, timestep
 
 def tune(plant: str, algo: str, *, trials: int, timesteps: int, out: Path, study: str | None = None,
          eval_freq: int = 50_000, eval_episodes: int = 4, seed: int = 0, hyperparams: Path | None = None,
-         backend: str = "serial", jobs: int | None = None, address: str | None = None, progress: bool = True):
-    """Run the search (``trials`` in all, split over the workers); the study."""
+         backend: str = "serial", jobs: int | None = None, address: str | None = None, progress: bool = True,
+         space: str = "zoo"):
+    """Run the search (``trials`` in all, split over the workers); the study. In the residual space a new
+    study's first trial is the YAML entry as it is: the recipe's own score at the same budget."""
     import optuna
 
     from mrd_env.executor import Task, default_jobs, resolve_backend, run_tasks
@@ -108,9 +160,12 @@ def tune(plant: str, algo: str, *, trials: int, timesteps: int, out: Path, study
     st = optuna.create_study(study_name=study, storage=_storage(out / f"{study}.log"), direction="maximize",
                              pruner=optuna.pruners.MedianPruner(n_startup_trials=3, n_warmup_steps=2 * eval_freq),
                              load_if_exists=True)
+    if space == "residual" and not st.trials:
+        st.enqueue_trial(base_params(hyperparameters(algo, profile(plant).env_id, hyperparams)))
     workers = 1 if resolve_backend(backend, trials, jobs) == "serial" else min(trials, jobs or default_jobs())
     split = [trials // workers + (1 if i < trials % workers else 0) for i in range(workers)]
-    tasks = [Task(worker, (plant, algo, study, out, n, timesteps, eval_freq, eval_episodes, seed + i, hyperparams),
+    tasks = [Task(worker, (plant, algo, study, out, n, timesteps, eval_freq, eval_episodes, seed + i, hyperparams,
+                           space),
                   label=f"tune worker {i}") for i, n in enumerate(split)]
     run_tasks(tasks, backend=backend, jobs=jobs, address=address, progress=progress, desc=f"tune {study}")
     return st
@@ -128,10 +183,7 @@ def report_study(st, algo: str, env_id: str, out: Path, hyperparams: Path | None
     best = hyperparameters(algo, env_id, hyperparams)
     best_trial = st.best_trial
     for k, v in best_trial.params.items():
-        if k == "log_std_init":
-            best.setdefault("policy_kwargs", {})["log_std_init"] = v
-        else:
-            best[k] = v
+        _set(best, k, v)
     path = out / f"{st.study_name}_best.yml"
     path.write_text(f"# best of {len(st.trials)} trials (validation return {best_trial.value:.4g}); mrd-env tune\n"
                     + yaml.safe_dump({env_id: best}, sort_keys=False))
@@ -149,6 +201,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--hyperparams", type=Path, default=None,
                    help="YAML of the fixed hyperparameters (default experiments/hyperparams/<algo>.yml)")
+    p.add_argument("--space", choices=SPACES, default="zoo",
+                   help="zoo: RL Zoo's search spaces; residual (PPO with a residual in the YAML): learning rate, "
+                        "log_std_init, residual scale, gamma in [0.995, 0.999], GAE lambda, epochs, batch, n_steps, "
+                        "the YAML entry as the first trial")
     p.add_argument("--out", type=Path, default=Path("results/tune"))
     p.add_argument("--no-progress", action="store_true")
     sweep.add_arguments(p)
@@ -168,10 +224,16 @@ def run(args: argparse.Namespace) -> int:
     except ImportError:
         raise ImportError("mrd-env tune needs Optuna (pip install 'mrd-env[tune]')") from None
     env_id = profile(args.plant).env_id
-    hyperparameters(args.algo, env_id, args.hyperparams)  # the base entry exists and is valid
+    base = hyperparameters(args.algo, env_id, args.hyperparams)  # the base entry exists and is valid
+    if args.space == "residual":
+        if args.algo not in ("ppo", "recurrentppo"):
+            raise ValueError(f"--space residual searches ppo and recurrentppo, not {args.algo}")
+        if not isinstance(base.get("residual"), dict):
+            raise ValueError("--space residual needs a hyperparameter file whose entry has a residual "
+                             "(e.g. experiments/hyperparams/ppo-residual.yml)")
     st = tune(args.plant, args.algo, trials=args.trials, timesteps=args.timesteps, out=args.out, study=args.study,
               eval_freq=args.eval_freq, eval_episodes=args.eval_episodes, seed=args.seed,
-              hyperparams=args.hyperparams, progress=not args.no_progress, **executor)
+              hyperparams=args.hyperparams, progress=not args.no_progress, space=args.space, **executor)
     md, best = report_study(st, args.algo, env_id, args.out, args.hyperparams)
     print(md.read_text())
     print(f"best trial {st.best_trial.number}: validation return {st.best_value:.4g}; hyperparameters in {best} "

@@ -132,6 +132,7 @@ CASES = {
         ["--nope"], ["--plant", "nope"], ["--algo", "nope"], ["--algo", "a2c"], ["--trials", "0"],
         ["--timesteps", "0"], ["--eval-freq", "0"], ["--eval-episodes", "0"], ["--seed", "-1"],
         ["--hyperparams", "{missing}"], ["--backend", "gpu"], ["--jobs", "0"], ["--address", "ray://x:1"],
+        ["--space", "nope"], ["--space", "residual"], ["--space", "residual", "--algo", "sac"],
     ],
     "evaluate": [
         ["--nope"], ["--plant", "nope"], ["--agents", "{missing}"], ["--agents", "{agent_bad_json}"],

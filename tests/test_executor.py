@@ -119,6 +119,33 @@ def test_tune_runs_trials_prunes_and_writes_the_best_hyperparameters(tmp_path):
     assert len((tmp_path / "t" / "quarter_car_ppo_trials.csv").read_text().splitlines()) == 1 + 3
 
 
+def test_tune_residual_space_starts_at_the_recipe_and_keeps_gamma_high(tmp_path):
+    """--space residual: the first trial is the YAML entry as it is, the others draw γ in [0.995, 0.999] and the
+    residual's scale, which lands in the best YAML's residual."""
+    pytest.importorskip("optuna")
+    import yaml
+
+    from experiments.cli import main
+
+    entry = {"n_envs": 2, "policy": "MlpPolicy", "normalize": True, "residual": {"law": "skyhook_continuous",
+             "scale": 0.5}, "n_steps": 256, "batch_size": 1024, "n_epochs": 5, "gamma": 0.998, "gae_lambda": 0.99,
+             "learning_rate": 1e-4, "policy_kwargs": {"log_std_init": -3.5}}
+    base = tmp_path / "base.yml"
+    base.write_text(yaml.safe_dump({"mrd_env/QuarterCar-v0": entry}))
+    assert main(["tune", "--plant", "quarter_car", "--space", "residual", "--trials", "3", "--timesteps", "64",
+                 "--eval-freq", "64", "--eval-episodes", "1", "--hyperparams", str(base), "--backend", "serial",
+                 "--out", str(tmp_path / "t"), "--no-progress"]) == 0
+    import csv
+
+    rows = list(csv.DictReader((tmp_path / "t" / "quarter_car_ppo_trials.csv").open()))
+    assert len(rows) == 3
+    assert float(rows[0]["residual_scale"]) == 0.5 and float(rows[0]["gamma"]) == 0.998
+    assert all(0.995 <= float(r["gamma"]) <= 0.999 and 0.2 <= float(r["residual_scale"]) <= 1.0 for r in rows)
+    best = yaml.safe_load((tmp_path / "t" / "quarter_car_ppo_best.yml").read_text())["mrd_env/QuarterCar-v0"]
+    assert best["residual"]["law"] == "skyhook_continuous" and "residual_scale" not in best
+    assert 0.2 <= best["residual"]["scale"] <= 1.0 and -3.5 <= best["policy_kwargs"]["log_std_init"] <= -1.0
+
+
 def test_model_comparison_and_sensor_propagation_on_a_pool_equal_serial_ones():
     """compare-models and the Monte-Carlo propagation run their fits as tasks: the same numbers on a pool."""
     from mrd_env.dampers import make_damper
