@@ -141,3 +141,25 @@ def test_a_plant_added_in_two_files_works_with_every_part_and_the_laws():
                         episode_seconds=0.05)
     obs, _ = venv.reset(seed=0)
     assert obs.shape == (3, 1 + 1 + 2 + 2 + 2)
+
+
+def test_threads_change_the_speed_not_the_results():
+    """``threads``: one thread or numba's threads step 64 environments alike, bit for bit; a bad count is refused
+    with an error naming it."""
+    runs = []
+    for threads in (1, 2):
+        venv = gym.make_vec("mrd_env/QuarterCar-v0", num_envs=64, vectorization_mode="vector_entry_point",
+                            control_dt=0.01, episode_seconds=0.5, threads=threads)
+        assert venv.unwrapped.core.driver.threads == threads
+        obs, _ = venv.reset(seed=4)
+        rng = np.random.default_rng(0)
+        out = [obs]
+        for _ in range(30):
+            a = rng.uniform(venv.single_action_space.low, venv.single_action_space.high, (64, 1))
+            obs, r, term, trunc, _ = venv.step(a)
+            out += [obs, r, term, trunc]
+        runs.append(out)
+        venv.close()
+    assert all(np.array_equal(a, b) for a, b in zip(*runs))
+    with pytest.raises(ValueError, match="threads must be an int >= 1"):
+        gym.make_vec("mrd_env/QuarterCar-v0", num_envs=4, vectorization_mode="vector_entry_point", threads=0)

@@ -239,9 +239,11 @@ class EnvCore:
 
     ``history``: HIST_FULL keeps every 1 kHz row of the episode (the scalar environment: rendering and
     ``signal()``), HIST_PERIOD the rows of the last control period (a Python reward), HIST_NONE nothing.
+    ``threads``: the driver's (:class:`~mrd_env.stepping.driver.Driver`).
     """
 
-    def __init__(self, asm: Assembly, N: int, history: int = HIST_NONE, step_cap: int | None = None):
+    def __init__(self, asm: Assembly, N: int, history: int = HIST_NONE, step_cap: int | None = None,
+                 threads: int | None = None):
         self.asm = asm
         self.N = N
         self.step_cap = step_cap  # at most this many control steps per episode (a vector env's max_episode_steps)
@@ -275,7 +277,7 @@ class EnvCore:
                         history_mode=history, normalized=asm.action_mode == "normalized")
         cmd = asm.damper.command
         self.driver = Driver(asm.damper, asm.coupled.system, N, pr, dt=asm.dt, n_sub=asm.n_sub,
-                             v_range=(cmd.v_min, cmd.v_max))
+                             v_range=(cmd.v_min, cmd.v_max), threads=threads)
         self.nd = asm.coupled.system.nd
         self.episodes: list[Episode | None] = [None] * N
         self._bind_views()

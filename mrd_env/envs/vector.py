@@ -36,17 +36,19 @@ from .core import Assembly, EnvCore, PlantDeclarations, assemble
 class MRDamperVectorEnv(PlantDeclarations, VectorEnv):
     """N environments of one plant in one compiled call (see the module docstring); options as the plant's scalar
     class, plus ``num_envs``, ``autoreset_mode``, ``render_mode`` ("rgb_array": ``render()`` returns one frame per
-    environment, as Gymnasium's vector environments do; each environment then keeps its episode's history) and
-    ``max_episode_steps`` (episodes end, truncated, after at most that many steps, as ``gym.make``'s TimeLimit)."""
+    environment, as Gymnasium's vector environments do; each environment then keeps its episode's history),
+    ``max_episode_steps`` (episodes end, truncated, after at most that many steps, as ``gym.make``'s TimeLimit)
+    and ``threads`` (numba threads of the step: default every thread numba has from 64 environments, else 1; the
+    results are the same for any count; 1 where other processes share the cores, see docs/speed.md)."""
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 1000, "autoreset_mode": AutoresetMode.NEXT_STEP}
     env_id = ""
     build: Callable[..., Assembly] | None = None
-    _OWN = ("num_envs", "render_mode", "autoreset_mode", "max_episode_steps")
+    _OWN = ("num_envs", "render_mode", "autoreset_mode", "max_episode_steps", "threads")
 
     def __init__(self, num_envs: int = 1, *, render_mode: str | None = None,
                  autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, max_episode_steps: int | None = None,
-                 assembly: Assembly | None = None, **options):
+                 threads: int | None = None, assembly: Assembly | None = None, **options):
         if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs must be an int >= 1, got {num_envs!r}")
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
@@ -70,7 +72,8 @@ class MRDamperVectorEnv(PlantDeclarations, VectorEnv):
         self.render_mode = render_mode
         self.metadata = {**type(self).metadata, "autoreset_mode": mode, "render_fps": render_fps(asm.control_dt)}
         self.core = core = EnvCore(asm, N, history=HIST_FULL if render_mode else HIST_NONE,
-                                   step_cap=None if max_episode_steps is None else int(max_episode_steps))
+                                   step_cap=None if max_episode_steps is None else int(max_episode_steps),
+                                   threads=threads)
         self.single_observation_space = _box(core.driver.n_obs)
         self.single_action_space = action_space(asm)
         self.observation_space = batch_space(self.single_observation_space, N)
