@@ -39,11 +39,12 @@ _lu_solve = nb.njit(inline='always')(_lu_solve_dispatcher.py_func)
 _lag_value = nb.njit(inline='always')(_lag_value_dispatcher.py_func)
 _delay_split = nb.njit(inline='always')(_delay_split_dispatcher.py_func)
 
+NEWTON_TOL = 1e-2  # Newton stops when its last correction is below this fraction of the error tolerance
+MAX_ITER = 12
+
 # The entry points here and in the driver are compiled without numba's reference counting (``_nrt=False``): they
 # allocate nothing (the scratch is the caller's), and with it every view of an array (Vn[0], Z[o:o + ns], ...) costs
 # an atomic increment and decrement of its owner's count — half of the step's time (experiments/bench_physics_step).
-NEWTON_TOL = 1e-2  # Newton stops when its last correction is below this fraction of the error tolerance
-MAX_ITER = 12
 
 
 @nb.njit(cache=True, _nrt=False)
@@ -378,7 +379,7 @@ def macro_step(plant, damper, state, w0, w1, control, nsub, ws):
     n = Y.shape[0]
     Vd = ws.Vd
     Ysave = ws.Vn[5]
-    Fsave = Vd[6]
+    Fsave = Vd[6]  # (row 7, the commands at the step's start, is free: U itself holds them until the end)
     for i in range(n):
         Ysave[i] = Y[i]
     for j in range(nd):
