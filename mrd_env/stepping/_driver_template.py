@@ -154,7 +154,7 @@ def core_reset(fc, ic, fs, is_, W, H, obs, mask):
     npar = ic[D_DIMS + DIM_NPAR]
     hist_mode = ic[D_DIMS + DIM_HIST_MODE]
     stat_cols = _i1(ic, I_STAT_COLS)
-    Vd = workspace_views(fs[N], is_[N], nq, nd, n, D.shape[2])[1]
+    Vd = workspace_views(fs[N], is_[N], nq, nd, n, D.shape[2]).Vd
     for b in range(N):
         if not mask[b]:
             continue
