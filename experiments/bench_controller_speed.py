@@ -14,6 +14,7 @@ from controllers import available_controllers, make_controller
 
 from .benchmark import BUILDING_CONTROLLERS, QC_CONTROLLERS
 from mrd_env.report import markdown_table
+from mrd_env.stepping.first_use import set_mode
 
 
 def bench(env_id: str, names, n: int = 3000) -> list[dict]:
@@ -40,6 +41,7 @@ def bench(env_id: str, names, n: int = 3000) -> list[dict]:
 
 
 def main() -> int:
+    set_mode("wait")  # time the compiled kernel, never the interpreted one of a first use
     assert set(QC_CONTROLLERS) | set(BUILDING_CONTROLLERS) <= set(available_controllers())
     rows = bench("mrd_env/QuarterCar-v0", QC_CONTROLLERS) + bench("mrd_env/ShearBuilding-v0", BUILDING_CONTROLLERS)
     print(markdown_table(rows, title="Controller predict() cost (µs per call)", floatfmt=".3g"))

@@ -23,6 +23,7 @@ import gymnasium as gym
 import numpy as np
 
 from mrd_env.report import write_table
+from mrd_env.stepping.first_use import set_mode
 
 
 def _make(env_id: str, **kwargs):
@@ -107,6 +108,7 @@ def bench(steps: int = 20000, repeats: int = 9) -> tuple[list[dict], float]:
 
 
 def main(argv=None) -> int:
+    set_mode("wait")  # time the compiled kernel, never the interpreted one of a first use
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--steps", type=int, default=20000, help="env.step calls per timing run (per simulated ms)")
     ap.add_argument("--repeats", type=int, default=9, help="timing runs per row; the median is reported")

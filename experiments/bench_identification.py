@@ -38,6 +38,7 @@ from mrd_env.identification.sensitivity import sensitivity
 from mrd_env.rig import random_test, sinusoidal_test
 
 from mrd_env.report import write_table
+from mrd_env.stepping.first_use import set_mode
 
 
 def synthetic_records(damper, noise: float = 0.01, seed: int = 5, duration: float = 8.0):
@@ -158,6 +159,7 @@ def _voltage_driven(model: str, unit: str):
 
 
 def main(argv=None) -> int:
+    set_mode("wait")  # time the compiled kernel, never the interpreted one of a first use
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--real", type=Path, default=None, help="measured record (NEES export layout)")
     p.add_argument("--fs", type=float, default=3004.8, help="its sampling rate in Hz (simulation grid 1/fs)")

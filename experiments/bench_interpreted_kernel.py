@@ -4,11 +4,12 @@
 Run: ``python -m experiments.bench_interpreted_kernel [--model spencer_dyke] [--steps 300]``.
 
 A damper model's generated kernel source (:func:`mrd_env.stepping.codegen.kernel_source`) is executed as plain
-Python (``nb.njit`` the identity, ``prange`` = ``range``), and a QuarterCar-v0 episode with sensor noise (which
+Python (:func:`mrd_env.stepping.first_use.interpreted_module`: ``nb.njit`` the identity, ``prange`` = ``range``),
+and a QuarterCar-v0 episode with sensor noise (which
 exercises the counter-based Gaussian generator's 64-bit wrap-around) is stepped once by the compiled kernel and
 once by the interpreted one, same seed and same random actions. If the two agree bit for bit, an environment can
 step interpreted while a background process compiles, and switch to the compiled kernel when the disk cache holds
-it, without changing any result: the way to a first use in seconds with an empty cache (docs/speed.md).
+it, without changing any result: what :mod:`mrd_env.stepping.first_use` does on a first use with an empty cache.
 """
 from __future__ import annotations
 
@@ -19,29 +20,12 @@ import types
 import numpy as np
 
 
-class _Interpreted:
-    """Stands in for ``numba`` in the generated source: decorators are the identity."""
-
-    prange = range
-    uint64 = np.uint64
-
-    @staticmethod
-    def njit(*args, **kwargs):
-        if args and callable(args[0]) and not kwargs:
-            return args[0]
-        return lambda f: f
-
-
 def interpreted_kernel(model_cls) -> types.ModuleType:
     """The kernel module of ``model_cls`` as Python code (no compilation)."""
-    from mrd_env.stepping.codegen import kernel_source
+    from mrd_env.stepping.codegen import kernel_prefix, kernel_source
+    from mrd_env.stepping.first_use import interpreted_module
 
-    src, _ = kernel_source(model_cls)
-    module = types.ModuleType(f"interpreted_kernel_{model_cls.name}")
-    module.__dict__["__interpreted_nb__"] = _Interpreted
-    exec(compile(src.replace("import numba as nb\n", "nb = __interpreted_nb__\n"), module.__name__, "exec"),
-         module.__dict__)
-    return module
+    return interpreted_module(kernel_prefix(model_cls), kernel_source(model_cls)[0])
 
 
 def episode(model: str, steps: int, interpreted: bool, seed: int = 3):
@@ -51,6 +35,9 @@ def episode(model: str, steps: int, interpreted: bool, seed: int = 3):
     import gymnasium as gym
 
     import mrd_env  # noqa: F401  (registers the environments)
+    from mrd_env.stepping.first_use import set_mode
+
+    set_mode("wait")  # the compiled row is the compiled kernel, never a first use's interpreted one
 
     warnings.filterwarnings("ignore", category=RuntimeWarning)  # numpy's uint64 wrap-around, intended
     env = gym.make("mrd_env/QuarterCar-v0", damper=model, episode_seconds=30.0,

@@ -20,6 +20,7 @@ import numpy as np
 from mrd_env import make_damper
 from mrd_env.inverse import achievable_forces, make_inverse
 from mrd_env.report import write_table
+from mrd_env.stepping.first_use import set_mode
 
 INVERSES = {"heaviside (on–off)": ("heaviside", {}), "heaviside (continuous)": ("heaviside", {"gain": 2e-3}),
             "sid": ("sid", {}), "model": ("model", {}), "neural": ("neural", {})}
@@ -53,6 +54,7 @@ def torch_forward_time(net, calls: int = 2000) -> float:
 
 
 def main(argv=None) -> int:
+    set_mode("wait")  # time the compiled kernel, never the interpreted one of a first use
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--model", default="spencer_dyke", choices=("spencer_dyke", "bouc_wen"))
     p.add_argument("--repeats", type=int, default=5)

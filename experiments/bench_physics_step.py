@@ -28,6 +28,7 @@ import numba as nb
 import numpy as np
 
 from mrd_env.report import write_table
+from mrd_env.stepping.first_use import set_mode
 
 
 def quarter_car_case(seconds: float, dt: float = 1e-3, seed: int = 0):
@@ -144,6 +145,7 @@ def bench(seconds: float, repeats: int) -> list[dict]:
 
 
 def main(argv=None) -> int:
+    set_mode("wait")  # time the compiled kernel, never the interpreted one of a first use
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--seconds", type=float, default=20.0, help="length of the record (s)")
     ap.add_argument("--repeats", type=int, default=5)

@@ -20,6 +20,7 @@ import numpy as np
 from gymnasium.envs.classic_control.cartpole import CartPoleVectorEnv
 
 from mrd_env.report import write_table
+from mrd_env.stepping.first_use import set_mode
 
 
 def _rate(venv, n_steps: int, actions) -> float:
@@ -73,6 +74,7 @@ def bench(sizes=(1, 64, 256, 1024, 4096), repeats: int = 5, seconds: float = 1.0
 
 
 def main(argv=None) -> int:
+    set_mode("wait")  # time the compiled kernel, never the interpreted one of a first use
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--sizes", type=int, nargs="+", default=[1, 64, 256, 1024, 4096])
     ap.add_argument("--repeats", type=int, default=5, help="timing runs per row; the median is reported")

@@ -1,5 +1,7 @@
 """``mrd-env warmup``: compile every damper model's kernels into the disk cache now, once, instead of on the first
-use of each model (20–25 s a model): the environments' scalar and vector steps and the rig's stepper.
+use of each model (15–25 s a model): the environments' scalar and vector steps and the rig's stepper
+(:func:`mrd_env.warmup.warm`). Without it, a first use steps the interpreted kernel while a background process
+compiles (:mod:`mrd_env.stepping.first_use`).
 
 Run it after installing (or before a class: the labs then start at once). The cache is
 ``$MRD_ENV_CACHE_DIR/kernels`` (else ``~/.cache/mrd-env/kernels``); every later process finds it. The models
@@ -11,26 +13,7 @@ from __future__ import annotations
 import argparse
 import time
 
-
-def warm(model: str) -> float:
-    """Compile what a first use of ``model`` compiles (a scalar and a threaded vector environment step, the rig's
-    stepper); the seconds it took (a fraction of a second when the cache already holds it)."""
-    import gymnasium as gym
-
-    import mrd_env  # noqa: F401  (registers the environments)
-    from mrd_env.rig import sinusoidal_test
-
-    t0 = time.perf_counter()
-    env = gym.make("mrd_env/QuarterCar-v1", damper=model, episode_seconds=0.01)
-    env.reset(seed=0)
-    env.step(env.action_space.low)
-    venv = gym.make_vec("mrd_env/QuarterCar-v1", num_envs=64, vectorization_mode="vector_entry_point",
-                        damper=model, episode_seconds=0.01)  # 64: the threaded path
-    venv.reset(seed=0)
-    venv.step(venv.action_space.sample())
-    venv.close()
-    sinusoidal_test(model, 0.01, 2.0, [0.0], cycles=0.01)
-    return time.perf_counter() - t0
+from mrd_env.warmup import warm
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

@@ -1,5 +1,6 @@
 """The speed benchmarks' references compute what they claim (issue 25): the explicit step of
-``experiments.bench_physics_step`` integrates the same equations as the accurate step."""
+``experiments.bench_physics_step`` integrates the same equations as the accurate step. (The interpreted kernel's
+bit-for-bit agreement with the compiled one is tested in test_first_use.py.)"""
 import numpy as np
 
 from experiments.bench_physics_step import explicit_kernel, quarter_car_case
@@ -30,14 +31,3 @@ def test_explicit_reference_integrates_the_same_quarter_car():
     err = F_acc[:-1] - F_exp
     assert np.sqrt(np.mean(err ** 2)) < 0.01 * np.sqrt(np.mean(F_acc ** 2))
 
-
-def test_the_kernel_run_by_the_interpreter_is_the_compiled_kernel_bit_for_bit():
-    """The way to a first use without waiting for numba (docs/speed.md): the generated kernel executed as plain
-    Python steps a noisy quarter car exactly as the compiled kernel does (the noise generator's uint64 wrap-around,
-    libm, the Newton iterations), so an environment could switch between the two at any step."""
-    from experiments.bench_interpreted_kernel import episode
-
-    oc, rc, _ = episode("spencer_dyke", 60, interpreted=False)
-    oi, ri, _ = episode("spencer_dyke", 60, interpreted=True)
-    assert np.array_equal(oc, oi) and np.array_equal(rc, ri)
-    assert np.ptp(oc[:, 0]) > 0  # the episode moves: not two constant sequences

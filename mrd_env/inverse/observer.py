@@ -31,7 +31,7 @@ def onestep_module(model_cls):
     ``nearest_commands`` of ``_onestep_template.py``), generated once and cached on disk like the kernels."""
     module = _MODULES.get(model_cls)
     if module is None:
-        kernel = kernel_module(model_cls)
+        kernel = kernel_module(model_cls, compiled=True)  # imported by name below: the module itself
         source = render(Path(__file__).with_name("_onestep_template.py"),
                         f"from {kernel.__name__} import macro_step, ns, workspace_views\n")
         # the kernel's module name carries its own key: a changed model or routine gives a new module here too

@@ -12,6 +12,9 @@ import sys
 import tempfile
 from pathlib import Path
 
+from . import first_use
+from .first_use import SwitchingKernel
+
 HERE = Path(__file__).parent
 KERNEL_TEMPLATES = (HERE / "_kernel_template.py", HERE / "_driver_template.py")
 #: Lines of a template ending with this comment import what the generated module defines itself (see
@@ -89,17 +92,50 @@ def model_modules(model_cls) -> set[str]:
     return files
 
 
-def kernel_module(model_cls):
+def kernel_module(model_cls, *, compiled: bool = False):
     """The compiled module of a damper model class (``macro_step``, ``run_systems``, ... of the templates).
 
     Built once per process from a generated module whose numba compilation is cached on disk, so a new
-    process loads it instead of compiling again.
+    process loads it instead of compiling again. While the cache does not hold it yet (no ready marker), a
+    :class:`~mrd_env.stepping.first_use.SwitchingKernel` stands in (interpreted until a background process has
+    compiled it), unless ``MRD_ENV_FIRST_USE=wait`` or ``compiled`` (a caller that needs the module itself).
     """
     module = _KERNELS.get(model_cls)
-    if module is None:
-        module = _KERNELS[model_cls] = load_generated_module(f"mrd_env_kernel_{model_cls.name}",
-                                                             *kernel_source(model_cls))
+    if module is not None and not (compiled and isinstance(module, SwitchingKernel)):
+        return module
+    prefix = kernel_prefix(model_cls)
+    source, key = kernel_source(model_cls)
+    path = write_generated_source(prefix, source, key)
+
+    def load():
+        _KERNELS[model_cls] = loaded = load_generated_module(prefix, source, key)
+        return loaded
+
+    if compiled or first_use.mode() == "wait" or first_use.ready_marker(path).exists():
+        return load()
+    module = _KERNELS[model_cls] = SwitchingKernel(model_cls.name, path, source, load)
     return module
+
+
+def kernel_prefix(model_cls) -> str:
+    """The name of a damper model's generated kernel module, before its key."""
+    return f"mrd_env_kernel_{model_cls.name}"
+
+
+def kernel_path(model_cls) -> Path:
+    """The generated kernel source of a damper model class (written if it is not there yet)."""
+    source, key = kernel_source(model_cls)
+    return write_generated_source(kernel_prefix(model_cls), source, key)
+
+
+def write_generated_source(prefix: str, source: str, key: str) -> Path:
+    """Write ``source`` as ``<prefix>_<key>.py`` in the kernel cache folder (if it is not there yet); its path."""
+    path = kernel_dir() / f"{prefix}_{key}.py"
+    if not path.exists() or path.read_text() != source:
+        tmp = path.with_suffix(f".{os.getpid()}.tmp")
+        tmp.write_text(source)
+        os.replace(tmp, path)  # atomic: concurrent processes never see half a file
+    return path
 
 
 def load_generated_module(prefix: str, source: str, key: str):
@@ -107,11 +143,7 @@ def load_generated_module(prefix: str, source: str, key: str):
     mod_name = f"{prefix}_{key}"
     if mod_name in sys.modules:
         return sys.modules[mod_name]
-    path = kernel_dir() / f"{mod_name}.py"
-    if not path.exists() or path.read_text() != source:
-        tmp = path.with_suffix(f".{os.getpid()}.tmp")
-        tmp.write_text(source)
-        os.replace(tmp, path)  # atomic: concurrent processes never see half a file
+    path = write_generated_source(prefix, source, key)
     spec = importlib.util.spec_from_file_location(mod_name, path)
     module = importlib.util.module_from_spec(spec)
     sys.modules[mod_name] = module

@@ -1,0 +1,135 @@
+"""First use without waiting for the compiler (issue 25, :mod:`mrd_env.stepping.first_use`): the interpreted
+kernel is the compiled kernel bit for bit, a switch in the middle of an episode changes nothing, the background
+compilation leaves its marker, and a failed one falls back to compiling in the process."""
+import os
+import sys
+import time
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import mrd_env  # noqa: F401
+from mrd_env.dampers import available_dampers, damper_class
+from mrd_env.stepping import codegen, first_use
+from mrd_env.stepping.codegen import kernel_module, kernel_path, kernel_source
+from mrd_env.stepping.first_use import SwitchingKernel
+
+
+def _episode(model, steps, *, switch_at=None, marker=None, seed=3):
+    """Observations and rewards of a noisy QuarterCar-v0 episode under random commands; with ``marker``, the
+    ready marker is created before step ``switch_at``."""
+    env = gym.make("mrd_env/QuarterCar-v0", damper=model, episode_seconds=30.0,
+                   sensor_noise={"sprung_acc": 0.05, "travel": 1e-4}).unwrapped
+    env.reset(seed=seed)
+    rng = np.random.default_rng(seed)
+    obs, rewards, compiled = [], [], []
+    for i in range(steps):
+        if marker is not None and i == switch_at:
+            marker.write_text("")
+        o, r, *_ = env.step(rng.uniform(env.action_space.low, env.action_space.high))
+        obs.append(o.copy())
+        rewards.append(r)
+        compiled.append(getattr(env.core.driver.kernel, "compiled", True))
+    return np.array(obs), np.array(rewards), compiled
+
+
+def _switching(monkeypatch, tmp_path, model, *, name=None):
+    """A SwitchingKernel for ``model`` whose marker lives in ``tmp_path``, installed as the model's kernel."""
+    cls = damper_class(model)
+    fake = tmp_path / kernel_path(cls).name
+    k = SwitchingKernel(name or model, fake, kernel_source(cls)[0], lambda: kernel_module(cls, compiled=True))
+    monkeypatch.setitem(codegen._KERNELS, cls, k)
+    return k, first_use.ready_marker(fake)
+
+
+@pytest.mark.parametrize("model", available_dampers())
+def test_an_episode_that_switches_to_the_compiled_kernel_is_the_compiled_episode(model, monkeypatch, tmp_path):
+    """30 steps interpreted, the marker appears, 10 more compiled: the same observations and rewards bit for bit
+    as the compiled kernel all along (sensor noise included: the generator's uint64 wrap-around)."""
+    oc, rc, _ = _episode(model, 40)
+    monkeypatch.setattr(SwitchingKernel, "_start_compiler", lambda self: None)
+    k, marker = _switching(monkeypatch, tmp_path, model)
+    oi, ri, compiled = _episode(model, 40, switch_at=30, marker=marker)
+    assert compiled == [False] * 30 + [True] * 10
+    assert np.array_equal(oc, oi) and np.array_equal(rc, ri)
+    assert np.ptp(oc[:, 0]) > 0  # the episode moves: not two constant sequences
+
+
+def test_the_default_first_use_interprets_and_a_background_process_compiles(monkeypatch, tmp_path):
+    """Without the marker, ``kernel_module`` returns a SwitchingKernel and starts ``python -m mrd_env.warmup``,
+    which leaves the marker and removes its lock; the kernel then switches. (The suite runs with
+    MRD_ENV_FIRST_USE=wait; the numba cache already holds the kernel here, so the child only loads it.)"""
+    cls = damper_class("spencer_dyke")
+    _episode("spencer_dyke", 2)  # compiled in this process (wait mode): the child finds numba's cache warm
+    path = kernel_path(cls)
+    marker = first_use.ready_marker(path)
+    marker.unlink(missing_ok=True)
+    monkeypatch.setenv(first_use.MODE_VARIABLE, "interpret")
+    monkeypatch.delitem(codegen._KERNELS, cls)
+    k = kernel_module(cls)
+    assert isinstance(k, SwitchingKernel) and not k.compiled and k._proc is not None
+    lock = path.with_suffix(".compiling")
+    assert lock.exists()
+    monkeypatch.setitem(codegen._KERNELS, cls, k)
+    t0 = time.monotonic()
+    _, _, compiled = _episode("spencer_dyke", 5)
+    assert not compiled[0]  # the first step did not wait for the compiler
+    while not k.compiled and time.monotonic() - t0 < 300:
+        _episode("spencer_dyke", 5)
+        time.sleep(0.2)
+    assert k.compiled, path.with_suffix(".log").read_text()
+    assert k._proc.wait(timeout=60) == 0
+    assert marker.exists() and not lock.exists()
+    assert codegen._KERNELS[cls] is not k  # later drivers take the compiled module itself
+    assert kernel_module(cls).run_systems is k.run_systems  # and the switched entries are its functions
+
+
+def test_a_failed_background_compilation_falls_back_to_compiling_here(monkeypatch, tmp_path):
+    """The child fails (an unknown model): the next call after it exits warns, naming the failure, and compiles
+    in the process; the episode goes on."""
+    k, marker = _switching(monkeypatch, tmp_path, "spencer_dyke", name="no_such_model")
+    assert k._proc is not None
+    k._proc.wait(timeout=120)
+    k._next_check = 0.0
+    with pytest.warns(RuntimeWarning, match="background compilation of the no_such_model kernel failed"):
+        _, _, compiled = _episode("spencer_dyke", 3)
+    assert compiled[-1] and not marker.exists()
+
+
+def test_a_lock_left_by_a_dead_process_is_taken_over(monkeypatch, tmp_path):
+    started, dead = [], _dead_pid()
+    monkeypatch.setattr(first_use.subprocess, "Popen", lambda *a, **kw: started.append(a) or _FakeProc())
+    cls = damper_class("spencer_dyke")
+    fake = tmp_path / kernel_path(cls).name
+    lock = fake.with_suffix(".compiling")
+    lock.write_text(str(dead))
+    SwitchingKernel("spencer_dyke", fake, kernel_source(cls)[0], lambda: None)
+    assert len(started) == 1 and lock.read_text() == str(_FakeProc.pid)
+    lock.write_text(str(os.getpid()))  # a live process holds it: no second compilation
+    SwitchingKernel("spencer_dyke", fake, kernel_source(cls)[0], lambda: None)
+    assert len(started) == 1
+
+
+def test_the_mode_is_checked(monkeypatch):
+    monkeypatch.setenv(first_use.MODE_VARIABLE, "soon")
+    with pytest.raises(ValueError, match=r"MRD_ENV_FIRST_USE must be one of \('interpret', 'wait'\), got 'soon'"):
+        first_use.mode()
+    with pytest.raises(ValueError, match="mode must be one of"):
+        first_use.set_mode("soon")
+    assert os.environ[first_use.MODE_VARIABLE] == "soon"  # a refused call changes nothing
+
+
+class _FakeProc:
+    pid = 424242
+
+    def poll(self):
+        return None
+
+
+def _dead_pid() -> int:
+    import subprocess
+
+    p = subprocess.Popen([sys.executable, "-c", "pass"])
+    p.wait()
+    return p.pid
