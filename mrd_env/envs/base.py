@@ -173,15 +173,13 @@ class MRDamperEnv(PlantDeclarations, gym.Env):
             a = action
         else:
             a = as_action(action, self.n_dampers)
-        for v in a.tolist():  # before the kernel, which would have written the first dampers' commands
-            if not math.isfinite(v):
-                raise ValueError("action must be finite (no NaN or infinity)")
-        if self.actuation is not None:
+        if self.actuation is not None:  # force mode: the desired forces (checked there) through the inverse
             a = self.actuation.step_commands(a, self._obs0, self.assembly.force_range)
         status = self._kstep(*self._args, a, self.core.obs, *self._systems)
-        if status == BAD_ACTION:  # a non-finite command from the force mode's inverse
+        if status == BAD_ACTION:  # refused by the kernel before it wrote anything
             self.core.driver.int_state("STATUS")[0] = RUNNING
-            raise ValueError("the inverse model returned a non-finite command")
+            raise ValueError("action must be finite (no NaN or infinity)" if self.actuation is None
+                             else "the inverse model returned a non-finite command")
         obs = self._obs0.copy()
         reward = float(self._reward0[0])
         if self.core.python_reward and status != DIVERGED:

@@ -250,12 +250,14 @@ def _advance_one(b, core, plant, outputs, wf, wi):
     damper = DamperArrays(P, lag)
     state = SystemState(Y, U, Fz)
     control = StepControl(dt, max_level, scal[SC_ATOL], scal[SC_RTOL])
-    # the action: validated, clipped to the Box and mapped onto [v_min, v_max] when normalised
+    # the action: validated (every damper's before any command is written, so that a refused step changes
+    # nothing), clipped to the Box and mapped onto [v_min, v_max] when normalised
     if cmd_col < 0:
         for j in range(nd):
-            a = action[b * nd + j]
-            if not math.isfinite(a):
+            if not math.isfinite(action[b * nd + j]):
                 return BAD_ACTION
+        for j in range(nd):
+            a = action[b * nd + j]
             if ic[D_DIMS + DIM_NORMALIZED] == 1:
                 a = min(max(a, -1.0), 1.0)
                 a = v_min + (a + 1.0) * 0.5 * (v_max - v_min)
