@@ -1,6 +1,10 @@
-"""The actor warm-up of the off-policy actor-critic algorithms (SAC, TD3, TQC): ``actor_warmup_steps: K`` in a
-hyperparameter entry of ``mrd-env train`` leaves the actor (and SAC's and TQC's entropy coefficient, when it is
-learned) untouched for the first K gradient steps, while the critics and their targets train as usual.
+"""The actor's pace in the off-policy actor-critic algorithms (SAC, TD3, TQC), two hyperparameters of ``mrd-env
+train``:
+
+* ``actor_warmup_steps: K`` leaves the actor (and SAC's and TQC's entropy coefficient, when it is learned)
+  untouched for the first K gradient steps, while the critics and their targets train as usual;
+* ``actor_learning_rate: x`` gives the actor's optimizer its own learning rate (a number > 0; SB3 gives the actor
+  and the critic the one ``learning_rate``, which the critic keeps).
 
 Why: a residual agent starts exactly at its law (:func:`controllers.residual.zero_policy_output`), but its critic
 starts as an untrained function; from the first gradient step the actor follows that function's action gradient and
@@ -18,15 +22,18 @@ gradient step of SAC, TD3 and TQC, whatever ``policy_delay``): with ``learning_s
 vector steps), ``gradient_steps`` g and n environments the actor first moves after about L + K·f·n/g environment
 steps.
 
-A model trained this way is saved and loaded as the plain algorithm (``agent.json`` names SAC, TD3 or TQC): the
-warm-up changes the training only.
+The actor's learning rate is set after SB3's ``_update_learning_rate`` has given every optimizer the schedule's.
+
+A model trained this way is saved and loaded as the plain algorithm (``agent.json`` names SAC, TD3 or TQC): these
+options change the training only.
 """
 from __future__ import annotations
 
 from contextlib import contextmanager
 
-#: The hyperparameter's name, and the ``--algo`` values it applies to (actor-critic algorithms with a replay buffer).
+#: The hyperparameters' names, and the ``--algo`` values they apply to (actor-critic algorithms with a replay buffer).
 OPTION = "actor_warmup_steps"
+LR_OPTION = "actor_learning_rate"
 ALGOS = ("sac", "td3", "tqc")
 
 _CLASSES: dict[type, type] = {}
@@ -45,6 +52,27 @@ def check_actor_warmup(algo: str, hyper: dict) -> int:
         raise ValueError(f"hyperparameter {OPTION} applies to the off-policy algorithms {list(ALGOS)}, "
                          f"not to {algo}")
     return int(value)
+
+
+def check_actor_learning_rate(algo: str, hyper: dict) -> float | None:
+    """The entry's learning rate of the actor (None: SB3's ``learning_rate``, as the critic's); ``ValueError``
+    naming the option and its valid values for anything but a number > 0, or on an algorithm without a critic."""
+    value = hyper.get(LR_OPTION)
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value < float("inf"):
+        raise ValueError(f"hyperparameter {LR_OPTION} must be a number > 0 (the actor's own learning rate), "
+                         f"got {value!r}")
+    if algo not in ALGOS:
+        raise ValueError(f"hyperparameter {LR_OPTION} applies to the off-policy algorithms {list(ALGOS)}, "
+                         f"not to {algo}")
+    return float(value)
+
+
+def actor_options(algo: str, hyper: dict) -> dict:
+    """{attribute: value} of :class:`ActorWarmup` the entry sets (empty: the plain algorithm will do)."""
+    out = {OPTION: check_actor_warmup(algo, hyper), LR_OPTION: check_actor_learning_rate(algo, hyper)}
+    return {k: v for k, v in out.items() if v}
 
 
 @contextmanager
@@ -69,9 +97,19 @@ class ActorWarmup:
 
     #: gradient steps with the actor (and a learned entropy coefficient) frozen; 0: none
     actor_warmup_steps: int = 0
+    #: the actor optimizer's learning rate (None: the algorithm's ``learning_rate``)
+    actor_learning_rate: float | None = None
 
-    def _excluded_save_params(self) -> list[str]:
-        return [*super()._excluded_save_params(), "actor_warmup_steps"]  # a training option, not the model's
+    def _excluded_save_params(self) -> list[str]:  # training options, not the model's
+        return [*super()._excluded_save_params(), OPTION, LR_OPTION]
+
+    def _update_learning_rate(self, optimizers) -> None:
+        super()._update_learning_rate(optimizers)
+        if self.actor_learning_rate is not None:
+            from stable_baselines3.common.utils import update_learning_rate
+
+            update_learning_rate(self.actor.optimizer, self.actor_learning_rate)
+            self.logger.record("train/actor_learning_rate", self.actor_learning_rate)
 
     def _frozen_optimizers(self) -> list:
         return [self.actor.optimizer, getattr(self, "ent_coef_optimizer", None)]

@@ -3,8 +3,9 @@
 SB3 bridge with observations (and rewards) normalised by ``VecNormalize``, validation with best-agent saving,
 checkpoints, TensorBoard logs, a hyperparameter search's pruning; residual policies (``residual``: the agent learns a
 correction to a law's command), the paired baseline (``paired_baseline``: rewards relative to a law on the same
-disturbance) and, for SAC, TD3 and TQC, the actor warm-up (``actor_warmup_steps``: the critic learns first,
-:mod:`.actor_warmup`). The agent folder is :func:`controllers.agents.write_agent`'s (``model.zip``)."""
+disturbance) and, for SAC, TD3 and TQC, the actor warm-up (``actor_warmup_steps``: the critic learns first) and the
+actor's own learning rate (``actor_learning_rate``; :mod:`.actor_warmup`). The agent folder is
+:func:`controllers.agents.write_agent`'s (``model.zip``)."""
 from __future__ import annotations
 
 import math
@@ -14,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .actor_warmup import check_actor_warmup, with_actor_warmup
+from .actor_warmup import actor_options, with_actor_warmup
 from .scenarios import Scenario
 from .trainers import (TRAINERS, plot_learning_curve, residual_spec, run_name, say_validation, validation_split,
                        write_csv)
@@ -22,10 +23,11 @@ from .trainers import (TRAINERS, plot_learning_curve, residual_spec, run_name, s
 #: Keys of a hyperparameter entry that are not the algorithm's keyword arguments: RL Zoo's, and ours —
 #: ``residual`` (a law's name, or {law, scale}: the agent learns a correction to it, :mod:`controllers.residual`)
 #: ``paired_baseline`` (a law's name: rewards relative to it on the same disturbance,
-#: :class:`controllers.training_wrappers.PairedBaselineVecEnv`) and ``actor_warmup_steps`` (SAC, TD3, TQC: gradient
-#: steps with the actor frozen while the critic learns, :mod:`.actor_warmup`).
+#: :class:`controllers.training_wrappers.PairedBaselineVecEnv`), ``actor_warmup_steps`` and ``actor_learning_rate``
+#: (SAC, TD3, TQC: gradient steps with the actor frozen while the critic learns; the actor's own learning rate;
+#: :mod:`.actor_warmup`).
 _ZOO_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "env_kwargs", "noise_type", "noise_std", "residual",
-             "paired_baseline", "actor_warmup_steps")
+             "paired_baseline", "actor_warmup_steps", "actor_learning_rate")
 #: RL Zoo's ``noise_type`` values (action noise of the off-policy algorithms, std ``noise_std`` in action units).
 NOISE_TYPES = ("normal", "ornstein-uhlenbeck")
 
@@ -46,7 +48,7 @@ def check(algo: str, hyper: dict) -> dict:
     for v in hyper.values():
         schedule(v)  # a malformed lin_ schedule is refused before training
     residual_spec(hyper.get("residual"))
-    check_actor_warmup(algo, hyper)
+    actor_options(algo, hyper)
     if hyper.get("noise_type") is not None and hyper["noise_type"] not in NOISE_TYPES:
         raise ValueError(f"hyperparameter noise_type must be one of {list(NOISE_TYPES)}, got {hyper['noise_type']!r}")
     std = hyper.get("noise_std", 0.1)
@@ -289,12 +291,12 @@ def train_sb3(plant: str, algo: str, seed: int, *, out: Path, timesteps: int | N
     vecnorm = VecNormalize(venv, gamma=float(hyper.get("gamma", 0.99)), **norm_kw) if normalize else None
     train_env = vecnorm if vecnorm is not None else venv
     kwargs = algorithm_kwargs(hyper, venv.action_space.shape[0])
-    warmup = check_actor_warmup(algo, hyper)
-    cls = with_actor_warmup(algorithm_class(label)) if warmup else algorithm_class(label)
+    actor = actor_options(algo, hyper)  # SAC, TD3, TQC: the actor warm-up, the actor's learning rate
+    cls = with_actor_warmup(algorithm_class(label)) if actor else algorithm_class(label)
     model = cls(hyper.get("policy", "MlpPolicy"), train_env, seed=seed, device="cpu", verbose=0,
                 tensorboard_log=str(Path(out) / "tensorboard") if tensorboard else None, **kwargs)
-    if warmup:
-        model.actor_warmup_steps = warmup  # gradient steps with the actor frozen (SAC, TD3, TQC)
+    for k, v in actor.items():
+        setattr(model, k, v)
     if residual:  # the untrained agent is its law exactly
         zero_policy_output(model)
     t_start = time.perf_counter()

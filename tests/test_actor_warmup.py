@@ -1,6 +1,7 @@
-"""The actor warm-up of SAC, TD3 and TQC (issue 23, ``actor_warmup_steps``): the actor and a learned entropy
-coefficient stay as they are for the first K gradient steps while the critic and its target train, they move
-after, the option reaches the training through a hyperparameter entry, and bad values are refused before training."""
+"""The actor's pace in SAC, TD3 and TQC (issue 23): with ``actor_warmup_steps`` the actor and a learned entropy
+coefficient stay as they are for the first K gradient steps while the critic and its target train, and move after;
+``actor_learning_rate`` is the actor's alone; both reach the training through a hyperparameter entry, and bad values
+are refused before training."""
 import copy
 import json
 
@@ -87,12 +88,27 @@ def test_the_option_reaches_training_and_the_agent_loads_as_plain_td3(tmp_path):
     assert np.all(agent.model.predict(obs, deterministic=True)[0] == 0.0)
 
 
+def test_the_actor_learning_rate_is_the_actors_alone():
+    venv = make_sb3_vec_env(CAR, n_envs=1, seed=0, **_kw())
+    model = with_actor_warmup(algorithm_class("SAC"))("MlpPolicy", venv, device="cpu", seed=0, learning_starts=1000,
+                                                      batch_size=16, learning_rate=3e-4,
+                                                      policy_kwargs={"net_arch": [8, 8]})
+    model.actor_learning_rate = 3e-5
+    model.learn(40)
+    model.train(gradient_steps=1, batch_size=16)
+    assert [g["lr"] for g in model.actor.optimizer.param_groups] == [3e-5]
+    assert [g["lr"] for g in model.critic.optimizer.param_groups] == [3e-4]
+
+
 @pytest.mark.parametrize("args, message", [
     (["--algo", "td3", "--set", "actor_warmup_steps=-1"], "actor_warmup_steps must be an integer >= 0"),
     (["--algo", "sac", "--set", "actor_warmup_steps=2.5"], "actor_warmup_steps must be an integer >= 0"),
     (["--algo", "sac", "--set", "actor_warmup_steps=many"], "actor_warmup_steps must be an integer >= 0"),
     (["--algo", "sac", "--set", "actor_warmup_steps=true"], "actor_warmup_steps must be an integer >= 0"),
     (["--algo", "ppo", "--set", "actor_warmup_steps=1000"], "applies to the off-policy algorithms"),
+    (["--algo", "td3", "--set", "actor_learning_rate=0"], "actor_learning_rate must be a number > 0"),
+    (["--algo", "sac", "--set", "actor_learning_rate=fast"], "actor_learning_rate must be a number > 0"),
+    (["--algo", "ppo", "--set", "actor_learning_rate=1e-4"], "applies to the off-policy algorithms"),
 ])
 def test_bad_warm_up_values_are_one_line_before_training(args, message, capsys, tmp_path):
     extra = []
@@ -107,7 +123,8 @@ def test_bad_warm_up_values_are_one_line_before_training(args, message, capsys, 
 
 
 def test_a_warm_up_of_a_float_integer_is_accepted():
-    from experiments.actor_warmup import check_actor_warmup
+    from experiments.actor_warmup import actor_options, check_actor_warmup
 
     assert check_actor_warmup("td3", {"actor_warmup_steps": 2e4}) == 20_000
     assert check_actor_warmup("ppo", {}) == 0
+    assert actor_options("sac", {"actor_warmup_steps": 0}) == {}   # nothing set: the plain algorithm
