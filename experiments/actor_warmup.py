@@ -10,7 +10,8 @@ Why: a residual agent starts exactly at its law (:func:`controllers.residual.zer
 starts as an untrained function; from the first gradient step the actor follows that function's action gradient and
 leaves the law before the critic knows anything (docs/rl-agents.md). With the warm-up, the critic first learns the
 value of the behaviour that fills the replay buffer — the law plus the exploration noise — and the actor only moves
-once that value exists.
+once that value exists. (On the quarter car this did not keep TD3 at its law: after 3·10⁴ gradient steps the
+critic's action gradient was still no better than a random sign; docs/rl-agents.md.)
 
 How: SB3's ``train(gradient_steps, batch_size)`` runs unchanged (no copy of its loop); during the warm-up the
 optimizer steps of the actor and of the entropy coefficient do nothing, so neither the parameters nor the Adam
