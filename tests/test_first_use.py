@@ -38,8 +38,10 @@ def _switching(monkeypatch, tmp_path, model, *, name=None):
     """A SwitchingKernel for ``model`` whose marker lives in ``tmp_path``, installed as the model's kernel."""
     cls = damper_class(model)
     fake = tmp_path / kernel_path(cls).name
-    k = SwitchingKernel(name or model, fake, kernel_source(cls)[0], lambda: kernel_module(cls, compiled=True))
+    k = SwitchingKernel(cls, fake, kernel_source(cls)[0], lambda: kernel_module(cls, compiled=True),
+                        model_name=name)
     monkeypatch.setitem(codegen._KERNELS, cls, k)
+    monkeypatch.setattr(cls, "python_functions", cls.python_functions)  # restored after the test
     return k, first_use.ready_marker(fake)
 
 
@@ -67,6 +69,7 @@ def test_the_default_first_use_interprets_and_a_background_process_compiles(monk
     marker.unlink(missing_ok=True)
     monkeypatch.setenv(first_use.MODE_VARIABLE, "interpret")
     monkeypatch.delitem(codegen._KERNELS, cls)
+    monkeypatch.setattr(cls, "python_functions", None)  # restored after the test
     k = kernel_module(cls)
     assert isinstance(k, SwitchingKernel) and not k.compiled and k._proc is not None
     lock = path.with_suffix(".compiling")
@@ -82,6 +85,7 @@ def test_the_default_first_use_interprets_and_a_background_process_compiles(monk
     assert k._proc.wait(timeout=60) == 0
     assert marker.exists() and not lock.exists()
     assert codegen._KERNELS[cls] is not k  # later drivers take the compiled module itself
+    assert cls.python_functions is None  # and the model's static force is compiled again
     assert kernel_module(cls).run_systems is k.run_systems  # and the switched entries are its functions
 
 
@@ -104,10 +108,11 @@ def test_a_lock_left_by_a_dead_process_is_taken_over(monkeypatch, tmp_path):
     fake = tmp_path / kernel_path(cls).name
     lock = fake.with_suffix(".compiling")
     lock.write_text(str(dead))
-    SwitchingKernel("spencer_dyke", fake, kernel_source(cls)[0], lambda: None)
+    monkeypatch.setattr(cls, "python_functions", None)
+    SwitchingKernel(cls, fake, kernel_source(cls)[0], lambda: None)
     assert len(started) == 1 and lock.read_text() == str(_FakeProc.pid)
     lock.write_text(str(os.getpid()))  # a live process holds it: no second compilation
-    SwitchingKernel("spencer_dyke", fake, kernel_source(cls)[0], lambda: None)
+    SwitchingKernel(cls, fake, kernel_source(cls)[0], lambda: None)
     assert len(started) == 1
 
 

@@ -215,6 +215,9 @@ class DamperModel:
     force_law: ClassVar[Callable]
     project: ClassVar[Callable]
     partials: ClassVar[Callable | None] = None
+    #: (project, force_law) as plain Python while the model's kernel runs interpreted on a first use (set by
+    #: :mod:`mrd_env.stepping.first_use`), so that :meth:`force` compiles nothing then; else None.
+    python_functions: ClassVar[tuple[Callable, Callable] | None] = None
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
@@ -269,11 +272,12 @@ class DamperModel:
         p = self.params.as_array()
         given = None if state is None else check_array("state", state, shape=(self.n_states,))
         out = np.empty(xb.shape)
+        project, force_law = type(self).python_functions or (self.project, self.force_law)
         for i in np.ndindex(xb.shape):
             s = self.initial_state() if given is None else given.copy()
             if given is None:
-                self.project(p, s, float(xb[i]), float(vb[i]), float(ub[i]))
-            out[i] = self.force_law(p, s, float(xb[i]), float(vb[i]), float(ab[i]), float(ub[i]))
+                project(p, s, float(xb[i]), float(vb[i]), float(ub[i]))
+            out[i] = force_law(p, s, float(xb[i]), float(vb[i]), float(ab[i]), float(ub[i]))
             if not math.isfinite(out[i]):  # float64 overflow: huge inputs or parameters, never a silent inf/NaN
                 raise ValueError(f"the force of {self.name!r} is not finite at x = {xb[i]:g} m, v = {vb[i]:g} m/s, "
                                  f"a = {ab[i]:g} m/s², u = {ub[i]:g} {self.command.unit}: the inputs or the "

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..dampers import DamperModel
-from ..stepping import Stepper, SystemMatrices
+from ..stepping import Stepper, SystemMatrices, kernel_module
 from ..validation import check_array
 
 
@@ -85,6 +85,7 @@ class CoupledPlant:
                  dt: float = 1e-3, **integrator_options):
         self.plant = plant
         self.damper = damper
+        kernel_module(type(damper))  # first, so that with a cold cache nothing below waits for numba (first_use)
         nd = plant.n_dampers
         m_d = damper.inertance()
         A, BF, Bw = plant.state_space(inertance=m_d)

@@ -113,7 +113,7 @@ def kernel_module(model_cls, *, compiled: bool = False):
 
     if compiled or first_use.mode() == "wait" or first_use.ready_marker(path).exists():
         return load()
-    module = _KERNELS[model_cls] = SwitchingKernel(model_cls.name, path, source, load)
+    module = _KERNELS[model_cls] = SwitchingKernel(model_cls, path, source, load)
     return module
 
 

@@ -47,8 +47,29 @@ def set_mode(value: str) -> None:
     os.environ[MODE_VARIABLE] = value
 
 
+_PATCHED_GLOBALS: dict = {}
+
+
+def python_function(fn):
+    """``fn`` (a numba function, or a Python one) as plain Python: its ``py_func`` with every numba function it
+    calls through its module's globals replaced likewise, so that calling it compiles nothing."""
+    from numba.core.dispatcher import Dispatcher
+
+    f = fn.py_func if isinstance(fn, Dispatcher) else fn
+    g = f.__globals__
+    patched = _PATCHED_GLOBALS.get(id(g))
+    if patched is None:
+        patched = _PATCHED_GLOBALS[id(g)] = dict(g)  # registered first: mutual calls end here
+        for name, value in g.items():
+            if isinstance(value, Dispatcher):
+                patched[name] = python_function(value)
+    out = types.FunctionType(f.__code__, patched, f.__name__, f.__defaults__, f.__closure__)
+    out.__kwdefaults__ = f.__kwdefaults__
+    return out
+
+
 class _InterpretedNumba:
-    """Stands in for ``numba`` in a generated kernel's source: the decorators are the identity."""
+    """Stands in for ``numba`` in a generated kernel's source: the decorators give plain Python functions."""
 
     prange = range
     uint64 = np.uint64
@@ -57,7 +78,8 @@ class _InterpretedNumba:
     def njit(*args, **kwargs):
         if args and callable(args[0]) and not kwargs:
             return args[0]
-        return lambda f: f
+        # the model's and the shared helpers' functions come from other modules: plain Python down to the leaves
+        return lambda f: f if "__interpreted_nb__" in f.__globals__ else python_function(f)
 
 
 def interpreted_module(name: str, source: str) -> types.ModuleType:
@@ -98,10 +120,13 @@ class SwitchingKernel:
     ``core_reset``, ...) run the interpreted kernel, and the compiled one from the first call after the ready
     marker appears. ``compiled`` says which one runs."""
 
-    def __init__(self, model_name: str, kernel_path: Path, source: str, load_compiled):
+    def __init__(self, model_cls, kernel_path: Path, source: str, load_compiled, *, model_name: str | None = None):
         self.__name__ = kernel_path.stem
-        self._model_name = model_name
+        self._model_cls = model_cls
+        self._model_name = model_name or model_cls.name  # what the background process compiles
         self._interpreted = interpreted_module(kernel_path.stem, source)
+        # the model's own calls from Python (its static force) compile nothing either until the switch
+        model_cls.python_functions = (python_function(model_cls.project), python_function(model_cls.force_law))
         self._load_compiled = load_compiled
         self._marker = ready_marker(kernel_path)
         self._lock = kernel_path.with_suffix(".compiling")
@@ -180,5 +205,6 @@ class SwitchingKernel:
     def _switch(self) -> None:
         self._impl = self._load_compiled()
         self.compiled = True
+        self._model_cls.python_functions = None
         for name in [n for n in self.__dict__ if not n.startswith("_") and callable(self.__dict__[n])]:
             self.__dict__[name] = getattr(self._impl, name)  # later look-ups (an env's next reset) skip the entry
