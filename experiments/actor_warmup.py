@@ -40,6 +40,11 @@ ALGOS = ("sac", "td3", "tqc")
 _CLASSES: dict[type, type] = {}
 
 
+def _off_policy_only(option: str, algo: str) -> None:
+    if algo not in ALGOS:
+        raise ValueError(f"hyperparameter {option} applies to the off-policy algorithms {list(ALGOS)}, not to {algo}")
+
+
 def check_actor_warmup(algo: str, hyper: dict) -> int:
     """The entry's number of warm-up gradient steps (0: none); ``ValueError`` naming the option and its valid
     values for a negative or non-integer value, or on an algorithm without a critic to warm up."""
@@ -49,9 +54,7 @@ def check_actor_warmup(algo: str, hyper: dict) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not value >= 0 or float(value) != int(value):
         raise ValueError(f"hyperparameter {OPTION} must be an integer >= 0 (gradient steps with the actor frozen), "
                          f"got {value!r}")
-    if algo not in ALGOS:
-        raise ValueError(f"hyperparameter {OPTION} applies to the off-policy algorithms {list(ALGOS)}, "
-                         f"not to {algo}")
+    _off_policy_only(OPTION, algo)
     return int(value)
 
 
@@ -64,9 +67,7 @@ def check_actor_learning_rate(algo: str, hyper: dict) -> float | None:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value < float("inf"):
         raise ValueError(f"hyperparameter {LR_OPTION} must be a number > 0 (the actor's own learning rate), "
                          f"got {value!r}")
-    if algo not in ALGOS:
-        raise ValueError(f"hyperparameter {LR_OPTION} applies to the off-policy algorithms {list(ALGOS)}, "
-                         f"not to {algo}")
+    _off_policy_only(LR_OPTION, algo)
     return float(value)
 
 
