@@ -4,3 +4,18 @@ os.environ.setdefault("MPLBACKEND", "Agg")
 # the suite compiles in its own processes (no background compilers, no interpreted steps where tests time or
 # count); tests/test_first_use.py switches the interpreted first use on where it tests it
 os.environ.setdefault("MRD_ENV_FIRST_USE", "wait")
+
+
+def pytest_collection_modifyitems(config, items):
+    """With ``--dist loadgroup`` (pytest-xdist), the tests parametrised by a damper model other than the default
+    run on one worker per model: a model's kernel is compiled by one process only, not by two at once."""
+    import pytest
+
+    from mrd_env.dampers import available_dampers
+
+    models = set(available_dampers()) - {"spencer_dyke"}  # the default model: every worker compiles it anyway
+    for item in items:
+        params = getattr(getattr(item, "callspec", None), "params", {})
+        model = next((v for v in params.values() if isinstance(v, str) and v in models), None)
+        if model is not None:
+            item.add_marker(pytest.mark.xdist_group(model))
