@@ -166,7 +166,10 @@ class SwitchingKernel:
                 return
             self._lock.unlink(missing_ok=True)
             return self._start_compiler()
-        env = dict(os.environ, **{MODE_VARIABLE: "wait"})
+        # the child imports this very mrd_env, however this process found it (an install, a path, a checkout)
+        root = str(Path(__file__).resolve().parents[2])
+        path = os.pathsep.join(p for p in (root, os.environ.get("PYTHONPATH", "")) if p)
+        env = dict(os.environ, **{MODE_VARIABLE: "wait", "PYTHONPATH": path})
         # its own session: the compilation finishes (for the next process) even if this one is interrupted
         with open(self._log, "w") as log:
             self._proc = subprocess.Popen([sys.executable, "-m", "mrd_env.warmup", self._model_name,
