@@ -1,5 +1,6 @@
-"""Compile a damper model's kernels into the disk cache: what a first use of the model compiles (a scalar and a
-threaded vector environment step, the rig's stepper), then leave the kernel's ready marker.
+"""Compile a damper model's kernels into the disk cache: what a first use of the model compiles (a scalar
+environment step and the rig's stepper, then a threaded vector environment step), leaving the kernel's ready
+markers (:mod:`mrd_env.stepping.first_use`: one after the serial entry points, one at the end).
 
 ``mrd-env warmup`` runs it for every model; :mod:`mrd_env.stepping.first_use` runs
 ``python -m mrd_env.warmup <model>`` in the background while a first use steps the interpreted kernel.
@@ -28,12 +29,13 @@ def warm(model: str) -> float:
     env = gym.make("mrd_env/QuarterCar-v1", damper=model, episode_seconds=0.01)
     env.reset(seed=0)
     env.step(env.action_space.low)
+    sinusoidal_test(model, 0.01, 2.0, [0.0], cycles=0.01)
+    first_use.mark_ready(kernel_path(cls), "serial")  # a first use's scalar steps switch now, before the threads
     venv = gym.make_vec("mrd_env/QuarterCar-v1", num_envs=64, vectorization_mode="vector_entry_point",
                         damper=model, episode_seconds=0.01)  # 64: the threaded path
     venv.reset(seed=0)
     venv.step(venv.action_space.sample())
     venv.close()
-    sinusoidal_test(model, 0.01, 2.0, [0.0], cycles=0.01)
     first_use.mark_ready(kernel_path(cls))
     return time.perf_counter() - t0
 

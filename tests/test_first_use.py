@@ -38,7 +38,8 @@ def _switching(monkeypatch, tmp_path, model, *, name=None):
     """A SwitchingKernel for ``model`` whose marker lives in ``tmp_path``, installed as the model's kernel."""
     cls = damper_class(model)
     fake = tmp_path / kernel_path(cls).name
-    k = SwitchingKernel(cls, fake, kernel_source(cls)[0], lambda: kernel_module(cls, compiled=True),
+    source, key = kernel_source(cls)
+    k = SwitchingKernel(cls, fake, source, lambda: codegen.load_generated_module(codegen.kernel_prefix(cls), source, key),
                         model_name=name)
     monkeypatch.setitem(codegen._KERNELS, cls, k)
     monkeypatch.setattr(cls, "python_functions", cls.python_functions)  # restored after the test
@@ -58,6 +59,39 @@ def test_an_episode_that_switches_to_the_compiled_kernel_is_the_compiled_episode
     assert np.ptp(oc[:, 0]) > 0  # the episode moves: not two constant sequences
 
 
+def _vector_run(steps, markers=()):
+    """Observations of a threaded 64-env QuarterCar-v1 batch (``core_step_parallel``) under seeded random
+    commands; ``markers`` (step, path) are created before those steps."""
+    venv = gym.make_vec("mrd_env/QuarterCar-v1", num_envs=64, vectorization_mode="vector_entry_point",
+                        damper="spencer_dyke", episode_seconds=1.0, threads=2)
+    venv.reset(seed=5)
+    rng = np.random.default_rng(5)
+    out = []
+    for i in range(steps):
+        for at, path in markers:
+            if at == i:
+                path.write_text("")
+        out.append(venv.step(rng.uniform(venv.action_space.low, venv.action_space.high))[0].copy())
+    venv.close()
+    return np.array(out)
+
+
+def test_the_serial_entries_switch_first_and_the_threaded_step_at_the_final_marker(monkeypatch, tmp_path):
+    """The background process marks the serial entry points ready before it compiles the threaded step: a
+    threaded batch switches at the final marker only, and matches the compiled batch bit for bit throughout."""
+    reference = _vector_run(6)
+    monkeypatch.setattr(SwitchingKernel, "_start_compiler", lambda self: None)
+    k, marker = _switching(monkeypatch, tmp_path, "spencer_dyke")
+    serial = first_use.ready_marker(marker.with_suffix("").with_suffix(".py"), "serial")
+    _episode("spencer_dyke", 1)
+    assert not k.compiled
+    serial.write_text("")
+    _episode("spencer_dyke", 1)
+    assert k.compiled and not k._late_compiled  # the scalar step runs compiled, the threaded one not yet
+    assert np.array_equal(_vector_run(6, markers=[(3, marker)]), reference)
+    assert k._late_compiled
+
+
 def test_the_default_first_use_interprets_and_a_background_process_compiles(monkeypatch, tmp_path):
     """Without the marker, ``kernel_module`` returns a SwitchingKernel and starts ``python -m mrd_env.warmup``,
     which leaves the marker and removes its lock; the kernel then switches. (The suite runs with
@@ -67,6 +101,7 @@ def test_the_default_first_use_interprets_and_a_background_process_compiles(monk
     path = kernel_path(cls)
     marker = first_use.ready_marker(path)
     marker.unlink(missing_ok=True)
+    first_use.ready_marker(path, "serial").unlink(missing_ok=True)
     monkeypatch.setenv(first_use.MODE_VARIABLE, "interpret")
     monkeypatch.delitem(codegen._KERNELS, cls)
     monkeypatch.setattr(cls, "python_functions", None)  # restored after the test
@@ -84,9 +119,9 @@ def test_the_default_first_use_interprets_and_a_background_process_compiles(monk
     assert k.compiled, path.with_suffix(".log").read_text()
     assert k._proc.wait(timeout=60) == 0
     assert marker.exists() and not lock.exists()
-    assert codegen._KERNELS[cls] is not k  # later drivers take the compiled module itself
-    assert cls.python_functions is None  # and the model's static force is compiled again
-    assert kernel_module(cls).run_systems is k.run_systems  # and the switched entries are its functions
+    assert cls.python_functions is None  # the model's static force is compiled again
+    assert k.settled is not None and kernel_module(cls) is k.settled  # later drivers take the compiled module
+    assert codegen._KERNELS[cls] is k.settled and k.run_systems is k.settled.run_systems  # so do earlier ones
 
 
 def test_a_failed_background_compilation_falls_back_to_compiling_here(monkeypatch, tmp_path):

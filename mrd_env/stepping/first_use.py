@@ -91,18 +91,25 @@ def interpreted_module(name: str, source: str) -> types.ModuleType:
     return module
 
 
-def ready_marker(kernel_path: Path) -> Path:
-    """The file that says numba's cache holds ``kernel_path``'s compiled entry points. Its name carries numba's and
-    Python's versions and numba's cache folder, so a marker never vouches for a cache that is not there."""
+#: Entry points compiled last (the threaded step, the longest to compile): the others switch at the ``serial``
+#: marker, these at the final one.
+LATE_ENTRIES = ("core_step_parallel",)
+
+
+def ready_marker(kernel_path: Path, part: str = "") -> Path:
+    """The file that says numba's cache holds ``kernel_path``'s compiled entry points (``part="serial"``: all but
+    :data:`LATE_ENTRIES`). Its name carries numba's and Python's versions and numba's cache folder, so a marker
+    never vouches for a cache that is not there."""
     import numba
 
     where = f"{numba.__version__} {sys.version} {os.environ.get('NUMBA_CACHE_DIR', '')}"
-    return kernel_path.with_suffix(f".{hashlib.sha256(where.encode()).hexdigest()[:8]}.ready")
+    tag = hashlib.sha256(where.encode()).hexdigest()[:8]
+    return kernel_path.with_suffix(f".{tag}.{part}.ready" if part else f".{tag}.ready")
 
 
-def mark_ready(kernel_path: Path) -> None:
-    """Leave the ready marker of ``kernel_path`` (after its entry points were compiled into the cache)."""
-    ready_marker(kernel_path).write_text(f"compiled by process {os.getpid()} at {time.ctime()}\n")
+def mark_ready(kernel_path: Path, part: str = "") -> None:
+    """Leave a ready marker of ``kernel_path`` (after those entry points were compiled into the cache)."""
+    ready_marker(kernel_path, part).write_text(f"compiled by process {os.getpid()} at {time.ctime()}\n")
 
 
 def _alive(pid: int) -> bool:
@@ -117,8 +124,9 @@ def _alive(pid: int) -> bool:
 
 class SwitchingKernel:
     """A kernel module's stand-in until its compilation is in the cache: entry points (``run_systems``,
-    ``core_reset``, ...) run the interpreted kernel, and the compiled one from the first call after the ready
-    marker appears. ``compiled`` says which one runs."""
+    ``core_reset``, ...) run the interpreted kernel, and the compiled one from the first call after their ready
+    marker appears (the serial entries first, :data:`LATE_ENTRIES` at the final marker). ``compiled`` says
+    whether the serial entries run compiled."""
 
     def __init__(self, model_cls, kernel_path: Path, source: str, load_compiled, *, model_name: str | None = None):
         self.__name__ = kernel_path.stem
@@ -129,12 +137,14 @@ class SwitchingKernel:
         model_cls.python_functions = (python_function(model_cls.project), python_function(model_cls.force_law))
         self._load_compiled = load_compiled
         self._marker = ready_marker(kernel_path)
+        self._serial_marker = ready_marker(kernel_path, "serial")
         self._lock = kernel_path.with_suffix(".compiling")
         self._log = kernel_path.with_suffix(".log")
         self._impl = self._interpreted
         self._proc = None
         self._next_check = 0.0
         self.compiled = False
+        self._late_compiled = False
         self._start_compiler()
 
     def __getattr__(self, name: str):
@@ -144,10 +154,12 @@ class SwitchingKernel:
         if not callable(target):
             return target
 
+        late = name in LATE_ENTRIES
+
         def entry(*args):
-            if not self.compiled:
+            if not (self._late_compiled if late else self.compiled):
                 self._poll()
-                if not self.compiled:
+                if not (self._late_compiled if late else self.compiled):
                     with np.errstate(all="ignore"):  # the compiled kernel wraps uint64 and never warns
                         return getattr(self._interpreted, name)(*args)
             return getattr(self._impl, name)(*args)
@@ -155,6 +167,14 @@ class SwitchingKernel:
         entry.__name__ = name
         self.__dict__[name] = entry
         return entry
+
+    @property
+    def settled(self):
+        """The compiled module once every entry point is compiled (then new drivers take it directly), else
+        None."""
+        if not self._late_compiled and self._marker.exists():
+            self._switch(late=True)
+        return self._impl if self._late_compiled else None
 
     # --- the background compilation -----------------------------------------------------------------------
     def _start_compiler(self) -> None:
@@ -188,9 +208,12 @@ class SwitchingKernel:
         return (pid > 0 and not _alive(pid)) or age > _STALE_LOCK_S
 
     def _poll(self) -> None:
-        """Switch to the compiled kernel once the marker is there; compile here if the background process failed."""
+        """Switch to the compiled kernel once the markers are there; compile here if the background process
+        failed."""
         if self._marker.exists():
-            return self._switch()
+            return self._switch(late=True)
+        if not self.compiled and self._serial_marker.exists():
+            self._switch()
         now = time.monotonic()
         if now < self._next_check:
             return
@@ -201,13 +224,17 @@ class SwitchingKernel:
                 warnings.warn(f"the background compilation of the {self._model_name} kernel failed "
                               f"({err[-1] if err else f'exit code {self._proc.returncode}'}); compiling it here",
                               RuntimeWarning, stacklevel=3)
-                self._switch()
+                self._switch(late=True)
         elif not self._lock.exists() or self._stale_lock():
             self._start_compiler()  # the process that was compiling it is gone without a marker
 
-    def _switch(self) -> None:
-        self._impl = self._load_compiled()
-        self.compiled = True
-        self._model_cls.python_functions = None
+    def _switch(self, late: bool = False) -> None:
+        """The serial entry points (and with ``late`` all) run compiled from now on."""
+        if not self.compiled:
+            self._impl = self._load_compiled()
+            self.compiled = True
+            self._model_cls.python_functions = None
+        self._late_compiled = self._late_compiled or late
         for name in [n for n in self.__dict__ if not n.startswith("_") and callable(self.__dict__[n])]:
-            self.__dict__[name] = getattr(self._impl, name)  # later look-ups (an env's next reset) skip the entry
+            if self._late_compiled or name not in LATE_ENTRIES:
+                self.__dict__[name] = getattr(self._impl, name)  # later look-ups (an env's reset) skip the entry
