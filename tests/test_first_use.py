@@ -38,18 +38,19 @@ def _switching(monkeypatch, tmp_path, model, *, name=None):
     """A SwitchingKernel for ``model`` whose marker lives in ``tmp_path``, installed as the model's kernel."""
     cls = damper_class(model)
     fake = tmp_path / kernel_path(cls).name
+    monkeypatch.setattr(cls, "python_functions", None)  # before the stand-in sets them: restored to None after
     source, key = kernel_source(cls)
     k = SwitchingKernel(cls, fake, source, lambda: codegen.load_generated_module(codegen.kernel_prefix(cls), source, key),
                         model_name=name)
     monkeypatch.setitem(codegen._KERNELS, cls, k)
-    monkeypatch.setattr(cls, "python_functions", cls.python_functions)  # restored after the test
     return k, first_use.ready_marker(fake)
 
 
 @pytest.mark.parametrize("model", available_dampers())
 def test_an_episode_that_switches_to_the_compiled_kernel_is_the_compiled_episode(model, monkeypatch, tmp_path):
     """30 steps interpreted, the marker appears, 10 more compiled: the same observations and rewards bit for bit
-    as the compiled kernel all along (sensor noise included: the generator's uint64 wrap-around)."""
+    as the compiled kernel all along (sensor noise included: the generator's uint64 wrap-around; the plant's
+    static force computed by the model's Python functions)."""
     oc, rc, _ = _episode(model, 40)
     monkeypatch.setattr(SwitchingKernel, "_start_compiler", lambda self: None)
     k, marker = _switching(monkeypatch, tmp_path, model)
@@ -57,6 +58,7 @@ def test_an_episode_that_switches_to_the_compiled_kernel_is_the_compiled_episode
     assert compiled == [False] * 30 + [True] * 10
     assert np.array_equal(oc, oi) and np.array_equal(rc, ri)
     assert np.ptp(oc[:, 0]) > 0  # the episode moves: not two constant sequences
+    assert damper_class(model).python_functions is None  # switched: the model's compiled functions again
 
 
 def _vector_run(steps, markers=()):

@@ -273,15 +273,16 @@ class DamperModel:
         given = None if state is None else check_array("state", state, shape=(self.n_states,))
         out = np.empty(xb.shape)
         project, force_law = type(self).python_functions or (self.project, self.force_law)
-        for i in np.ndindex(xb.shape):
-            s = self.initial_state() if given is None else given.copy()
-            if given is None:
-                project(p, s, float(xb[i]), float(vb[i]), float(ub[i]))
-            out[i] = force_law(p, s, float(xb[i]), float(vb[i]), float(ab[i]), float(ub[i]))
-            if not math.isfinite(out[i]):  # float64 overflow: huge inputs or parameters, never a silent inf/NaN
-                raise ValueError(f"the force of {self.name!r} is not finite at x = {xb[i]:g} m, v = {vb[i]:g} m/s, "
-                                 f"a = {ab[i]:g} m/s², u = {ub[i]:g} {self.command.unit}: the inputs or the "
-                                 "parameters overflow float64")
+        with np.errstate(all="ignore"):  # the Python functions warn where the compiled ones do not; checked below
+            for i in np.ndindex(xb.shape):
+                s = self.initial_state() if given is None else given.copy()
+                if given is None:
+                    project(p, s, float(xb[i]), float(vb[i]), float(ub[i]))
+                out[i] = force_law(p, s, float(xb[i]), float(vb[i]), float(ab[i]), float(ub[i]))
+                if not math.isfinite(out[i]):  # float64 overflow: huge inputs or parameters, never a silent inf/NaN
+                    raise ValueError(f"the force of {self.name!r} is not finite at x = {xb[i]:g} m, v = {vb[i]:g} "
+                                     f"m/s, a = {ab[i]:g} m/s², u = {ub[i]:g} {self.command.unit}: the inputs or the "
+                                     "parameters overflow float64")
         return float(out) if out.ndim == 0 else out
 
     def inertance(self) -> float:
