@@ -593,3 +593,29 @@ def test_tracking_figure_labels_the_command_axis_in_the_plants_unit(model, unit)
     assert res.command_unit == unit
     fig = tracking_figure({"on–off": res})
     assert fig.axes[1].get_ylabel() == f"command ({unit})"
+
+
+@pytest.mark.parametrize("name", ["model", "sid", "neural"])
+def test_read_only_and_strided_inputs_reuse_the_compiled_routines(name, bw):
+    """numba compiles once per argument layout and read-only flag: inputs as a record holds them (read-only) or
+    as the columns of a table (strided, as the inverse's training reads them) must give the same commands and add
+    no compiled variant."""
+    from mrd_env.inverse.neural import _neural_commands
+
+    rows = np.array([[300.0, -200.0], [0.004, -0.002], [0.05, -0.08], [250.0, -150.0]])  # f_d, x, v, f_measured
+    frozen = rows.copy()
+    frozen.flags.writeable = False
+    expected = make_inverse(name, bw)
+    inv = make_inverse(name, bw)
+    for k in range(4):
+        assert np.array_equal(inv.command(*(frozen if k % 2 else rows)), expected.command(*rows))
+    if name == "neural":
+        compiled = [_neural_commands]
+    else:
+        table = np.ascontiguousarray(rows.T)        # strided columns: command, x, v
+        inv.observer.advance(table[:, 0] * 0.0, table[:, 1], table[:, 2])
+        expected.observer.advance(np.zeros(2), rows[1].copy(), rows[2].copy())
+        assert np.array_equal(inv.observer.F, expected.observer.F)
+        compiled = [inv.observer.module.advance] + ([inv.observer.module.nearest_commands] if name == "model" else [])
+    for routine in compiled:
+        assert len(routine.signatures) == 1, routine.signatures

@@ -271,6 +271,8 @@ class NeuralInverse(Inverse):
 
     def _command(self, f_desired, x, v, f_measured):
         out = np.empty(self.N)
+        # writable C arrays whatever the caller's (read-only, strided): one compiled variant
+        f_desired, x, v, f_measured = (np.require(a, np.float64, "CW") for a in (f_desired, x, v, f_measured))
         _neural_commands(self._flat, self._sizes, self._scales, self._Hf, self._Hx, self._Hv, self.u_hat,
                          f_desired, x, v, f_measured, self.v_min, self.v_max, self.dt, self._decay, out,
                          self._work, self._inp)

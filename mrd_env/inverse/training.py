@@ -109,7 +109,8 @@ def features(records: Sequence, damper, history: int, dt: float, *, rng=None) ->
         # the effective command as the inverse models it: the lag without the pure delay
         u = (np.asarray(r.u, dtype=np.float64) if getattr(r, "u", None) is not None
              else effective_command(dataclasses.replace(c, delay=0.0), cmd, dt))
-        rows.append((np.asarray(r.force, dtype=np.float64), np.asarray(r.x, dtype=np.float64), v, u))
+        # writable C arrays whatever the record (read-only, strided): one compiled variant of feature_matrix
+        rows.append(tuple(np.require(a, np.float64, "CW") for a in (r.force, r.x, v, u)))
 
     def std(fn):
         return float(np.std(np.concatenate([fn(q) for q in rows])))
@@ -129,7 +130,8 @@ def features(records: Sequence, damper, history: int, dt: float, *, rng=None) ->
         for fd, u_next in targets:
             m = F.size - history
             X, y = np.empty((m, n_inputs(history))), np.empty(m)
-            feature_matrix(F, x, v, u, fd, u_next, history, sc, c.v_min, c.v_max, dt, X, y)
+            feature_matrix(F, x, v, u, np.require(fd, np.float64, "CW"), np.require(u_next, np.float64, "CW"),
+                           history, sc, c.v_min, c.v_max, dt, X, y)
             Xs.append(X)
             ys.append(y)
     return np.vstack(Xs), np.concatenate(ys), scales

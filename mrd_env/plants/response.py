@@ -33,7 +33,7 @@ def foh_response(A: np.ndarray, B: np.ndarray, w: np.ndarray, dt: float, x0=None
     Phi = np.ascontiguousarray(E[:n, :n])
     Ga = np.ascontiguousarray(E[:n, n:n + m])
     Gb = np.ascontiguousarray(E[:n, n + m:] / dt)
-    w = np.ascontiguousarray(w, dtype=np.float64)
+    w = np.require(w, np.float64, "CW")  # one compiled variant: numba compiles again for read-only records
     X = np.zeros((w.shape[0], n))
     if x0 is not None:
         X[0] = x0
