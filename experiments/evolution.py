@@ -137,7 +137,8 @@ def train_cmaes(plant: str, algo: str, seed: int, *, out: Path, timesteps: int |
     from .evaluation import evaluate_batch
     from .plants import profile
     from .scenarios import HELD_OUT_SEED
-    from .trainers import env_options, plot_learning_curve, say_validation, validation_split, write_csv
+    from .trainers import (agent_name, env_options, plot_learning_curve, run_name, say_validation, validation_split,
+                           write_csv)
 
     import mrd_env  # noqa: F401
     h = check(dict(hyper or {}))
@@ -147,7 +148,7 @@ def train_cmaes(plant: str, algo: str, seed: int, *, out: Path, timesteps: int |
     law = warm_start if warm_start is not None else h["warm_start"]
     timesteps = int(timesteps if timesteps is not None else float(h["n_timesteps"]))
     P, E = int(h["popsize"]), int(h["episodes"])
-    run_dir = Path(out) / f"{plant}_cmaes_s{seed}"
+    run_dir = Path(out) / f"{run_name(plant, 'cmaes', h, env_kwargs)}_s{seed}"
     run_dir.mkdir(parents=True, exist_ok=True)
     t_start = time.perf_counter()
 
@@ -165,7 +166,7 @@ def train_cmaes(plant: str, algo: str, seed: int, *, out: Path, timesteps: int |
     def save(folder: Path, theta: np.ndarray, extra: dict) -> None:
         folder.mkdir(parents=True, exist_ok=True)
         MLPPolicy(policy.sizes, theta).save(folder / "policy.npz")
-        meta = {"name": f"CMA-ES s{seed}", "plant": plant, "env_id": env_id,
+        meta = {"name": agent_name("CMA-ES", seed, h, env_kwargs), "plant": plant, "env_id": env_id,
                 "algo": "CMA-ES", "recurrent": False, "seed": seed, "timesteps": timesteps, "env_kwargs": env_kwargs,
                 "hyperparameters": {**h, "warm_start": law}, "model": "policy.npz",
                 "normalization": None, "command": command,

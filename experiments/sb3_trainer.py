@@ -17,8 +17,8 @@ import numpy as np
 
 from .actor_warmup import actor_options, with_actor_warmup
 from .scenarios import Scenario
-from .trainers import (TRAINERS, plot_learning_curve, residual_spec, run_name, say_validation, validation_split,
-                       write_csv)
+from .trainers import (TRAINERS, agent_name, plot_learning_curve, residual_spec, run_name, say_validation,
+                       validation_split, write_csv)
 
 #: Keys of a hyperparameter entry that are not the algorithm's keyword arguments: RL Zoo's, and ours —
 #: ``residual`` (a law's name, or {law, scale}: the agent learns a correction to it, :mod:`controllers.residual`)
@@ -304,7 +304,7 @@ def train_sb3(plant: str, algo: str, seed: int, *, out: Path, timesteps: int | N
     def save(folder: Path, extra: dict) -> None:
         folder.mkdir(parents=True, exist_ok=True)
         model.save(folder / "model.zip")
-        meta = {"name": f"{label} s{seed}", "plant": plant, "env_id": env_id,
+        meta = {"name": agent_name(label, seed, hyper, env_kwargs), "plant": plant, "env_id": env_id,
                 "algo": label, "recurrent": algo == "recurrentppo", "seed": seed, "timesteps": timesteps,
                 "env_kwargs": env_kwargs, "hyperparameters": hyper, "model": "model.zip", "residual": residual,
                 "normalization": None, "command": command, "wall_time_s": time.perf_counter() - t_start, **extra}

@@ -145,6 +145,14 @@ def run_name(plant: str, algo: str, hyper: dict, env_kwargs: dict) -> str:
     return "_".join((plant, "-".join([algo, *tags])))
 
 
+def agent_name(label: str, seed: int, hyper: dict, env_kwargs: dict) -> str:
+    """The agent's name in tables and legends: the algorithm, what it adds — ``residual`` (a correction to a
+    law), ``preview`` (it sees the road ahead) — and its seed, e.g. ``"CMA-ES preview s0"``."""
+    tags = (["residual"] if residual_spec(hyper.get("residual")) else []) + \
+        (["preview"] if env_kwargs.get("preview") else [])
+    return " ".join([label, *tags, f"s{seed}"])
+
+
 # --- what every trainer shares ------------------------------------------------------------------------------------
 def env_options(plant: str, control_dt: float = 0.01, sensors=None, history: int = 1,
                 disturbance=None, **extra) -> dict:

@@ -181,3 +181,14 @@ def test_paired_comparison_cancels_what_the_episodes_share():
     assert r10["episodes"] == 3 and r10["difference"] == pytest.approx(0.1)
     assert r10["difference_lo95"] == pytest.approx(0.1) == pytest.approx(r10["difference_hi95"])
     assert rows["agent X − law @ 1 ms", "S"]["difference"] == pytest.approx(-0.1)
+
+
+def test_a_preview_agent_is_named_and_filed_apart_from_the_plain_one(es_runs, tmp_path):
+    """--preview: its own run folder (a plain run in the same --out is not overwritten) and a name that says so in
+    every table; loaded, it reads the road-preview sensor."""
+    assert main(["train", "--plant", "quarter_car", "--seeds", "0", "--preview", "--out", str(tmp_path), *TINY]) == 0
+    assert not (tmp_path / "quarter_car_cmaes_s0").exists()
+    agent = load_agent(tmp_path / "quarter_car_cmaes-preview_s0" / "best")
+    assert agent.name == "CMA-ES preview s0"
+    assert load_agent(es_runs / "a" / "quarter_car_cmaes_s0").name == "CMA-ES s0"
+    assert "road_preview" in agent.env_kwargs["sensors"]

@@ -152,6 +152,7 @@ def test_a_preview_agent_with_history_keeps_what_it_sees_through_evaluation(tmp_
                                             "residual": "skyhook_continuous"})
     assert run.name == "quarter_car_ppo-residual-h2-preview_s0"
     agent = load_agent(run)
+    assert agent.name == "PPO residual preview s0"   # what tables and legends call it
     seen = agent.observation_kwargs
     assert tuple(seen["preview"]) == tuple(kw["preview"]) and "road_preview" in seen["sensors"] and seen["history"] == 2
     sc = held_out_scenarios("quarter_car", quick=True)[0]
