@@ -221,6 +221,20 @@ def agent_controller(env, model, residual: dict | None = None, **options):
     return AgentController(env, model, **options)
 
 
+def agent_digest(path: str | Path) -> str:
+    """A short hash of the agent at ``path`` (its agent.json, model and normalisation files): what a cached result
+    computed with the agent is keyed by, so that another agent in a folder of the same name (every run's
+    ``best/``, a retrained shipped agent) is never served its result."""
+    import hashlib
+
+    folder, meta = agent_files(path)
+    h = hashlib.sha256()
+    for name in (METADATA_FILE, meta["model"], meta.get("normalization")):
+        if name and (folder / name).exists():
+            h.update((folder / name).read_bytes())
+    return h.hexdigest()[:16]
+
+
 def load_agent(path: str | Path) -> TrainedAgent:
     """The agent saved at ``path`` (its folder, or a file in it)."""
     folder, meta = agent_files(path)

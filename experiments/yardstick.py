@@ -125,10 +125,11 @@ def episode_yardstick(scenario: Scenario, seed: int, plant: str, *, agents=(), b
 
     Cached per episode, plant, damper, options and warm-start agents (:mod:`mrd_env.optimal.cache`); with
     ``solve=False`` only a cached yardstick is returned (None if there is none)."""
+    from controllers.agents import agent_digest
     from mrd_env.optimal import cache as store, episode_problem
 
     problem = episode_problem(scenario.env_id, seed=int(seed), control_dt=YARDSTICK_DT, **scenario.options)
-    key = {**problem.key(), "scenario": scenario.label(seed), "agents": [str(Path(a).name) for a in agents],
+    key = {**problem.key(), "scenario": scenario.label(seed), "agents": [agent_digest(a) for a in agents],
            "passive_grid": PASSIVE_GRID.tolist(), "version": VERSION}
     hit = store.load("yardstick", key) if cache else None
     if hit is not None and (hit.get("bound") is not None or not bound):

@@ -104,3 +104,19 @@ def test_the_yardstick_brackets_every_controller_on_an_episode(tmp_path, monkeyp
 def test_the_cache_lives_under_the_projects_cache_directory(tmp_path, monkeypatch):
     monkeypatch.setenv("MRD_ENV_CACHE_DIR", str(tmp_path))
     assert cache.cache_dir() == tmp_path / "optimal"
+
+
+def test_cached_yardsticks_are_keyed_by_the_agents_content_not_their_folder_names(tmp_path):
+    """Every training run keeps its best agent in a folder named best/: two different agents there must not share a
+    cached yardstick, and the same agent copied elsewhere may."""
+    import shutil
+
+    from controllers import shipped_agents
+    from controllers.agents import agent_digest
+
+    car, building = shipped_agents("quarter_car")[0], shipped_agents("building")[0]
+    a, b, c = (shutil.copytree(src, tmp_path / n / "best") for n, src in (("a", car), ("b", building), ("c", car)))
+    assert agent_digest(a) == agent_digest(c) == agent_digest(car)
+    assert agent_digest(a) != agent_digest(b)
+    (c / "agent.json").write_text((c / "agent.json").read_text().replace('"seed": 0', '"seed": 7'))
+    assert agent_digest(c) != agent_digest(a)
