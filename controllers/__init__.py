@@ -4,7 +4,8 @@ Build a controller from the environment it drives: ``SkyhookOnOff(env)``; ``make
 by name (``"mpc"``: linear model-predictive control, :mod:`.mpc`, needs OSQP; ``"nmpc"``: nonlinear MPC on the
 damper model, :mod:`.nmpc`, needs CasADi and a C compiler, not real time). ``CONTROLLERS`` lists the names;
 ``VARIANTS`` names laws with options (clipped-optimal control with each inverse model: ``"clipped_optimal+model"``
-is ``ClippedOptimal(env, inverse="model")``).
+is ``ClippedOptimal(env, inverse="model")``; ``"clipped_optimal_reward"`` is ``ClippedOptimal(env, weights="reward",
+design="sampled")``, designed for the environment's reward at its control step).
 """
 from .agents import TrainedAgent, load_agent, shipped_agents
 from .base import AgentController, Controller, PassiveOff, PassiveOn, RandomCommand

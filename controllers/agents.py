@@ -216,7 +216,8 @@ def agent_controller(env, model, residual: dict | None = None, **options):
     corrections to that law's command (:class:`~controllers.residual.ResidualController`)."""
     if residual:
         from .residual import ResidualController
-        return ResidualController(env, model, residual["law"], residual.get("scale", 1.0), **options)
+        return ResidualController(env, model, residual["law"], residual.get("scale", 1.0),
+                                  boundary=residual.get("boundary", "reflect"), **options)
     from .base import AgentController
     return AgentController(env, model, **options)
 

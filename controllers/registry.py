@@ -14,8 +14,12 @@ CONTROLLERS = {c.name: c for c in (RandomCommand, PassiveOff, PassiveOn, Skyhook
                                    ModulatedHomogeneousFriction)}
 
 
-#: name → (controller, options): clipped-optimal control with an inverse model turning f_c into the command
-VARIANTS = {f"clipped_optimal+{inv}": ("clipped_optimal", {"inverse": inv}) for inv in ("sid", "model", "neural")}
+#: name → (controller, options): clipped-optimal control with an inverse model turning f_c into the command; and
+#: ``clipped_optimal_reward``, clipped-optimal designed for the environment's own reward (``weights="reward"``) as
+#: the sampled-data LQR of the control step (``design="sampled"``: MPC with the reward's cost at horizon 1). On the
+#: building at 10 ms it scores −0.691 on the validation episodes against the default's −0.745 (docs/rl-agents.md).
+VARIANTS = {**{f"clipped_optimal+{inv}": ("clipped_optimal", {"inverse": inv}) for inv in ("sid", "model", "neural")},
+            "clipped_optimal_reward": ("clipped_optimal", {"weights": "reward", "design": "sampled"})}
 
 
 def available_controllers() -> list[str]:

@@ -2,13 +2,14 @@
 
 Residual policy learning (Silver et al. 2018, arXiv:1812.06298; Johannink et al., ICRA 2019): the command is
 
-    u = clip(u_law(y) + scale · (u_max − u_min) · a,  u_min, u_max),     a ∈ [−1, 1]^nd,
+    u = u_law(y) + scale · (u_max − u_min) · a,  reflected at u_min and u_max,     a ∈ [−1, 1]^nd,
 
 with ``u_law`` the command of a law (skyhook, clipped-optimal, any :class:`~controllers.base.Controller`) on the
 same observation y; the agent sees y and u_law (:meth:`Residual.observe`). An agent whose output is zero is the law exactly; ``mrd-env train --residual LAW`` zeroes the
 last layer of the policy (:func:`zero_policy_output`), so that training starts at the law and learns only the
 correction, and exploration starts from a good policy. With ``scale = 1`` any command is reachable from any law
-command.
+command. ``boundary="clip"`` clips at the range's ends instead of reflecting: where the law sits at an end, the
+outward half of the corrections does nothing and the inward half moves the command (see :meth:`Residual.combine`).
 
 One rule (:class:`Residual`) in two places: :class:`controllers.training_wrappers.ResidualVecEnv` (an SB3
 ``VecEnvWrapper`` whose actions are the corrections a: training, any algorithm) and :class:`ResidualController`
@@ -25,9 +26,12 @@ from .base import AgentController, Controller
 class Residual:
     """The rule above for the environment ``env`` (scalar or vector; commands or normalised actions, not force
     mode): ``actions(obs, a, episode_start)`` → the environment's actions. ``law``: a controller's name (with
-    ``law_options``) or a :class:`~controllers.base.Controller` built for ``env``."""
+    ``law_options``) or a :class:`~controllers.base.Controller` built for ``env``. ``boundary``: "reflect"
+    (default) or "clip", what a command beyond the range's ends becomes (:meth:`combine`)."""
 
-    def __init__(self, env, law: str | Controller, scale: float = 1.0, **law_options):
+    BOUNDARIES = ("reflect", "clip")
+
+    def __init__(self, env, law: str | Controller, scale: float = 1.0, boundary: str = "reflect", **law_options):
         from .registry import make_controller
         from mrd_env.validation import check_scalar
 
@@ -36,6 +40,9 @@ class Residual:
             raise ValueError("a residual policy adds to a law's command: build the environment with action_mode "
                              "'physical' or 'normalized', not 'force'")
         self.scale = check_scalar("residual scale", scale, 0.0, lo_open=True)
+        if boundary not in self.BOUNDARIES:
+            raise ValueError(f"residual boundary must be one of {list(self.BOUNDARIES)}, got {boundary!r}")
+        self.boundary = boundary
         if isinstance(law, Controller):
             if law_options:
                 raise ValueError(f"options {sorted(law_options)} apply to a law given by name")
@@ -66,10 +73,18 @@ class Residual:
         return np.concatenate([np.asarray(obs, dtype=np.float32), v.astype(np.float32)], axis=-1)
 
     def combine(self, u_law, a) -> np.ndarray:
-        """The environment's actions for the law's commands ``u_law`` and corrections ``a`` in [−1, 1]."""
+        """The environment's actions for the law's commands ``u_law`` and corrections ``a`` in [−1, 1].
+
+        With ``boundary="clip"`` a command beyond an end is that end. Where a bang-bang law (clipped-optimal) sits
+        at an end, reflection makes the command depend on |a| only, so the return is even in the policy's mean
+        there and its gradient at the law (mean 0) vanishes: clipping keeps a first-order signal (the inward half
+        of the noise moves the command, the outward half does nothing) and a mean pushed outwards leaves the
+        command at the law's."""
         u_law = np.asarray(u_law, dtype=np.float64)
         a = np.clip(np.asarray(a, dtype=np.float64).reshape(u_law.shape), -1.0, 1.0)
         u = u_law + self.scale * (self.v_max - self.v_min) * a
+        if self.boundary == "clip":
+            return self.law._to_action(u)  # clipped to [u_min, u_max] there
         # reflected at the range's ends rather than clipped: where the law saturates, a correction beyond the end
         # acts like the same correction inwards, so the exploration noise of a stochastic policy costs alike on
         # both sides and does not pull its mean outwards (clipping does: the outward half of the noise is free)
@@ -84,7 +99,8 @@ class Residual:
 
 class ResidualController(AgentController):
     """A trained residual agent (``agent``: anything with SB3's ``predict`` whose actions are corrections in
-    [−1, 1]) on the law ``law`` with ``scale``, behind the controllers' interface."""
+    [−1, 1]) on the law ``law`` with ``scale`` (and ``boundary`` among ``law_options``, see :class:`Residual`),
+    behind the controllers' interface."""
 
     name = "residual"
 

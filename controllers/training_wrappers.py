@@ -42,7 +42,7 @@ def _native(venv):
 
 class ResidualVecEnv(VecEnvWrapper):
     """Actions a ∈ [−1, 1]^nd are corrections to the command of ``law`` (see :class:`controllers.residual.Residual`:
-    ``scale``, ``law_options``), observations are the environment's with the law's command appended
+    ``scale``, ``boundary``, ``law_options``), observations are the environment's with the law's command appended
     (:meth:`~controllers.residual.Residual.observe`); it must wrap the bridge directly (it reads raw observations)."""
 
     def __init__(self, venv, law: str | Controller, scale: float = 1.0, **law_options):

@@ -162,14 +162,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from controllers import CONTROLLERS, shipped_agents
+    from controllers import available_controllers, shipped_agents
     from controllers.agents import agent_files
 
     if args.seeds < 1:
         raise ValueError(f"--seeds must be >= 1, got {args.seeds}")
-    unknown = [c for c in args.laws or () if c not in CONTROLLERS]
+    unknown = [c for c in args.laws or () if c not in available_controllers()]
     if unknown:
-        raise ValueError(f"--laws: unknown controller(s) {unknown}; available: {sorted(CONTROLLERS)}")
+        raise ValueError(f"--laws: unknown controller(s) {unknown}; available: {available_controllers()}")
     plants = chosen_plants(args.plant)
     executor = sweep.options(args)
     if args.damper is not None:

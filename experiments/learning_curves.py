@@ -33,8 +33,11 @@ def draw(plant: str, agents: list[Path], out: Path, clairvoyant: bool = True, ep
 
     # the training distribution as the trainer defines it, with what the agent sees (agent.json stores ranges as
     # JSON lists, which the environments read as choices)
-    env_kwargs = {**env_options(plant), **load_agent(agents[0]).observation_kwargs}
-    refs = law_references(plant, env_kwargs, episodes)
+    first = load_agent(agents[0])
+    env_kwargs = {**env_options(plant), **first.observation_kwargs}
+    # a residual agent's own law is drawn too (its validation at step 0)
+    own = [first.meta["residual"]["law"]] if first.meta.get("residual") else []
+    refs = law_references(plant, env_kwargs, episodes, extra_laws=own)
     if clairvoyant:
         refs["clairvoyant (full knowledge, 1 ms)"] = clairvoyant_reference(plant, episodes)
     return plot_seed_curves(agents, out, refs)

@@ -282,7 +282,7 @@ def train_sb3(plant: str, algo: str, seed: int, *, out: Path, timesteps: int | N
     residual = residual_spec(hyper.get("residual"))
     venv = make_sb3_vec_env(env_id, n_envs=n_envs, seed=seed, **env_kwargs)
     if residual:
-        venv = ResidualVecEnv(venv, residual["law"], residual["scale"])
+        venv = ResidualVecEnv(venv, residual["law"], residual["scale"], boundary=residual.get("boundary", "reflect"))
     venv = VecMonitor(venv, filename=str(run_dir / "training"))  # the environment's own returns
     if hyper.get("paired_baseline"):
         venv = PairedBaselineVecEnv(venv, hyper["paired_baseline"])

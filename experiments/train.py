@@ -137,9 +137,10 @@ def train(plant: str, algo: str, seeds, *, backend: str = "serial", jobs: int | 
 REFERENCE_LAWS = {name: p.reference_laws for name, p in PLANTS.items()}
 
 
-def law_references(plant: str, env_kwargs: dict | None = None, eval_episodes: int = 8) -> dict[str, float]:
-    """The validation return of each of ``REFERENCE_LAWS[plant]`` on the agents' validation episodes, sensors
-    and control step."""
+def law_references(plant: str, env_kwargs: dict | None = None, eval_episodes: int = 8,
+                   extra_laws=()) -> dict[str, float]:
+    """The validation return of each of ``REFERENCE_LAWS[plant]`` (and of ``extra_laws``, e.g. a residual agent's
+    own law) on the agents' validation episodes, sensors and control step."""
     from controllers import make_controller
 
     from .evaluation import evaluate_batch
@@ -147,7 +148,7 @@ def law_references(plant: str, env_kwargs: dict | None = None, eval_episodes: in
     env_kwargs = dict(env_kwargs if env_kwargs is not None else env_options(plant))
     sc, obs_kwargs = validation_split(plant, env_kwargs, eval_episodes)
     out = {}
-    for law in REFERENCE_LAWS[plant]:
+    for law in dict.fromkeys((*REFERENCE_LAWS[plant], *extra_laws)):
         eps = evaluate_batch(lambda v, n=law: make_controller(n, v), sc, "", **obs_kwargs)
         out[f"{law} @ {1000 * float(env_kwargs.get('control_dt', 1e-3)):g} ms"] = \
             float(np.mean([e.episode_return for e in eps]))

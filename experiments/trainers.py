@@ -124,15 +124,22 @@ def check_hyperparameters(algo: str, hyper: dict) -> dict:
 
 
 def residual_spec(value) -> dict | None:
-    """The ``residual`` entry as {"law": name, "scale": s} (None: no residual); ``ValueError`` if malformed."""
+    """The ``residual`` entry as {"law": name, "scale": s} (and ``boundary``: "reflect", the default, or "clip";
+    :class:`controllers.residual.Residual`) (None: no residual); ``ValueError`` if malformed."""
+    from controllers.residual import Residual
+
     if value is None or value is False:
         return None
     spec = {"law": value} if isinstance(value, str) else dict(value) if isinstance(value, dict) else None
-    if spec is None or not isinstance(spec.get("law"), str) or set(spec) - {"law", "scale"}:
-        raise ValueError(f"hyperparameter residual must be a law's name or {{law: name, scale: s}}, got {value!r}")
+    if spec is None or not isinstance(spec.get("law"), str) or set(spec) - {"law", "scale", "boundary"}:
+        raise ValueError(f"hyperparameter residual must be a law's name or {{law: name, scale: s, boundary: b}}, "
+                         f"got {value!r}")
     scale = spec.setdefault("scale", 1.0)
     if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not 0 < scale <= 1:
         raise ValueError(f"the residual's scale must be a number in (0, 1], got {scale!r}")
+    if spec.get("boundary", "reflect") not in Residual.BOUNDARIES:
+        raise ValueError(f"the residual's boundary must be one of {list(Residual.BOUNDARIES)}, "
+                         f"got {spec['boundary']!r}")
     return spec
 
 

@@ -60,6 +60,40 @@ def test_a_correction_moves_the_command_by_its_share_of_the_range():
     np.testing.assert_allclose(res.actions(obs, [-0.4]), [spec.v_min + 0.2 * span], rtol=1e-6)
 
 
+def test_clipped_at_the_ends_the_outward_corrections_do_nothing_and_the_inward_ones_act():
+    """A law at its upper end (passive-on): reflected, +a and −a give the same lower command (the return is even in
+    the correction, so its gradient at the law vanishes); clipped, +a keeps the law's command and −a lowers it."""
+    env = gym.make(CAR, **_kw(action_mode="physical"))
+    obs, _ = env.reset(seed=0)
+    spec = env.unwrapped.command_spec
+    span = spec.v_max - spec.v_min
+    reflect = Residual(env, "passive_on", scale=0.5)
+    clip = Residual(env, "passive_on", scale=0.5, boundary="clip")
+    np.testing.assert_allclose(reflect.actions(obs, [0.4]), reflect.actions(obs, [-0.4]), rtol=1e-6)
+    np.testing.assert_allclose(reflect.actions(obs, [0.4]), [spec.v_max - 0.2 * span], rtol=1e-6)
+    np.testing.assert_allclose(clip.actions(obs, [0.4]), [spec.v_max], rtol=1e-6)
+    np.testing.assert_allclose(clip.actions(obs, [-0.4]), [spec.v_max - 0.2 * span], rtol=1e-6)
+    # inside the range the two agree
+    low = Residual(env, "passive_off", scale=0.5, boundary="clip")
+    np.testing.assert_allclose(low.actions(obs, [0.4]), [spec.v_min + 0.2 * span], rtol=1e-6)
+    np.testing.assert_allclose(low.actions(obs, [-0.4]), [spec.v_min], rtol=1e-6)
+    # a saved agent's residual entry (agent.json) keeps its boundary when it is loaded
+    from controllers.agents import agent_controller
+    for a, u in ((0.4, spec.v_max), (-0.4, spec.v_max - 0.2 * span)):
+        ctrl = agent_controller(env, Constant(a), {"law": "passive_on", "scale": 0.5, "boundary": "clip"})
+        np.testing.assert_allclose(ctrl.predict(obs)[0], [u], rtol=1e-6)
+
+
+def test_a_bad_boundary_is_refused_by_name():
+    env = gym.make(CAR, **_kw())
+    with pytest.raises(ValueError, match=r"residual boundary must be one of \['reflect', 'clip'\], got 'wrap'"):
+        Residual(env, "passive_on", boundary="wrap")
+    from experiments.trainers import residual_spec
+    with pytest.raises(ValueError, match="boundary must be one of"):
+        residual_spec({"law": "passive_on", "boundary": "wrap"})
+    assert residual_spec({"law": "passive_on", "boundary": "clip"})["boundary"] == "clip"
+
+
 def _paired_run(correction, steps, seed=0):
     venv = ResidualVecEnv(make_sb3_vec_env(CAR, n_envs=3, seed=seed, **_kw()), "skyhook_continuous")
     venv = PairedBaselineVecEnv(venv, "skyhook_continuous")
