@@ -45,6 +45,15 @@ def lag_decay(command, dt: float) -> np.ndarray:
     return np.array([math.exp(-command.eta * dt), math.exp(-command.eta_down * dt)])
 
 
+def writable_c(a) -> np.ndarray:
+    """``a`` as a writable, C-contiguous float64 array, copied only if it is not one: numba compiles a routine once
+    per layout and read-only flag of its arguments, so read-only records or strided columns would each cost another
+    compilation. (The flag test is cheaper than ``np.require``: it runs several times per control step.)"""
+    if type(a) is np.ndarray and a.dtype == np.float64 and a.flags.c_contiguous and a.flags.writeable:
+        return a
+    return np.array(a, dtype=np.float64, order="C")
+
+
 def _as_batch(name: str, value, n: int | None) -> np.ndarray:
     """``value`` as a 1-D float64 array of finite reals (a scalar is a batch of one)."""
     if type(value) is np.ndarray and value.dtype == np.float64 and value.ndim == 1 and np.isfinite(value).all():

@@ -32,7 +32,7 @@ import numba as nb
 import numpy as np
 
 from ..validation import shown
-from .base import Inverse, lag_decay
+from .base import Inverse, lag_decay, writable_c
 
 NETWORKS = Path(__file__).with_name("networks")
 FORMAT = "mrd-env-neural-inverse"
@@ -272,7 +272,7 @@ class NeuralInverse(Inverse):
     def _command(self, f_desired, x, v, f_measured):
         out = np.empty(self.N)
         # writable C arrays whatever the caller's (read-only, strided): one compiled variant
-        f_desired, x, v, f_measured = (np.require(a, np.float64, "CW") for a in (f_desired, x, v, f_measured))
+        f_desired, x, v, f_measured = (writable_c(a) for a in (f_desired, x, v, f_measured))
         _neural_commands(self._flat, self._sizes, self._scales, self._Hf, self._Hx, self._Hv, self.u_hat,
                          f_desired, x, v, f_measured, self.v_min, self.v_max, self.dt, self._decay, out,
                          self._work, self._inp)

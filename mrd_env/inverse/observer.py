@@ -20,17 +20,10 @@ from ..stepping.matrices import SystemMatrices
 from ..stepping.scheme import ATOL, RTOL, max_level_of
 from ..stepping.stepper import diverged_error
 from ..validation import check_scalar
-from .base import Inverse
+from .base import Inverse, writable_c
 
 _RIG = SystemMatrices.displacement_driven()
 _MODULES: dict = {}
-
-
-def _vector(a) -> np.ndarray:
-    """``a`` as a writable, C-contiguous float64 array (a copy only if it is not one): numba compiles a routine
-    once per layout and read-only flag of its arguments, so column slices or read-only inputs would otherwise
-    cost another compilation each."""
-    return np.require(a, np.float64, "CW")
 
 
 def onestep_module(model_cls):
@@ -115,7 +108,7 @@ class OneStep:
     def advance(self, command: np.ndarray, x: np.ndarray, v: np.ndarray) -> None:
         """One step with the commands ``command`` (N,) held, the motion going linearly from ``W`` to the
         measured stroke ``x`` and velocity ``v`` (N,) (acceleration: the backward difference of the velocities)."""
-        self.module.advance(*self._records(), self.W, _vector(command), _vector(x), _vector(v), self._control,
+        self.module.advance(*self._records(), self.W, writable_c(command), writable_c(x), writable_c(v), self._control,
                             self._nsub, self._wf, self._wi, self._status)
         self.t += self.dt
         if self._status.any():
@@ -128,7 +121,7 @@ class OneStep:
         ``_onestep_template.nearest_commands``)."""
         out = np.empty(self.N)
         predicted = np.empty(self.N)
-        self.module.nearest_commands(*self._records(), self.W, _vector(target), _vector(grid), int(n_refine),
+        self.module.nearest_commands(*self._records(), self.W, writable_c(target), writable_c(grid), int(n_refine),
                                      self._control, self._wf, self._wi, out, predicted)
         return out, predicted
 
@@ -137,7 +130,7 @@ class OneStep:
         to the measured x1, v1 (N,) (acceleration: their backward difference); the state is left unchanged."""
         W1 = np.stack([x1, v1, (v1 - self.W[:, 1]) / self.dt], axis=1)
         out = np.empty(commands.shape)
-        self.module.step_forces(*self._records(), self.W, W1, _vector(commands),
+        self.module.step_forces(*self._records(), self.W, W1, writable_c(commands),
                                 self._control, self._wf, self._wi, out)
         return out
 
@@ -193,5 +186,5 @@ class ObserverInverse(Inverse):
     def _target(self, f_desired: np.ndarray, f_measured: np.ndarray | None) -> np.ndarray:
         """f_d corrected by the model's current force error (``force_feedback``)."""
         if f_measured is None or self.force_feedback == 0.0:
-            return _vector(f_desired)
+            return writable_c(f_desired)
         return f_desired - self.force_feedback * (f_measured - self.observer.F[:, 0])

@@ -29,7 +29,7 @@ import numpy as np
 from ..command_lag import effective_command
 from ..validation import shown
 from ..validation import as_generator, check_scalar
-from .base import as_damper, lag_decay
+from .base import as_damper, lag_decay, writable_c
 from .data import achievable_forces
 from .neural import SCALES, Network, feature_matrix, n_inputs
 from .observer import OneStep
@@ -110,7 +110,7 @@ def features(records: Sequence, damper, history: int, dt: float, *, rng=None) ->
         u = (np.asarray(r.u, dtype=np.float64) if getattr(r, "u", None) is not None
              else effective_command(dataclasses.replace(c, delay=0.0), cmd, dt))
         # writable C arrays whatever the record (read-only, strided): one compiled variant of feature_matrix
-        rows.append(tuple(np.require(a, np.float64, "CW") for a in (r.force, r.x, v, u)))
+        rows.append(tuple(writable_c(a) for a in (r.force, r.x, v, u)))
 
     def std(fn):
         return float(np.std(np.concatenate([fn(q) for q in rows])))
@@ -130,7 +130,7 @@ def features(records: Sequence, damper, history: int, dt: float, *, rng=None) ->
         for fd, u_next in targets:
             m = F.size - history
             X, y = np.empty((m, n_inputs(history))), np.empty(m)
-            feature_matrix(F, x, v, u, np.require(fd, np.float64, "CW"), np.require(u_next, np.float64, "CW"),
+            feature_matrix(F, x, v, u, writable_c(fd), writable_c(u_next),
                            history, sc, c.v_min, c.v_max, dt, X, y)
             Xs.append(X)
             ys.append(y)
