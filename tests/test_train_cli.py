@@ -6,6 +6,7 @@ import pytest
 
 from experiments.cli import main
 from experiments.train import available_algos, env_options, train_one
+from experiments.trainers import HYPERPARAMS
 
 
 def test_only_algorithms_with_hyperparameters_are_offered(capsys):
@@ -45,3 +46,29 @@ def test_an_interrupted_run_leaves_an_agent_evaluate_accepts(tmp_path, capsys):
     cap = capsys.readouterr()
     assert "saved the agent so far" in cap.err
     assert "validation return" in cap.out and "best so far" in cap.out   # the console line of each validation
+
+
+@pytest.mark.parametrize("path", sorted(HYPERPARAMS.glob("*.yml")), ids=lambda p: p.name)
+def test_every_shipped_hyperparameter_file_passes_the_checks_made_before_training(path):
+    """What `mrd-env train --hyperparams <shipped file>` checks before it trains (the keys, the residual's and the
+    baseline's laws on the plant, a model SB3 builds), for every environment entry of every shipped file: a recipe
+    the docs print must not end in a bad-option error. The algorithm is the file name's first word."""
+    import yaml
+
+    from experiments.plants import by_env_id
+    from experiments.sb3_trainer import check_laws, check_with_sb3
+    from experiments.trainers import TRAINERS, hyperparameters
+
+    algo = path.stem.split("-")[0]
+    assert algo in TRAINERS, f"{path.name}: no algorithm {algo!r}"
+    entries = yaml.safe_load(path.read_text(encoding="utf-8"))
+    assert entries, path.name
+    for env_id in entries:
+        plant = by_env_id(env_id)
+        assert plant is not None, f"{path.name}: {env_id} is not a plant's environment"
+        hyper = hyperparameters(algo, env_id, path)  # the trainer's own check of every key and value
+        assert hyper["n_timesteps"] >= 1
+        if algo != "cmaes":
+            kw = {**env_options(plant.name), **(hyper.get("env_kwargs") or {})}
+            check_laws(hyper, env_id, kw)
+            check_with_sb3(algo, hyper, env_id, kw)
