@@ -196,6 +196,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     sweep.add_arguments(p)
 
 
+def check_before_training(algo: str, hyper: dict, env_id: str, env_kwargs: dict) -> None:
+    """What an SB3 entry must pass before any training starts (its keys and values are checked when it is read):
+    the residual's and the paired baseline's laws apply to the plant, and SB3 builds the model."""
+    if algo != "cmaes":
+        full_kwargs = {**env_kwargs, **(hyper.get("env_kwargs") or {})}
+        check_laws(hyper, env_id, full_kwargs)
+        check_with_sb3(algo, hyper, env_id, full_kwargs)
+
+
 def run(args: argparse.Namespace) -> int:
     executor = sweep.options(args)
     if args.algo not in ALGOS:
@@ -253,10 +262,7 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError("--residual-scale needs a residual: --residual LAW, or a hyperparameter file with one")
         hyper = hyperparameters(args.algo, env_id, args.hyperparams,
                                 {**overrides, "residual": {**spec, "scale": args.residual_scale}})
-    if args.algo != "cmaes":
-        full_kwargs = {**env_kwargs, **(hyper.get("env_kwargs") or {})}
-        check_laws(hyper, env_id, full_kwargs)
-        check_with_sb3(args.algo, hyper, env_id, full_kwargs)
+    check_before_training(args.algo, hyper, env_id, env_kwargs)
     if args.tensorboard:
         import importlib.util
         if importlib.util.find_spec("tensorboard") is None:
