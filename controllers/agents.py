@@ -213,11 +213,12 @@ class TrainedAgent:
 def agent_controller(env, model, residual: dict | None = None, **options):
     """``model`` (SB3's ``predict`` on raw observations) as a controller of ``env``: its actions are the
     environment's (:class:`~controllers.base.AgentController`) or, with ``residual`` = {"law": name, "scale": s},
-    corrections to that law's command (:class:`~controllers.residual.ResidualController`)."""
+    corrections to that law's command (:class:`~controllers.residual.ResidualController`; ``hold``, too)."""
     if residual:
         from .residual import ResidualController
         return ResidualController(env, model, residual["law"], residual.get("scale", 1.0),
-                                  boundary=residual.get("boundary", "reflect"), **options)
+                                  boundary=residual.get("boundary", "reflect"), hold=residual.get("hold", 1),
+                                  **options)
     from .base import AgentController
     return AgentController(env, model, **options)
 

@@ -11,6 +11,11 @@ correction, and exploration starts from a good policy. With ``scale = 1`` any co
 command. ``boundary="clip"`` clips at the range's ends instead of reflecting: where the law sits at an end, the
 outward half of the corrections does nothing and the inward half moves the command (see :meth:`Residual.combine`).
 
+The law may run faster than the agent: with ``hold = k`` the environment steps at the law's rate (e.g. 1 ms) and
+the agent's correction is held for k steps while the law's command follows every observation, so that a residual
+agent deciding every 10 ms competes with the law at its own best rate (docs/rl-agents.md, "A correction held over
+the law at 1 ms").
+
 One rule (:class:`Residual`) in two places: :class:`controllers.training_wrappers.ResidualVecEnv` (an SB3
 ``VecEnvWrapper`` whose actions are the corrections a: training, any algorithm) and :class:`ResidualController`
 (a trained residual agent behind the controllers' interface: what :meth:`controllers.agents.TrainedAgent.bind`
@@ -97,29 +102,57 @@ class Residual:
         return self.combine(self.law_command(obs, episode_start), a)
 
 
+def check_hold(hold) -> int:
+    """The number of the environment's steps a correction is held for: an int >= 1 (``ValueError`` otherwise)."""
+    if isinstance(hold, bool) or not isinstance(hold, (int, np.integer)) or hold < 1:
+        raise ValueError(f"the residual's hold must be an int >= 1 (environment steps per correction), got {hold!r}")
+    return int(hold)
+
+
 class ResidualController(AgentController):
     """A trained residual agent (``agent``: anything with SB3's ``predict`` whose actions are corrections in
     [−1, 1]) on the law ``law`` with ``scale`` (and ``boundary`` among ``law_options``, see :class:`Residual`),
-    behind the controllers' interface."""
+    behind the controllers' interface. ``hold``: the agent decides at every ``hold``-th step of each episode and its
+    correction is held in between, while the law's command follows every step (see the module docstring)."""
 
     name = "residual"
 
     def __init__(self, env, agent, law: str, scale: float = 1.0, name: str | None = None,
-                 env_kwargs: dict | None = None, **law_options):
+                 env_kwargs: dict | None = None, hold: int = 1, **law_options):
+        self.hold = check_hold(hold)
+        if self.hold > 1 and (getattr(agent, "meta", None) or {}).get("recurrent"):
+            raise ValueError("a held residual (hold > 1) needs a policy without memory, not a recurrent one")
         self.residual = Residual(env, law, scale, **law_options)
         super().__init__(env, agent, name=name or f"residual {law}", env_kwargs=env_kwargs)
+        self._k = None  # each row's steps since its episode began (hold > 1)
+        self._a = None  # each row's held correction
 
     def reset(self, mask=None) -> None:
         self.residual.reset(mask)
         super().reset(mask)
+        if mask is None:
+            self._k = None
 
     def predict(self, observation, state=None, episode_start=None, deterministic: bool = True):
         episode_start = self.episode_starts(episode_start)
         u_law = self.residual.law_command(observation, episode_start)
-        a, self._state = self.model.predict(self.residual.observe(observation, u_law),
-                                            state=state if state is not None else self._state,
-                                            episode_start=episode_start, deterministic=deterministic)
-        return self.residual.combine(u_law, a), self._state
+        if self.hold == 1:
+            a, self._state = self.model.predict(self.residual.observe(observation, u_law),
+                                                state=state if state is not None else self._state,
+                                                episode_start=episode_start, deterministic=deterministic)
+            return self.residual.combine(u_law, a), self._state
+        rows = 1 if np.ndim(observation) == 1 else np.shape(observation)[0]
+        if self._k is None or self._k.shape[0] != rows:
+            self._k = np.zeros(rows, dtype=np.int64)
+        if episode_start is not None:
+            self._k[np.broadcast_to(np.asarray(episode_start, dtype=bool), (rows,))] = 0
+        due = self._k % self.hold == 0
+        if due.any():
+            a = np.asarray(self.model.predict(self.residual.observe(observation, u_law),
+                                              deterministic=deterministic)[0], dtype=np.float64).reshape(rows, -1)
+            self._a = a if self._a is None or self._a.shape != a.shape else np.where(due[:, None], a, self._a)
+        self._k += 1
+        return self.residual.combine(u_law, self._a.reshape(np.shape(u_law))), None
 
 
 def zero_policy_output(model) -> None:

@@ -28,7 +28,7 @@ from gymnasium import spaces
 from stable_baselines3.common.vec_env import VecEnvWrapper
 
 from .base import Controller
-from .residual import Residual
+from .residual import Residual, check_hold
 
 
 def _native(venv):
@@ -43,9 +43,16 @@ def _native(venv):
 class ResidualVecEnv(VecEnvWrapper):
     """Actions a ∈ [−1, 1]^nd are corrections to the command of ``law`` (see :class:`controllers.residual.Residual`:
     ``scale``, ``boundary``, ``law_options``), observations are the environment's with the law's command appended
-    (:meth:`~controllers.residual.Residual.observe`); it must wrap the bridge directly (it reads raw observations)."""
+    (:meth:`~controllers.residual.Residual.observe`); it must wrap the bridge directly (it reads raw observations).
 
-    def __init__(self, venv, law: str | Controller, scale: float = 1.0, **law_options):
+    ``hold = k``: one step of the agent is k steps of the environment, the correction held while the law's command
+    follows every observation; the reward is their sum (the environment's rewards are integrals over their step, so
+    the return is unchanged). A step ends early, for every environment, at the step where an episode ends, so that
+    no environment steps into its next episode on a stale correction; ``infos[i]["held_steps"]`` says how many
+    steps it took (:class:`PairedBaselineVecEnv` steps its twin as many)."""
+
+    def __init__(self, venv, law: str | Controller, scale: float = 1.0, hold: int = 1, **law_options):
+        self.hold = check_hold(hold)
         self.residual = Residual(_native(venv), law, scale, **law_options)
         nd = self.residual.n_dampers
         space = venv.observation_space
@@ -63,16 +70,28 @@ class ResidualVecEnv(VecEnvWrapper):
         return self._observe(self.venv.reset(), np.ones(self.num_envs, dtype=bool))
 
     def step_async(self, actions):
+        self._actions = actions
         self.venv.step_async(self.residual.combine(self._u_law, actions))
 
     def step_wait(self):
-        obs, rewards, dones, infos = self.venv.step_wait()
+        total = 0.0
+        for j in range(self.hold):
+            if j:  # the law follows the observation; the correction is held
+                self._u_law = self.residual.law_command(obs, None)
+                self.venv.step_async(self.residual.combine(self._u_law, self._actions))
+            obs, rewards, dones, infos = self.venv.step_wait()
+            total = total + np.asarray(rewards, dtype=np.float64)  # summed as the twin's are
+            if np.any(dones):
+                break
         u_last = self._u_law
         for i in np.flatnonzero(dones):
             # the value bootstrap of a truncated episode sees its last command (the law's memory of that episode
             # is not advanced past its end)
             infos[i]["terminal_observation"] = self.residual.observe(infos[i]["terminal_observation"], u_last[i])
-        return self._observe(obs, np.asarray(dones, dtype=bool)), rewards, dones, infos
+        if self.hold > 1:
+            for info in infos:
+                info["held_steps"] = j + 1
+        return self._observe(obs, np.asarray(dones, dtype=bool)), np.asarray(total, dtype=rewards.dtype), dones, infos
 
 
 class PairedBaselineVecEnv(VecEnvWrapper):
@@ -96,35 +115,42 @@ class PairedBaselineVecEnv(VecEnvWrapper):
         self._twin_obs = self.twin.core.obs.copy()
         self._twin_start = np.ones(self.num_envs, dtype=bool)
         self._waiting = np.zeros(self.num_envs, dtype=bool)  # twin ended first: unpaired until the agent's end
-        self._rng_copy: dict[int, object] = {}
         return obs
 
     def step_async(self, actions):
-        for b in np.flatnonzero(self._waiting):  # the generator as the agent's next episode will find it
-            self._rng_copy[b] = copy.deepcopy(self._native._rngs[b])
+        # the generators as the agents' next episodes will find them (they change only when an episode starts)
+        self._rng_states = [g.bit_generator.state for g in self._native._rngs]
         self.venv.step_async(actions)
 
     def step_wait(self):
         obs, rewards, dones, infos = self.venv.step_wait()
-        zero = np.zeros((self.num_envs, self.twin_law.n_dampers))
-        u_ref = self.twin_law.actions(self._twin_obs, zero, self._twin_start)
-        t_obs, r_ref, t_term, t_trunc, _ = self.twin.step(u_ref)
-        t_done = t_term | t_trunc
+        n = int(infos[0].get("held_steps", 1)) if len(infos) else 1  # the agent's step: n of the environment's
+        N = self.num_envs
+        zero = np.zeros((N, self.twin_law.n_dampers))
+        r_ref = np.zeros(N)
+        ended_at = np.full(N, -1)  # the twin's step (0 … n − 1) at which its episode ended
+        t_obs, start = self._twin_obs, self._twin_start
+        for j in range(n):
+            t_obs, r, t_term, t_trunc, _ = self.twin.step(self.twin_law.actions(t_obs, zero, start))
+            live = ended_at < 0
+            r_ref += np.where(live, r.astype(np.float32), 0.0)  # rounded as the bridge rounds the agent's
+            start = t_term | t_trunc
+            ended_at[start & live] = j
         dones = np.asarray(dones, dtype=bool)
-        paired = ~self._waiting & ~(t_done & ~dones)  # rows whose reference step met the same disturbance
+        # the twin's episode ended before the agent's (an agent's episode ends at the step's last physics step)
+        first = (ended_at >= 0) & ~(dones & (ended_at == n - 1))
+        paired = ~self._waiting & ~first  # rows whose reference met the same disturbance over the same steps
         out = rewards - np.where(paired, r_ref, 0.0).astype(rewards.dtype)
-        self._waiting |= t_done & ~dones
-        # the agent's episode ended first: the twin starts the next one too, from the same generator
-        early = dones & ~t_done & ~self._waiting
-        realign = dones & self._waiting
-        for b in np.flatnonzero(realign):
-            self.twin._rngs[b] = self._rng_copy.pop(b)
-        restart = early | realign
+        # both ended at the same physics step: the twin has already drawn the agent's next episode
+        together = dones & ~self._waiting & (ended_at == n - 1)
+        restart = dones & ~together  # the twin starts the agent's next episode, from the agent's generator
+        self._waiting = (self._waiting | first) & ~dones
         if restart.any():
+            for b in np.flatnonzero(restart):
+                self.twin._rngs[b].bit_generator.state = self._rng_states[b]
             t_obs = t_obs.copy()
             t_obs[restart] = self.twin.reset(options={"reset_mask": restart})[0][restart]
-        self._waiting &= ~realign
-        self._twin_obs, self._twin_start = t_obs, t_done | restart
+        self._twin_obs, self._twin_start = t_obs, start | restart
         for i, info in enumerate(infos):
             info["paired"] = bool(paired[i])
         return obs, out, dones, infos

@@ -21,7 +21,8 @@ from .trainers import (TRAINERS, agent_name, plot_learning_curve, residual_spec,
                        validation_split, write_csv)
 
 #: Keys of a hyperparameter entry that are not the algorithm's keyword arguments: RL Zoo's, and ours —
-#: ``residual`` (a law's name, or {law, scale}: the agent learns a correction to it, :mod:`controllers.residual`)
+#: ``residual`` (a law's name, or {law, scale, boundary, hold}: the agent learns a correction to it, held for
+#: ``hold`` steps of the law; :mod:`controllers.residual`)
 #: ``paired_baseline`` (a law's name: rewards relative to it on the same disturbance,
 #: :class:`controllers.training_wrappers.PairedBaselineVecEnv`), ``actor_warmup_steps`` and ``actor_learning_rate``
 #: (SAC, TD3, TQC: gradient steps with the actor frozen while the critic learns; the actor's own learning rate;
@@ -282,7 +283,8 @@ def train_sb3(plant: str, algo: str, seed: int, *, out: Path, timesteps: int | N
     residual = residual_spec(hyper.get("residual"))
     venv = make_sb3_vec_env(env_id, n_envs=n_envs, seed=seed, **env_kwargs)
     if residual:
-        venv = ResidualVecEnv(venv, residual["law"], residual["scale"], boundary=residual.get("boundary", "reflect"))
+        venv = ResidualVecEnv(venv, residual["law"], residual["scale"], boundary=residual.get("boundary", "reflect"),
+                              hold=residual.get("hold", 1))
     venv = VecMonitor(venv, filename=str(run_dir / "training"))  # the environment's own returns
     if hyper.get("paired_baseline"):
         venv = PairedBaselineVecEnv(venv, hyper["paired_baseline"])

@@ -125,15 +125,18 @@ def check_hyperparameters(algo: str, hyper: dict) -> dict:
 
 def residual_spec(value) -> dict | None:
     """The ``residual`` entry as {"law": name, "scale": s} (and ``boundary``: "reflect", the default, or "clip";
-    :class:`controllers.residual.Residual`) (None: no residual); ``ValueError`` if malformed."""
-    from controllers.residual import Residual
+    ``hold``: environment steps per correction, default 1; :mod:`controllers.residual`) (None: no residual);
+    ``ValueError`` if malformed."""
+    from controllers.residual import Residual, check_hold
 
     if value is None or value is False:
         return None
     spec = {"law": value} if isinstance(value, str) else dict(value) if isinstance(value, dict) else None
-    if spec is None or not isinstance(spec.get("law"), str) or set(spec) - {"law", "scale", "boundary"}:
-        raise ValueError(f"hyperparameter residual must be a law's name or {{law: name, scale: s, boundary: b}}, "
-                         f"got {value!r}")
+    if spec is None or not isinstance(spec.get("law"), str) or set(spec) - {"law", "scale", "boundary", "hold"}:
+        raise ValueError(f"hyperparameter residual must be a law's name or {{law: name, scale: s, boundary: b, "
+                         f"hold: k}}, got {value!r}")
+    if "hold" in spec:
+        spec["hold"] = check_hold(spec["hold"])
     scale = spec.setdefault("scale", 1.0)
     if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not 0 < scale <= 1:
         raise ValueError(f"the residual's scale must be a number in (0, 1], got {scale!r}")
@@ -143,9 +146,16 @@ def residual_spec(value) -> dict | None:
     return spec
 
 
+def _residual_tags(hyper: dict) -> list[str]:
+    """``residual`` (a correction to a law), ``hold<k>`` (held for k steps of the law)."""
+    spec = residual_spec(hyper.get("residual"))
+    return [] if not spec else ["residual"] + ([f"hold{spec['hold']}"] if spec.get("hold", 1) > 1 else [])
+
+
 def run_name(plant: str, algo: str, hyper: dict, env_kwargs: dict) -> str:
-    """``<plant>_<algo>`` with the variant's tags: ``-residual``, ``-paired``, ``-h<k>`` (history), ``-preview``."""
-    tags = (["residual"] if residual_spec(hyper.get("residual")) else []) + \
+    """``<plant>_<algo>`` with the variant's tags: ``-residual``, ``-hold<k>``, ``-paired``, ``-h<k>`` (history),
+    ``-preview``."""
+    tags = _residual_tags(hyper) + \
         (["paired"] if hyper.get("paired_baseline") else []) + \
         ([f"h{int(env_kwargs['history'])}"] if int(env_kwargs.get("history", 1)) > 1 else []) + \
         (["preview"] if env_kwargs.get("preview") else [])
@@ -154,8 +164,8 @@ def run_name(plant: str, algo: str, hyper: dict, env_kwargs: dict) -> str:
 
 def agent_name(label: str, seed: int, hyper: dict, env_kwargs: dict) -> str:
     """The agent's name in tables and legends: the algorithm, what it adds — ``residual`` (a correction to a
-    law), ``preview`` (it sees the road ahead) — and its seed, e.g. ``"CMA-ES preview s0"``."""
-    tags = (["residual"] if residual_spec(hyper.get("residual")) else []) + \
+    law; ``hold<k>``), ``preview`` (it sees the road ahead) — and its seed, e.g. ``"CMA-ES preview s0"``."""
+    tags = _residual_tags(hyper) + \
         (["preview"] if env_kwargs.get("preview") else [])
     return " ".join([label, *tags, f"s{seed}"])
 

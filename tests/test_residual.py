@@ -269,3 +269,119 @@ def test_reset_of_some_rows_keeps_the_other_rows_memory():
     np.testing.assert_array_equal(ctrl.predict(obs)[1], [5, 1, 5])
     ctrl.reset()
     np.testing.assert_array_equal(ctrl.predict(obs)[1], [1, 1, 1])
+
+
+# --- a correction held over the law at its own rate (hold > 1) -----------------------------------------------------
+class Linear:
+    """A stand-in agent whose correction follows its observation (so that when it is asked matters), and that
+    counts how often it is asked."""
+
+    calls = 0
+
+    def predict(self, obs, state=None, episode_start=None, deterministic=True):
+        Linear.calls += 1
+        obs = np.asarray(obs)
+        return np.tanh(0.3 * obs[..., :1] - 0.1 * obs[..., -1:]).astype(np.float32), None
+
+
+def _held(n_envs, hold, seed=0, law="skyhook_continuous", paired=None, **extra):
+    kw = _kw(control_dt=0.01 / hold, **extra)
+    venv = ResidualVecEnv(make_sb3_vec_env(CAR, n_envs=n_envs, seed=seed, **kw), law, hold=hold)
+    return PairedBaselineVecEnv(venv, paired) if paired else venv
+
+
+def test_a_held_zero_correction_is_the_law_at_its_own_rate():
+    """hold 10 at 1 ms: an agent's step is 10 of the law's, its reward their sum; a zero correction is the law at
+    1 ms exactly, and paired rewards against that law are exactly 0 across automatic resets."""
+    venv = _held(2, 10, seed=4)
+    venv.reset()
+    held = []
+    for _ in range(50):  # one 0.5 s episode of 50 agent steps each
+        _, r, d, infos = venv.step(np.zeros((2, 1), np.float32))
+        held.append(r)
+        assert all(i["held_steps"] == 10 for i in infos)
+    assert d.all()
+    law_env = gym.make_vec(CAR, num_envs=2, vectorization_mode="vector_entry_point", **_kw(control_dt=0.001))
+    law = make_controller("skyhook_continuous", law_env)
+    obs, _ = law_env.reset(seed=[4, 5])
+    ret = np.zeros(2)
+    for _ in range(500):
+        obs, r, *_ = law_env.step(law.predict(obs)[0])
+        ret += r
+    np.testing.assert_allclose(np.sum(held, axis=0), ret, rtol=1e-5)
+
+    paired = _held(3, 10, paired="skyhook_continuous")
+    paired.reset()
+    for _ in range(120):
+        _, r, _, infos = paired.step(np.zeros((3, 1), np.float32))
+        assert np.all(r == 0.0) and all(i["paired"] for i in infos)
+
+
+def test_a_held_residual_controller_acts_as_the_agent_was_trained():
+    """The controller of a held residual agent (evaluation) and the training wrapper (training) give the same
+    commands and returns: the agent is asked every 10th step, its correction held while the law follows (no
+    stroke limit here: an episode that ends part-way through a step shortens that step for every environment)."""
+    venv = _held(2, 10, seed=7, stroke_limit=1.0)
+    obs = venv.reset()
+    Linear.calls = 0
+    trained = np.zeros(2)
+    for _ in range(50):
+        obs, r, d, _ = venv.step(Linear().predict(obs)[0])
+        trained += r
+    assert Linear.calls == 50
+    env = gym.make_vec(CAR, num_envs=2, vectorization_mode="vector_entry_point",
+                       **_kw(control_dt=0.001, stroke_limit=1.0))
+    ctrl = ResidualController(env, Linear(), "skyhook_continuous", hold=10)
+    obs, _ = env.reset(seed=[7, 8])
+    ctrl.reset()
+    Linear.calls = 0
+    evaluated = np.zeros(2)
+    for _ in range(500):
+        obs, r, *_ = env.step(ctrl.predict(obs)[0])
+        evaluated += r
+    assert Linear.calls == 50
+    np.testing.assert_allclose(evaluated, trained, rtol=1e-5)
+    plain = ResidualController(env, Linear(), "skyhook_continuous")  # asked at every 1 ms step: another policy
+    obs, _ = env.reset(seed=[7, 8])
+    other = np.zeros(2)
+    for _ in range(500):
+        obs, r, *_ = env.step(plain.predict(obs)[0])
+        other += r
+    assert not np.allclose(other, evaluated, rtol=1e-3)
+
+
+def test_held_the_twin_meets_the_agents_next_road_whoever_ends_first():
+    """As test_the_twin_meets_the_agents_next_road_whoever_ends_first, with the agent's step 10 of the law's and
+    episodes that end at a stroke limit part-way through an agent's step."""
+    venv = _held(4, 10, seed=1, paired="skyhook_continuous", episode_seconds=1.0, stroke_limit=0.02)
+    venv.reset()
+    native = venv._native
+    corrections = np.array([[1.0], [-1.0], [0.5], [0.0]], np.float32)
+    rng = np.random.default_rng(0)
+    twin_first = agent_ends = short = 0
+    for _ in range(300):
+        waiting = venv._waiting.copy()
+        _, _, dones, infos = venv.step(corrections * (rng.random((4, 1)) < 0.5))
+        twin_first += int((venv._waiting & ~waiting).sum())
+        short += infos[0]["held_steps"] < 10
+        for b in np.flatnonzero(dones):
+            agent_ends += 1
+            np.testing.assert_array_equal(native.core.episodes[b].record.data,
+                                          venv.twin.core.episodes[b].record.data)
+            np.testing.assert_array_equal(native.core.obs[b], venv.twin.core.obs[b])  # both at the episode's start
+            assert not venv._waiting[b]
+    assert twin_first > 0 and agent_ends > twin_first and short > 0
+
+
+def test_a_bad_hold_is_refused_by_name(capsys, tmp_path):
+    from experiments.trainers import residual_spec
+
+    for bad in (0, 2.5, True):
+        with pytest.raises(ValueError, match="hold must be an int >= 1"):
+            residual_spec({"law": "skyhook_continuous", "hold": bad})
+        with pytest.raises(ValueError, match="hold must be an int >= 1"):
+            ResidualController(gym.make(CAR, **_kw()), Constant(0.0), "skyhook_continuous", hold=bad)
+    assert main(["train", "--set", "residual={law: skyhook_continuous, hold: 0}", "--out", str(tmp_path),
+                 "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "hold must be an int >= 1" in err and err.count("\n") == 1 and not any(tmp_path.iterdir())
