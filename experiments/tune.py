@@ -1,6 +1,6 @@
 """``mrd-env tune``: hyperparameter search for ``mrd-env train`` with Optuna.
 
-Each trial draws hyperparameters (RL Zoo's search spaces, or ``--space residual`` for a residual PPO agent),
+Each trial draws hyperparameters (RL Zoo's search spaces, or ``--space residual`` for a residual agent),
 trains one agent for ``--timesteps`` on the plant's training distribution and reports its validation returns
 (unseen seeds, never the test scenarios) as it goes; Optuna's TPE sampler proposes the next trial and its median pruner stops trials whose
 validation falls behind. The study lives in a journal file (``<out>/<study>.log``), so several workers — the
@@ -26,11 +26,12 @@ from .train import ALGOS, env_options, hyperparameters
 SEARCHABLE = ("ppo", "recurrentppo", "sac", "tqc", "td3")
 
 
-#: ``--space``: RL Zoo's search spaces, or the narrow one of a residual PPO agent (docs/rl-agents.md).
+#: ``--space``: RL Zoo's search spaces, or the narrow ones of residual agents (docs/rl-agents.md).
 SPACES = ("zoo", "residual")
 
-#: The residual space's draws: (name, kind, choices or (low, high[, log])). γ stays in [0.995, 0.999]: at 10 ms a
-#: lower discount drifts the agent to softer commands (docs/rl-agents.md); the exploration noise stays small.
+#: The residual space's draws for PPO and RecurrentPPO: (name, kind, choices or (low, high[, log])). γ stays in
+#: [0.995, 0.999]: at 10 ms a lower discount drifts the agent to softer commands (docs/rl-agents.md); the
+#: exploration noise stays small.
 RESIDUAL_SPACE = (
     ("learning_rate", "float", (3e-5, 1e-3, True)),
     ("log_std_init", "float", (-3.5, -1.0)),
@@ -41,6 +42,31 @@ RESIDUAL_SPACE = (
     ("batch_size", "categorical", [1024, 2048, 4096]),
     ("n_steps", "categorical", [256, 512, 1024]),
 )
+
+#: The residual space of the off-policy algorithms (SAC, TQC, TD3): their actors left the law within 10⁴ steps
+#: and did not come back (docs/rl-agents.md), so it searches what sets that pace — the learning rate, the target
+#: networks' τ, how often they learn, the actor's warm-up while the critic learns — with γ high, as for PPO.
+OFF_POLICY_RESIDUAL_SPACE = (
+    ("learning_rate", "float", (1e-5, 1e-3, True)),
+    ("residual_scale", "float", (0.1, 1.0)),
+    ("gamma", "float", (0.99, 0.999)),
+    ("tau", "categorical", [0.002, 0.005, 0.01, 0.02]),
+    ("batch_size", "categorical", [128, 256, 512]),
+    ("train_freq", "categorical", [1, 4, 8]),
+    ("actor_warmup_steps", "categorical", [0, 10000, 30000]),
+)
+
+#: Each algorithm's residual space: the off-policy one with SAC's (and TQC's) entropy coefficient, or TD3's action
+#: noise.
+RESIDUAL_SPACES = {
+    "ppo": RESIDUAL_SPACE, "recurrentppo": RESIDUAL_SPACE,
+    "sac": OFF_POLICY_RESIDUAL_SPACE + (("ent_coef", "float", (1e-5, 1e-2, True)),),
+    "tqc": OFF_POLICY_RESIDUAL_SPACE + (("ent_coef", "float", (1e-5, 1e-2, True)),),
+    "td3": OFF_POLICY_RESIDUAL_SPACE + (("noise_std", "float", (0.01, 0.2, True)),),
+}
+
+#: Values a residual space's parameter takes when the YAML entry leaves it out (the trainers' own defaults).
+_DEFAULTS = {"actor_warmup_steps": 0, "residual_scale": 1.0}
 
 
 def _set(h: dict, name: str, value) -> None:
@@ -54,13 +80,26 @@ def _set(h: dict, name: str, value) -> None:
         h[name] = value
 
 
-def base_params(base: dict) -> dict:
-    """The residual space's parameters of the YAML entry ``base`` (its first trial: the recipe as it is)."""
-    return {"learning_rate": float(base["learning_rate"]),
-            "log_std_init": float((base.get("policy_kwargs") or {})["log_std_init"]),
-            "residual_scale": float(base["residual"].get("scale", 1.0)), "gamma": float(base["gamma"]),
-            "gae_lambda": base["gae_lambda"], "n_epochs": base["n_epochs"], "batch_size": base["batch_size"],
-            "n_steps": base["n_steps"]}
+def _get(h: dict, name: str):
+    """The value of a searched parameter in the entry ``h`` (the inverse of :func:`_set`)."""
+    if name == "log_std_init":
+        return (h.get("policy_kwargs") or {}).get("log_std_init")
+    if name == "residual_scale":
+        return h["residual"].get("scale", _DEFAULTS[name])
+    return h.get(name, _DEFAULTS.get(name))
+
+
+def base_params(base: dict, algo: str = "ppo") -> dict:
+    """The residual space's parameters of the YAML entry ``base`` (its first trial: the recipe as it is);
+    ``ValueError`` naming a parameter the entry leaves out or sets to a value the space does not hold."""
+    out = {}
+    for name, kind, spec in RESIDUAL_SPACES[algo]:
+        value = _get(base, name)
+        if value is None or (kind == "categorical" and value not in spec):
+            raise ValueError(f"--space residual: the hyperparameter entry's {name} must be "
+                             f"{'one of ' + str(spec) if kind == 'categorical' else 'a number'}, got {value!r}")
+        out[name] = float(value) if kind == "float" else value
+    return out
 
 
 def sample(trial, algo: str, base: dict, space: str = "zoo") -> dict:
@@ -68,11 +107,11 @@ def sample(trial, algo: str, base: dict, space: str = "zoo") -> dict:
     with ``space="residual"`` :data:`RESIDUAL_SPACE`)."""
     h = dict(base)
     if space == "residual":
-        if algo not in ("ppo", "recurrentppo"):
-            raise ValueError(f"--space residual searches PPO and RecurrentPPO, not {algo!r}")
+        if algo not in RESIDUAL_SPACES:
+            raise ValueError(f"--space residual searches {', '.join(RESIDUAL_SPACES)}, not {algo!r}")
         if not isinstance(h.get("residual"), dict):
             raise ValueError("--space residual needs a hyperparameter entry with a residual: {law: ..., scale: ...}")
-        for name, kind, spec in RESIDUAL_SPACE:
+        for name, kind, spec in RESIDUAL_SPACES[algo]:
             if kind == "float":
                 value = trial.suggest_float(name, spec[0], spec[1], log=len(spec) > 2 and spec[2])
             else:
@@ -161,7 +200,7 @@ def tune(plant: str, algo: str, *, trials: int, timesteps: int, out: Path, study
                              pruner=optuna.pruners.MedianPruner(n_startup_trials=3, n_warmup_steps=2 * eval_freq),
                              load_if_exists=True)
     if space == "residual" and not st.trials:
-        st.enqueue_trial(base_params(hyperparameters(algo, profile(plant).env_id, hyperparams)))
+        st.enqueue_trial(base_params(hyperparameters(algo, profile(plant).env_id, hyperparams), algo))
     workers = 1 if resolve_backend(backend, trials, jobs) == "serial" else min(trials, jobs or default_jobs())
     split = [trials // workers + (1 if i < trials % workers else 0) for i in range(workers)]
     tasks = [Task(worker, (plant, algo, study, out, n, timesteps, eval_freq, eval_episodes, seed + i, hyperparams,
@@ -202,9 +241,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--hyperparams", type=Path, default=None,
                    help="YAML of the fixed hyperparameters (default experiments/hyperparams/<algo>.yml)")
     p.add_argument("--space", choices=SPACES, default="zoo",
-                   help="zoo: RL Zoo's search spaces; residual (PPO with a residual in the YAML): learning rate, "
-                        "log_std_init, residual scale, gamma in [0.995, 0.999], GAE lambda, epochs, batch, n_steps, "
-                        "the YAML entry as the first trial")
+                   help="zoo: RL Zoo's search spaces; residual (a residual in the YAML; the YAML entry as the "
+                        "first trial): for PPO and RecurrentPPO learning rate, log_std_init, residual scale, gamma "
+                        "in [0.995, 0.999], GAE lambda, epochs, batch, n_steps; for SAC, TQC and TD3 learning rate, "
+                        "residual scale, gamma in [0.99, 0.999], tau, batch, train_freq, the actor's warm-up, and "
+                        "SAC's entropy coefficient or TD3's action noise")
     p.add_argument("--out", type=Path, default=Path("results/tune"))
     p.add_argument("--no-progress", action="store_true")
     sweep.add_arguments(p)
@@ -226,11 +267,12 @@ def run(args: argparse.Namespace) -> int:
     env_id = profile(args.plant).env_id
     base = hyperparameters(args.algo, env_id, args.hyperparams)  # the base entry exists and is valid
     if args.space == "residual":
-        if args.algo not in ("ppo", "recurrentppo"):
-            raise ValueError(f"--space residual searches ppo and recurrentppo, not {args.algo}")
+        if args.algo not in RESIDUAL_SPACES:
+            raise ValueError(f"--space residual searches {', '.join(RESIDUAL_SPACES)}, not {args.algo}")
         if not isinstance(base.get("residual"), dict):
             raise ValueError("--space residual needs a hyperparameter file whose entry has a residual "
                              "(e.g. experiments/hyperparams/ppo-residual.yml)")
+        base_params(base, args.algo)  # the entry holds every searched parameter, as the first trial
     st = tune(args.plant, args.algo, trials=args.trials, timesteps=args.timesteps, out=args.out, study=args.study,
               eval_freq=args.eval_freq, eval_episodes=args.eval_episodes, seed=args.seed,
               hyperparams=args.hyperparams, progress=not args.no_progress, space=args.space, **executor)

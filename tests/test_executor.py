@@ -146,6 +146,41 @@ def test_tune_residual_space_starts_at_the_recipe_and_keeps_gamma_high(tmp_path)
     assert 0.2 <= best["residual"]["scale"] <= 1.0 and -3.5 <= best["policy_kwargs"]["log_std_init"] <= -1.0
 
 
+def test_tune_residual_space_of_td3_starts_at_the_recipe_and_searches_its_pace(tmp_path, capsys):
+    """--space residual for an off-policy algorithm: the first trial is the YAML entry (the actor's warm-up, absent
+    there, is 0), the others draw within the off-policy space, TD3's action noise included; an entry whose value
+    lies outside a searched choice is refused by name."""
+    pytest.importorskip("optuna")
+    import csv
+
+    import yaml
+
+    from experiments.cli import main
+
+    entry = {"n_envs": 1, "policy": "MlpPolicy", "normalize": True, "learning_starts": 32,
+             "residual": {"law": "skyhook_continuous", "scale": 0.5}, "learning_rate": 3e-4, "batch_size": 256,
+             "gamma": 0.998, "tau": 0.01, "train_freq": 4, "noise_type": "normal", "noise_std": 0.05,
+             "policy_kwargs": {"net_arch": [8]}}
+    base = tmp_path / "base.yml"
+    base.write_text(yaml.safe_dump({"mrd_env/QuarterCar-v0": entry}))
+    args = ["tune", "--plant", "quarter_car", "--algo", "td3", "--space", "residual", "--trials", "2", "--timesteps",
+            "64", "--eval-freq", "64", "--eval-episodes", "1", "--hyperparams", str(base), "--backend", "serial",
+            "--out", str(tmp_path / "t"), "--no-progress"]
+    assert main(args) == 0
+    rows = list(csv.DictReader((tmp_path / "t" / "quarter_car_td3_trials.csv").open()))
+    assert len(rows) == 2
+    first = rows[0]
+    assert float(first["noise_std"]) == 0.05 and float(first["tau"]) == 0.01 and int(first["actor_warmup_steps"]) == 0
+    assert all(0.99 <= float(r["gamma"]) <= 0.999 and 0.01 <= float(r["noise_std"]) <= 0.2 for r in rows)
+    best = yaml.safe_load((tmp_path / "t" / "quarter_car_td3_best.yml").read_text())["mrd_env/QuarterCar-v0"]
+    assert 0.1 <= best["residual"]["scale"] <= 1.0 and "actor_warmup_steps" in best
+
+    base.write_text(yaml.safe_dump({"mrd_env/QuarterCar-v0": {**entry, "tau": 0.3}}))
+    capsys.readouterr()
+    assert main([*args[:-2], str(tmp_path / "u"), "--no-progress"]) == 2
+    assert "entry's tau must be one of" in capsys.readouterr().err and not (tmp_path / "u").exists()
+
+
 def test_model_comparison_and_sensor_propagation_on_a_pool_equal_serial_ones():
     """compare-models and the Monte-Carlo propagation run their fits as tasks: the same numbers on a pool."""
     from mrd_env.dampers import make_damper
