@@ -35,7 +35,8 @@ from .plants import PLANTS, plant_choices, profile
 # the trainer interface and what its trainers share (re-exported: ``experiments.train`` is the commands' module)
 from .sb3_trainer import NOISE_TYPES, algorithm_kwargs, check_laws, check_with_sb3, schedule  # noqa: F401
 from .trainers import (HYPERPARAMS, TRAINERS, available_algos, check_hyperparameters, env_options,  # noqa: F401
-                       hyperparameters, plot_learning_curve, residual_spec, run_name, trainer, validation_split)
+                       hyperparameters, plot_learning_curve, residual_spec, run_name, steps_label, trainer,
+                       validation_split)
 
 #: {--algo: the algorithm's name} of every trainer (:data:`.trainers.TRAINERS`).
 ALGOS = {algo: t.label for algo, t in TRAINERS.items()}
@@ -103,7 +104,7 @@ def plot_seed_curves(run_dirs, path: Path, references: dict[str, float] | None =
     ax.plot(curves[0][1][:n], np.mean([y[:n] for _, _, y in curves], axis=0), "k-", lw=2, label="mean over seeds")
     for i, (name, value) in enumerate((references or {}).items()):
         ax.axhline(value, ls="--", lw=1, color=f"C{(i + len(curves)) % 10}", label=name)
-    ax.set_xlabel("environment steps")
+    ax.set_xlabel(steps_label(Path(run_dirs[0])))
     ax.set_ylabel("validation return (unseen seeds)")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7)

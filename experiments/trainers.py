@@ -214,6 +214,20 @@ def write_csv(path: Path, rows: list[dict]) -> None:
         w.writerows(rows)
 
 
+def steps_label(run_dir: Path) -> str:
+    """The x-axis label of a run's curves: environment steps, or the agent's steps when its correction is held
+    for several of the environment's (a residual with ``hold``)."""
+    import json
+
+    meta = run_dir / "agent.json"
+    spec = (json.loads(meta.read_text(encoding="utf-8")).get("residual") or {}) if meta.exists() else {}
+    hold = int(spec.get("hold", 1))
+    if hold == 1:
+        return "environment steps"
+    dt = float(json.loads(meta.read_text(encoding="utf-8"))["env_kwargs"].get("control_dt", 1e-3))
+    return f"agent steps (each {hold} environment steps of {dt * 1e3:g} ms)"
+
+
 def plot_learning_curve(run_dir: Path) -> Path | None:
     """Training episode returns (mean over 20 episodes) and validation returns against environment steps."""
     import csv
@@ -242,7 +256,7 @@ def plot_learning_curve(run_dir: Path) -> Path | None:
         drawn = True
     if not drawn:
         return None
-    ax.set_xlabel("environment steps")
+    ax.set_xlabel(steps_label(run_dir))
     ax.set_ylabel("episode return")
     ax.set_title(run_dir.name)
     ax.grid(alpha=0.3)
