@@ -144,6 +144,14 @@ def sample(trial, algo: str, base: dict, space: str = "zoo") -> dict:
     return h
 
 
+def trial_value(rows: list[dict]) -> float:
+    """A trial's value: its best validation return once it has trained (``rows`` of its validation.csv). The
+    untrained agent's (step 0) does not count: a residual agent is its law there, and every trial that only fell
+    below the law would tie with it."""
+    trained = [float(r["validation_return"]) for r in rows if int(r["timesteps"]) > 0]
+    return max(trained or [float(r["validation_return"]) for r in rows])
+
+
 def _storage(path: Path):
     import optuna
     from optuna.storages.journal import JournalFileBackend
@@ -176,8 +184,7 @@ def worker(plant: str, algo: str, study: str, out: Path, n_trials: int, timestep
         if trial.should_prune():
             raise optuna.TrialPruned()
         import csv
-        rows = list(csv.DictReader((run / "validation.csv").open()))
-        return max(float(r["validation_return"]) for r in rows)
+        return trial_value(list(csv.DictReader((run / "validation.csv").open())))
 
     st.optimize(objective, n_trials=n_trials)
     return n_trials

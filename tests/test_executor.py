@@ -181,6 +181,17 @@ def test_tune_residual_space_of_td3_starts_at_the_recipe_and_searches_its_pace(t
     assert "entry's tau must be one of" in capsys.readouterr().err and not (tmp_path / "u").exists()
 
 
+def test_a_trials_value_is_its_best_validation_once_trained():
+    """The untrained residual agent (its law, at step 0) does not set a trial's value: trials that fall below the
+    law are ranked by how far they fell, not tied with it."""
+    from experiments.tune import trial_value
+
+    rows = [{"timesteps": "0", "validation_return": "-9.26"}, {"timesteps": "20000", "validation_return": "-10.5"},
+            {"timesteps": "40000", "validation_return": "-9.8"}]
+    assert trial_value(rows) == -9.8
+    assert trial_value(rows[:1]) == -9.26   # a trial stopped before its first validation after step 0
+
+
 def test_model_comparison_and_sensor_propagation_on_a_pool_equal_serial_ones():
     """compare-models and the Monte-Carlo propagation run their fits as tasks: the same numbers on a pool."""
     from mrd_env.dampers import make_damper
