@@ -76,13 +76,13 @@ class ResidualVecEnv(VecEnvWrapper):
     def step_wait(self):
         total = 0.0
         for j in range(self.hold):
-            if j:  # the law follows the observation; the correction is held
-                self._u_law = self.residual.law_command(obs, None)
-                self.venv.step_async(self.residual.combine(self._u_law, self._actions))
             obs, rewards, dones, infos = self.venv.step_wait()
             total = total + np.asarray(rewards, dtype=np.float64)  # summed as the twin's are
-            if np.any(dones):
+            if np.any(dones) or j == self.hold - 1:
                 break
+            # the law follows the observation; the correction is held
+            self._u_law = self.residual.law_command(obs, None)
+            self.venv.step_async(self.residual.combine(self._u_law, self._actions))
         u_last = self._u_law
         for i in np.flatnonzero(dones):
             # the value bootstrap of a truncated episode sees its last command (the law's memory of that episode
