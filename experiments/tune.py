@@ -58,10 +58,10 @@ OFF_POLICY_RESIDUAL_SPACE = (
 
 #: Each algorithm's residual space: the off-policy one with SAC's (and TQC's) entropy coefficient, or TD3's action
 #: noise.
+_ENTROPY = (("ent_coef", "float", (1e-5, 1e-2, True)),)
 RESIDUAL_SPACES = {
     "ppo": RESIDUAL_SPACE, "recurrentppo": RESIDUAL_SPACE,
-    "sac": OFF_POLICY_RESIDUAL_SPACE + (("ent_coef", "float", (1e-5, 1e-2, True)),),
-    "tqc": OFF_POLICY_RESIDUAL_SPACE + (("ent_coef", "float", (1e-5, 1e-2, True)),),
+    "sac": OFF_POLICY_RESIDUAL_SPACE + _ENTROPY, "tqc": OFF_POLICY_RESIDUAL_SPACE + _ENTROPY,
     "td3": OFF_POLICY_RESIDUAL_SPACE + (("noise_std", "float", (0.01, 0.2, True)),),
 }
 
