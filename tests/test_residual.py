@@ -385,3 +385,24 @@ def test_a_bad_hold_is_refused_by_name(capsys, tmp_path):
                  "--no-progress"]) == 2
     err = capsys.readouterr().err
     assert "hold must be an int >= 1" in err and err.count("\n") == 1 and not any(tmp_path.iterdir())
+
+
+def test_a_held_residual_agent_trains_starts_at_its_law_at_1ms_and_loads(tmp_path):
+    """mrd-env train's path with a hold: the run is named for it, its first validation is the law at 1 ms, and the
+    saved agent binds to a 1 ms environment as a held residual controller."""
+    import csv
+
+    from experiments.train import law_references
+
+    kw = _kw(control_dt=0.001)
+    run = train_one("quarter_car", "ppo", 0, out=tmp_path, timesteps=64, env_kwargs=kw, eval_freq=10_000,
+                    eval_episodes=1, hyper={"n_steps": 32, "batch_size": 32, "n_envs": 2,
+                                            "residual": {"law": "skyhook_continuous", "scale": 0.5, "hold": 10},
+                                            "paired_baseline": "skyhook_continuous"})
+    assert run.name == "quarter_car_ppo-residual-hold10-paired_s0"
+    first = float(next(csv.DictReader((run / "validation.csv").open()))["validation_return"])
+    assert first == law_references("quarter_car", kw, 1)["skyhook_continuous @ 1 ms"]
+    ctrl = load_agent(run).bind(gym.make(CAR, **kw))
+    assert isinstance(ctrl, ResidualController) and ctrl.hold == 10
+    with pytest.raises(ValueError, match="trained at 0.001 s"):
+        load_agent(run).bind(gym.make(CAR, **_kw()))
