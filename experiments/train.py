@@ -178,6 +178,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "(default: the YAML's residual, if any; 'none' to switch it off)")
     p.add_argument("--residual-scale", type=float, default=None,
                    help="largest correction as a share of the command range, in (0, 1] (default 1)")
+    p.add_argument("--residual-hold", type=int, default=None, metavar="K",
+                   help="the law follows every control step, the agent's correction is held for K of them (with "
+                        "--control-dt 0.001 and K 10: the law at 1 ms, the agent at 10 ms; default 1)")
     p.add_argument("--paired-baseline", default=None, metavar="LAW",
                    help="variance reduction: rewards relative to this law on the same disturbance "
                         "(default: the YAML's paired_baseline; 'none' to switch it off)")
@@ -246,23 +249,25 @@ def run(args: argparse.Namespace) -> int:
         env_kwargs = preview_options(args.plant, env_kwargs)
     env_id = profile(args.plant).env_id
     overrides = _parse_overrides(args.set)
+    # --residual-scale and --residual-hold: options of --residual LAW's residual, or of the YAML's
+    options = {k: v for k, v in (("scale", args.residual_scale), ("hold", args.residual_hold)) if v is not None}
     if args.residual is not None:
-        overrides["residual"] = None if args.residual == "none" else \
-            {"law": args.residual, **({"scale": args.residual_scale} if args.residual_scale is not None else {})}
-        if args.residual == "none" and args.residual_scale is not None:
-            raise ValueError("--residual-scale applies to a residual; it is switched off by --residual none")
+        overrides["residual"] = None if args.residual == "none" else {"law": args.residual, **options}
+        if args.residual == "none" and options:
+            raise ValueError(f"--residual-{next(iter(options))} applies to a residual; it is switched off by "
+                             "--residual none")
     if args.paired_baseline is not None:
         overrides["paired_baseline"] = None if args.paired_baseline == "none" else args.paired_baseline
     if args.algo == "cmaes" and (overrides.get("residual") or overrides.get("paired_baseline")):
         raise ValueError("--residual and --paired-baseline apply to the SB3 algorithms, not to cmaes "
                          "(CMA-ES warm-starts from a law with --warm-start)")
     hyper = hyperparameters(args.algo, env_id, args.hyperparams, overrides)
-    if args.residual is None and args.residual_scale is not None:  # the scale of the YAML's residual
+    if args.residual is None and options:  # options of the YAML's residual
         spec = residual_spec(hyper.get("residual"))
         if spec is None:
-            raise ValueError("--residual-scale needs a residual: --residual LAW, or a hyperparameter file with one")
-        hyper = hyperparameters(args.algo, env_id, args.hyperparams,
-                                {**overrides, "residual": {**spec, "scale": args.residual_scale}})
+            raise ValueError(f"--residual-{next(iter(options))} needs a residual: --residual LAW, or a "
+                             "hyperparameter file with one")
+        hyper = hyperparameters(args.algo, env_id, args.hyperparams, {**overrides, "residual": {**spec, **options}})
     check_before_training(args.algo, hyper, env_id, env_kwargs)
     if args.tensorboard:
         import importlib.util

@@ -164,6 +164,9 @@ def test_off_policy_residual_agents_start_at_their_law(algo):
     (["--paired-baseline", "banana"], "paired_baseline must be one of"),
     (["--residual", "skyhook_continuous", "--residual-scale", "2"], "scale must be a number in (0, 1]"),
     (["--residual-scale", "0.5"], "--residual-scale needs a residual"),
+    (["--residual-hold", "10"], "--residual-hold needs a residual"),
+    (["--residual", "none", "--residual-hold", "10"], "--residual-hold applies to a residual"),
+    (["--residual", "skyhook_continuous", "--residual-hold", "0"], "hold must be an int >= 1"),
     (["--plant", "building", "--residual", "groundhook"], "does not apply"),
     (["--algo", "cmaes", "--residual", "skyhook_continuous"], "not to cmaes"),
     (["--plant", "building", "--preview"], "road preview is a sensor of the quarter car"),
@@ -406,3 +409,19 @@ def test_a_held_residual_agent_trains_starts_at_its_law_at_1ms_and_loads(tmp_pat
     assert isinstance(ctrl, ResidualController) and ctrl.hold == 10
     with pytest.raises(ValueError, match="trained at 0.001 s"):
         load_agent(run).bind(gym.make(CAR, **_kw()))
+
+
+def test_residual_hold_from_the_cli_holds_the_yamls_residual(tmp_path):
+    """--residual-hold sets the hold of the YAML's residual (its law and scale kept), and the agent records it."""
+    import json
+    from pathlib import Path
+
+    args = ["train", "--plant", "quarter_car", "--algo", "ppo", "--hyperparams",
+            str(Path(__file__).parents[1] / "experiments" / "hyperparams" / "ppo-residual.yml"), "--residual-hold",
+            "10", "--control-dt", "0.001",
+            "--timesteps", "64", "--set", "n_envs=2", "--set", "n_steps=32", "--set", "batch_size=32",
+            "--eval-freq", "0", "--seeds", "0", "--out", str(tmp_path), "--no-progress"]
+    assert main(args) == 0
+    meta = json.loads((tmp_path / "quarter_car_ppo-residual-hold10-paired_s0" / "agent.json").read_text())
+    assert meta["residual"] == {"law": "skyhook_continuous", "scale": 0.5, "hold": 10}
+    assert meta["env_kwargs"]["control_dt"] == 0.001
