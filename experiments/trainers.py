@@ -219,12 +219,12 @@ def steps_label(run_dir: Path) -> str:
     for several of the environment's (a residual with ``hold``)."""
     import json
 
-    meta = run_dir / "agent.json"
-    spec = (json.loads(meta.read_text(encoding="utf-8")).get("residual") or {}) if meta.exists() else {}
-    hold = int(spec.get("hold", 1))
+    path = run_dir / "agent.json"
+    meta = json.loads(path.read_text(encoding="utf-8")) if path.exists() else {}
+    hold = int((meta.get("residual") or {}).get("hold", 1))
     if hold == 1:
         return "environment steps"
-    dt = float(json.loads(meta.read_text(encoding="utf-8"))["env_kwargs"].get("control_dt", 1e-3))
+    dt = float(meta["env_kwargs"].get("control_dt", 1e-3))
     return f"agent steps (each {hold} environment steps of {dt * 1e3:g} ms)"
 
 
