@@ -20,7 +20,7 @@ import numpy as np
 from mrd_env.report import markdown_table, write_table
 
 from . import sweep, yardstick
-from .evaluation import Episode, controller_episodes, evaluate, evaluate_batch, response_of  # noqa: F401
+from .evaluation import Episode, check_laws, controller_episodes, evaluate, evaluate_batch, response_of  # noqa: F401
 from .plants import PLANTS, chosen_plants, plant_choices, profile
 from .scenarios import Scenario, base_scenario, held_out_scenarios  # noqa: F401  (Scenario: re-exported)
 
@@ -236,13 +236,10 @@ def run(args: argparse.Namespace) -> int:
     if args.seeds < 1:
         raise ValueError(f"--seeds must be >= 1, got {args.seeds}")
     # names checked before any episode runs: a typo must not cost a progress bar and a built environment
-    from controllers import available_controllers
     from mrd_env.dampers import damper_class
 
-    unknown = [c for c in args.controllers or () if c not in available_controllers()]
-    if unknown:
-        raise ValueError(f"--controllers: unknown controller(s) {unknown}; available: {available_controllers()}")
     damper_class(args.damper)
+    check_laws("--controllers", args.controllers, plants)
     executor = sweep.options(args)
     for plant in plants:
         scen = held_out_scenarios(plant, seeds=args.seeds, quick=args.quick)

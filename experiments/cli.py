@@ -5,8 +5,8 @@ module of the command being run is imported (``mrd-env --help`` imports none of 
 
 Errors: anything the user can get wrong — a bad option, a missing or unreadable file, a bad record, a
 simulation that diverges on the user's parameters, a missing optional dependency — ends the command with one
-line on stderr and exit code 2, never a traceback. An unexpected exception (a bug) prints one line and exits
-with 1; ``--traceback`` shows the whole traceback instead.
+line on stderr and exit code 2, never a traceback, also where it happens in a sweep's worker. An unexpected
+exception (a bug) prints one line and exits with 1; ``--traceback`` shows the whole traceback instead.
 """
 from __future__ import annotations
 
@@ -86,6 +86,10 @@ def main(argv: list[str] | None = None) -> int:
     except _user_errors() as exc:
         return _fail(prog, _message(exc), 2)
     except Exception as exc:  # a bug: one line unless asked for the traceback
+        from mrd_env.executor import TaskFailed
+
+        if isinstance(exc, TaskFailed) and isinstance(exc.error, _user_errors()):  # the user's problem, in a worker
+            return _fail(prog, f"{exc.task.label or exc.task.describe()}: {_message(exc.error)}", 2)
         if "--traceback" in argv:
             raise
         return _fail(prog, f"internal error: {type(exc).__name__}: {exc} (rerun with --traceback for details)", 1)

@@ -49,7 +49,7 @@ def run(args: argparse.Namespace) -> int:
                      if m != NEURAL and (args.fit_eta or args.fit_lag)}
     with reported_warnings():
         if NEURAL in models and data.align:  # the network is given the offset a reference fit finds
-            fits = recs if others else split_records(recs, args.fit_fraction, data.dt)[1]
+            fits = recs if others else split_records(recs, args.fit_fraction, data.dt, data.faults)[1]
             model_options[NEURAL] = {"data": neural_data(args, fits, data)}
         res = compare_models(recs, models, search=search, data=data, fit_fraction=args.fit_fraction,
                              validation_records=others, out=args.out, plot_window=args.plot_window,

@@ -21,7 +21,7 @@ import numpy as np
 from mrd_env.report import write_table
 
 from . import sweep, yardstick
-from .evaluation import Episode, controller_episodes, grouped_bars, mean_ci
+from .evaluation import Episode, check_laws, controller_episodes, grouped_bars, mean_ci
 from .plants import PLANTS, chosen_plants, plant_choices, profile
 from .scenarios import base_scenario, held_out_scenarios, preview_options
 
@@ -162,15 +162,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from controllers import available_controllers, shipped_agents
+    from controllers import shipped_agents
     from controllers.agents import agent_files
 
     if args.seeds < 1:
         raise ValueError(f"--seeds must be >= 1, got {args.seeds}")
-    unknown = [c for c in args.laws or () if c not in available_controllers()]
-    if unknown:
-        raise ValueError(f"--laws: unknown controller(s) {unknown}; available: {available_controllers()}")
     plants = chosen_plants(args.plant)
+    check_laws("--laws", args.laws, plants)
     executor = sweep.options(args)
     if args.damper is not None:
         from mrd_env.dampers import damper_class

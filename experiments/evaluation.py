@@ -159,6 +159,32 @@ def controller_episodes(controller, scenario: Scenario, response: str = "", **en
                           **env_options)
 
 
+def check_laws(option: str, names, plants) -> None:
+    """Before any episode runs: every law in ``names`` exists and applies to every plant in ``plants`` (built on
+    the plant's experiment environment, it finds the sensors it reads); ``ValueError`` naming ``option``."""
+    if not names:
+        return
+    import mrd_env  # noqa: F401
+    from controllers import available_controllers, make_controller
+
+    from .plants import profile
+
+    unknown = [c for c in names if c not in available_controllers()]
+    if unknown:
+        raise ValueError(f"{option}: unknown controller(s) {unknown}; available: {available_controllers()}")
+    for plant in plants:
+        p = profile(plant)
+        env = gym.make(p.env_id, **p.options)
+        try:
+            for name in names:
+                try:
+                    make_controller(name, env)
+                except ValueError as exc:
+                    raise ValueError(f"{option}: {name} does not apply to the {plant}: {exc}") from None
+        finally:
+            env.close()
+
+
 def mean_ci(values, confidence: float = 0.95, upper: float = math.inf) -> tuple[float, float, float]:
     """(mean, lower, upper): Student-t interval of the mean. One value has no interval (NaN bounds, not a
     zero-width one); identical values give a zero-width interval. ``upper``: the largest value the quantity can

@@ -230,7 +230,7 @@ def records_and_grid(args: argparse.Namespace):
     if args.validate:
         whole = [uniform_record(r, dt) for r in load_data(args, args.validate)]
         return recs, whole, [0] * len(whole), dt
-    whole, fits, idx = split_records(recs, args.fit_fraction, dt)
+    whole, fits, idx = split_records(recs, args.fit_fraction, dt, args.faults)
     return fits, whole, idx, dt
 
 

@@ -111,6 +111,8 @@ def hyperparameters(algo: str, env_id: str, path: Path | None = None, overrides:
         env_id = fallback
     if env_id not in table:
         raise ValueError(f"{path} has no entry for {env_id}; entries: {sorted(table)}")
+    if not isinstance(table[env_id], dict):
+        raise ValueError(f"{path}: the entry for {env_id} must be a mapping {{key: value}}, got {table[env_id]!r}")
     out = dict(table[env_id])
     for k, v in (overrides or {}).items():
         out[k] = v
@@ -119,6 +121,13 @@ def hyperparameters(algo: str, env_id: str, path: Path | None = None, overrides:
 
 def check_hyperparameters(algo: str, hyper: dict) -> dict:
     """``hyper`` if its trainer accepts every key and value (:meth:`Trainer.check`); ``ValueError`` otherwise."""
+    if not isinstance(hyper.get("env_kwargs") or {}, dict):
+        raise ValueError(f"hyperparameter env_kwargs must be a mapping of environment options, got "
+                         f"{hyper['env_kwargs']!r}")
+    normalize = hyper.get("normalize", True)
+    if not isinstance(normalize, (bool, dict)):
+        raise ValueError(f"hyperparameter normalize must be true, false or a mapping of VecNormalize options, got "
+                         f"{normalize!r}")
     trainer(algo).check(hyper)
     return hyper
 

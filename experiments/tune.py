@@ -152,6 +152,15 @@ def trial_value(rows: list[dict]) -> float:
     return max(trained or [float(r["validation_return"]) for r in rows])
 
 
+def pruner(eval_freq: int):
+    """The median pruner of every study: from the fourth trial on, at the second validation at the earliest (the
+    journal does not store a pruner, so each worker sets it when it loads the study; Optuna's default would prune
+    from the sixth trial on, at the first validation)."""
+    import optuna
+
+    return optuna.pruners.MedianPruner(n_startup_trials=3, n_warmup_steps=2 * eval_freq)
+
+
 def _storage(path: Path):
     import optuna
     from optuna.storages.journal import JournalFileBackend
@@ -169,7 +178,7 @@ def worker(plant: str, algo: str, study: str, out: Path, n_trials: int, timestep
     env_id = profile(plant).env_id
     base = hyperparameters(algo, env_id, hyperparams)
     st = optuna.load_study(study_name=study, storage=_storage(out / f"{study}.log"),
-                           sampler=optuna.samplers.TPESampler(seed=seed))
+                           sampler=optuna.samplers.TPESampler(seed=seed), pruner=pruner(eval_freq))
 
     def objective(trial):
         h = sample(trial, algo, base, space)
@@ -204,8 +213,7 @@ def tune(plant: str, algo: str, *, trials: int, timesteps: int, out: Path, study
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     st = optuna.create_study(study_name=study, storage=_storage(out / f"{study}.log"), direction="maximize",
-                             pruner=optuna.pruners.MedianPruner(n_startup_trials=3, n_warmup_steps=2 * eval_freq),
-                             load_if_exists=True)
+                             pruner=pruner(eval_freq), load_if_exists=True)
     if space == "residual" and not st.trials:
         st.enqueue_trial(base_params(hyperparameters(algo, profile(plant).env_id, hyperparams), algo))
     workers = 1 if resolve_backend(backend, trials, jobs) == "serial" else min(trials, jobs or default_jobs())

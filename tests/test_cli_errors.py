@@ -39,6 +39,14 @@ def files(tmp_path):
     paths["backwards"].write_text("t_s,x_m,command_V,force_N\n0,0,0,0\n0.001,0,0,1\n0.002,0,0,2\n0.002,0,0,3\n"
                                   "0.004,0,0,4\n")
     paths["out_file"].write_text("not a folder")
+    paths["scalar_yml"] = tmp_path / "scalar.yml"  # an entry that is not a mapping
+    paths["scalar_yml"].write_text("mrd_env/QuarterCar-v0: 3\n")
+    # a load cell clipped over the last 3 % of the record: the faults leave a 1 % held-back part nothing to score
+    tc = np.arange(2000) * 1e-3
+    xc = 0.01 * np.sin(2 * np.pi * tc)
+    fc = 800.0 * np.tanh(np.gradient(xc, tc) / 0.02) + 2000.0 * xc
+    fc[1940:] = fc.max()
+    paths["clipped"] = DamperRecord(tc, xc, np.ones_like(tc), fc, command_unit="V").to_csv(tmp_path / "clipped.csv")
     # saved agents (a folder holding agent.json and the model): without metadata, with broken, foreign or
     # incomplete metadata, for an unknown environment, without the model, and a valid quarter-car one
     good_meta = {"format": "mrd-env-agent", "plant": "quarter_car", "env_id": "mrd_env/QuarterCar-v0",
@@ -117,6 +125,7 @@ CASES = {
         ["--agent", "{agent_bad_json}"], ["--agent", "{agent_foreign}"], ["--agent", "{agent_no_keys}"],
         ["--agent", "{agent_env}"], ["--agent", "{agent_no_model}"], ["--plant", "building", "--agent", "{agent_qc}"],
         ["--backend", "gpu"], ["--jobs", "0"], ["--address", "ray://x:1"],
+        ["--plant", "building", "--controllers", "passive_on", "groundhook"],   # a law the plant cannot run
     ],
     "train": [
         ["--backend", "gpu"], ["--jobs", "0"], ["--jobs", "-2"], ["--address", "ray://x:1"],
@@ -127,18 +136,20 @@ CASES = {
         ["--set", "n_envs"], ["--set", "n_envs=0"], ["--set", "nope=1"], ["--hyperparams", "{missing}"],
         ["--hyperparams", "{binary}"], ["--algo", "sac", "--hyperparams", "{empty}"], ["--eval-freq", "-1"],
         ["--eval-episodes", "0"], ["--checkpoint-freq", "-1"], ["--plant", "building", "--set", "n_envs=2.5"],
+        ["--hyperparams", "{scalar_yml}"], ["--set", "env_kwargs=3"], ["--set", "normalize=3"],
     ],
     "tune": [
         ["--nope"], ["--plant", "nope"], ["--algo", "nope"], ["--algo", "a2c"], ["--trials", "0"],
         ["--timesteps", "0"], ["--eval-freq", "0"], ["--eval-episodes", "0"], ["--seed", "-1"],
         ["--hyperparams", "{missing}"], ["--backend", "gpu"], ["--jobs", "0"], ["--address", "ray://x:1"],
         ["--space", "nope"], ["--space", "residual"], ["--space", "residual", "--algo", "sac"],
+        ["--hyperparams", "{scalar_yml}"],
     ],
     "evaluate": [
         ["--nope"], ["--plant", "nope"], ["--agents", "{missing}"], ["--agents", "{agent_bad_json}"],
         ["--agents", "{agent_foreign}"], ["--plant", "building", "--agents", "{agent_qc}"], ["--laws", "nope"],
         ["--seeds", "0"], ["--seeds", "x"], ["--control-dt", "0"], ["--control-dt", "0.0015"],
-        ["--control-dt", "nan"], ["--out", "{out_file}"],
+        ["--control-dt", "nan"], ["--out", "{out_file}"], ["--plant", "building", "--laws", "groundhook"],
     ],
     "identify": DATA_ERRORS + [
         ["--data", "{good}", "--model", "nope"], ["--data", "{good}", "--preset", "nope"],
@@ -237,6 +248,13 @@ MESSAGES = [  # (argv, what the one line says): the option by its name, values a
     (["identify", "--data", "{good}", "--warmup", "100"], "are left to score after a warm-up of 100 s"),
     (["identify", "--data", "{good}", "--bounds", "c0a=1"], "--bounds: expected NAME=LO:HI (numbers in SI units)"),
     (["identify", "--data", "{good}", "--force-offset", "2", "--align"], "--align estimates the force offset and"),
+    (["identify", "--data", "{clipped}", "--fit-fraction", "0.99"],
+     "fit_fraction = 0.99 leaves 0 sample(s) of 'clipped' to validate on once its faults are excluded"),
+    (["benchmark", "--plant", "building", "--controllers", "groundhook"],
+     "--controllers: groundhook does not apply to the building"),
+    (["evaluate", "--plant", "building", "--laws", "groundhook"], "--laws: groundhook does not apply to the building"),
+    (["train", "--hyperparams", "{scalar_yml}"], "the entry for mrd_env/QuarterCar-v0 must be a mapping"),
+    (["train", "--set", "normalize=3"], "hyperparameter normalize must be true, false or a mapping"),
     (["compare-models", "--data", "{good}", "--models", "bingham", "bingham"],
      "--models: bingham given more than once"),
     (["compare-models", "--data", "{good}", "--plot-window", "0"], "argument --plot-window: 0 is invalid"),
@@ -274,3 +292,42 @@ def test_warmup_compiles_models_side_by_side(capsys):
     assert main(["warmup", "--models", "bingham", "spencer_dyke", "--jobs", "2"]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert [ln.split()[0] for ln in lines[:2]] == ["bingham", "spencer_dyke"] and "2 model(s) ready" in lines[-1]
+
+
+def _raising_run(monkeypatch, exc):
+    """``mrd-env yardstick`` made to raise ``exc`` once its options are parsed."""
+    import experiments.yardstick_cmd as cmd
+
+    def run(args):
+        raise exc
+    monkeypatch.setattr(cmd, "run", run)
+
+
+def test_a_user_error_in_a_sweep_worker_is_one_line_and_exit_2(monkeypatch, capsys):
+    from mrd_env.executor import Task, TaskFailed
+
+    task = Task(print, (1,), label="El Centro / groundhook")
+    _raising_run(monkeypatch, TaskFailed(task, ValueError("Groundhook needs the sensor(s) ['wheel_velocity']")))
+    assert main(["yardstick", "--quick"]) == 2
+    err = capsys.readouterr().err
+    assert err == "mrd-env yardstick: error: El Centro / groundhook: Groundhook needs the sensor(s) " \
+                  "['wheel_velocity']\n"
+
+
+def test_a_bug_is_one_line_and_exit_1_and_traceback_shows_it(monkeypatch, capsys):
+    from mrd_env.executor import Task, TaskFailed
+
+    for exc in (RuntimeError("boom"), TaskFailed(Task(print, label="t"), KeyError("boom"))):
+        _raising_run(monkeypatch, exc)
+        assert main(["yardstick", "--quick"]) == 1
+        err = capsys.readouterr().err
+        assert err.startswith(f"mrd-env yardstick: error: internal error: {type(exc).__name__}: ") and \
+            err.count("\n") == 1 and "--traceback" in err, err
+        with pytest.raises(type(exc)):
+            main(["--traceback", "yardstick", "--quick"])
+
+
+def test_interrupted_is_exit_130(monkeypatch, capsys):
+    _raising_run(monkeypatch, KeyboardInterrupt())
+    assert main(["yardstick", "--quick"]) == 130
+    assert capsys.readouterr().err == "mrd-env yardstick: interrupted\n"

@@ -96,7 +96,7 @@ def test_training_seeds_on_a_pool_equal_serial_ones(tmp_path):
             assert np.array_equal(va.numpy(), vb.numpy())
 
 
-def test_tune_runs_trials_prunes_and_writes_the_best_hyperparameters(tmp_path):
+def test_tune_runs_trials_and_writes_the_best_hyperparameters(tmp_path):
     pytest.importorskip("optuna")
     import yaml
 
@@ -117,6 +117,38 @@ def test_tune_runs_trials_prunes_and_writes_the_best_hyperparameters(tmp_path):
                  "--eval-episodes", "1", "--hyperparams", str(base), "--backend", "serial", "--out",
                  str(tmp_path / "t"), "--no-progress"]) == 0
     assert len((tmp_path / "t" / "quarter_car_ppo_trials.csv").read_text().splitlines()) == 1 + 3
+
+
+def test_tune_prunes_a_trial_below_the_median_after_the_warm_up(tmp_path, monkeypatch):
+    """The study's median pruner, in the worker that runs the trials, stops the fourth trial where its validation
+    falls below the earlier trials' median, from the second validation on; the training is told through
+    ``report`` and stops."""
+    pytest.importorskip("optuna")
+    import experiments.train as train_mod
+    from experiments.tune import tune
+
+    stopped_at = {}
+
+    def fake_train_one(plant, algo, seed, *, out, timesteps, report, **kw):
+        trial = int(Path(out).name.split("_")[1])
+        rows = ["timesteps,validation_return,validation_return_std"]
+        for step in range(64, timesteps + 1, 64):  # trial k scores -k at every validation
+            rows.append(f"{step},{-float(trial)},0")
+            if not report(step, -float(trial)):
+                stopped_at[trial] = step
+                break
+        run = Path(out) / "run"
+        run.mkdir(parents=True)
+        (run / "validation.csv").write_text("\n".join(rows) + "\n")
+        return run
+
+    monkeypatch.setattr(train_mod, "train_one", fake_train_one)
+    st = tune("quarter_car", "ppo", trials=4, timesteps=320, eval_freq=64, out=tmp_path, backend="serial",
+              progress=False)
+    states = [t.state.name for t in st.trials]
+    assert states == ["COMPLETE", "COMPLETE", "COMPLETE", "PRUNED"], states
+    assert stopped_at == {3: 128}  # the second validation (the warm-up: 2 × 64 steps)
+    assert st.best_value == 0.0
 
 
 def test_tune_residual_space_starts_at_the_recipe_and_keeps_gamma_high(tmp_path):

@@ -22,7 +22,7 @@ def test_index_constants_match_field_order(model):
     assert "p[0]" not in source and "p[1]" not in source  # no positional parameter access left
 
 
-def test_kernel_cache_key_covers_only_the_models_own_files():
+def test_kernel_cache_key_covers_only_the_models_own_files(tmp_path, monkeypatch):
     """Editing one model must recompile only its kernel: the key hashes the shared stepping files and the model's
     own modules (followed through its imports inside the damper package), never another model's file."""
     files = {m: codegen.model_modules(damper_class(m)) for m in available_dampers()}
@@ -36,6 +36,18 @@ def test_kernel_cache_key_covers_only_the_models_own_files():
         others = {inspect.getsourcefile(damper_class(o)) for o in available_dampers() if o != m}
         foreign = {f for f in fs & others if f"from .{f.rsplit('/', 1)[-1][:-3]} import" not in text}
         assert own in fs and not foreign, (m, foreign)
-    # and the key changes with the model's own file, not with another's
-    _, key = codegen.kernel_source(damper_class("bingham"))
-    assert key == codegen.kernel_source(damper_class("bingham"))[1]
+    # and the key changes with the model's own file, not with another's: each read from an editable copy
+    real = codegen.model_modules
+    copies = {}
+    for m in ("bingham", "dahl"):
+        own = inspect.getsourcefile(damper_class(m))
+        copies[own] = tmp_path / f"{m}.py"
+        copies[own].write_text(open(own, encoding="utf-8").read(), encoding="utf-8")
+    monkeypatch.setattr(codegen, "model_modules", lambda cls: {str(copies.get(f, f)) for f in real(cls)})
+    bingham = damper_class("bingham")
+    key = codegen.kernel_source(bingham)[1]
+    assert codegen.kernel_source(bingham)[1] == key
+    (tmp_path / "dahl.py").write_text((tmp_path / "dahl.py").read_text() + "\n# edited\n")
+    assert codegen.kernel_source(bingham)[1] == key
+    (tmp_path / "bingham.py").write_text((tmp_path / "bingham.py").read_text() + "\n# edited\n")
+    assert codegen.kernel_source(bingham)[1] != key

@@ -130,7 +130,9 @@ def _returns(plant: str, scenario, control_dt: float = 0.01) -> dict[str, list]:
     for name in laws:
         try:
             eps = evaluate_batch(lambda v, n=name: make_controller(n, v), scenario, "", control_dt=control_dt)
-        except ValueError:  # a law for the other plant (needs roles this plant does not declare)
+        except ValueError as exc:  # a law for the other plant (needs roles or sensors this plant lacks)
+            if "needs" not in str(exc):
+                raise
             continue
         out[name] = eps
     return out

@@ -87,8 +87,14 @@ def test_termination_in_one_env_does_not_stop_the_others():
         if term[0]:
             ended_at = k
             assert info["termination_reason"][0] == "stroke_limit" and r[0] < -10 * 0.5  # 10 per planned second
+            assert info["_termination_reason"].tolist() == [True, False]
             break
-    assert ended_at is not None
+    assert ended_at is not None and ended_at < 499
+    assert not term[1] and not trunc[1]  # env 1 (the stiff damper) runs on
+    t1 = info["t"][1]
+    _, _, term, trunc, info = venv.step(np.array([[0.0], [2.25]]))  # env 0 restarts (next-step autoreset)
+    assert info["t"][0] == 0.0 and info["t"][1] == pytest.approx(t1 + venv.control_dt)
+    assert not term[1] and not trunc[1]
 
 
 def test_sb3_bridge_follows_sb3_conventions_and_trains():

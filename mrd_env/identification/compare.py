@@ -28,7 +28,8 @@ from ..records import DamperRecord
 from .fit import fit_model
 from .neural import NAME as NEURAL
 from .options import DataOptions, SearchOptions, as_options
-from .prepare import PreparedRecord, as_records, uniform_record
+from .faults import find_faults
+from .prepare import PreparedRecord, as_records, excluded, uniform_record
 from .presets import save_preset
 from .result import FitResult, record_measures, pooled_measures
 from .simulate import predict
@@ -90,9 +91,15 @@ class ComparisonResult:
         raise KeyError(name)
 
 
-def split_records(records, fit_fraction: float, dt: float | None = None
+#: Fewest held-back samples an error measure is computed on.
+MIN_HELD_BACK = 3
+
+
+def split_records(records, fit_fraction: float, dt: float | None = None, faults: str = "keep"
                   ) -> tuple[list[DamperRecord], list[DamperRecord], list[int]]:
-    """(uniform whole records, their fit parts, index of the first held-back sample of each)."""
+    """(uniform whole records, their fit parts, index of the first held-back sample of each). With ``faults``
+    "exclude", a held-back part left with too few samples once its faults are excluded is refused here, before
+    any fit, naming the fit fraction."""
     whole = [uniform_record(r, dt) for r in as_records(records)]
     f = float(fit_fraction)
     if not (0.0 < f < 1.0):
@@ -102,6 +109,13 @@ def split_records(records, fit_fraction: float, dt: float | None = None
         part, _ = r.split(f)
         fits.append(part)
         idx.append(part.n)
+        kept = r.n - part.n
+        if faults == "exclude":
+            kept -= int(excluded(r.t, find_faults(r))[part.n:].sum())
+        if kept < MIN_HELD_BACK:
+            raise ValueError(f"fit_fraction = {shown(fit_fraction)} leaves {kept} sample(s) of {r.label!r} to "
+                             f"validate on{' once its faults are excluded' if faults == 'exclude' else ''} (at "
+                             f"least {MIN_HELD_BACK} are needed): lower it, or validate on other records")
     return whole, fits, idx
 
 
@@ -162,7 +176,7 @@ def compare_models(records, models: Sequence[str | DamperModel] | None = None, *
     search = as_options(SearchOptions, search, "search")
     data = as_options(DataOptions, data, "data")
     if validation_records is None:
-        whole, fits, idx = split_records(records, fit_fraction, data.dt)
+        whole, fits, idx = split_records(records, fit_fraction, data.dt, data.faults)
     else:
         fits = [uniform_record(r, data.dt) for r in as_records(records)]
         whole = [uniform_record(r, data.dt) for r in as_records(validation_records)]

@@ -133,9 +133,7 @@ def prepare_record(record: DamperRecord, command: CommandSpec, *, dt: float | No
     force, partner = shift_channel(np.array(r.force), offset)
     mask &= partner
     if found:
-        bad = np.zeros(r.n, dtype=bool)
-        for f in found:  # by time: the uniform grid may differ from the file's
-            bad |= (r.t >= f.start - FAULT_MARGIN) & (r.t <= f.end + FAULT_MARGIN)
+        bad = excluded(r.t, found)
         mask &= ~bad
         warnings.warn(describe_faults(record.label, found, int(bad.sum()), r.n), FaultsExcluded, stacklevel=3)
     if np.count_nonzero(mask) < 3:
@@ -146,6 +144,15 @@ def prepare_record(record: DamperRecord, command: CommandSpec, *, dt: float | No
                          f"after {' and '.join(causes) or 'preparation'}")
     series = DamperRecord(r.t, r.x, cmd, force, v, r.command_unit, r.label)
     return PreparedRecord(series, dt_r, a, mask, n_out if command_range == "clip" else 0, found, int(offset))
+
+
+def excluded(t: np.ndarray, found) -> np.ndarray:
+    """The samples at times ``t`` that the faults ``found`` leave out of a fit and its measures (by time, with
+    :data:`FAULT_MARGIN` on both sides: the uniform grid may differ from the file's)."""
+    bad = np.zeros(t.size, dtype=bool)
+    for f in found:
+        bad |= (t >= f.start - FAULT_MARGIN) & (t <= f.end + FAULT_MARGIN)
+    return bad
 
 
 def shift_channel(a: np.ndarray, offset: int) -> tuple[np.ndarray, np.ndarray]:
