@@ -120,3 +120,27 @@ def test_cached_yardsticks_are_keyed_by_the_agents_content_not_their_folder_name
     assert agent_digest(a) != agent_digest(b)
     (c / "agent.json").write_text((c / "agent.json").read_text().replace('"seed": 0', '"seed": 7'))
     assert agent_digest(c) != agent_digest(a)
+
+
+def test_report_writes_the_yardstick_and_shares_tables_and_figure(tmp_path):
+    """What `mrd-env yardstick` and `evaluate --yardstick` write: the references per episode, the shares per scenario
+    and controller (the share computed from the returns), the figure, and a note for episodes without a yardstick."""
+    import csv
+
+    from experiments.yardstick import write_report
+
+    ys = [EpisodeYardstick(f"ISO-C s{i}", i, -10.0, 2.0, -6.0, "optimiser", 1.0, bound=-4.0, f_max=3000.0,
+                           bound_seconds=0.5) for i in (1, 2)]
+    res = {"sky": [_ep("sky", "ISO-C s1", -9.0), _ep("sky", "ISO-C s2", -8.0), _ep("sky", "bump", -1.0)],
+           "agent": [_ep("agent", "ISO-C s1", -7.0), _ep("agent", "ISO-C s2", -7.0)]}
+    text = write_report("quarter_car", res, ys, tmp_path, n_eps=3)
+    refs = list(csv.DictReader((tmp_path / "quarter_car_yardstick.csv").open()))
+    assert [r["episode"] for r in refs] == ["ISO-C s1", "ISO-C s2"]
+    assert float(refs[0]["clairvoyant return"]) == -6.0 and float(refs[0]["active bound"]) == -4.0
+    assert float(refs[0]["bracket (share of bound − passive)"]) == pytest.approx(2.0 / 6.0)
+    shares = {(r["scenario"], r["controller"]): r for r in csv.DictReader((tmp_path / "quarter_car_shares.csv").open())}
+    assert float(shares["ISO-C", "sky"]["share of achievable gain"]) == pytest.approx(0.375)
+    assert float(shares["ISO-C", "agent"]["share of achievable gain"]) == pytest.approx(0.75)
+    assert shares["all test scenarios", "sky"]["episodes"] == "2"   # the bump has no yardstick: not scored
+    assert (tmp_path / "quarter_car_shares.png").stat().st_size > 10_000
+    assert "(1 of 3 episodes without a yardstick)" in text and "share of the achievable gain" in text
