@@ -253,7 +253,7 @@ def run(args: argparse.Namespace) -> int:
         by_controller: dict[str, list[Episode]] = {}
         for e in eps:
             by_controller.setdefault(e.controller, []).append(e)
-        text = yardstick.report(plant, by_controller, scen, args.out, args.yardstick,
+        text = yardstick.report(plant, by_controller, scen, args.out, args.yardstick, damper=args.damper,
                                 progress=not args.no_progress, **executor)
         if text:
             print(text)

@@ -21,7 +21,7 @@ import numpy as np
 from mrd_env.report import write_table
 
 from . import sweep, yardstick
-from .evaluation import Episode, check_laws, controller_episodes, grouped_bars, mean_ci
+from .evaluation import Episode, check_laws, controller_episodes, episode_means, grouped_bars, mean_ci
 from .plants import PLANTS, chosen_plants, plant_choices, profile
 from .scenarios import base_scenario, held_out_scenarios, preview_options
 
@@ -48,27 +48,12 @@ def evaluate(plant: str, agents=(), laws=None, *, seeds: int = 3, control_dt: fl
     obs_kw = dict(loaded[0].observation_kwargs) if loaded else {}
     if control_dt is not None:
         obs_kw["control_dt"] = float(control_dt)
-    # the damper: the one asked for, else the one the agents were trained with (a fitted preset file, say)
-    trained_on = {str(a.env_kwargs.get("damper")) for a in loaded if a.env_kwargs.get("damper") is not None}
-    if damper is None and trained_on:
-        if len(trained_on) > 1:
-            raise ValueError(f"the agents were trained on different dampers {sorted(trained_on)}: choose one with "
-                             "--damper")
-        damper = trained_on.pop()
+    damper = comparison_damper(damper, [a.env_kwargs for a in loaded])
     extra = {} if damper is None else {"damper": damper}
     # the laws keep their own memory (filters, observers): the same sensors, without the agent's stacked history
     law_kw = {**{k: v for k, v in obs_kw.items() if k != "action_mode"}, "history": 1, **extra}
-    dt = law_kw.get("control_dt", 1e-3)
-    laws = LAWS[plant] if laws is None else laws
     rows = [(f"agent {a.name.split(' s')[0]}", Path(a.folder), dict(extra)) for a in loaded]
-    rows += [(f"{name} @ {dt * 1e3:g} ms", name, law_kw) for name in laws]
-    if laws_at_1ms and abs(dt - 1e-3) > 1e-12:
-        rows += [(f"{name} @ 1 ms", name, {**law_kw, "control_dt": 1e-3}) for name in laws]
-    if mpc:
-        for label, step, options, preview in MPC[plant]:
-            kw = {**law_kw, "control_dt": dt if step is None else step}
-            rows.append((f"{label} @ {kw['control_dt'] * 1e3:g} ms", ("mpc", options),
-                         preview_options(plant, kw) if preview else kw))
+    rows += law_rows(plant, LAWS[plant] if laws is None else laws, law_kw, laws_at_1ms=laws_at_1ms, mpc=mpc)
     scenarios = held_out_scenarios(plant, seeds=seeds, quick=quick)
     tasks = [Task(controller_episodes, (ctrl, sc, profile(plant).response(sc.options)), kw,
                   label=f"{sc.name} / {label}")
@@ -82,9 +67,46 @@ def evaluate(plant: str, agents=(), laws=None, *, seeds: int = 3, control_dt: fl
     return dict(out)
 
 
+def comparison_damper(damper: str | None, agents_env_kwargs) -> str | None:
+    """The damper of every row: the one asked for, else the one the agents were trained with (a fitted preset
+    file, say), else None (the plant's own)."""
+    trained_on = {str(kw.get("damper")) for kw in agents_env_kwargs if kw.get("damper") is not None}
+    if damper is None and trained_on:
+        if len(trained_on) > 1:
+            raise ValueError(f"the agents were trained on different dampers {sorted(trained_on)}: choose one with "
+                             "--damper")
+        damper = trained_on.pop()
+    return damper
+
+
+def law_rows(plant: str, laws, law_kw: dict, *, laws_at_1ms: bool = True, mpc: bool = True) -> list[tuple]:
+    """(row label, controller, environment options) of the laws at the comparison's step (``law_kw``'s
+    control_dt) and at 1 ms, and of the plant's MPC rows; ``ValueError`` if two rows would share a label (their
+    episodes would be pooled as one controller's)."""
+    dt = law_kw.get("control_dt", 1e-3)
+    rows = [(f"{name} @ {dt * 1e3:g} ms", name, law_kw) for name in laws]
+    if laws_at_1ms and abs(dt - 1e-3) > 1e-12:
+        rows += [(f"{name} @ 1 ms", name, {**law_kw, "control_dt": 1e-3}) for name in laws]
+    if mpc:
+        for label, step, options, preview in MPC[plant]:
+            if step is None and any(other == label and s is not None and abs(s - dt) < 1e-12
+                                    for other, s, _, _ in MPC[plant]):
+                continue  # the row tuned for this very step stands for it (e.g. MPC+preview at 1 ms)
+            kw = {**law_kw, "control_dt": dt if step is None else step}
+            rows.append((f"{label} @ {kw['control_dt'] * 1e3:g} ms", ("mpc", options),
+                         preview_options(plant, kw) if preview else kw))
+    labels = [label for label, _, _ in rows]
+    twice = sorted({label for label in labels if labels.count(label) > 1})
+    if twice:
+        raise ValueError(f"--laws: the rows {twice} would each be evaluated twice (a law given twice, or one the MPC "
+                         "rows hold: add --no-mpc)")
+    return rows
+
+
 def summarise(plant: str, results: dict[str, list[Episode]]) -> list[dict]:
-    """Rows: per scenario and controller, mean and 95 % interval of the return and the metrics; then the
-    mean over the test scenarios (``all test scenarios``)."""
+    """Rows: per scenario and controller, mean and 95 % interval over the episodes of the return and the mean of
+    the metrics (an agent trained on several seeds with its seeds' mean on each episode); then the mean over the
+    test scenarios (``all test scenarios``)."""
     rows = []
     scen = list(dict.fromkeys(base_scenario(e.scenario) for eps in results.values() for e in eps))
     for s in scen + ["all test scenarios"]:
@@ -92,11 +114,12 @@ def summarise(plant: str, results: dict[str, list[Episode]]) -> list[dict]:
             mine = [e for e in eps if s == "all test scenarios" or base_scenario(e.scenario) == s]
             if not mine:
                 continue
-            m, lo, hi = mean_ci([e.episode_return for e in mine], upper=0.0)
-            row = {"scenario": s, "controller": ctrl, "episodes": len(mine), "return": m, "return_lo95": lo,
+            returns = list(episode_means(mine).values())
+            m, lo, hi = mean_ci(returns, upper=0.0)
+            row = {"scenario": s, "controller": ctrl, "episodes": len(returns), "return": m, "return_lo95": lo,
                    "return_hi95": hi}
             for k in METRICS[plant]:
-                row[k] = mean_ci([e.metrics.get(k, np.nan) for e in mine])[0]
+                row[k] = float(np.mean(list(episode_means(mine, lambda e, k=k: e.metrics.get(k, np.nan)).values())))
             row["terminated"] = sum(1 for e in mine if "terminated" in e.metrics)
             rows.append(row)
     return rows
@@ -107,22 +130,16 @@ def paired(results: dict[str, list[Episode]]) -> list[dict]:
     control step, episode by episode — the same roads or ground motions, so their variation cancels: the mean
     difference of return (positive: the agent is better) and its 95 % interval, per scenario and over all. An
     agent trained on several seeds counts with its mean over the seeds on each episode."""
-    def per_episode(ctrl: str) -> dict[str, float]:
-        by_label = defaultdict(list)
-        for e in results[ctrl]:
-            by_label[e.scenario].append(e.episode_return)
-        return {k: float(np.mean(v)) for k, v in by_label.items()}
-
     agents = [c for c in results if c.startswith("agent ")]
     # the best law on equal information: random commands and the preview rows (which see the road ahead) excluded
     laws = [c for c in results if not c.startswith(("agent ", "random ")) and "preview" not in c]
     rows = []
     for a in agents:
-        mine = per_episode(a)
+        mine = episode_means(results[a])
         for rate in dict.fromkeys(c.split(" @ ")[-1] for c in laws):
             at_rate = [c for c in laws if c.endswith(f"@ {rate}")]
             best = max(at_rate, key=lambda c: np.mean([e.episode_return for e in results[c]]))
-            law = per_episode(best)
+            law = episode_means(results[best])
             labels = [k for k in mine if k in law]
             scen = list(dict.fromkeys(base_scenario(k) for k in labels))
             for s in scen + ["all test scenarios"]:
@@ -206,8 +223,9 @@ def run(args: argparse.Namespace) -> int:
                                 title=f"{p}: agent minus the best law at each control step, on the same episodes "
                                       "(mean, 95 % interval; positive: the agent is better)")
             print(md.read_text())
+        damper = comparison_damper(args.damper, [agent_files(a)[1].get("env_kwargs") or {} for a in chosen[p]])
         text = yardstick.report(p, res, held_out_scenarios(p, seeds=args.seeds, quick=args.quick), args.out,
-                                args.yardstick, progress=not args.no_progress, **executor)
+                                args.yardstick, damper=damper, progress=not args.no_progress, **executor)
         if text:
             print(text)
     return 0

@@ -135,7 +135,8 @@ def evaluate_batch(make, scenario: Scenario, response: str, name: str | None = N
 
 def controller_episodes(controller, scenario: Scenario, response: str = "", **env_options) -> list[Episode]:
     """One episode per seed of ``scenario`` for ``controller``: a law's name (``controllers.CONTROLLERS``) or a
-    pair (name, options), an agent folder (a ``pathlib.Path``; evaluated with the observation options it was trained with), or
+    pair (name, options), an agent folder (a ``pathlib.Path``; evaluated with the observation options it was trained
+    with, on the ``damper`` of ``env_options`` where one is given, as every other row), or
     ``"passive_ref"`` (the conventional passive car: the MR damper replaced by the set's dashpot). A plain
     function of picklable inputs, so that sweeps run it on any backend (:mod:`mrd_env.executor`)."""
     import mrd_env  # noqa: F401  (registers the environments, also in a fresh worker)
@@ -145,8 +146,10 @@ def controller_episodes(controller, scenario: Scenario, response: str = "", **en
 
     if isinstance(controller, Path):
         agent = load_agent(controller)
-        return evaluate_batch(lambda v: agent.bind(v), scenario, response, name=agent.name,
-                              **{**env_options, **agent.observation_kwargs})
+        options = {**env_options, **agent.observation_kwargs}
+        if "damper" in env_options:  # the comparison's damper for every row (the agent keeps its own sensors)
+            options["damper"] = env_options["damper"]
+        return evaluate_batch(lambda v: agent.bind(v), scenario, response, name=agent.name, **options)
     if controller == "passive_ref":
         from mrd_env.plants import quarter_car
 
@@ -183,6 +186,15 @@ def check_laws(option: str, names, plants) -> None:
                     raise ValueError(f"{option}: {name} does not apply to the {plant}: {exc}") from None
         finally:
             env.close()
+
+
+def episode_means(eps: list[Episode], value=lambda e: e.episode_return) -> dict[str, float]:
+    """{episode label: the mean of ``value`` over the runs of that episode}: an agent trained on several seeds
+    counts once per episode, with its seeds' mean (its seeds are not independent draws of the episode)."""
+    by_label: dict[str, list[float]] = {}
+    for e in eps:
+        by_label.setdefault(e.scenario, []).append(float(value(e)))
+    return {k: float(np.mean(v)) for k, v in by_label.items()}
 
 
 def mean_ci(values, confidence: float = 0.95, upper: float = math.inf) -> tuple[float, float, float]:

@@ -18,6 +18,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+import numpy as np
+
 from . import sweep
 from .plants import plant_choices, profile
 from .train import ALGOS, env_options, hyperparameters
@@ -168,9 +170,19 @@ def _storage(path: Path):
     return optuna.storages.JournalStorage(JournalFileBackend(str(path)))
 
 
+def sampler_seed(seed: int, worker_index: int, earlier_trials: int) -> int:
+    """The TPE sampler's seed of a worker: ``seed`` + its index in a new study; in a resumed one a seed of its own
+    (the same seed would propose the first run's trials again, and train them with the same seed)."""
+    if earlier_trials == 0:
+        return seed + worker_index
+    return int(np.random.SeedSequence([seed, worker_index, earlier_trials]).generate_state(1)[0])
+
+
 def worker(plant: str, algo: str, study: str, out: Path, n_trials: int, timesteps: int, eval_freq: int,
-           eval_episodes: int, seed: int, hyperparams: Path | None = None, space: str = "zoo") -> int:
-    """Add ``n_trials`` trials to the study (one worker; several run side by side on one journal)."""
+           eval_episodes: int, seed: int, hyperparams: Path | None = None, space: str = "zoo",
+           tpe_seed: int | None = None) -> int:
+    """Add ``n_trials`` trials to the study (one worker; several run side by side on one journal); the trials train
+    with ``seed``, the sampler draws with ``tpe_seed`` (default ``seed``)."""
     import optuna
 
     from .train import train_one
@@ -178,7 +190,8 @@ def worker(plant: str, algo: str, study: str, out: Path, n_trials: int, timestep
     env_id = profile(plant).env_id
     base = hyperparameters(algo, env_id, hyperparams)
     st = optuna.load_study(study_name=study, storage=_storage(out / f"{study}.log"),
-                           sampler=optuna.samplers.TPESampler(seed=seed), pruner=pruner(eval_freq))
+                           sampler=optuna.samplers.TPESampler(seed=seed if tpe_seed is None else tpe_seed),
+                           pruner=pruner(eval_freq))
 
     def objective(trial):
         h = sample(trial, algo, base, space)
@@ -214,12 +227,13 @@ def tune(plant: str, algo: str, *, trials: int, timesteps: int, out: Path, study
     out.mkdir(parents=True, exist_ok=True)
     st = optuna.create_study(study_name=study, storage=_storage(out / f"{study}.log"), direction="maximize",
                              pruner=pruner(eval_freq), load_if_exists=True)
-    if space == "residual" and not st.trials:
+    earlier = len(st.trials)
+    if space == "residual" and not earlier:
         st.enqueue_trial(base_params(hyperparameters(algo, profile(plant).env_id, hyperparams), algo))
     workers = 1 if resolve_backend(backend, trials, jobs) == "serial" else min(trials, jobs or default_jobs())
     split = [trials // workers + (1 if i < trials % workers else 0) for i in range(workers)]
     tasks = [Task(worker, (plant, algo, study, out, n, timesteps, eval_freq, eval_episodes, seed + i, hyperparams,
-                           space),
+                           space, sampler_seed(seed, i, earlier)),
                   label=f"tune worker {i}") for i, n in enumerate(split)]
     run_tasks(tasks, backend=backend, jobs=jobs, address=address, progress=progress, desc=f"tune {study}")
     return st
@@ -247,7 +261,8 @@ def report_study(st, algo: str, env_id: str, out: Path, hyperparams: Path | None
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--plant", choices=plant_choices(), default="quarter_car")
     p.add_argument("--algo", choices=sorted(ALGOS), default="ppo")
-    p.add_argument("--trials", type=int, default=20, help="trials in all (default 20)")
+    p.add_argument("--trials", type=int, default=20,
+                   help="trials to run, over all workers, added to the study's earlier ones (default 20)")
     p.add_argument("--timesteps", type=int, default=300_000, help="environment steps per trial")
     p.add_argument("--eval-freq", type=int, default=50_000, help="validation (and pruning) every so many steps")
     p.add_argument("--eval-episodes", type=int, default=4)

@@ -23,12 +23,12 @@ from __future__ import annotations
 import argparse
 import math
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
-from .evaluation import Episode, grouped_bars, mean_ci
+from .evaluation import Episode, episode_means, grouped_bars, mean_ci
 from .plants import PLANTS, profile
 from .scenarios import Scenario, base_scenario
 
@@ -188,15 +188,16 @@ def yardstick_rows(ys: list[EpisodeYardstick]) -> list[dict]:
 
 def share_rows(results: dict[str, list[Episode]], ys: list[EpisodeYardstick], scenario_of) -> list[dict]:
     """Per scenario (and over all), per controller: the mean share of the achievable gain and its 95 % interval
-    over the episodes (an interval only where there are at least two episodes). ``scenario_of(label)`` maps an
-    episode label to its scenario."""
+    over the episodes (an interval only where there are at least two episodes; an agent trained on several seeds
+    with its seeds' mean share on each episode). ``scenario_of(label)`` maps an episode label to its scenario."""
     by_label = {y.label: y for y in ys}
     rows = []
     scen = list(dict.fromkeys(scenario_of(y.label) for y in ys))
     for s in scen + ["all test scenarios"]:
         for ctrl, eps in results.items():
-            shares = [by_label[e.scenario].share(e.episode_return) for e in eps
+            scored = [e for e in eps
                       if e.scenario in by_label and (s == "all test scenarios" or scenario_of(e.scenario) == s)]
+            shares = list(episode_means(scored, lambda e: by_label[e.scenario].share(e.episode_return)).values())
             if not shares:
                 continue
             m, lo, hi = mean_ci(shares)
@@ -215,18 +216,36 @@ def plot_shares(plant: str, rows: list[dict], path: Path) -> Path:
                               "R_best passive); 0: best constant command, dashed 1: clairvoyant optimum")
 
 
+def on_damper(plant: str, scenarios: list[Scenario], damper: str | None) -> list[Scenario]:
+    """``scenarios`` on ``damper`` (a model's name or a preset file), so that their yardsticks are of the plant the
+    controllers were scored on; unchanged where it is the plant's own damper (whose cached yardsticks keep their
+    keys)."""
+    if damper is None:
+        return scenarios
+    import gymnasium as gym
+
+    import mrd_env  # noqa: F401
+
+    p = profile(plant)
+    own, asked = (gym.make(p.env_id, **p.options, **kw).unwrapped.damper for kw in ({}, {"damper": damper}))
+    if type(own) is type(asked) and vars(own.params) == vars(asked.params) and vars(own.command) == vars(asked.command):
+        return scenarios
+    return [replace(sc, options={**sc.options, "damper": damper}) for sc in scenarios]
+
+
 def report(plant: str, results: dict[str, list[Episode]], scenarios: list[Scenario], out: Path, mode: str,
-           *, progress: bool = True, **executor) -> str:
-    """Score ``results`` ({controller: episodes}) against the yardstick of their episodes and write
-    ``<plant>_yardstick.md/.csv`` (the references per episode), ``<plant>_shares.md/.csv`` and
-    ``<plant>_shares.png``. ``mode``: "auto" (cached yardsticks only), "solve" (solve the missing ones) or
-    "off". Returns the text to print."""
+           *, damper: str | None = None, progress: bool = True, **executor) -> str:
+    """Score ``results`` ({controller: episodes}, run on ``damper``: None for the plant's own) against the
+    yardstick of their episodes on the same damper and write ``<plant>_yardstick.md/.csv`` (the references per
+    episode), ``<plant>_shares.md/.csv`` and ``<plant>_shares.png``. ``mode``: "auto" (cached yardsticks only),
+    "solve" (solve the missing ones) or "off". Returns the text to print."""
     from controllers import shipped_agents
 
     if mode == "off":
         return ""
     if not profile(plant).warm_laws:
         return f"{plant}: no yardstick ({profile(plant).no_yardstick})"
+    scenarios = on_damper(plant, scenarios, damper)
     ys = yardsticks(plant, scenarios, agents=shipped_agents(plant), solve=mode == "solve", progress=progress,
                     **executor)
     n_eps = sum(len(sc.seeds) for sc in scenarios)

@@ -183,6 +183,29 @@ def test_paired_comparison_cancels_what_the_episodes_share():
     assert rows["agent X − law @ 1 ms", "S"]["difference"] == pytest.approx(-0.1)
 
 
+def test_an_agents_seeds_count_once_per_episode_in_the_summary_and_the_shares():
+    """An agent trained on 3 seeds, on 3 test episodes: 3 episodes, not 9, in the summary and in the shares, and
+    the interval of its seeds' means per episode (its seeds are not independent draws of an episode)."""
+    from experiments.evaluate_cmd import summarise
+    from experiments.evaluation import Episode, mean_ci
+    from experiments.scenarios import base_scenario
+    from experiments.yardstick import EpisodeYardstick, share_rows
+
+    def ep(ctrl, label, r):
+        z = np.zeros(1)
+        return Episode(ctrl, label, {}, z, z, z, z, 0.0, episode_return=r)
+
+    base = {"S s1": -10.0, "S s2": -20.0, "S s3": -15.0}
+    res = {"agent X": [ep("agent X", k, v + d) for k, v in base.items() for d in (-0.01, 0.0, 0.01)]}
+    row = {r["scenario"]: r for r in summarise("quarter_car", res)}["S"]
+    m, lo, hi = mean_ci(list(base.values()), upper=0.0)
+    assert row["episodes"] == 3 and (row["return"], row["return_lo95"], row["return_hi95"]) == pytest.approx((m, lo, hi))
+    ys = [EpisodeYardstick(k, 0, v - 1.0, 2.0, v + 1.0, "optimiser", 1.0) for k, v in base.items()]
+    share = {r["scenario"]: r for r in share_rows(res, ys, base_scenario)}["S"]
+    assert share["episodes"] == 3 and share["share of achievable gain"] == pytest.approx(0.5)
+    assert share["share lo95"] == pytest.approx(0.5) == pytest.approx(share["share hi95"])
+
+
 def test_a_preview_agent_is_named_and_filed_apart_from_the_plain_one(es_runs, tmp_path):
     """--preview: its own run folder (a plain run in the same --out is not overwritten) and a name that says so in
     every table; loaded, it reads the road-preview sensor."""
@@ -192,3 +215,19 @@ def test_a_preview_agent_is_named_and_filed_apart_from_the_plain_one(es_runs, tm
     assert agent.name == "CMA-ES preview s0"
     assert load_agent(es_runs / "a" / "quarter_car_cmaes_s0").name == "CMA-ES s0"
     assert "road_preview" in agent.env_kwargs["sensors"]
+
+
+@pytest.mark.parametrize("dt", [1e-3, 1e-2])
+def test_every_evaluation_row_has_its_own_label(dt):
+    """At 1 ms the car's MPC+preview row tuned for 1 ms (100-step horizon) stands alone: the one tuned for the
+    comparison's step is not added under the same label (their episodes would be pooled as one controller's)."""
+    from experiments.evaluate_cmd import LAWS, law_rows
+
+    rows = law_rows("quarter_car", LAWS["quarter_car"], {"control_dt": dt})
+    labels = [label for label, _, _ in rows]
+    assert len(labels) == len(set(labels))
+    preview_1ms = [ctrl for label, ctrl, _ in rows if label == "mpc+preview (reward) @ 1 ms"]
+    assert len(preview_1ms) == 1 and preview_1ms[0][1]["horizon"] == 100
+    assert ("mpc+preview (reward) @ 10 ms" in labels) == (dt == 1e-2)
+    with pytest.raises(ValueError, match="would each be evaluated twice"):
+        law_rows("quarter_car", ["skyhook_continuous", "skyhook_continuous"], {"control_dt": dt})

@@ -119,6 +119,45 @@ def test_tune_runs_trials_and_writes_the_best_hyperparameters(tmp_path):
     assert len((tmp_path / "t" / "quarter_car_ppo_trials.csv").read_text().splitlines()) == 1 + 3
 
 
+def _fake_train_one(stopped_at: dict):
+    """A stand-in for ``train_one`` in a study: trial k scores -k at every validation (every 64 steps)."""
+    def train_one(plant, algo, seed, *, out, timesteps, report, **kw):
+        trial = int(Path(out).name.split("_")[1])
+        rows = ["timesteps,validation_return,validation_return_std"]
+        for step in range(64, timesteps + 1, 64):
+            rows.append(f"{step},{-float(trial)},0")
+            if not report(step, -float(trial)):
+                stopped_at[trial] = step
+                break
+        run = Path(out) / "run"
+        run.mkdir(parents=True)
+        (run / "validation.csv").write_text("\n".join(rows) + "\n")
+        return run
+    return train_one
+
+
+def test_a_resumed_study_draws_new_trials(tmp_path, monkeypatch):
+    """Rerunning `mrd-env tune` adds trials the first run did not propose (the same sampler seed would repeat
+    them), and a new study with the same seed proposes the same ones (reproducible)."""
+    pytest.importorskip("optuna")
+    import experiments.train as train_mod
+    from experiments.tune import tune
+
+    monkeypatch.setattr(train_mod, "train_one", _fake_train_one({}))
+
+    def params(st):
+        return [tuple(sorted(t.params.items())) for t in st.trials]
+
+    first = params(tune("quarter_car", "ppo", trials=3, timesteps=64, eval_freq=64, out=tmp_path / "a",
+                        backend="serial", progress=False))
+    both = params(tune("quarter_car", "ppo", trials=3, timesteps=64, eval_freq=64, out=tmp_path / "a",
+                       backend="serial", progress=False))
+    assert both[:3] == first and not set(both[3:]) & set(first)
+    again = params(tune("quarter_car", "ppo", trials=3, timesteps=64, eval_freq=64, out=tmp_path / "b",
+                        backend="serial", progress=False))
+    assert again == first
+
+
 def test_tune_prunes_a_trial_below_the_median_after_the_warm_up(tmp_path, monkeypatch):
     """The study's median pruner, in the worker that runs the trials, stops the fourth trial where its validation
     falls below the earlier trials' median, from the second validation on; the training is told through
@@ -128,21 +167,7 @@ def test_tune_prunes_a_trial_below_the_median_after_the_warm_up(tmp_path, monkey
     from experiments.tune import tune
 
     stopped_at = {}
-
-    def fake_train_one(plant, algo, seed, *, out, timesteps, report, **kw):
-        trial = int(Path(out).name.split("_")[1])
-        rows = ["timesteps,validation_return,validation_return_std"]
-        for step in range(64, timesteps + 1, 64):  # trial k scores -k at every validation
-            rows.append(f"{step},{-float(trial)},0")
-            if not report(step, -float(trial)):
-                stopped_at[trial] = step
-                break
-        run = Path(out) / "run"
-        run.mkdir(parents=True)
-        (run / "validation.csv").write_text("\n".join(rows) + "\n")
-        return run
-
-    monkeypatch.setattr(train_mod, "train_one", fake_train_one)
+    monkeypatch.setattr(train_mod, "train_one", _fake_train_one(stopped_at))
     st = tune("quarter_car", "ppo", trials=4, timesteps=320, eval_freq=64, out=tmp_path, backend="serial",
               progress=False)
     states = [t.state.name for t in st.trials]

@@ -144,3 +144,19 @@ def test_report_writes_the_yardstick_and_shares_tables_and_figure(tmp_path):
     assert shares["all test scenarios", "sky"]["episodes"] == "2"   # the bump has no yardstick: not scored
     assert (tmp_path / "quarter_car_shares.png").stat().st_size > 10_000
     assert "(1 of 3 episodes without a yardstick)" in text and "share of the achievable gain" in text
+
+
+def test_the_yardstick_is_of_the_damper_the_controllers_ran_on():
+    """Another damper's returns are scored against yardsticks solved on that damper (their own cache keys); the
+    plant's own damper, named or not, keeps the scenarios (and the cached yardsticks) as they are."""
+    from experiments.scenarios import held_out_scenarios
+    from experiments.yardstick import on_damper
+    from mrd_env.optimal import episode_problem
+
+    scen = held_out_scenarios("quarter_car", quick=True)[:1]
+    assert on_damper("quarter_car", scen, None) is scen and on_damper("quarter_car", scen, "spencer_dyke") is scen
+    other = on_damper("quarter_car", scen, "bingham")
+    assert other[0].options == {**scen[0].options, "damper": "bingham"} and other[0].seeds == scen[0].seeds
+    keys = [episode_problem(sc.env_id, seed=sc.seeds[0], **{**sc.options, "episode_seconds": 0.05}).key()
+            for sc in (scen[0], other[0])]
+    assert keys[0]["damper"] == "spencer_dyke" and keys[1]["damper"] == "bingham"
