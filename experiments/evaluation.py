@@ -177,15 +177,22 @@ def check_laws(option: str, names, plants) -> None:
         raise ValueError(f"{option}: unknown controller(s) {unknown}; available: {available_controllers()}")
     for plant in plants:
         p = profile(plant)
-        env = gym.make(p.env_id, **p.options)
-        try:
-            for name in names:
-                try:
-                    make_controller(name, env)
-                except ValueError as exc:
-                    raise ValueError(f"{option}: {name} does not apply to the {plant}: {exc}") from None
-        finally:
-            env.close()
+        laws_apply(p.env_id, p.options, [(option, name) for name in names], f"the {plant}",
+                   lambda env, name: make_controller(name, env), sep=": ")
+
+
+def laws_apply(env_id: str, env_kwargs: dict, laws, where: str, build, sep: str = " ") -> None:
+    """Each law of ``laws`` ((option, law name) pairs) builds on the environment (``build(env, name)``: it finds
+    the sensors and roles it reads), else ``ValueError`` "<option><sep><name> does not apply to <where>: ..."."""
+    env = gym.make(env_id, **env_kwargs)
+    try:
+        for option, name in laws:
+            try:
+                build(env, name)
+            except ValueError as exc:
+                raise ValueError(f"{option}{sep}{name} does not apply to {where}: {exc}") from None
+    finally:
+        env.close()
 
 
 def episode_means(eps: list[Episode], value=lambda e: e.episode_return) -> dict[str, float]:

@@ -72,7 +72,7 @@ def check_laws(hyper: dict, env_id: str, env_kwargs: dict) -> None:
     from controllers import available_controllers
     from controllers.residual import Residual
 
-    import gymnasium as gym
+    from .evaluation import laws_apply
 
     laws = [("residual", (residual_spec(hyper.get("residual")) or {}).get("law")),
             ("paired_baseline", hyper.get("paired_baseline"))]
@@ -82,15 +82,7 @@ def check_laws(hyper: dict, env_id: str, env_kwargs: dict) -> None:
     for key, law in laws:
         if law not in available_controllers():
             raise ValueError(f"{key} must be one of {available_controllers()}, got {law!r}")
-    env = gym.make(env_id, **env_kwargs)
-    try:
-        for key, law in laws:
-            try:
-                Residual(env, law)
-            except ValueError as exc:
-                raise ValueError(f"{key} {law!r} does not apply to {env_id}: {exc}") from None
-    finally:
-        env.close()
+    laws_apply(env_id, env_kwargs, laws, env_id, Residual)
 
 
 def check_with_sb3(algo: str, hyper: dict, env_id: str, env_kwargs: dict) -> None:
