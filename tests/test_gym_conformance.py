@@ -166,6 +166,30 @@ def test_vector_env_equals_sync_vector_env(env_id, mode):
     assert "stroke_limit" in reasons
 
 
+def _sprung_energy(period):
+    return -float(np.sum(period["sprung_acc"] ** 2))
+
+
+@pytest.mark.parametrize("mode", MODES, ids=[m.value for m in MODES])
+def test_vector_env_pays_a_callable_reward_as_sync_vector_env(mode):
+    """A reward given as a Python function of the period's signals: the native vector env pays it, as the scalar
+    environments under SyncVectorEnv do (it paid the compiled part only, zero here)."""
+    native, sync = _pair("mrd_env/QuarterCar-v0", mode, reward=_sprung_energy)
+    assert data_equivalence(native.reset(seed=0), sync.reset(seed=0), exact=True)
+    native.action_space.seed(0)
+    paid = []
+    for _ in range(25):
+        actions = native.action_space.sample()
+        out_n, out_s = native.step(actions), sync.step(actions)
+        assert data_equivalence(out_n, out_s, exact=True), (out_n[1], out_s[1])
+        paid.append(out_n[1])
+        ended = out_n[2] | out_n[3]
+        if mode == AutoresetMode.DISABLED and ended.any():
+            mask = {"reset_mask": ended}
+            assert data_equivalence(native.reset(options=dict(mask)), sync.reset(options=dict(mask)), exact=True)
+    assert np.min(paid) < 0.0
+
+
 @pytest.mark.parametrize("env_id", IDS)
 def test_reset_info_names_the_disturbance(env_id):
     venv = gym.make_vec(env_id, num_envs=2, **SHORT)

@@ -10,6 +10,7 @@ dampers or predicts the forces of all candidate commands without returning to Py
 from __future__ import annotations
 
 import hashlib
+import math
 from pathlib import Path
 
 import numpy as np
@@ -17,7 +18,7 @@ import numpy as np
 from ..stepping.codegen import kernel_module, load_generated_module, render
 from ..stepping.layout import DamperArrays, PlantArrays, StepControl, SystemState
 from ..stepping.matrices import SystemMatrices
-from ..stepping.scheme import ATOL, RTOL, max_level_of
+from ..stepping.scheme import ATOL, MAX_SUBSTEPS, RTOL, max_level_of
 from ..stepping.stepper import diverged_error
 from ..validation import check_scalar
 from .base import Inverse, writable_c
@@ -47,7 +48,7 @@ class OneStep:
     ``W`` (N, 3) = (x, ẋ, ẍ) in SI units.
     """
 
-    def __init__(self, damper, N: int, dt: float, *, max_substeps: int = 8, rtol: float = RTOL,
+    def __init__(self, damper, N: int, dt: float, *, max_substeps: int = MAX_SUBSTEPS, rtol: float = RTOL,
                  atol: float = ATOL):
         self.damper = damper
         self.module = onestep_module(type(damper))
@@ -107,13 +108,19 @@ class OneStep:
 
     def advance(self, command: np.ndarray, x: np.ndarray, v: np.ndarray) -> None:
         """One step with the commands ``command`` (N,) held, the motion going linearly from ``W`` to the
-        measured stroke ``x`` and velocity ``v`` (N,) (acceleration: the backward difference of the velocities)."""
+        measured stroke ``x`` and velocity ``v`` (N,) (acceleration: the backward difference of the velocities).
+        A step that diverges raises and leaves the state as it was."""
+        saved = [a.copy() for a in (self.Y, self.U, self.F, self.W, self._nsub)]
         self.module.advance(*self._records(), self.W, writable_c(command), writable_c(x), writable_c(v), self._control,
                             self._nsub, self._wf, self._wi, self._status)
-        self.t += self.dt
         if self._status.any():
             b = int(np.flatnonzero(self._status)[0])
-            raise diverged_error(self.damper.name, int(self._status[b]), self.t, b, self.max_substeps)
+            code = int(self._status[b])
+            for a, old in zip((self.Y, self.U, self.F, self.W, self._nsub), saved):
+                a[...] = old
+            self._status[:] = 0
+            raise diverged_error(self.damper.name, code, self.t + self.dt, b, self.max_substeps)
+        self.t += self.dt
 
     def nearest_commands(self, target: np.ndarray, grid: np.ndarray, n_refine: int):
         """(commands (N,), predicted forces (N,)): for each damper, the command whose force at the end of the
@@ -146,15 +153,19 @@ class ObserverInverse(Inverse):
     from x, ẋ, ẍ (constant acceleration). ``force_feedback`` κ in [0, 1] corrects the target by the model's
     current error when the force is measured: f_target = f_d − κ (f_measured − F_model), a disturbance estimate
     held over the step (κ = 0: open loop). ``u0``: the effective command at the first call (default v_min, a
-    damper at rest and switched off). ``max_substeps``, ``rtol``, ``atol``: the stepping routine's settings.
+    damper at rest and switched off). ``max_substeps``, ``rtol``, ``atol``: the stepping routine's settings
+    (``max_substeps`` per step of ``dt``; default :data:`~mrd_env.stepping.scheme.MAX_SUBSTEPS` per millisecond of it, the budget of the
+    environments' own 1 ms steps).
     """
 
     def __init__(self, damper, *, dt: float = 1e-3, force_feedback: float = 0.0, u0: float | None = None,
-                 max_substeps: int = 8, rtol: float = RTOL, atol: float = ATOL):
+                 max_substeps: int | None = None, rtol: float = RTOL, atol: float = ATOL):
         super().__init__(damper, dt=dt)
         self.force_feedback = check_scalar("force_feedback", force_feedback, 0.0, 1.0)
         unit = self.damper.command.unit
         self.u0 = self.v_min if u0 is None else check_scalar("u0", u0, self.v_min, self.v_max, unit=unit)
+        if max_substeps is None:  # a 10 ms control step of a stiff damper needs the sub-steps of ten 1 ms steps
+            max_substeps = MAX_SUBSTEPS * max(1, math.ceil(self.dt / 1e-3 - 1e-9))
         self._integrator = dict(max_substeps=int(check_scalar("max_substeps", max_substeps, 1, 4096)),
                                 rtol=check_scalar("rtol", rtol, 0.0, lo_open=True),
                                 atol=check_scalar("atol", atol, 0.0, lo_open=True))

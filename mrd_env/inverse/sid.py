@@ -157,7 +157,7 @@ class SimplifiedInverse(ObserverInverse):
     name = "sid"
 
     def __init__(self, damper, *, dt: float = 1e-3, invert_lag: bool = True, dissipative_only: bool = True,
-                 force_feedback: float = 0.0, u0: float | None = None, max_substeps: int = 8,
+                 force_feedback: float = 0.0, u0: float | None = None, max_substeps: int | None = None,
                  rtol: float = RTOL, atol: float = ATOL):
         super().__init__(damper, dt=dt, force_feedback=force_feedback, u0=u0, max_substeps=max_substeps,
                          rtol=rtol, atol=atol)

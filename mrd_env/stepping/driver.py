@@ -25,7 +25,7 @@ from ..validation import check_scalar
 from .codegen import kernel_module
 from .layout import HIST_NONE, LAYOUT, T_FAIL_STEP, T_REASON, T_STATUS, TRUNCATED, pack
 from .matrices import SystemMatrices
-from .scheme import ATOL, RTOL, max_level_of
+from .scheme import ATOL, MAX_SUBSTEPS, RTOL, max_level_of
 
 PARALLEL_FROM = 64  # systems from which a batch runs on numba's threads by default
 
@@ -80,7 +80,7 @@ class Driver:
 
     def __init__(self, damper, system: SystemMatrices, N: int, processing: Processing, *, dt: float = 1e-3,
                  n_sub: int = 1, v_range: tuple[float, float] | None = None, P=None, lag=None,
-                 max_substeps: int = 8, rtol: float = RTOL, atol: float = ATOL, threads: int | None = None):
+                 max_substeps: int = MAX_SUBSTEPS, rtol: float = RTOL, atol: float = ATOL, threads: int | None = None):
         self.damper = damper
         self.system = system
         self.processing = pr = processing

@@ -13,6 +13,9 @@ GAMMA = 1.0 - 1.0 / math.sqrt(2.0)
 RTOL = 1e-1
 ATOL = 1e-5
 
+#: Default budget of sub-steps per step (the environments' steps are 1 ms; a longer step gets as many per ms).
+MAX_SUBSTEPS = 8
+
 # What one step of one system returns (the kernel's ``macro_step``).
 OK = 0
 NONFINITE = 1

@@ -10,7 +10,7 @@ from ..errors import SimulationDivergedError
 from .driver import Driver, Processing
 from .layout import DIVERGED, HIST_FULL, RUNNING
 from .matrices import SystemMatrices
-from .scheme import ATOL, NONFINITE, RTOL
+from .scheme import ATOL, MAX_SUBSTEPS, NONFINITE, RTOL
 
 
 class Stepper:
@@ -23,7 +23,7 @@ class Stepper:
     """
 
     def __init__(self, damper, system: SystemMatrices, N: int, n_steps: int, dt: float, *, P=None, lag=None,
-                 max_substeps: int = 8, rtol: float = RTOL, atol: float = ATOL):
+                 max_substeps: int = MAX_SUBSTEPS, rtol: float = RTOL, atol: float = ATOL):
         self.damper = damper
         self.system = system
         nd, nw = system.nd, system.nw
@@ -117,7 +117,7 @@ def diverged_error(name: str, status: int, t_fail: float, index: int, max_subste
 
 
 def run(damper, system: SystemMatrices, Y, U, V, W, dt: float, *, t0: float = 0.0, P=None,
-        max_substeps: int = 8, rtol: float = RTOL, atol: float = ATOL):
+        max_substeps: int = MAX_SUBSTEPS, rtol: float = RTOL, atol: float = ATOL):
     """Advance a batch once (see :class:`Stepper`), raising :class:`SimulationDivergedError` on failure.
 
     ``damper`` is a :class:`~mrd_env.dampers.DamperModel`; Y (N, n) and U (N, nd) are updated in place (the
