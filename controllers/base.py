@@ -184,13 +184,17 @@ class AgentController(Controller):
         return self.v_min + (a + 1.0) * 0.5 * (self.v_max - self.v_min) if self.normalized else a
 
     def reset(self, mask=None) -> None:
-        if mask is None or self._state is None:
+        if mask is None:
             self._state, self._starts = None, None
             if hasattr(self.model, "reset"):
                 self.model.reset(mask)
-        else:  # a recurrent agent's other rows keep their state; the masked ones restart at the next predict
-            m = np.asarray(mask, dtype=bool)
-            self._starts = m if self._starts is None else self._starts | m
+            return
+        # the other rows keep their memory (a recurrent agent's state, a held correction); the masked ones
+        # restart at the next predict, as with episode_start
+        m = np.asarray(mask, dtype=bool)
+        self._starts = m if self._starts is None else self._starts | m
+        if self._state is None and hasattr(self.model, "reset"):
+            self.model.reset(m)
 
     def episode_starts(self, episode_start):
         """``episode_start`` with the rows :meth:`reset` cleared since the last predict."""

@@ -290,7 +290,21 @@ def test_partial_reset_failure(env_id):
             venv.reset(options={"reset_mask": bad})
     with pytest.raises(ValueError, match="seed"):
         venv.reset(seed=[0, 1, -1])
+    with pytest.raises(ValueError, match=r"reset options \['reset_msk'\] are not known; valid: \['reset_mask'\]"):
+        venv.reset(seed=5, options={"reset_msk": np.array([True, False, False])})  # misspelt: not a reset of all
     np.testing.assert_array_equal(venv.unwrapped.core.driver.fs, before)
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_unknown_reset_options_are_refused_and_change_nothing(env_id):
+    env = gym.make(env_id, **SHORT)
+    env.reset(seed=3)
+    obs, _, _, _, _ = env.step(env.action_space.sample())
+    state = env.unwrapped.np_random.bit_generator.state
+    with pytest.raises(ValueError, match=r"reset options \['reset_mask'\] are not known"):
+        env.reset(seed=9, options={"reset_mask": np.array([True])})
+    assert env.unwrapped.np_random.bit_generator.state == state
+    env.reset(seed=3, options={})  # no options: fine
 
 
 @pytest.mark.parametrize("env_id", IDS)

@@ -293,6 +293,29 @@ def _held(n_envs, hold, seed=0, law="skyhook_continuous", paired=None, **extra):
     return PairedBaselineVecEnv(venv, paired) if paired else venv
 
 
+def test_reset_of_some_rows_restarts_their_hold_as_episode_start_does():
+    """reset(mask) and episode_start mark a new episode alike: the masked row is asked for a new correction at its
+    next step, the others keep the one they hold."""
+    venv = gym.make_vec(CAR, num_envs=3, vectorization_mode="vector_entry_point", **_kw())
+    obs, _ = venv.reset(seed=[1, 2, 3])
+    out = []
+    for how in ("reset", "episode_start"):
+        ctrl = ResidualController(venv, Linear(), "skyhook_continuous", hold=3)
+        for _ in range(2):
+            ctrl.predict(obs)
+        calls = Linear.calls
+        mask = np.array([True, False, False])
+        if how == "reset":
+            ctrl.reset(mask)
+            action, _ = ctrl.predict(obs)
+        else:
+            action, _ = ctrl.predict(obs, episode_start=mask)
+        assert Linear.calls == calls + 1, how  # row 0 is due again; rows 1 and 2 are not
+        np.testing.assert_array_equal(ctrl._k, [1, 3, 3])
+        out.append(action)
+    np.testing.assert_array_equal(out[0], out[1])
+
+
 def test_a_held_zero_correction_is_the_law_at_its_own_rate():
     """hold 10 at 1 ms: an agent's step is 10 of the law's, its reward their sum; a zero correction is the law at
     1 ms exactly, and paired rewards against that law are exactly 0 across automatic resets."""

@@ -153,6 +153,8 @@ class MRDamperEnv(PlantDeclarations, gym.Env):
 
     # --- Gymnasium API -----------------------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None):
+        if options:  # none are known (a vector env's reset_mask is the vector env's): refused before any change
+            raise ValueError(f"reset options {sorted(options)} are not known: these environments take none")
         super().reset(seed=seed)
         core = self.core
         core.start([self.np_random])

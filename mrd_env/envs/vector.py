@@ -146,6 +146,9 @@ class MRDamperVectorEnv(PlantDeclarations, VectorEnv):
     def _reset_mask(self, options) -> np.ndarray:
         """The environments a reset starts again (all, or ``options["reset_mask"]``), checked."""
         N = self.num_envs
+        unknown = sorted(set(options or {}) - {"reset_mask"})
+        if unknown:  # a misspelt mask would otherwise reset every environment
+            raise ValueError(f"reset options {unknown} are not known; valid: ['reset_mask']")
         if options is None or "reset_mask" not in options:
             return np.ones(N, dtype=bool)
         mask = options["reset_mask"]
