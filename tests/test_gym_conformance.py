@@ -585,6 +585,41 @@ def test_sb3_bridge_logs_episode_returns_without_vec_monitor():
     assert len(model.ep_info_buffer) >= 4 and all(e["l"] == 5 for e in model.ep_info_buffer)
 
 
+def test_sb3_bridge_gives_what_dummy_vec_env_gives():
+    """Observations, rewards, dones, every step's infos (with TimeLimit.truncated; at an end the last step's info
+    and its observation) and reset_infos as SB3's DummyVecEnv over the scalar environments, over several episodes
+    with terminations; set_options is refused as the environments refuse reset options."""
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    from mrd_env.envs.sb3 import make_sb3_vec_env
+
+    kw = dict(episode_seconds=0.03, control_dt=0.01, stroke_limit=3e-3)
+    bridge = make_sb3_vec_env("mrd_env/QuarterCar-v0", n_envs=3, seed=0, **kw)
+    dummy = DummyVecEnv([lambda: gym.make("mrd_env/QuarterCar-v0", **kw) for _ in range(3)])
+    dummy.seed(0)
+    np.testing.assert_array_equal(bridge.reset(), dummy.reset())
+    assert bridge.reset_infos == dummy.reset_infos
+    rng = np.random.default_rng(0)
+    ended = 0
+    for _ in range(12):
+        a = rng.uniform(0.0, 2.0, size=(3, 1)).astype(np.float32)
+        bridge.step_async(a)
+        dummy.step_async(a)
+        (o1, r1, d1, i1), (o2, r2, d2, i2) = bridge.step_wait(), dummy.step_wait()
+        np.testing.assert_array_equal(o1, o2)
+        np.testing.assert_array_equal(r1, r2)
+        np.testing.assert_array_equal(d1, d2)
+        for a1, a2 in zip(i1, i2):
+            a1 = {k: v for k, v in a1.items() if k != "episode"}  # the Monitor's record, which DummyVecEnv lacks
+            assert data_equivalence(a1, a2, exact=True), (a1, a2)
+        assert bridge.reset_infos == dummy.reset_infos
+        ended += int(d1.sum())
+    assert ended >= 6
+    bridge.set_options({"reset_mask": np.ones(3, bool)})
+    with pytest.raises(ValueError, match="reset options"):
+        bridge.reset()
+
+
 def test_sb3_bridge_set_attr_and_env_method_honour_indices():
     """Item 9: the environments share one native vector env; a subset of indices is refused, not ignored."""
     from mrd_env.envs.sb3 import make_sb3_vec_env

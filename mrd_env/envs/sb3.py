@@ -1,12 +1,15 @@
 """A Stable-Baselines3 ``VecEnv`` over the native vector environment (SB3 cannot take a Gymnasium vector
 environment: SB3 issues #1568, #1608, #1745).
 
-SB3's conventions: ``reset()`` returns the observations only (seeds from ``seed()``, applied at the next
-reset); ``step_wait()`` returns (obs, rewards, dones, infos) with dones = terminated | truncated and the
-environment already reset in the same step — its last observation in ``infos[i]["terminal_observation"]``,
-``infos[i]["TimeLimit.truncated"]`` true when the episode was cut by time rather than ended by the plant,
-``infos[i]["episode_metrics"]`` and ``infos[i]["episode"]`` (return, length, time: what SB3's Monitor writes).
-The native environment runs in ``SAME_STEP`` autoreset mode for this.
+SB3's conventions, as ``DummyVecEnv`` over the scalar environments gives them (a test checks it step by step):
+``reset()`` returns the observations only (seeds from ``seed()``, applied at the next reset; the reset infos in
+``reset_infos``); ``step_wait()`` returns (obs, rewards, dones, infos) with dones = terminated | truncated, every
+``infos[i]`` the environment's step info with ``TimeLimit.truncated``, and the environment already reset in the same
+step where an episode ended — then ``infos[i]`` is its last step's info (``episode_metrics``, a
+``termination_reason``) with its last observation in ``terminal_observation``, ``TimeLimit.truncated`` true when
+the episode was cut by time rather than ended by the plant, and ``episode`` (return, length, time: what SB3's
+Monitor writes), and ``reset_infos[i]`` the new episode's. The native environment runs in ``SAME_STEP`` autoreset
+mode for this.
 
 >>> from mrd_env.envs.sb3 import make_sb3_vec_env
 >>> venv = make_sb3_vec_env("mrd_env/QuarterCar-v0", n_envs=8, seed=0, control_dt=0.01)
@@ -47,12 +50,14 @@ class SB3VecEnv(VecEnv):
         self._t0 = time.time()
 
     def reset(self):
+        if any(self._options):  # set_options: these environments take no reset options (refused, as they do)
+            raise ValueError(f"reset options {self._options} are not known: these environments take none")
         seeds = self._seeds
         seed = None if all(s is None for s in seeds) else [int(s) if s is not None else None for s in seeds]
-        obs, _ = self.venv.reset(seed=seed)
+        obs, info = self.venv.reset(seed=seed)
         self._reset_seeds()
         self._reset_options()
-        self.reset_infos = [{} for _ in range(self.num_envs)]
+        self.reset_infos = [env_info(info, i) for i in range(self.num_envs)]
         self._returns[:] = 0.0
         self._lengths[:] = 0
         return obs
@@ -66,17 +71,18 @@ class SB3VecEnv(VecEnv):
         self._returns += rewards
         self._lengths += 1
         dones = terminated | truncated
-        infos: list[dict[str, Any]] = [{} for _ in range(self.num_envs)]
+        # as DummyVecEnv gives them: each environment's step info with TimeLimit.truncated; where an episode ended,
+        # its last step's info with the last observation, and the new episode's reset info in reset_infos
+        t = info["t"]
+        infos: list[dict[str, Any]] = [{"t": float(t[i]), "TimeLimit.truncated": False} for i in range(self.num_envs)]
         for i in np.flatnonzero(dones):
-            d = infos[i]
-            final = env_info(info["final_info"], i)
+            d = infos[i] = env_info(info["final_info"], i)
             d["terminal_observation"] = info["final_obs"][i]
             d["TimeLimit.truncated"] = bool(truncated[i] and not terminated[i])
-            d["episode_metrics"] = final["episode_metrics"]
-            if "termination_reason" in final:
-                d["termination_reason"] = final["termination_reason"]
             d["episode"] = {"r": float(self._returns[i]), "l": int(self._lengths[i]),
                             "t": round(time.time() - self._t0, 6)}
+            self.reset_infos[i] = {k: v for k, v in env_info(info, i).items()
+                                   if k not in ("final_obs", "final_info")}
             self._returns[i], self._lengths[i] = 0.0, 0
         return obs, rewards, dones, infos
 
