@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from mrd_env.dampers import available_dampers, make_damper
-from mrd_env.identification.compare import fr_data, plot_fit, split_records, validate
+from mrd_env.identification.compare import fr_data, plot_fit, split_records, validate, validation_offsets
 from mrd_env.records import DamperRecord, load_record_csv
 from mrd_env.identification.faults import FaultsExcluded
 from mrd_env.identification.fit import OFFSET_REFERENCE, fit_model, reference_offset
@@ -286,7 +286,7 @@ def run(args: argparse.Namespace) -> int:
             data = neural_data(args, fits, data)
         fr = fit_model(args.model, fits, preset=args.preset, free=free, bounds=bounds, search=search, data=data)
         v_rows, v_all, forces, _ = validate(fr.damper, whole, idx, data=fr_data(fr, data),
-                                            offset=fr.settings["offsets"][0])
+                                            offset=validation_offsets(fr, whole, idx))
     out = args.out
     out.mkdir(parents=True, exist_ok=True)
     f = fr.overall

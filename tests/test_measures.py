@@ -206,3 +206,34 @@ def test_monte_carlo_errors_and_skips():
         monte_carlo(lambda g: 1.0, 1, 0)
     with pytest.raises(ValueError, match="keys"):
         monte_carlo(lambda g: {"a": 1.0} if g.random() < 0.5 else {"b": 1.0}, 20, 0)
+
+
+def test_a_masked_span_is_neither_scored_nor_bridged():
+    """Measures with a mask equal those of the scored stretches alone, each integrated on its own (review eq. 3
+    integrates over scored time): the two samples beside an excluded span do not carry its length."""
+    from mrd_env.identification.measures import error_measures, scored_intervals
+
+    t = np.arange(3001) * 1e-3
+    x = 0.01 * np.sin(2 * np.pi * 1.5 * t)
+    v = 0.01 * 2 * np.pi * 1.5 * np.cos(2 * np.pi * 1.5 * t)
+    F_exp = 900.0 * np.tanh(v / 0.02) + 3000.0 * x
+    F = F_exp + 40.0 * np.sin(2 * np.pi * 7.0 * t)
+    F_exp[1000:1600] = 5000.0  # a clipped load cell, excluded
+    mask = np.ones(t.size, bool)
+    mask[1000:1600] = False
+    h = scored_intervals(t, mask)
+    assert h.sum() == pytest.approx(3.0 - 0.601)  # the steps into and out of the span are not scored either
+    em = error_measures(F_exp, F, t, v=v, mask=mask)
+    # by hand: the trapezoid on each scored stretch, the time mean over both
+    runs = [slice(0, 1000), slice(1600, 3001)]
+    def integral(g):
+        return sum(np.trapezoid(g[r], t[r]) for r in runs)
+    T = sum(t[r][-1] - t[r][0] for r in runs)
+    mean = integral(F_exp) / T
+    for name, w in (("E_t", np.ones_like(t)), ("E_x", np.abs(v))):
+        want = np.sqrt(integral((F_exp - F) ** 2 * w) / integral((F_exp - mean) ** 2 * w))
+        assert em[name] == pytest.approx(want, rel=1e-12), name
+    assert em["J2"] == pytest.approx(np.sqrt(np.mean((F_exp - F)[mask] ** 2)), rel=1e-12)
+    # a mask that keeps everything gives the measures without one
+    full = error_measures(F_exp, F, t, v=v, mask=np.ones(t.size, bool))
+    assert full == pytest.approx(error_measures(F_exp, F, t, v=v), rel=1e-12)

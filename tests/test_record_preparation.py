@@ -62,6 +62,25 @@ def test_channel_offset_is_estimated_and_corrected():
         assert aligned.params[k] == pytest.approx(getattr(d.params, k), rel=0.02)
 
 
+def test_each_records_held_back_part_is_scored_with_its_own_offset():
+    """Two records whose force channels lag by 0 and 3 samples, fitted with alignment: the held-back part of each
+    is scored with the offset found for it (record 0's offset applied to both would misalign the second)."""
+    from mrd_env.identification.compare import split_records, validate, validation_offsets
+
+    d, rec = _record(noise=0.01)
+    _, other = _record(noise=0.01, rng=7)
+    whole, fits, idx = split_records([rec, _shifted(other, 3)], 0.6)
+    free = ["fc_a", "fc_b", "c0a", "c0b"]
+    fr = fit_model(d, fits, free=free, search=QUIET, data={"align": True})
+    assert fr.settings["offsets"] == [0, 3]
+    assert validation_offsets(fr, whole, idx) == [0, 3]
+    rows, _, _, _ = validate(fr.damper, whole, idx, offset=validation_offsets(fr, whole, idx))
+    alone = validate(fr.damper, whole[1:], idx[1:], offset=3)[0][0]
+    assert rows[1]["E_t"] == alone["E_t"] < 0.02 < validate(fr.damper, whole[1:], idx[1:], offset=0)[0][0]["E_t"]
+    with pytest.raises(ValueError, match="force offsets differ"):
+        validation_offsets(fr, whole, [0, 0])  # other records to score: which offset is theirs?
+
+
 def test_offset_of_a_hysteretic_model_is_fitted_exactly():
     """Spencer–Dyke's force lags its velocity by itself (pre-yield stiffness); the offset the fitted model
     prefers is the imposed one."""

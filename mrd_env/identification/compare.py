@@ -62,7 +62,7 @@ class ModelComparison:
                     "converged": f"failed: {self.error}"}
         v, f = self.validation_overall, self.fit.overall
         return {"model": self.model, "free params": self.fit.n_free,
-                "offset samples": self.fit.settings.get("offsets", [0])[0], "fit E_t %": 100 * f["E_t"],
+                "offset samples": _offsets_label(self.fit.settings.get("offsets", [0])), "fit E_t %": 100 * f["E_t"],
                 "E_t %": 100 * v["E_t"], "E_x %": 100 * v["E_x"], "E_v %": 100 * v["E_v"], "J2 N": v["J2"],
                 "fit J2 N": f["J2"], "wall time s": self.fit.wall_time, "evaluations": self.fit.n_evaluations,
                 "converged": "yes" if self.fit.converged else "no"}
@@ -120,13 +120,18 @@ def split_records(records, fit_fraction: float, dt: float | None = None, faults:
 
 
 def validate(damper, whole: Sequence[DamperRecord], split_index: Sequence[int], *, data: DataOptions | None = None,
-             offset: int = 0, **integrator_options) -> tuple[list[dict], dict, list[np.ndarray], list[PreparedRecord]]:
+             offset: int | Sequence[int] = 0, **integrator_options
+             ) -> tuple[list[dict], dict, list[np.ndarray], list[PreparedRecord]]:
     """Measures of ``damper`` on the held-back part of each record (simulated over the whole record; samples
-    with faults, or without a partner after the ``offset``, left out)."""
+    with faults, or without a partner after the force ``offset`` — one for all records, or one per record —
+    left out)."""
     data = as_options(DataOptions, data, "data")
+    offsets = [int(offset)] * len(whole) if np.ndim(offset) == 0 else [int(o) for o in offset]
+    if len(offsets) != len(whole):
+        raise ValueError(f"offset must be one number or one per record ({len(whole)}), got {list(offset)}")
     rows, forces, preps = [], [], []
-    for r, k in zip(whole, split_index):
-        prep, F = predict(damper, r, dt=data.dt, command_range=data.command_range, faults=data.faults, offset=offset,
+    for r, k, o in zip(whole, split_index, offsets):
+        prep, F = predict(damper, r, dt=data.dt, command_range=data.command_range, faults=data.faults, offset=o,
                           **integrator_options)
         sl = prep.mask.copy()
         sl[:k] = False
@@ -214,7 +219,7 @@ def _fit_and_validate(name: str, model, fits, whole, idx, preset, options: dict,
         try:
             fr = fit_model(model, fits, preset=preset, **options)
             v_rows, v_all, forces, _ = validate(fr.damper, whole, idx, data=fr_data(fr, options["data"]),
-                                                offset=fr.settings.get("offsets", [0])[0],
+                                                offset=validation_offsets(fr, whole, idx),
                                                 **(options.get("integrator_options") or {}))
             row = ModelComparison(name, fr, v_rows, v_all, forces)
         except Exception as exc:  # noqa: BLE001 — a failed fit is a failed row, whatever its cause
@@ -223,6 +228,23 @@ def _fit_and_validate(name: str, model, fits, whole, idx, preset, options: dict,
             expected = isinstance(exc, (ValueError, SimulationDivergedError, ImportError))  # the user's input
             row = ModelComparison(name, None, error=str(exc) if expected else f"{type(exc).__name__}: {exc}")
     return row, [(w.category, str(w.message)) for w in caught]
+
+
+def _offsets_label(offsets: list[int]):
+    """The table's offset: the number where the records agree, else each record's ("0, 3")."""
+    return offsets[0] if len(set(offsets)) == 1 else ", ".join(map(str, offsets))
+
+
+def validation_offsets(fr: FitResult, whole: Sequence[DamperRecord], split_index: Sequence[int]) -> list[int]:
+    """The force offsets to score ``whole`` with: each fit record's own where the held-back parts are of the fit
+    records (``split_index`` > 0), else the fit's one offset (``ValueError`` if its records' offsets differ)."""
+    offsets = list(fr.settings.get("offsets", [0]))
+    if all(k > 0 for k in split_index) and len(offsets) == len(whole):
+        return offsets
+    if len(set(offsets)) != 1:
+        raise ValueError(f"the fitted records' force offsets differ ({offsets} samples): give the validation records' "
+                         "with --force-offset, or fit on records that agree")
+    return [offsets[0]] * len(whole)
 
 
 def fr_data(fr: FitResult, data: DataOptions) -> DataOptions:

@@ -37,14 +37,42 @@ def _velocity(t: np.ndarray, x, v) -> np.ndarray:
     return np.gradient(check_signal("x", x, n=t.shape[0]), t, edge_order=2)
 
 
-def _normalised_error(F_exp: np.ndarray, F: np.ndarray, t: np.ndarray, w: np.ndarray, name: str) -> float:
-    """sqrt(∫(F_exp-F)² w dt / ∫(F_exp-F̄_exp)² w dt), trapezoidal in time — the common form of eq. (3)."""
-    mean = trapezoid(F_exp, t) / (t[-1] - t[0])
-    den = trapezoid((F_exp - mean) ** 2 * w, t)
+def scored_intervals(t: np.ndarray, mask=None) -> np.ndarray:
+    """The lengths of the time steps the integrals run over (s): every step of ``t``, or with ``mask`` (a bool per
+    sample) only the steps whose two ends are scored — an excluded span (a fault) is not bridged."""
+    h = np.diff(t)
+    if mask is None:
+        return h
+    mask = np.asarray(mask, dtype=bool)
+    if mask.shape != t.shape:
+        raise ValueError(f"mask must have one value per sample ({t.shape[0]}), got shape {mask.shape}")
+    h = np.where(mask[:-1] & mask[1:], h, 0.0)
+    if not h.sum() > 0.0:
+        raise ValueError("mask must keep at least two consecutive samples")
+    return h
+
+
+def _integral(g: np.ndarray, h: np.ndarray) -> float:
+    """∫g dt by the trapezoidal rule over the steps of lengths ``h`` (those of length 0 left out)."""
+    return float(np.sum(0.5 * (g[:-1] + g[1:]) * h))
+
+
+def _normalised_error(F_exp: np.ndarray, F: np.ndarray, t: np.ndarray, w: np.ndarray, name: str,
+                      h: np.ndarray | None = None) -> float:
+    """sqrt(∫(F_exp-F)² w dt / ∫(F_exp-F̄_exp)² w dt), trapezoidal in time over the steps ``h`` (default: all
+    of ``t``) — the common form of eq. (3)."""
+    if h is None:
+        mean = trapezoid(F_exp, t) / (t[-1] - t[0])
+        den = trapezoid((F_exp - mean) ** 2 * w, t)
+        num = trapezoid((F_exp - F) ** 2 * w, t)
+    else:
+        mean = _integral(F_exp, h) / h.sum()
+        den = _integral((F_exp - mean) ** 2 * w, h)
+        num = _integral((F_exp - F) ** 2 * w, h)
     if not den > 0.0:
         raise ValueError(f"{name} is undefined: the weighted variance of F_exp is zero (constant measured force "
                          f"or zero weight everywhere)")
-    return math.sqrt(trapezoid((F_exp - F) ** 2 * w, t) / den)
+    return math.sqrt(num / den)
 
 
 # --- public measures --------------------------------------------------------------------------------------------
@@ -89,19 +117,23 @@ def j2(F_exp, F) -> float:
     return math.sqrt(j1(F_exp, F) / F_exp.shape[0])
 
 
-def error_measures(F_exp, F, t, x=None, *, v=None) -> dict[str, float]:
+def error_measures(F_exp, F, t, x=None, *, v=None, mask=None) -> dict[str, float]:
     """All five measures {"E_t", "E_x", "E_v", "J1", "J2"} (review eqs. 3, 25, 26).
 
     E_* are dimensionless ratios (multiply by 100 for the review's percentages), J1 is in N², J2 in N.
-    Needs the displacement ``x`` (m) or the measured velocity ``v`` (m/s) for E_x and E_v.
+    Needs the displacement ``x`` (m) or the measured velocity ``v`` (m/s) for E_x and E_v. ``mask`` (a bool per
+    sample): score only those samples — the integrals over the steps between two scored samples, the derivatives
+    on the whole grid, J1 and J2 over the scored samples — so that an excluded span is neither scored nor bridged.
     """
     F_exp, F, t = _forces_and_time(F_exp, F, t)
     vel = _velocity(t, x, v)
     acc = np.gradient(vel, t, edge_order=2)
+    h = None if mask is None else scored_intervals(t, mask)
+    m = slice(None) if mask is None else np.asarray(mask, dtype=bool)
     return {
-        "E_t": _normalised_error(F_exp, F, t, np.ones_like(t), "E_t"),
-        "E_x": _normalised_error(F_exp, F, t, np.abs(vel), "E_x"),
-        "E_v": _normalised_error(F_exp, F, t, np.abs(acc), "E_v"),
-        "J1": j1(F_exp, F),
-        "J2": j2(F_exp, F),
+        "E_t": _normalised_error(F_exp, F, t, np.ones_like(t), "E_t", h),
+        "E_x": _normalised_error(F_exp, F, t, np.abs(vel), "E_x", h),
+        "E_v": _normalised_error(F_exp, F, t, np.abs(acc), "E_v", h),
+        "J1": j1(F_exp[m], F[m]),
+        "J2": j2(F_exp[m], F[m]),
     }

@@ -8,7 +8,7 @@ from typing import Sequence
 import numpy as np
 
 from ..dampers import CommandSpec, DamperModel
-from .measures import error_measures
+from .measures import error_measures, scored_intervals
 from .parameters import COMMAND_PARAMS, initial_values
 from .prepare import PreparedRecord
 
@@ -120,10 +120,14 @@ class FitResult:
 
 
 def record_measures(prep: PreparedRecord, F_model: np.ndarray, sl=None) -> dict:
+    """The measures of one record on its scored samples (``sl``, default the prepared mask): the integrals run over
+    the steps between two scored samples, so that an excluded span (a fault, the warm-up, the fit part) is not
+    bridged; ``duration_s`` is the time they cover."""
     m = prep.mask if sl is None else sl
-    t = prep.series.t[m]
-    em = error_measures(prep.series.force[m], F_model[m], t, v=prep.series.v[m])
-    return {"record": prep.series.label, "n": int(t.size), "duration_s": float(t[-1] - t[0]), **em}
+    t = prep.series.t
+    em = error_measures(prep.series.force, F_model, t, v=prep.series.v, mask=m)
+    return {"record": prep.series.label, "n": int(np.count_nonzero(m)),
+            "duration_s": float(scored_intervals(t, m).sum()), **em}
 
 
 def pooled_measures(rows: Sequence[dict]) -> dict[str, float]:
