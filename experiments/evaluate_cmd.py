@@ -51,7 +51,11 @@ def evaluate(plant: str, agents=(), laws=None, *, seeds: int = 3, control_dt: fl
     damper = comparison_damper(damper, [a.env_kwargs for a in loaded])
     extra = {} if damper is None else {"damper": damper}
     # the laws keep their own memory (filters, observers): the same sensors, without the agent's stacked history
-    law_kw = {**{k: v for k, v in obs_kw.items() if k != "action_mode"}, "history": 1, **extra}
+    # and without the road ahead, which only the rows that say preview see (a preview agent listed first must not
+    # hand it to the laws and the plain MPC rows)
+    law_kw = {**{k: v for k, v in obs_kw.items() if k not in ("action_mode", "preview")}, "history": 1, **extra}
+    if law_kw.get("sensors"):
+        law_kw["sensors"] = tuple(s for s in law_kw["sensors"] if s != "road_preview")
     rows = [(f"agent {a.name.split(' s')[0]}", Path(a.folder), dict(extra)) for a in loaded]
     rows += law_rows(plant, LAWS[plant] if laws is None else laws, law_kw, laws_at_1ms=laws_at_1ms, mpc=mpc)
     scenarios = held_out_scenarios(plant, seeds=seeds, quick=quick)

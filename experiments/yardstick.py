@@ -119,18 +119,28 @@ def best_passive(problem) -> tuple[float, float]:
     return best
 
 
+def yardstick_key(problem, label: str, plant: str, agents=()) -> dict:
+    """What an episode's yardstick is cached under: the episode and its options, the problem's digest (the plant,
+    the reward, the disturbance: what a changed default changes while the options stay the same), the warm starts
+    (laws and agents) and the solver's settings — so that a stale yardstick is never served."""
+    from controllers.agents import agent_digest
+    from mrd_env.optimal.full_knowledge import problem_digest
+
+    return {**problem.key(), "problem_digest": problem_digest(problem), "scenario": label,
+            "agents": [agent_digest(a) for a in agents], "warm_laws": list(WARM_LAWS[plant]),
+            "retry_starts": RETRY_STARTS, "passive_grid": PASSIVE_GRID.tolist(), "version": VERSION}
+
+
 def episode_yardstick(scenario: Scenario, seed: int, plant: str, *, agents=(), bound: bool = True,
                       cache: bool = True, solve: bool = True, progress: bool = False) -> EpisodeYardstick | None:
     """The yardstick of ``scenario`` with ``seed`` (a plain function of picklable inputs: sweeps run it anywhere).
 
     Cached per episode, plant, damper, options and warm-start agents (:mod:`mrd_env.optimal.cache`); with
     ``solve=False`` only a cached yardstick is returned (None if there is none)."""
-    from controllers.agents import agent_digest
     from mrd_env.optimal import cache as store, episode_problem
 
     problem = episode_problem(scenario.env_id, seed=int(seed), control_dt=YARDSTICK_DT, **scenario.options)
-    key = {**problem.key(), "scenario": scenario.label(seed), "agents": [agent_digest(a) for a in agents],
-           "passive_grid": PASSIVE_GRID.tolist(), "version": VERSION}
+    key = yardstick_key(problem, scenario.label(seed), plant, agents)
     hit = store.load("yardstick", key) if cache else None
     if hit is not None and (hit.get("bound") is not None or not bound):
         return EpisodeYardstick(**{k: (math.nan if v is None else v) for k, v in hit.items()})

@@ -231,3 +231,18 @@ def test_every_evaluation_row_has_its_own_label(dt):
     assert ("mpc+preview (reward) @ 10 ms" in labels) == (dt == 1e-2)
     with pytest.raises(ValueError, match="would each be evaluated twice"):
         law_rows("quarter_car", ["skyhook_continuous", "skyhook_continuous"], {"control_dt": dt})
+
+
+def test_a_preview_agent_listed_first_hands_the_road_ahead_to_no_law(tmp_path):
+    """The laws and the plain MPC rows run on the agent's sensors without the road preview (they took the first
+    agent's sensors, preview included, and the preview rows then failed on a sensor given twice)."""
+    import csv
+    from pathlib import Path
+
+    from experiments.cli import main
+
+    agent = Path(__file__).parents[1] / "controllers" / "agents" / "quarter_car_cmaes_preview"
+    assert main(["evaluate", "--plant", "quarter_car", "--agents", str(agent), "--laws", "skyhook_continuous",
+                 "--quick", "--seeds", "1", "--yardstick", "off", "--no-progress", "--out", str(tmp_path)]) == 0
+    rows = {r["controller"] for r in csv.DictReader((tmp_path / "quarter_car_evaluation.csv").open())}
+    assert {"mpc @ 10 ms", "mpc+preview (reward) @ 10 ms", "mpc+preview (reward) @ 1 ms"} <= rows

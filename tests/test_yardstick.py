@@ -160,3 +160,26 @@ def test_the_yardstick_is_of_the_damper_the_controllers_ran_on():
     keys = [episode_problem(sc.env_id, seed=sc.seeds[0], **{**sc.options, "episode_seconds": 0.05}).key()
             for sc in (scen[0], other[0])]
     assert keys[0]["damper"] == "spencer_dyke" and keys[1]["damper"] == "bingham"
+
+
+def test_the_yardstick_key_changes_with_what_the_result_depends_on(monkeypatch):
+    """A default the options do not name (the car's reward weights) changes the key: a cached yardstick of the
+    old problem is not served for the new one."""
+    from experiments.scenarios import held_out_scenarios
+    from experiments.yardstick import YARDSTICK_DT, yardstick_key
+    from mrd_env.envs import quarter_car
+    from mrd_env.optimal import episode_problem
+
+    sc = held_out_scenarios("quarter_car", quick=True)[0]
+
+    def key():
+        problem = episode_problem(sc.env_id, seed=sc.seeds[0], control_dt=YARDSTICK_DT,
+                                  **{**sc.options, "episode_seconds": 0.05})
+        return yardstick_key(problem, sc.label(sc.seeds[0]), "quarter_car")
+
+    before = key()
+    assert key() == before
+    monkeypatch.setitem(quarter_car.DEFAULT_REWARD_WEIGHTS, "travel",
+                        2.0 * quarter_car.DEFAULT_REWARD_WEIGHTS["travel"])
+    after = key()
+    assert after["problem_digest"] != before["problem_digest"] and after != before
