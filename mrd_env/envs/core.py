@@ -152,8 +152,8 @@ class PlantDeclarations:
 
     @property
     def roles(self) -> dict[str, str]:
-        """Which signal plays which part in the classical laws: body_velocity (ż_s, or the floor above a
-        damper), wheel_velocity (ż_u), damper_velocity, damper_stroke, damper_force."""
+        """Which signal plays which part in the classical laws: body_velocity (ż_s, an absolute velocity: the cars
+        have it, the building does not), wheel_velocity (ż_u), damper_velocity, damper_stroke, damper_force."""
         return dict(self.assembly.roles)
 
     @property

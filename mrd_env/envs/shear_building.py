@@ -334,7 +334,9 @@ def assembly(*, plant_preset: str = "three_storey", plant_params=None, damper_fl
         limits=Limits({"damper_stroke": limit}, penalty=0.0, penalty_rate=w["termination"]),
         new_episode=_BuildingEpisodes(lp, p, heights, dt, cache=not source.random),
         metrics=functools.partial(metrics, p=p),
-        roles={"body_velocity": "upper_floor_vel", "damper_velocity": "damper_velocity",
+        # no body_velocity: skyhook needs the absolute velocity of the floor above the damper, and the floor
+        # velocities here are relative to the ground (a law that needs it refuses the building by name)
+        roles={"damper_velocity": "damper_velocity",
                "damper_stroke": "damper_stroke", "damper_force": "damper_force"},
         objective={"drift": 1.0 / 0.005 ** 2},
         dt=dt, control_dt=control_dt, episode_seconds=episode_seconds,
