@@ -234,6 +234,7 @@ def run_achievable(args: argparse.Namespace) -> int:
 def run_record(args: argparse.Namespace) -> int:
     from mrd_env.identification import fit_model, save_preset
     from mrd_env.identification.compare import split_records
+    from mrd_env.identification.prepare import prepare_record
     from mrd_env.inverse.training import train_neural_inverse
 
     from .identify_cmd import free_with_command, grid_dt, load_data, options
@@ -249,18 +250,23 @@ def run_record(args: argparse.Namespace) -> int:
         raise ValueError(f"--data: inverse record takes one record, got {len(recs)}")
     rec = recs[0]
     dt = grid_dt(args, rec)
-    whole, fits, idx = split_records([rec], args.fit_fraction, dt)
+    whole, fits, idx = split_records([rec], args.fit_fraction, dt, args.faults)
     r, k = whole[0], idx[0]
     dt = r.dt if dt is None else dt
     out = args.out
     out.mkdir(parents=True, exist_ok=True)
+    search, data = options(args, dt)
+    offset = data.offset or 0  # a given plant: the force offset given (auto finds none without a fit)
     if plant is None:
-        search, data = options(args, dt)
         start = damper_of(args.model) if is_preset_file(args.model) else args.model  # a file: from its values
         fr = fit_model(start, fits, search=search, data=data, free=free_with_command(args, args.model, None))
         plant = fr.damper
+        offset = fr.settings["offsets"][0]
         save_preset(fr, out / f"plant_{label_of(args.model)}.json")
-    x, v, f = r.x[k:], r.velocity()[k:], r.force[k:]
+    # the target as the plant was fitted to it: the force moved by the offset, its faults left out of the scores
+    prep = prepare_record(r, plant.command, dt=dt, command_range="clip", faults=args.faults, offset=offset)
+    x, v, f = r.x[k:], r.velocity()[k:], prep.series.force[k:]
+    scored = prep.mask[k:]
     cmd = np.clip(r.command[k:], plant.command.v_min, plant.command.v_max)
     t = r.t[k:] - r.t[k]  # the held-back part, from 0
     results, rows = {}, []
@@ -270,7 +276,7 @@ def run_record(args: argparse.Namespace) -> int:
         rows.append({"inverse": label, "E_t %": 100 * float(res.E_t[0]), "NRMSE %": 100 * float(res.nrmse[0]),
                      "µs per call": 1e6 * res.command_time})
 
-    add("measured command", track(RecordedCommand(plant, cmd, dt=dt), plant, x, v, f, dt))
+    add("measured command", track(RecordedCommand(plant, cmd, dt=dt), plant, x, v, f, dt, scored=scored))
     for name in args.inverses:
         if name == "neural":
             for source in args.neural:
@@ -279,11 +285,11 @@ def run_record(args: argparse.Namespace) -> int:
                                            **rig_like(fits[0], dt))
                 net.save(out / f"neural_{source}.npz")
                 add(f"neural ({source} data)", track(make_inverse("neural", plant, dt=dt, network=net), plant, x, v,
-                                                     f, dt))
+                                                     f, dt, scored=scored))
             continue
         inv = build_inverse(name, plant, dt, {})
         if inv is not None:
-            add(name, track(inv, plant, x, v, f, dt))
+            add(name, track(inv, plant, x, v, f, dt, scored=scored))
     title = (f"{r.label}: plant {plant.name} fitted on the first {100 * args.fit_fraction:g} %, tracking of the "
              f"measured force on the held-back {t[-1]:.2f} s")
     md, _ = write_table(rows, out / "record_tracking", title=title, floatfmt=".4g")

@@ -45,6 +45,27 @@ def test_record_tracks_a_measured_force_with_a_given_plant(tmp_path, capsys):
     assert (tmp_path / "out" / "record_tracking.png").is_file()
 
 
+def test_record_tracks_the_force_as_the_plant_was_fitted_to_it(tmp_path, capsys):
+    """The tracking target is the measured force moved by the force offset (the one the plant was fitted with),
+    and a clipped span of the load cell is left out of the scores: the replayed command then tracks it as well as
+    on a clean record."""
+    d = make_damper("bouc_wen")
+    r = achievable_forces(d, duration=1.0, rng=0)
+    s = 2  # the force channel lags the motion by 2 samples
+    f = r.force[:-s].copy()
+    f[850:900] = f.max()  # and the load cell clips in the held-back part
+    path = DamperRecord(r.t[:-s], r.x[s:], r.command[s:], f, r.v[s:]).to_csv(tmp_path / "rec.csv")
+    preset = save_preset(d, tmp_path / "plant.json")
+    e_t = {}
+    for offset in ("0", str(s)):
+        out = tmp_path / f"out{offset}"
+        code = main(["inverse", "record", "--data", str(path), "--plant-preset", str(preset), "--fs", "1000",
+                     "--inverses", "heaviside", "--force-offset", offset, "--out", str(out)])
+        assert code == 0, capsys.readouterr().err
+        e_t[offset] = float({r["inverse"]: r for r in _rows(out / "record_tracking.csv")}["measured command"]["E_t %"])
+    assert e_t[str(s)] < 2.0 < e_t["0"]
+
+
 def test_train_writes_a_network_that_reproduces_itself(tmp_path, capsys):
     pytest.importorskip("torch")
     from mrd_env.inverse.neural import load_network

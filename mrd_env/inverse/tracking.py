@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..identification.measures import error_time
+from ..identification.measures import error_measures, error_time
 from ..stepping import Stepper, SystemMatrices
 from ..validation import check_array, check_scalar
 from .base import Inverse, as_damper
@@ -64,12 +64,14 @@ def _records(name: str, value, shape: tuple[int, int] | None = None) -> np.ndarr
     return a
 
 
-def track(inverse: Inverse, damper, x, v, f_desired, dt: float, *, u0: float | None = None,
+def track(inverse: Inverse, damper, x, v, f_desired, dt: float, *, u0: float | None = None, scored=None,
           **integrator_options) -> TrackingResult:
     """Run ``inverse`` in closed loop with the plant ``damper`` along the motion ``x`` (m), ``v`` (m/s) sampled
     every ``dt`` (s), asking for ``f_desired`` (N); 1-D arrays (one record) or 2-D (records × samples, one batch
     of the inverse). The plant starts at rest with the effective command ``u0`` (default v_min); the inverse is
-    reset first. ``integrator_options`` (``max_substeps``, ``rtol``, ``atol``) go to the plant's stepping."""
+    reset first. ``scored`` (a bool per sample, like ``x``): the samples the errors are computed on (default: every
+    one from the second; a measured record's faults, say, left out). ``integrator_options`` (``max_substeps``,
+    ``rtol``, ``atol``) go to the plant's stepping."""
     if not isinstance(inverse, Inverse):
         raise ValueError(f"inverse must be an Inverse (see make_inverse), got {type(inverse).__name__}")
     damper = as_damper(damper)
@@ -104,8 +106,15 @@ def track(inverse: Inverse, damper, x, v, f_desired, dt: float, *, u0: float | N
         F[:, k + 1] = Fk[:, 0, 0]
     cmd[:, -1] = cmd[:, -2]
     t = np.arange(n) * dt
-    e_nrmse = np.array([nrmse(F[i, 1:], Fd[i, 1:]) for i in range(N)])
-    e_t = np.array([error_time(Fd[i, 1:], F[i, 1:], t[1:]) for i in range(N)])
+    if scored is None:
+        e_nrmse = np.array([nrmse(F[i, 1:], Fd[i, 1:]) for i in range(N)])
+        e_t = np.array([error_time(Fd[i, 1:], F[i, 1:], t[1:]) for i in range(N)])
+    else:
+        M = np.broadcast_to(np.asarray(scored, dtype=bool), (N, n)) if np.ndim(scored) == 1 else \
+            _records("scored", scored, (N, n)).astype(bool)
+        e_nrmse = np.array([nrmse(F[i, 1:][M[i, 1:]], Fd[i, 1:][M[i, 1:]]) for i in range(N)])
+        e_t = np.array([error_measures(Fd[i, 1:], F[i, 1:], t[1:], v=V[i, 1:], mask=M[i, 1:])["E_t"]
+                        for i in range(N)])
     return TrackingResult(t, X, V, Fd, F, cmd, e_nrmse, e_t, spent / (n - 1), inverse.name, damper.name, c.unit)
 
 
