@@ -196,7 +196,10 @@ class MRDamperVectorEnv(PlantDeclarations, VectorEnv):
             self._status[restart] = RUNNING
         rewards = self._reward.copy()
         if core.python_reward:  # a callable reward, on the period each environment ran (as the scalar env adds it)
-            for b in np.flatnonzero(self._status != DIVERGED if restart is None else (self._status != DIVERGED) & ~restart):
+            ran = self._status != DIVERGED
+            if restart is not None:
+                ran &= ~restart
+            for b in np.flatnonzero(ran):
                 rewards[b] += self.assembly.reward(core.period(int(b)))
         infos = {"t": core._k * self.assembly.control_dt, "_t": np.ones(N, dtype=bool)}
         if restart is not None:

@@ -154,8 +154,8 @@ class ObserverInverse(Inverse):
     current error when the force is measured: f_target = f_d − κ (f_measured − F_model), a disturbance estimate
     held over the step (κ = 0: open loop). ``u0``: the effective command at the first call (default v_min, a
     damper at rest and switched off). ``max_substeps``, ``rtol``, ``atol``: the stepping routine's settings
-    (``max_substeps`` per step of ``dt``; default :data:`~mrd_env.stepping.scheme.MAX_SUBSTEPS` per millisecond of it, the budget of the
-    environments' own 1 ms steps).
+    (``max_substeps`` per step of ``dt``; default :data:`~mrd_env.stepping.scheme.MAX_SUBSTEPS` per millisecond
+    of it, the budget of the environments' own 1 ms steps).
     """
 
     def __init__(self, damper, *, dt: float = 1e-3, force_feedback: float = 0.0, u0: float | None = None,
