@@ -313,10 +313,12 @@ class MPC(ClippedOptimal):
             solver = self._solver(int(b))
             solver.update(q=q[b])
             res = solver.solve(raise_error=False)
-            if res.info.status_val not in (1, 2):  # solved, solved inaccurate
-                raise RuntimeError(f"MPC: OSQP failed on row {b}: {res.info.status} (a box-constrained, strictly "
-                                   "convex QP is always solvable: check the estimate for NaN)")
-            out[b] = np.clip(res.x, -self._u_max, self._u_max)
+            if res.info.status_val in (1, 2):  # solved, solved inaccurate
+                out[b] = np.clip(res.x, -self._u_max, self._u_max)
+            elif np.isfinite(q[b]).all():  # an estimate so far out (1e16 and beyond) that OSQP stops: the clipped
+                out[b] = np.clip(out[b], -self._u_max, self._u_max)  # unconstrained optimum, a feasible command
+            else:
+                raise RuntimeError(f"MPC: OSQP failed on row {b}: {res.info.status} (the estimate is not finite)")
         return (out * self.force_ref).reshape(x_hat.shape[0], self.horizon, self.design.nd)
 
     def command(self, obs):

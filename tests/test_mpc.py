@@ -444,3 +444,15 @@ def test_bad_reward_options_raise_value_errors_naming_them():
         MPC(env, frame="wheel")
     with pytest.raises(ValueError, match="cannot regulate 'damper_force'"):
         ClippedOptimal(env, weights={"damper_force": 1.0})
+
+
+@pytest.mark.parametrize("env_id", [CAR, BUILDING])
+def test_an_absurd_but_finite_observation_gives_a_command_in_range(env_id):
+    """Observations of 1e20 (OSQP stops on such a QP): the command is the clipped unconstrained optimum, finite
+    and within [v_min, v_max], not an error."""
+    env = _env(env_id)
+    obs, _ = env.reset(seed=0)
+    ctrl = MPC(env)
+    for big in (1e20, -1e20):
+        u, _ = ctrl.predict(np.full_like(obs, big))
+        assert np.isfinite(u).all() and (u >= ctrl.v_min).all() and (u <= ctrl.v_max).all()
