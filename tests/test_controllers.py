@@ -196,3 +196,13 @@ def test_a_batch_gives_each_row_what_it_alone_would_get(name):
             if start[i]:
                 c.reset()
             np.testing.assert_array_equal(a[i], c.predict(O[i])[0])
+
+
+def test_skyhook_refuses_the_building_whose_floor_velocities_are_relative():
+    """Skyhook needs an absolute body velocity; the building's floor velocities are relative to the ground, so it
+    declares no body_velocity role and skyhook and hybrid refuse it by name (a relative one is not skyhook)."""
+    env = ShearBuildingEnv(sensors=("damper_force", "damper_velocity", "upper_floor_vel"))
+    assert "body_velocity" not in env.roles
+    for law in ("skyhook_on_off", "skyhook_continuous", "hybrid"):
+        with pytest.raises(ValueError, match="body_velocity"):
+            make_controller(law, env)
