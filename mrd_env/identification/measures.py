@@ -15,7 +15,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.integrate import trapezoid
 
 from ..validation import check_signal, check_time
 
@@ -57,22 +56,15 @@ def _integral(g: np.ndarray, h: np.ndarray) -> float:
     return float(np.sum(0.5 * (g[:-1] + g[1:]) * h))
 
 
-def _normalised_error(F_exp: np.ndarray, F: np.ndarray, t: np.ndarray, w: np.ndarray, name: str,
-                      h: np.ndarray | None = None) -> float:
-    """sqrt(∫(F_exp-F)² w dt / ∫(F_exp-F̄_exp)² w dt), trapezoidal in time over the steps ``h`` (default: all
-    of ``t``) — the common form of eq. (3)."""
-    if h is None:
-        mean = trapezoid(F_exp, t) / (t[-1] - t[0])
-        den = trapezoid((F_exp - mean) ** 2 * w, t)
-        num = trapezoid((F_exp - F) ** 2 * w, t)
-    else:
-        mean = _integral(F_exp, h) / h.sum()
-        den = _integral((F_exp - mean) ** 2 * w, h)
-        num = _integral((F_exp - F) ** 2 * w, h)
+def _normalised_error(F_exp: np.ndarray, F: np.ndarray, w: np.ndarray, name: str, h: np.ndarray) -> float:
+    """sqrt(∫(F_exp-F)² w dt / ∫(F_exp-F̄_exp)² w dt), trapezoidal in time over the steps ``h``
+    (:func:`scored_intervals`) — the common form of eq. (3)."""
+    mean = _integral(F_exp, h) / h.sum()
+    den = _integral((F_exp - mean) ** 2 * w, h)
     if not den > 0.0:
         raise ValueError(f"{name} is undefined: the weighted variance of F_exp is zero (constant measured force "
                          f"or zero weight everywhere)")
-    return math.sqrt(num / den)
+    return math.sqrt(_integral((F_exp - F) ** 2 * w, h) / den)
 
 
 # --- public measures --------------------------------------------------------------------------------------------
@@ -80,7 +72,7 @@ def _normalised_error(F_exp: np.ndarray, F: np.ndarray, t: np.ndarray, w: np.nda
 def error_time(F_exp, F, t) -> float:
     """E_t of review eq. (3): RMS force error over the measured force's RMS deviation from its time mean."""
     F_exp, F, t = _forces_and_time(F_exp, F, t)
-    return _normalised_error(F_exp, F, t, np.ones_like(t), "E_t")
+    return _normalised_error(F_exp, F, np.ones_like(t), "E_t", np.diff(t))
 
 
 def error_displacement(F_exp, F, t, x=None, *, v=None) -> float:
@@ -89,7 +81,7 @@ def error_displacement(F_exp, F, t, x=None, *, v=None) -> float:
     ``x`` is the displacement (m), differentiated on ``t``; or give the measured velocity ``v`` (m/s).
     """
     F_exp, F, t = _forces_and_time(F_exp, F, t)
-    return _normalised_error(F_exp, F, t, np.abs(_velocity(t, x, v)), "E_x")
+    return _normalised_error(F_exp, F, np.abs(_velocity(t, x, v)), "E_x", np.diff(t))
 
 
 def error_velocity(F_exp, F, t, x=None, *, v=None) -> float:
@@ -99,7 +91,7 @@ def error_velocity(F_exp, F, t, x=None, *, v=None) -> float:
     """
     F_exp, F, t = _forces_and_time(F_exp, F, t)
     a = np.gradient(_velocity(t, x, v), t, edge_order=2)
-    return _normalised_error(F_exp, F, t, np.abs(a), "E_v")
+    return _normalised_error(F_exp, F, np.abs(a), "E_v", np.diff(t))
 
 
 def j1(F_exp, F) -> float:
@@ -128,12 +120,12 @@ def error_measures(F_exp, F, t, x=None, *, v=None, mask=None) -> dict[str, float
     F_exp, F, t = _forces_and_time(F_exp, F, t)
     vel = _velocity(t, x, v)
     acc = np.gradient(vel, t, edge_order=2)
-    h = None if mask is None else scored_intervals(t, mask)
+    h = scored_intervals(t, mask)
     m = slice(None) if mask is None else np.asarray(mask, dtype=bool)
     return {
-        "E_t": _normalised_error(F_exp, F, t, np.ones_like(t), "E_t", h),
-        "E_x": _normalised_error(F_exp, F, t, np.abs(vel), "E_x", h),
-        "E_v": _normalised_error(F_exp, F, t, np.abs(acc), "E_v", h),
+        "E_t": _normalised_error(F_exp, F, np.ones_like(t), "E_t", h),
+        "E_x": _normalised_error(F_exp, F, np.abs(vel), "E_x", h),
+        "E_v": _normalised_error(F_exp, F, np.abs(acc), "E_v", h),
         "J1": j1(F_exp[m], F[m]),
         "J2": j2(F_exp[m], F[m]),
     }
