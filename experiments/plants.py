@@ -182,8 +182,8 @@ BUILDING = PlantProfile(
          "pga": (0.15 * G, 0.45 * G)}]}},
     disturbance_key="ground_motion", tests=_building_tests,
     laws=("random", *_BUILDING_LAWS),
-    # (skyhook is left out for the building: with the damper at the ground floor, the floor velocity relative to
-    # the ground and the damper velocity are the same signal, so the law degenerates to passive-on)
+    # (skyhook and hybrid are left out for the building: its floor velocities are relative to the ground, so it
+    # declares no body_velocity role; docs/controllers.md)
     # clipped-optimal also with each inverse model turning its desired force into the command (mrd_env.inverse)
     benchmark_laws=("passive_off", "passive_on", "clipped_optimal", "clipped_optimal+sid", "clipped_optimal+model",
                     "clipped_optimal+neural", "clipped_optimal_reward", "lyapunov", "max_energy_dissipation",

@@ -94,3 +94,25 @@ def test_half_car_with_bingham_dampers_matches_radau():
     # the pitch is excited (the rear wheel's delayed road), and the commands made the dampers differ
     assert np.sqrt(np.mean(q_ref[:, 1] ** 2)) > 1e-3
     assert abs(np.sqrt(np.mean(F_ref[:, 1] ** 2)) / np.sqrt(np.mean(F_ref[:, 0] ** 2)) - 1.0) > 0.1
+
+
+def test_half_car_episode_starts_in_static_equilibrium_on_the_road():
+    """Both suspension strokes and both tyre deflections are zero at reset, on a road that starts away from zero
+    (until 2026-11-25 the body started at zero heave and pitch: a 430 N spring step at the first instant), and the
+    strokes stay small over the first steps at a constant command."""
+    import gymnasium as gym
+
+    import mrd_env  # noqa: F401  (registers the environments)
+
+    env = gym.make("mrd_env/HalfCar-v0")
+    env.reset(seed=3)
+    base = env.unwrapped
+    zs, th, zf, zr = base.plant_state[:4]
+    road = base.record.data[0]
+    p = base.assembly.plant_params
+    assert abs(road[0]) > 1e-3 and abs(road[2]) > 1e-3  # the case the old start got wrong
+    assert (zf, zr) == (road[0], road[2])  # tyres undeflected
+    np.testing.assert_allclose([zs - p.a * th - zf, zs + p.b * th - zr], 0.0, atol=1e-15)  # strokes zero
+    for _ in range(5):
+        env.step(env.action_space.low)
+    assert np.max(np.abs(base.signal("travel"))) < 1e-4

@@ -6,6 +6,11 @@
 
 (eq. (9)'s frequency/amplitude dependence of the coefficients is left to the user: fit one set per test
 condition). State: z (m).
+
+As in eq. (7), k0b multiplies (x − x0): with an accumulator preload x0 larger than the stroke, a k0b > 0 adds
+−k0b·x0·u, a force that falls with the command. Every preset has k0b = 0; a fit that frees k0b and x0 can
+find such a model: check a fitted one's energy per cycle over the command range on the rig, as
+``tests/test_dampers_physics.py`` does for the presets.
 """
 from __future__ import annotations
 

@@ -76,9 +76,15 @@ def _metrics(st: EpisodeStats, ep: Episode, static: np.ndarray) -> dict:
             "tyre_load_ratio": float(np.max(st.rms["_tyre_load"] / static)), "duration": (st.n_rows - 1) * st.dt}
 
 
-def _new_episode(rec: Record) -> Episode:
-    """At rest, each wheel on its road's initial height and moving with it."""
-    return Episode(rec, np.concatenate([[0.0, 0.0], rec.data[0, [0, 2]], [0.0, 0.0], rec.data[0, [1, 3]]]))
+def _new_episode(p: HalfCarParams, rec: Record) -> Episode:
+    """In static equilibrium on the road's initial heights, moving with it (no step hits a tyre or a suspension,
+    as for the quarter car): each wheel on its road, the body where both strokes are zero."""
+    zf, zdf, zr, zdr = rec.data[0]
+    L = p.wheelbase
+    body = np.array([[p.b / L, p.a / L], [-1.0 / L, 1.0 / L]])  # [z_s, θ] from the axles' heights (x_f = x_r = 0)
+    zs, th = body @ [zf, zr]
+    vs, om = body @ [zdf, zdr]
+    return Episode(rec, np.array([zs, th, zf, zr, vs, om, zdf, zdr]))
 
 
 def assembly(*, plant_preset="sedan", plant_params=None, road="iso8608", road_params=None, damper="spencer_dyke",
@@ -124,7 +130,7 @@ def assembly(*, plant_preset="sedan", plant_params=None, road="iso8608", road_pa
         disturbance=road_source(road, road_params, dt, episode_seconds, p.wheelbase), reward=reward,
         limits=Limits({"travel": opt.check_scalar("stroke_limit", stroke_limit, 0.0, lo_open=True, unit="m")},
                       penalty_rate=w["termination"]),
-        new_episode=_new_episode, metrics=functools.partial(_metrics, static=static),
+        new_episode=functools.partial(_new_episode, p), metrics=functools.partial(_metrics, static=static),
         roles={"body_velocity": "body_vel_at_axles", "wheel_velocity": "wheel_vel", "damper_velocity": "travel_rate",
                "damper_stroke": "travel", "damper_force": "damper_force"},
         objective={"body_acc": 1.0, "travel": 1.0 / X_REF ** 2},
@@ -159,7 +165,7 @@ class HalfCarEnv(MRDamperEnv):
     | Index | Sensor | Quantity | Unit |
     |---|---|---|---|
     | 0 | ``body_acc`` | body heave acceleration at the centre of mass | m/s² |
-    | 1 | ``pitch_acc`` | body pitch acceleration (nose up positive) | rad/s² |
+    | 1 | ``pitch_acc`` | body pitch acceleration (nose down positive) | rad/s² |
     | 2–3 | ``travel`` | suspension travel, front and rear (extension positive) | m |
     | 4–5 | ``damper_force`` | damper forces, front and rear | N |
     | 6–7 | ``command`` | the commands applied over the last step | V or A |
@@ -180,7 +186,8 @@ class HalfCarEnv(MRDamperEnv):
 
     ## Starting State
 
-    The body at zero heave and pitch, at rest; each wheel on its road's initial height and moving with it. A
+    In static equilibrium on the road's initial heights and moving with it: each wheel on its road, the body
+    where both suspension strokes are zero (as the quarter car). A
     generated road is new each episode, drawn from ``np_random`` (``reset(seed=...)``).
 
     ## Episode End

@@ -1,7 +1,7 @@
 """Half car (pitch plane) with MR dampers at the front and rear suspensions.
 
-Coordinates q = [z_s, θ, z_uf, z_ur]: heave of the body's centre of mass (up), pitch (rad, nose up), front and
-rear unsprung displacements. The suspension strokes are x_f = z_s − a θ − z_uf and x_r = z_s + b θ − z_ur
+Coordinates q = [z_s, θ, z_uf, z_ur]: heave of the body's centre of mass (up), pitch (rad, positive nose down:
+the body above the front axle is at z_s − aθ), front and rear unsprung displacements. The suspension strokes are x_f = z_s − a θ − z_uf and x_r = z_s + b θ − z_ur
 (a, b the distances of the front and rear axles from the centre of mass; extension positive)::
 
     m_s z̈_s   = −Σ (k_s,i x_i + c_p,i ẋ_i + F_i)

@@ -274,10 +274,21 @@ def sdirk_step(lv, damper, state, w0, w1, tau0, h, control, level, ws):
     Iw[m] = level
     for stage in range(2):
         # stage 1 at τ0 + γh; stage 2 at τ0 + h (stiffly accurate: its value is the step's result)
+        # Newton starts from a prediction of the stage's damper states and forces: a third fewer iterations
+        # than starting from Y (2.3 → 1.6 per stage on the quarter car, class-C road)
         if stage == 0:
             tau = tau0 + GAMMA * h
             Z = Z1
             u = u1
+            # an explicit Euler step to τ0 + γh from the slope at the step's start
+            w = _interpolate(w0, w1, tau0 / H, Vx[3])
+            kinematics(C, D, Y, w, Vd[2], Vd[3], Vd[4])
+            g = Vx[1]
+            for j in range(nd):
+                o = nq + j * ns
+                rhs(P[j], Y[o:o + ns], Vd[2, j], Vd[3, j], u0[j], g)
+                for i in range(ns):
+                    Z1[o + i] = Y[o + i] + hg * g[i]
         else:
             tau = tau0 + h
             Z = Z2
@@ -285,7 +296,9 @@ def sdirk_step(lv, damper, state, w0, w1, tau0, h, control, level, ws):
             for i in range(n):
                 f1[i] = (Z1[i] - Y[i]) / hg  # stage derivative without re-evaluating f (exact for stiff parts)
                 R[i] = Y[i] + h * (1.0 - GAMMA) * f1[i]
-                Z2[i] = Z1[i]
+                Z2[i] = Y[i] + h * f1[i]  # stage 1's slope carried on to τ0 + h
+            for j in range(nd):
+                F1[j] = Fz[j] + (F1[j] - Fz[j]) / GAMMA
         for j in range(nd):
             u[j] = _lag_value(u0[j], va[j], vb[j], ts[j], lag[j, 0], lag[j, 1], tau)
         w = _interpolate(w0, w1, tau / H, Vx[3])
