@@ -57,20 +57,38 @@ class Groundhook(Controller):
 
 
 class Hybrid(Controller):
-    """Hybrid skyhook–groundhook (Ahmadian 2000): σ = α ż_s − (1 − α) ż_u, u = u_max if σ·v_rel ≥ 0."""
+    """Hybrid skyhook–groundhook (Goncalves & Ahmadian 2003): the damper aims at F = G [α σ_sky + (1 − α) σ_gnd]
+    with σ_sky = ż_s where ż_s·v_rel ≥ 0 (else 0) and σ_gnd = −ż_u where −ż_u·v_rel ≥ 0 (else 0), each term
+    gated on its own; u = clip(u_min + |F| / κ). α = 1 is continuous skyhook with c_sky = G, α = 0 continuous
+    groundhook.
+
+    (The reference page's one-switch form, σ = α ż_s − (1 − α) ż_u and u = u_max if σ·v_rel ≥ 0, which this law
+    followed until 2026-11-25, is σ·v_rel = α ż_s² − ż_s ż_u + (1 − α) ż_u²: negative only while ż_s/ż_u lies
+    between (1 − α)/α and 1, never at α = 0.5, so it ran at u_max on 84 % of a class-C road's steps: passive-on.)
+    ``gain`` G in N·s/m (default 1000, continuous skyhook's c_sky); ``force_per_command`` κ as for it.
+    """
 
     name = "hybrid"
     needs_roles = ("body_velocity", "wheel_velocity", "damper_velocity")
 
-    def __init__(self, env, alpha: float = 0.6):
+    def __init__(self, env, alpha: float = 0.6, gain: float = 1000.0, force_per_command: float | None = None):
         super().__init__(env)
         if not 0.0 <= alpha <= 1.0:
             raise ValueError(f"alpha must be in [0, 1], got {alpha}")
+        if not gain > 0:
+            raise ValueError(f"gain must be > 0 N·s/m, got {gain}")
         self.alpha = float(alpha)
+        self.gain = float(gain)
+        self.kappa = float(force_per_command) if force_per_command else force_gain(self.env.damper)
 
     def command(self, obs):
-        sigma = self.alpha * self.role(obs, "body_velocity") - (1 - self.alpha) * self.role(obs, "wheel_velocity")
-        return self.on_off(sigma * self.role(obs, "damper_velocity") >= 0.0)
+        zs = self.role(obs, "body_velocity")
+        zu = self.role(obs, "wheel_velocity")
+        v = self.role(obs, "damper_velocity")
+        sky = np.where(zs * v >= 0.0, zs, 0.0)
+        ground = np.where(-zu * v >= 0.0, -zu, 0.0)
+        F = self.gain * (self.alpha * sky + (1.0 - self.alpha) * ground)
+        return np.clip(self.v_min + np.abs(F) / self.kappa, self.v_min, self.v_max)
 
 
 def force_gain(damper, velocity: float = 0.1) -> float:

@@ -132,10 +132,16 @@ HISTORY_LINES = 4
 
 def history_selection(eps: list[Episode]) -> list[Episode]:
     """The controllers a readable history shows: passive-off and passive-on (the bounds of any fixed setting),
-    then the best others by return."""
+    then the best others by return, one per law (a law with an inverse, ``clipped_optimal+model``, draws on top
+    of the law itself)."""
     fixed = [e for e in eps if e.controller in ("passive_off", "passive_on")]
-    others = sorted((e for e in eps if e not in fixed), key=lambda e: -e.episode_return)
-    return fixed + others[:HISTORY_LINES - len(fixed)]
+    chosen, laws = [], set()
+    for e in sorted((e for e in eps if e not in fixed), key=lambda e: -e.episode_return):
+        law = e.controller.split("+")[0]
+        if law not in laws and len(fixed) + len(chosen) < HISTORY_LINES:
+            chosen.append(e)
+            laws.add(law)
+    return fixed + chosen
 
 
 def write_reports(plant: str, episodes: list[Episode], out: Path, response: str = "") -> dict:

@@ -25,7 +25,8 @@ def clairvoyant_reference(plant: str, episodes: int = 8, progress: bool = True) 
     return float(np.mean([y.clairvoyant for y in ys]))
 
 
-def draw(plant: str, agents: list[Path], out: Path, clairvoyant: bool = True, episodes: int = 8) -> Path | None:
+def draw(plant: str, agents: list[Path], out: Path, clairvoyant: bool = True, episodes: int = 8,
+         title: str | None = None) -> Path | None:
     """The figure ``out`` for the agent folders ``agents`` (one plant, one set-up)."""
     from controllers.agents import load_agent
 
@@ -40,7 +41,7 @@ def draw(plant: str, agents: list[Path], out: Path, clairvoyant: bool = True, ep
     refs = law_references(plant, env_kwargs, episodes, extra_laws=own)
     if clairvoyant:
         refs["clairvoyant (full knowledge, 1 ms)"] = clairvoyant_reference(plant, episodes)
-    return plot_seed_curves(agents, out, refs)
+    return plot_seed_curves(agents, out, refs, title=title)
 
 
 def main(argv=None) -> int:
@@ -49,9 +50,10 @@ def main(argv=None) -> int:
     p.add_argument("--agents", type=Path, nargs="+", required=True, help="agent folders written by mrd-env train")
     p.add_argument("--out", type=Path, required=True, help="the PNG to write")
     p.add_argument("--no-clairvoyant", action="store_true", help="laws only (no optimal-control solves)")
+    p.add_argument("--title", help="the figure's title (default: the agents' common name and the seed count)")
     args = p.parse_args(argv)
     try:
-        path = draw(args.plant, args.agents, args.out, clairvoyant=not args.no_clairvoyant)
+        path = draw(args.plant, args.agents, args.out, clairvoyant=not args.no_clairvoyant, title=args.title)
     except ValueError as exc:
         print(f"learning_curves: error: {exc}", file=sys.stderr)
         return 2

@@ -81,9 +81,22 @@ def _parse_overrides(items) -> dict:
     return out
 
 
-def plot_seed_curves(run_dirs, path: Path, references: dict[str, float] | None = None) -> Path | None:
+#: One colour per reference, the same in every figure (the seeds are grey, their mean black).
+REFERENCE_COLORS = {"passive_off": "C0", "passive_on": "C1", "skyhook_on_off": "C2", "skyhook_continuous": "C3",
+                    "groundhook": "C4", "hybrid": "C5", "clipped_optimal": "C6", "clipped_optimal_reward": "C9",
+                    "lyapunov": "C8", "clairvoyant": "C7"}
+
+
+def _reference_color(name: str, fallback: int) -> str:
+    return REFERENCE_COLORS.get(name.split(" ")[0], f"C{fallback % 10}")
+
+
+def plot_seed_curves(run_dirs, path: Path, references: dict[str, float] | None = None,
+                     title: str | None = None) -> Path | None:
     """The validation returns of several seeds (each, and their mean) against environment steps, with
-    horizontal ``references`` (e.g. the classical laws' validation returns)."""
+    horizontal ``references`` (e.g. the classical laws' validation returns). The y-axis spans the curves and
+    the references near them; a reference far outside (the clairvoyant, usually) is named in the legend with
+    its value instead of squeezing the curves flat."""
     import csv
 
     from mrd_env.report import figure, save_figure
@@ -97,18 +110,40 @@ def plot_seed_curves(run_dirs, path: Path, references: dict[str, float] | None =
                            np.array([float(r["validation_return"]) for r in rows])))
     if not curves:
         return None
-    fig, ax = figure(figsize=(7, 4))
-    for name, x, y in curves:
-        ax.plot(x, y, lw=0.8, alpha=0.6, label=name)
+    fig, ax = figure(figsize=(7, 4.3))
+    styles = ("-", "--", ":", "-.")
+    for i, (name, x, y) in enumerate(curves):
+        ax.plot(x, y, lw=1.0, color="0.55", ls=styles[i % len(styles)], label=name)
     n = min(len(y) for _, _, y in curves)
-    ax.plot(curves[0][1][:n], np.mean([y[:n] for _, _, y in curves], axis=0), "k-", lw=2, label="mean over seeds")
+    ax.plot(curves[0][1][:n], np.mean([y[:n] for _, _, y in curves], axis=0), "k-", lw=1.8, label="mean over seeds")
+    ys = np.concatenate([y for _, _, y in curves])
+    lo, hi = float(ys.min()), float(ys.max())
+    span = max(hi - lo, 1e-9)
+    shown = {k: v for k, v in (references or {}).items() if lo - 2 * span <= v <= hi + 2 * span}
+    if shown:
+        lo, hi = min(lo, *shown.values()), max(hi, *shown.values())
+    pad = 0.08 * max(hi - lo, 1e-9)
+    ax.set_ylim(lo - pad, hi + pad)
     for i, (name, value) in enumerate((references or {}).items()):
-        ax.axhline(value, ls="--", lw=1, color=f"C{(i + len(curves)) % 10}", label=name)
+        if name in shown:
+            ax.axhline(value, ls="--", lw=1.2, color=_reference_color(name, i), label=f"{name}: {value:.4g}")
+        else:  # off the scale of the curves: named, not drawn
+            ax.plot([], [], ls="none", label=f"{name}: {value:.4g} ({'above' if value > hi else 'below'}, off scale)")
     ax.set_xlabel(steps_label(Path(run_dirs[0])))
-    ax.set_ylabel("validation return (unseen seeds)")
+    ax.set_ylabel("validation return, unseen seeds (1)")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7)
+    ax.set_title(title or f"{_common_name([c[0] for c in curves])}: {len(curves)} seeds", fontsize=10)
     return save_figure(fig, path)
+
+
+def _common_name(names: list[str]) -> str:
+    """The agents' common name without the seed suffix (``building_ppo-residual_s0`` → ``building_ppo-residual``)."""
+    import os
+
+    common = os.path.commonprefix(names)
+    common = common[:-2] if common.endswith("_s") else common.rstrip("_")
+    return common or names[0]
 
 
 def train(plant: str, algo: str, seeds, *, backend: str = "serial", jobs: int | None = None,

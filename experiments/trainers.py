@@ -254,19 +254,20 @@ def plot_learning_curve(run_dir: Path) -> Path | None:
             k = min(20, r.size)
             y = np.convolve(r, np.ones(k) / k, mode="valid")
             # a short run has a handful of points: markers, so that one point is still seen
+            what = "training episodes" if k == 1 else f"training episodes, running mean of {k}"
             ax.plot(steps[k - 1:], y, "s-" if y.size < 20 else "-", ms=3, lw=1,
-                    label=f"training episodes (mean of {k})")
+                    label=f"{what} (the training distribution)")
             drawn = True
     val = run_dir / "validation.csv"
     if val.exists():
         rows = list(csv.DictReader(val.open()))
         ax.plot([int(r["timesteps"]) for r in rows], [float(r["validation_return"]) for r in rows], "o-", ms=3,
-                label="validation (unseen seeds)")
+                label="validation (unseen seeds, its own episodes)")
         drawn = True
     if not drawn:
         return None
     ax.set_xlabel(steps_label(run_dir))
-    ax.set_ylabel("episode return")
+    ax.set_ylabel("episode return (1)")
     ax.set_title(run_dir.name)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)

@@ -86,6 +86,20 @@ def test_benchmark_tables_hold_means_over_seeds_and_figures_only_ratios(tmp_path
     assert len(shown) == HISTORY_LINES and {"passive_off", "passive_on"} <= {e.controller for e in shown}
 
 
+def test_history_shows_one_line_per_law():
+    """A law and the same law with an inverse draw on top of each other: the history takes the better of the two
+    and then the next law."""
+    from types import SimpleNamespace
+
+    from experiments.benchmark import history_selection
+
+    eps = [SimpleNamespace(controller=c, episode_return=r) for c, r in
+           [("passive_off", -2.1), ("passive_on", -1.0), ("clipped_optimal", -0.85), ("clipped_optimal+model", -0.855),
+            ("clipped_optimal_reward", -0.86), ("lyapunov", -1.03)]]
+    assert [e.controller for e in history_selection(eps)] == ["passive_off", "passive_on",
+                                                              "clipped_optimal", "clipped_optimal_reward"]
+
+
 def test_building_history_follows_the_damper_storey():
     from experiments.evaluation import response_of
 

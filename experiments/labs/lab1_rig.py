@@ -226,8 +226,9 @@ lab.save(fig, "command_lag.png")
 # 2. The force–displacement loop of a pure viscous damper is an ellipse, of a pure friction damper a rectangle.
 #    Which does the 0 V loop resemble, and the 2.25 V one?
 # 3. c_eq falls with frequency at a high command. Explain with E = 4 f_c X + π c₀ ω X².
-# 4. Why does the force take longer than u to reach 63 % of its step? What does that mean for a controller that
-#    switches every millisecond?
+# 4. The force reaches 63 % of its step slightly later than u (the printed times: a fraction of a millisecond,
+#    too little to see in the figure). What in eq. (12) adds that lag? Next to 1/η, what matters more for a
+#    controller that switches every millisecond?
 # 5. Why is c_ps smaller than c₀? What would the pre-yield slope c_pre be, and which parameters of eq. (12) set it?
 # 6. The asymmetry of the loops (peak force in compression larger than in extension): where does it come from?
 
