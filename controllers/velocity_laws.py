@@ -1,8 +1,8 @@
 """Velocity-feedback semi-active laws: skyhook, groundhook and hybrid (reference page section 7).
 
 The laws read the signals the environment declares for their roles (``env.roles``): ``body_velocity`` ż_s (the
-sprung mass; for a building, the floor above each damper), ``wheel_velocity`` ż_u (the unsprung mass) and
-``damper_velocity`` v_rel across the damper.
+sprung mass, absolute; the building declares none, its floor velocities being relative to the ground),
+``wheel_velocity`` ż_u (the unsprung mass) and ``damper_velocity`` v_rel across the damper.
 """
 from __future__ import annotations
 

@@ -84,11 +84,12 @@ def _parse_overrides(items) -> dict:
 #: One colour per reference, the same in every figure (the seeds are grey, their mean black).
 REFERENCE_COLORS = {"passive_off": "C0", "passive_on": "C1", "skyhook_on_off": "C2", "skyhook_continuous": "C3",
                     "groundhook": "C4", "hybrid": "C5", "clipped_optimal": "C6", "clipped_optimal_reward": "C9",
-                    "lyapunov": "C8", "clairvoyant": "C7"}
+                    "lyapunov": "C8", "clairvoyant": "darkgoldenrod"}
+_OTHER_COLORS = ("navy", "teal", "maroon", "olive", "indigo")  # for references not named above
 
 
 def _reference_color(name: str, fallback: int) -> str:
-    return REFERENCE_COLORS.get(name.split(" ")[0], f"C{fallback % 10}")
+    return REFERENCE_COLORS.get(name.split(" ")[0], _OTHER_COLORS[fallback % len(_OTHER_COLORS)])
 
 
 def plot_seed_curves(run_dirs, path: Path, references: dict[str, float] | None = None,
@@ -133,7 +134,8 @@ def plot_seed_curves(run_dirs, path: Path, references: dict[str, float] | None =
     ax.set_ylabel("validation return, unseen seeds (1)")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7)
-    ax.set_title(title or f"{_common_name([c[0] for c in curves])}: {len(curves)} seeds", fontsize=10)
+    seeds = f"{len(curves)} seed{'s' if len(curves) > 1 else ''}"
+    ax.set_title(title or f"{_common_name([c[0] for c in curves])}: {seeds}", fontsize=10)
     return save_figure(fig, path)
 
 
@@ -141,8 +143,9 @@ def _common_name(names: list[str]) -> str:
     """The agents' common name without the seed suffix (``building_ppo-residual_s0`` → ``building_ppo-residual``)."""
     import os
 
-    common = os.path.commonprefix(names)
-    common = common[:-2] if common.endswith("_s") else common.rstrip("_")
+    import re
+
+    common = re.sub(r"_s\d*$", "", os.path.commonprefix(names)).rstrip("_")  # the seed suffix, whole or partial
     return common or names[0]
 
 

@@ -125,8 +125,10 @@ def _project(p, s, x, xd, u):
 # Derived preset (not published; `python -m experiments.derive_hbv_preset`): least-squares fit of the model with
 # quadratic command laws to the steady force record of the Spencer–Dyke prototype set (one cycle each at
 # 1.5 cm / 2.5 Hz, 0, 0.75, 1.5 and 2.25 V, simulated at 0.1 ms), f0 fixed to the preload −k1 x0 = −71.5 N,
-# F_yield, c_ps and c_pre non-decreasing and v0 non-increasing over 0–2.25 V (so more command never gives less
-# force); force RMS residual 39.4 N. Over 0–2.25 V: F_yield 160–999 N, c_ps 1.71–2.61 kN·s/m, c_pre
+# F_yield, c_ps and c_pre non-decreasing and v0 non-increasing over 0–2.25 V, so that the energy per cycle grows
+# with the command (tests/test_dampers_physics.py; inside the v0 band the force at one velocity can still fall
+# a little); force RMS residual 39.4 N (c_pre_2 and v0_2 printed by the script rounded here towards the monotone
+# side: at 2.25 V their laws' slopes are +0.06 N·s/m per V and −5·10⁻⁹ m/s per V). Over 0–2.25 V: F_yield 160–999 N, c_ps 1.71–2.62 kN·s/m, c_pre
 # 2.56–28.6 kN·s/m, v0 19.9–2.4 mm/s. (The fit without the monotone laws, this preset until 2026-11-25, had a
 # residual of 38 N, but its c_pre peaked at 1.85 V and its v0 turned up again: its force and dissipated energy
 # fell from 2.0 to 2.25 V.) At 0 V, v2 exceeds that test's peak velocity (0.236 m/s): the loading branch never

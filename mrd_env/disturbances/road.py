@@ -101,7 +101,8 @@ def iso8608_road(road_class: str, speed: float, duration: float, dt: float = 1e-
     ``method="sinusoids"`` sums ``n_waves`` cosines at the mid-points of equal bands dn (default: enough that
     dn <= 1 / (speed * duration), so the road does not repeat within the record; capped at 10 000, so a record
     longer than 10 000 / ((n_max − n_min)·speed) — 177 s at 20 m/s on the default band — repeats with that
-    period: use ``method="fft"`` or ``n_waves`` for longer drives). Its cost is
+    period as a phase-rotated copy of itself (the same spectrum): use ``method="fft"`` or ``n_waves`` for longer
+    drives). Its cost is
     n_samples * n_waves. ``method="fft"`` evaluates the same sum with the frequencies on the FFT grid of the
     record (dn = 1 / (speed * M * dt), M >= n_samples), in O(n log n): use it for long records.
 

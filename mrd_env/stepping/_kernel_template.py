@@ -280,7 +280,8 @@ def sdirk_step(lv, damper, state, w0, w1, tau0, h, control, level, ws):
             tau = tau0 + GAMMA * h
             Z = Z1
             u = u1
-            # an explicit Euler step to τ0 + γh from the slope at the step's start
+            # an explicit Euler step to τ0 + γh from the slope at the sub-step's start (with the command u0 of the
+            # macro step's start: a guess, so the lag over earlier sub-steps is left out)
             w = _interpolate(w0, w1, tau0 / H, Vx[3])
             kinematics(C, D, Y, w, Vd[2], Vd[3], Vd[4])
             g = Vx[1]
