@@ -142,7 +142,6 @@ def plot_seed_curves(run_dirs, path: Path, references: dict[str, float] | None =
 def _common_name(names: list[str]) -> str:
     """The agents' common name without the seed suffix (``building_ppo-residual_s0`` → ``building_ppo-residual``)."""
     import os
-
     import re
 
     common = re.sub(r"_s\d*$", "", os.path.commonprefix(names)).rstrip("_")  # the seed suffix, whole or partial

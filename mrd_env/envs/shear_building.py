@@ -395,7 +395,8 @@ class ShearBuildingEnv(MRDamperEnv):
     / floor i over the episode's record. The scale is pooled over the storeys (one per quantity, not one per
     storey), so a storey weighs in proportion to its uncontrolled motion: on El Centro the first storey carries
     69 % of the uncontrolled drift cost. The uncontrolled building scores −(w_drift + w_acc) = −1 per second with
-    the default weights 0.5, 0.5, whatever the record; an episode ended by the stroke limit loses ``reward_weights["termination"]`` = 10 × its planned
+    the default weights 0.5, 0.5, whatever the record; an episode ended by the stroke limit loses
+    ``reward_weights["termination"]`` = 10 × its planned
     length in seconds, more than any controller that finishes pays.
 
     ## Starting State
