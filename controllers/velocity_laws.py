@@ -38,7 +38,7 @@ class SkyhookContinuous(Controller):
         if not c_sky > 0:
             raise ValueError(f"c_sky must be > 0 N·s/m, got {c_sky}")
         self.c_sky = float(c_sky)
-        self.kappa = float(force_per_command) if force_per_command else force_gain(self.env.damper)
+        self.kappa = command_gain(self.env.damper, force_per_command)
 
     def command(self, obs):
         zs = self.role(obs, "body_velocity")
@@ -79,7 +79,7 @@ class Hybrid(Controller):
             raise ValueError(f"gain must be > 0 N·s/m, got {gain}")
         self.alpha = float(alpha)
         self.gain = float(gain)
-        self.kappa = float(force_per_command) if force_per_command else force_gain(self.env.damper)
+        self.kappa = command_gain(self.env.damper, force_per_command)
 
     def command(self, obs):
         zs = self.role(obs, "body_velocity")
@@ -89,6 +89,17 @@ class Hybrid(Controller):
         ground = np.where(-zu * v >= 0.0, -zu, 0.0)
         F = self.gain * (self.alpha * sky + (1.0 - self.alpha) * ground)
         return np.clip(self.v_min + np.abs(F) / self.kappa, self.v_min, self.v_max)
+
+
+def command_gain(damper, force_per_command: float | None) -> float:
+    """κ (N per command unit) of a force-tracking law: ``force_per_command`` as given (> 0), or, when None, the
+    damper model's estimate :func:`force_gain`."""
+    if force_per_command is None:
+        return force_gain(damper)
+    if not force_per_command > 0:  # a κ ≤ 0 would leave the law at u_min whatever the force it aims at
+        raise ValueError(f"force_per_command must be > 0 N per command unit (or None: estimated from the damper), "
+                         f"got {force_per_command}")
+    return float(force_per_command)
 
 
 def force_gain(damper, velocity: float = 0.1) -> float:

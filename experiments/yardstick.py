@@ -35,8 +35,9 @@ from .scenarios import Scenario, base_scenario
 #: The clairvoyant's control step: every controller's rate (1 ms, 10 ms) is a multiple of it, so its command
 #: sequences are candidate solutions and the optimum at 1 ms dominates them all.
 YARDSTICK_DT = 1e-3
-#: Bumped when the yardstick changes what it computes for the same episode (part of its cache key).
-VERSION = 2
+#: Bumped when the yardstick changes what it computes for the same episode (part of its cache key); 3: the
+#: stepping's Newton predictor and the corrected hybrid law (2026-11-25) move the replayed returns.
+VERSION = 3
 #: Warm starts the clairvoyant tries, best first, when the optimiser fails from the best one.
 RETRY_STARTS = 3
 #: Constant commands tried for the best passive setting (fractions of the command range).

@@ -70,16 +70,27 @@ def test_hybrid_reduces_to_skyhook_and_groundhook():
     between, each term is gated on its own condition (Goncalves & Ahmadian 2003)."""
     env = make_env(QC_SENSORS)
     kappa = SkyhookContinuous(env).kappa
-    cases = [(0.2, -0.5, 0.1), (-0.2, 0.4, 0.3), (0.1, 0.1, -0.2), (0.05, -0.02, 0.07), (0.3, 0.2, 0.1)]
-    for zs, zu, v in cases:
+    # (ż_s, ż_u, v_rel): |F| (N) of the hybrid at α = 0.6, G = 800 N·s/m, worked out by hand
+    cases = {(0.2, -0.5, 0.1): 256.0,  # both terms on: 800·(0.6·0.2 + 0.4·0.5)
+             (-0.2, 0.4, 0.3): 0.0,  # both off: ż_s·v < 0 and −ż_u·v < 0
+             (0.1, 0.1, -0.2): 32.0,  # groundhook alone: 800·0.4·0.1
+             (0.05, -0.02, 0.07): 30.4,  # both on: 800·(0.6·0.05 + 0.4·0.02)
+             (0.3, 0.2, 0.1): 144.0}  # skyhook alone: 800·0.6·0.3
+    for (zs, zu, v), F in cases.items():
         o = obs(env, sprung_vel=zs, unsprung_vel=zu, travel_rate=v)
         assert u_of(Hybrid(env, alpha=1.0, gain=800.0), o) == pytest.approx(u_of(SkyhookContinuous(env, 800.0), o))
         ground = min(800.0 * abs(zu) / kappa, 2.0) if -zu * v >= 0 else 0.0
         assert u_of(Hybrid(env, alpha=0.0, gain=800.0), o) == pytest.approx(ground)
-        sky = zs if zs * v >= 0 else 0.0
-        gnd = -zu if -zu * v >= 0 else 0.0
-        want = min(800.0 * abs(0.6 * sky + 0.4 * gnd) / kappa, 2.0)
-        assert u_of(Hybrid(env, alpha=0.6, gain=800.0), o) == pytest.approx(want)
+        assert u_of(Hybrid(env, alpha=0.6, gain=800.0), o) == pytest.approx(min(F / kappa, 2.0))
+    assert u_of(Hybrid(env, alpha=0.6, gain=800.0, force_per_command=400.0),
+                obs(env, sprung_vel=0.2, unsprung_vel=-0.5, travel_rate=0.1)) == pytest.approx(256.0 / 400.0)
+
+
+@pytest.mark.parametrize("law", [SkyhookContinuous, Hybrid])
+@pytest.mark.parametrize("kappa", [0.0, -500.0])
+def test_force_tracking_laws_refuse_a_force_per_command_that_is_not_positive(law, kappa):
+    with pytest.raises(ValueError, match="force_per_command must be > 0"):
+        law(make_env(QC_SENSORS), force_per_command=kappa)
 
 
 def test_hybrid_is_not_passive_on_on_a_road():

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from mrd_env import SimulationDivergedError, available_dampers, make_damper
-from mrd_env.dampers import CommandSpec
+from mrd_env.dampers import CommandSpec, damper_class
 from mrd_env.dampers.bouc_wen import BoucWenParams
 from mrd_env.dampers.spencer_dyke import SpencerDykeParams
 from mrd_env.stepping import SystemMatrices, run
@@ -39,12 +39,12 @@ def test_energy_dissipated_per_steady_cycle_is_positive_and_grows_with_command(m
 RIG_TESTS = [(0.015, 2.5), (0.002, 1.0), (0.03, 0.5), (0.005, 8.0)]
 
 
-@pytest.mark.parametrize("model", available_dampers())
-def test_every_model_dissipates_more_per_cycle_with_more_command(model):
+@pytest.mark.parametrize("model,preset", [(m, p) for m in available_dampers() for p in damper_class(m).presets])
+def test_every_preset_dissipates_more_per_cycle_with_more_command(model, preset):
     """Ten command levels over the range at four strokes and frequencies: the energy dissipated per steady cycle
-    is positive and grows with the command (the hysteretic bi-viscous preset's fitted laws turned over at 1.85 V
-    and failed this until 2026-11-25)."""
-    d = make_damper(model)
+    of every model's every preset is positive and grows with the command (the hysteretic bi-viscous preset's
+    fitted laws turned over at 1.85 V and failed this until 2026-11-25)."""
+    d = make_damper(model, preset=preset)
     levels = np.linspace(d.command.v_min, d.command.v_max, 10)
     for X, f in RIG_TESTS:
         rs = sinusoidal_test(d, X, f, levels, cycles=3, dt=min(2e-4, 1 / (50 * f)))
