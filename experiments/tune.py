@@ -197,6 +197,8 @@ def worker(plant: str, algo: str, study: str, out: Path, n_trials: int, timestep
         h = sample(trial, algo, base, space)
 
         def report(step, value):
+            if step == 0:  # not the trial's result (see trial_value): the median pruner judges a trial by its best
+                return True  # value so far, and a residual agent's law there would shield every trial from it
             trial.report(value, step)
             return not trial.should_prune()
 

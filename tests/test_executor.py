@@ -119,11 +119,15 @@ def test_tune_runs_trials_and_writes_the_best_hyperparameters(tmp_path):
     assert len((tmp_path / "t" / "quarter_car_ppo_trials.csv").read_text().splitlines()) == 1 + 3
 
 
-def _fake_train_one(stopped_at: dict):
-    """A stand-in for ``train_one`` in a study: trial k scores -k at every validation (every 64 steps)."""
+def _fake_train_one(stopped_at: dict, untrained: float | None = None):
+    """A stand-in for ``train_one`` in a study: trial k scores -k at every validation (every 64 steps); with
+    ``untrained``, every trial first scores that at step 0, as a residual agent scores its law before training."""
     def train_one(plant, algo, seed, *, out, timesteps, report, **kw):
         trial = int(Path(out).name.split("_")[1])
         rows = ["timesteps,validation_return,validation_return_std"]
+        if untrained is not None:
+            rows.append(f"0,{untrained},0")
+            assert report(0, untrained)
         for step in range(64, timesteps + 1, 64):
             rows.append(f"{step},{-float(trial)},0")
             if not report(step, -float(trial)):
@@ -158,16 +162,19 @@ def test_a_resumed_study_draws_new_trials(tmp_path, monkeypatch):
     assert again == first
 
 
-def test_tune_prunes_a_trial_below_the_median_after_the_warm_up(tmp_path, monkeypatch):
+@pytest.mark.parametrize("untrained", [None, 1.0])
+def test_tune_prunes_a_trial_below_the_median_after_the_warm_up(tmp_path, monkeypatch, untrained):
     """The study's median pruner, in the worker that runs the trials, stops the fourth trial where its validation
     falls below the earlier trials' median, from the second validation on; the training is told through
-    ``report`` and stops."""
+    ``report`` and stops. A step-0 validation above every later one (a residual agent at its law) does not
+    shield the trial: the pruner judges a trial by its best validation, and the untrained one is not the
+    trial's (until 2026-11-27 it was, and no residual trial was ever pruned)."""
     pytest.importorskip("optuna")
     import experiments.train as train_mod
     from experiments.tune import tune
 
     stopped_at = {}
-    monkeypatch.setattr(train_mod, "train_one", _fake_train_one(stopped_at))
+    monkeypatch.setattr(train_mod, "train_one", _fake_train_one(stopped_at, untrained))
     st = tune("quarter_car", "ppo", trials=4, timesteps=320, eval_freq=64, out=tmp_path, backend="serial",
               progress=False)
     states = [t.state.name for t in st.trials]
