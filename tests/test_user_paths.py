@@ -64,3 +64,19 @@ def test_a_bad_preset_file_is_one_line(tmp_path, capsys):
     assert main(["benchmark", "--plant", "building", "--damper", str(tmp_path / "missing.json"), "--quick",
                  "--out", str(tmp_path)]) == 2
     assert "missing.json" in capsys.readouterr().err
+
+
+def test_the_readme_quickstart_runs_and_warns_of_no_outdated_id():
+    """The README's Python quickstart, as a newcomer pastes it: it runs, and its id is not one Gymnasium calls out
+    of date (a -v0 id prints "consider upgrading to version v1" beside the -v1 ids)."""
+    import re
+    import warnings
+    from pathlib import Path
+
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    code = re.search(r"```python\n(.*?)```", readme, re.S).group(1)
+    scope = {}
+    with warnings.catch_warnings():
+        warnings.filterwarnings("error", message=".*out of date", category=DeprecationWarning)
+        exec(compile(code + "\nobs, *_ = env.step(law.predict(obs)[0])\n", "README.md", "exec"), scope)
+    assert scope["env"].observation_space.contains(scope["obs"])
