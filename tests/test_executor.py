@@ -168,7 +168,8 @@ def test_tune_prunes_a_trial_below_the_median_after_the_warm_up(tmp_path, monkey
     falls below the earlier trials' median, from the second validation on; the training is told through
     ``report`` and stops. A step-0 validation above every later one (a residual agent at its law) does not
     shield the trial: the pruner judges a trial by its best validation, and the untrained one is not the
-    trial's (until 2026-11-27 it was, and no residual trial was ever pruned)."""
+    trial's (until 2026-11-27 it was: a residual trial below its law was pruned only where the earlier trials'
+    median stood above the law)."""
     pytest.importorskip("optuna")
     import experiments.train as train_mod
     from experiments.tune import tune
