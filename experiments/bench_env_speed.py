@@ -22,6 +22,7 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 
+from mrd_env import storage
 from mrd_env.report import write_table
 from mrd_env.stepping.first_use import set_mode
 
@@ -120,7 +121,7 @@ def main(argv=None) -> int:
     text = md.read_text()
     text += (f"\nFull El Centro episode of ShearBuilding-v0 (reset + {ep['steps']} steps, "
              f"{ep['simulated_s']:.2f} s simulated at 1 kHz): {ep['wall_s']:.3f} s wall time.\n")
-    md.write_text(text)
+    storage.write_text(md, text)
     print(text)
     return 0
 

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from mrd_env import storage
 from mrd_env.report import markdown_table, write_table
 
 from . import sweep, yardstick
@@ -157,7 +158,7 @@ def write_reports(plant: str, episodes: list[Episode], out: Path, response: str 
                                      "in SI, /off: over passive-off on the same episode)")
     write_table(_with_units(rows), out / f"{plant}_benchmark_episodes", floatfmt=".4g",
                 title=f"{plant}: every episode (scenario and seed) and controller")
-    (out / f"{plant}_benchmark_worst.md").write_text(markdown_table(_with_units(worst), floatfmt=".4g",
+    storage.write_text(out / f"{plant}_benchmark_worst.md", markdown_table(_with_units(worst), floatfmt=".4g",
                                                                     title=f"{plant}: worst case over scenarios"))
     figs = []
     prof = profile(plant)
@@ -253,7 +254,7 @@ def run(args: argparse.Namespace) -> int:
                             progress=not args.no_progress, agents=[p for p, pl in agents.items() if pl == plant],
                             **executor)
         settings = markdown_table(scenario_rows(scen), title=f"{plant}: scenario settings")
-        (args.out / f"{plant}_scenarios.md").write_text(settings)
+        storage.write_text(args.out / f"{plant}_scenarios.md", settings)
         print(settings)
         print((args.out / f"{plant}_benchmark_worst.md").read_text())
         by_controller: dict[str, list[Episode]] = {}

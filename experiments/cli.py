@@ -7,11 +7,17 @@ Errors: anything the user can get wrong — a bad option, a missing or unreadabl
 simulation that diverges on the user's parameters, a missing optional dependency — ends the command with one
 line on stderr and exit code 2, never a traceback, also where it happens in a sweep's worker. An unexpected
 exception (a bug) prints one line and exits with 1; ``--traceback`` shows the whole traceback instead.
+
+Stopping: SIGTERM (what SLURM, ``docker stop`` and ``timeout`` send) is handled as Ctrl-C: the long commands save
+what is done (``train``: the agent so far, loadable; ``tune``: the finished trials, in the study's journal;
+``yardstick``: every solved episode, in the cache; ``benchmark``: every finished plant's tables), then the command
+exits with 143 (130 for Ctrl-C).
 """
 from __future__ import annotations
 
 import argparse
 import importlib
+import signal
 import sys
 
 COMMANDS = {
@@ -31,6 +37,14 @@ COMMANDS = {
     "inverse": ("experiments.inverse_cmd",
                 "inverse models: force-tracking tables and figures (achievable forces, a measured record); train one"),
 }
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised where the process is, so that every ``except KeyboardInterrupt`` that saves runs."""
+
+
+def _on_sigterm(signum, frame):
+    raise Terminated()
 
 
 class UserError(Exception):
@@ -72,15 +86,16 @@ def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     command = _command_of(argv)
     prog = f"mrd-env {command}" if command in COMMANDS else "mrd-env"
+    previous = _handle_sigterm()
     try:
         args = build_parser(command if command in COMMANDS else None).parse_args(argv)
         args._argv = argv  # the command line, for the records that say how to reproduce a run
         return int(importlib.import_module(args._module).run(args) or 0)
     except SystemExit as exc:  # --help, or a sub-command that exits by itself
         return int(exc.code or 0) if not isinstance(exc.code, str) else _fail(prog, exc.code, 2)
-    except KeyboardInterrupt:
-        print(f"{prog}: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:
+        print(f"{prog}: {'terminated' if isinstance(exc, Terminated) else 'interrupted'}", file=sys.stderr)
+        return 143 if isinstance(exc, Terminated) else 130
     except UserError as exc:
         return _fail(prog, f"{exc} (see {prog} --help)", 2)
     except _user_errors() as exc:
@@ -93,6 +108,17 @@ def main(argv: list[str] | None = None) -> int:
         if "--traceback" in argv:
             raise
         return _fail(prog, f"internal error: {type(exc).__name__}: {exc} (rerun with --traceback for details)", 1)
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _handle_sigterm():
+    """Route SIGTERM to :class:`Terminated` for this command (main thread only); the previous handler, to restore."""
+    try:
+        return signal.signal(signal.SIGTERM, _on_sigterm)
+    except ValueError:  # not the main thread (main() called from a thread): leave signals alone
+        return None
 
 
 def _message(exc: BaseException) -> str:

@@ -20,6 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
+from mrd_env import storage
+
 from . import sweep
 from .plants import plant_choices, profile
 from .train import ALGOS, env_options, hyperparameters
@@ -255,7 +257,7 @@ def report_study(st, algo: str, env_id: str, out: Path, hyperparams: Path | None
     for k, v in best_trial.params.items():
         _set(best, k, v)
     path = out / f"{st.study_name}_best.yml"
-    path.write_text(f"# best of {len(st.trials)} trials (validation return {best_trial.value:.4g}); mrd-env tune\n"
+    storage.write_text(path, f"# best of {len(st.trials)} trials (validation return {best_trial.value:.4g}); mrd-env tune\n"
                     + yaml.safe_dump({env_id: best}, sort_keys=False))
     return md, path
 

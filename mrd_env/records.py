@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import io
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -17,6 +18,7 @@ from typing import Mapping
 
 import numpy as np
 
+from . import storage
 from .validation import check_signal, check_time, shown
 
 __all__ = ["DamperRecord", "load_record_csv", "read_columns", "own_columns", "UNITS"]
@@ -211,15 +213,14 @@ class DamperRecord:
         """Write SI columns ``t_s, x_m[, v_m_per_s], command_<unit>[, u_<unit>], force_N``, round-trip exact
         (:meth:`read_csv` reads them back but for ``u``; the saturation flags are not written)."""
         path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
         names = [k for k in ("t", "x", "v", "command", "u", "force") if getattr(self, k) is not None]
         header = [_OWN_HEADER.get(k, f"{k}_{self.command_unit}") for k in names]
-        with path.open("w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(header)
-            # repr gives the shortest string that parses back to the same float
-            w.writerows([repr(float(val)) for val in row] for row in zip(*(getattr(self, k) for k in names)))
-        return path
+        buf = io.StringIO(newline="")
+        w = csv.writer(buf)
+        w.writerow(header)
+        # repr gives the shortest string that parses back to the same float
+        w.writerows([repr(float(val)) for val in row] for row in zip(*(getattr(self, k) for k in names)))
+        return storage.write_text(path, buf.getvalue())
 
     @classmethod
     def read_csv(cls, path: str | Path, label: str = "") -> DamperRecord:

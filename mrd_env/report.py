@@ -6,23 +6,25 @@ global state, so writing a report never changes the matplotlib backend of the us
 from __future__ import annotations
 
 import csv
+import io
 from pathlib import Path
+
+from . import storage
 
 
 def write_table(rows: list[dict], path_stem: str | Path, *, title: str = "", floatfmt: str = ".4g") -> tuple[Path, Path]:
-    """Write ``rows`` (dicts with the same keys) to ``<stem>.md`` and ``<stem>.csv``; return both paths."""
+    """Write ``rows`` (dicts with the same keys) to ``<stem>.md`` and ``<stem>.csv``; return both paths. The pair is
+    written together (:func:`mrd_env.storage.write_texts`): an interruption leaves both old or both new."""
     stem = Path(path_stem)
-    stem.parent.mkdir(parents=True, exist_ok=True)
     if not rows:
         raise ValueError("write_table needs at least one row")
     keys = list(rows[0])
-    csv_path = stem.with_suffix(".csv")
-    with csv_path.open("w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=keys, restval="")
-        w.writeheader()
-        w.writerows(rows)
-    md_path = stem.with_suffix(".md")
-    md_path.write_text(markdown_table(rows, title=title, floatfmt=floatfmt))
+    buf = io.StringIO(newline="")
+    w = csv.DictWriter(buf, fieldnames=keys, restval="")
+    w.writeheader()
+    w.writerows(rows)
+    md_path, csv_path = stem.with_suffix(".md"), stem.with_suffix(".csv")
+    storage.write_texts({md_path: markdown_table(rows, title=title, floatfmt=floatfmt), csv_path: buf.getvalue()})
     return md_path, csv_path
 
 
@@ -51,6 +53,6 @@ def figure(nrows: int = 1, ncols: int = 1, *, figsize=(8.0, 4.5), **subplot_kw):
 def save_figure(fig, path: str | Path, *, dpi: int = 110) -> Path:
     """Write ``fig`` as a PNG (creating the folder) and return the path."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=dpi)
+    with storage.atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=dpi, format=path.suffix.lstrip(".") or "png")
     return path

@@ -20,6 +20,7 @@ import ctypes.util
 import json
 import os
 import shutil
+import signal
 import stat
 import tempfile
 from contextlib import contextmanager
@@ -54,6 +55,46 @@ def write_text(path: str | Path, text: str) -> Path:
 def write_json(path: str | Path, obj, **dumps_kwargs) -> Path:
     """Write ``obj`` as JSON to ``path`` atomically (``dumps_kwargs`` as for :func:`json.dumps`)."""
     return write_text(path, json.dumps(obj, **dumps_kwargs))
+
+
+def write_texts(files: dict) -> list[Path]:
+    """Write several text files that belong together (a table's CSV and Markdown) so that a Ctrl-C or SIGTERM
+    never leaves them from two different writes: every file is written to its temporary name first, then all are
+    renamed with those signals held back (a few system calls)."""
+    staged = []
+    try:
+        for path, text in files.items():
+            path = Path(path)
+            path.parent.mkdir(parents=True, exist_ok=True)
+            fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+            staged.append((tmp, path))
+            with os.fdopen(fd, "wb") as fh:
+                fh.write(text.encode("utf-8"))
+                fh.flush()
+                os.fsync(fh.fileno())
+        with _signals_held():
+            for tmp, path in staged:
+                os.replace(tmp, path)
+    except BaseException:
+        for tmp, _ in staged:
+            _unlink_quietly(tmp)
+        raise
+    return [path for _, path in staged]
+
+
+@contextmanager
+def _signals_held():
+    """SIGINT and SIGTERM held back for the block (delivered after it), where the platform allows it."""
+    held = {signal.SIGINT, signal.SIGTERM}
+    try:
+        previous = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    except (AttributeError, ValueError, OSError):
+        previous = None
+    try:
+        yield
+    finally:
+        if previous is not None:
+            signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
 @contextmanager

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from .. import storage
 from ..dampers import DamperModel
 from ..dampers.preset_file import PRESET_FORMAT, read_preset  # noqa: F401  (re-exported)
 from ..dampers.registry import load_damper_preset
@@ -49,10 +50,7 @@ def save_preset(result: FitResult | DamperModel, path: str | Path, *, source: st
                           "eta_fall": None if c.eta_fall is None else float(c.eta_fall), "eta_unit": "1/s",
                           "delay_s": float(c.delay)}
     doc["provenance"] = prov
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(doc, indent=2, ensure_ascii=False, allow_nan=True) + "\n", encoding="utf-8")
-    return path
+    return storage.write_text(path, json.dumps(doc, indent=2, ensure_ascii=False, allow_nan=True) + "\n")
 
 
 def _jsonable(v) -> bool:

@@ -16,6 +16,7 @@ from typing import Callable, Iterable, Mapping
 
 import numpy as np
 
+from .. import storage
 from ..executor import Task, TaskFailed, run_tasks
 from ..records import DamperRecord, hold_previous, lowpass_zero_phase
 from ..validation import as_generator, check_signal, check_time
@@ -299,8 +300,7 @@ class UncertaintyBudget:
         buf = io.StringIO()
         csv.writer(buf, lineterminator="\n").writerows(self.rows())
         if path is not None:
-            Path(path).parent.mkdir(parents=True, exist_ok=True)
-            Path(path).write_text(buf.getvalue())
+            storage.write_text(path, buf.getvalue())
         return buf.getvalue()
 
 

@@ -31,6 +31,7 @@ from pathlib import Path
 import numba as nb
 import numpy as np
 
+from .. import storage
 from ..validation import shown
 from .base import Inverse, lag_decay, writable_c
 
@@ -100,12 +101,11 @@ class Network:
         """Write the network as ``.npz`` (float64 weights, metadata as JSON); :func:`load_network` reads it back
         exactly."""
         path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
         meta = {**self.meta, "format": FORMAT, "history": self.history, "scales": list(self.scales),
                 "layers": len(self.weights)}
         arrays = {f"W{i}": np.asarray(w, dtype=np.float64) for i, w in enumerate(self.weights)}
         arrays.update({f"b{i}": np.asarray(b, dtype=np.float64) for i, b in enumerate(self.biases)})
-        with path.open("wb") as fh:
+        with storage.atomic_path(path) as tmp, tmp.open("wb") as fh:
             np.savez(fh, meta=np.array(json.dumps(meta, sort_keys=True)), **arrays)
         return path
 
