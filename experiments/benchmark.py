@@ -13,6 +13,7 @@ acceleration, peak base shear, peak damper force; J1–J6 normalised by the unco
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -21,7 +22,7 @@ from mrd_env import storage
 from mrd_env.report import markdown_table, write_table
 
 from . import sweep, yardstick
-from .evaluation import Episode, check_laws, controller_episodes, evaluate, evaluate_batch, response_of  # noqa: F401
+from .evaluation import Episode, applicable_laws, check_laws, controller_episodes, evaluate, evaluate_batch, response_of  # noqa: F401
 from .plants import PLANTS, chosen_plants, plant_choices, profile
 from .scenarios import Scenario, base_scenario, held_out_scenarios  # noqa: F401  (Scenario: re-exported)
 
@@ -246,11 +247,17 @@ def run(args: argparse.Namespace) -> int:
     from mrd_env.dampers import damper_class
 
     damper_class(args.damper)
-    check_laws("--controllers", args.controllers, plants)
+    check_laws("--controllers", args.controllers, plants, damper=args.damper)
+    storage.writable_folder(args.out)
     executor = sweep.options(args)
     for plant in plants:
+        laws = args.controllers
+        if laws is None:  # the default set: rows the damper cannot serve are left out with a note
+            laws, skipped = applicable_laws(plant, profile(plant).benchmark_laws, damper=args.damper)
+            for name, why in skipped.items():
+                print(f"note: {name} left out of the {plant} benchmark: {why}", file=sys.stderr)
         scen = held_out_scenarios(plant, seeds=args.seeds, quick=args.quick)
-        eps = run_benchmark(plant, args.controllers, scen, damper=args.damper, out=args.out,
+        eps = run_benchmark(plant, laws, scen, damper=args.damper, out=args.out,
                             progress=not args.no_progress, agents=[p for p, pl in agents.items() if pl == plant],
                             **executor)
         settings = markdown_table(scenario_rows(scen), title=f"{plant}: scenario settings")

@@ -162,9 +162,10 @@ def controller_episodes(controller, scenario: Scenario, response: str = "", **en
                           **env_options)
 
 
-def check_laws(option: str, names, plants) -> None:
+def check_laws(option: str, names, plants, **env_options) -> None:
     """Before any episode runs: every law in ``names`` exists and applies to every plant in ``plants`` (built on
-    the plant's experiment environment, it finds the sensors it reads); ``ValueError`` naming ``option``."""
+    the plant's experiment environment with ``env_options``, e.g. the comparison's ``damper``, it finds the sensors
+    it reads and, for a neural inverse, its network); ``ValueError`` naming ``option``."""
     if not names:
         return
     import mrd_env  # noqa: F401
@@ -177,8 +178,32 @@ def check_laws(option: str, names, plants) -> None:
         raise ValueError(f"{option}: unknown controller(s) {unknown}; available: {available_controllers()}")
     for plant in plants:
         p = profile(plant)
-        laws_apply(p.env_id, p.options, [(option, name) for name in names], f"the {plant}",
+        laws_apply(p.env_id, {**p.options, **env_options}, [(option, name) for name in names], f"the {plant}",
                    lambda env, name: make_controller(name, env), sep=": ")
+
+
+def applicable_laws(plant: str, names, **env_options) -> tuple[list[str], dict[str, str]]:
+    """(the laws of ``names`` that build on ``plant``'s experiment environment with ``env_options``, {law: why not}
+    for the others): a default set of laws meets a damper some of them cannot serve (a fitted damper has no shipped
+    neural inverse), and leaves those rows out with a note instead of stopping the run."""
+    import mrd_env  # noqa: F401
+    from controllers import make_controller
+
+    from .plants import profile
+
+    p = profile(plant)
+    kept, skipped = [], {}
+    env = gym.make(p.env_id, **{**p.options, **env_options})
+    try:
+        for name in names:
+            try:
+                make_controller(name, env)
+                kept.append(name)
+            except ValueError as exc:
+                skipped[name] = str(exc)
+    finally:
+        env.close()
+    return kept, skipped
 
 
 def laws_apply(env_id: str, env_kwargs: dict, laws, where: str, build, sep: str = " ") -> None:

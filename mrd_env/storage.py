@@ -47,6 +47,20 @@ def write_bytes(path: str | Path, data: bytes) -> Path:
     return path
 
 
+def writable_folder(path: str | Path, *, option: str = "--out") -> Path:
+    """``path`` created if needed and probed with a write, before a long run that ends by writing there; an
+    ``OSError`` naming ``option`` and the folder otherwise (an unwritable output must not cost the whole run)."""
+    path = Path(path)
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        fd, probe = tempfile.mkstemp(prefix=".write-probe.", dir=path)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise OSError(exc.errno, f"{option} {path} cannot be written ({exc.strerror or exc})") from None
+    return path
+
+
 def write_text(path: str | Path, text: str) -> Path:
     """Write ``text`` (UTF-8) to ``path`` atomically."""
     return write_bytes(path, text.encode("utf-8"))

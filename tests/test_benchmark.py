@@ -156,3 +156,34 @@ def test_a_vector_environment_scores_every_seed_as_scalar_episodes_would():
         env = gym.make("mrd_env/ShearBuilding-v0", sensors=sensors, **sc.options)
         single = evaluate(make_controller("clipped_optimal", env), env, seed, "drift")
         assert ep.metrics == single.metrics and ep.episode_return == single.episode_return
+
+
+def test_the_default_controller_set_runs_on_a_fitted_damper_leaving_out_the_rows_it_cannot_serve(tmp_path, capsys):
+    """A fitted damper has no shipped neural inverse: the default set's clipped_optimal+neural row is left out with a
+    note, every other default law runs (issue 36); named explicitly, the row is refused before any episode."""
+    from mrd_env.dampers import make_damper
+    from mrd_env.identification.presets import save_preset
+
+    fitted = make_damper("spencer_dyke")
+    fitted.params = fitted.params.replace(c0a=1.1 * fitted.params.c0a)
+    preset = save_preset(fitted, tmp_path / "fitted.json", source="test: a refitted damper")
+    out = tmp_path / "out"
+    assert main(["benchmark", "--plant", "building", "--quick", "--damper", str(preset), "--out", str(out),
+                 "--no-progress", "--yardstick", "off"]) == 0
+    err = capsys.readouterr().err
+    assert "note: clipped_optimal+neural left out of the building benchmark: no neural inverse ships" in err
+    table = (out / "building_benchmark.md").read_text()
+    from experiments.plants import profile
+    for law in profile("building").benchmark_laws:
+        assert (law in table) == (law != "clipped_optimal+neural"), law
+    assert main(["benchmark", "--plant", "building", "--quick", "--damper", str(preset), "--controllers",
+                 "clipped_optimal+neural", "--out", str(out), "--no-progress"]) == 2
+    assert "--controllers: clipped_optimal+neural does not apply to the building" in capsys.readouterr().err
+
+
+def test_an_unwritable_out_folder_is_refused_before_the_run(tmp_path, capsys):
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    assert main(["benchmark", "--plant", "building", "--quick", "--out", str(blocker / "sub"), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "--out" in err and err.count("\n") == 1
