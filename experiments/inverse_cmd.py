@@ -73,8 +73,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     t = sub.add_parser("train", help="train a neural inverse and save it (.npz)",
                        description="train a neural inverse on virtual-rig data of a damper (or on measured records) "
                                    "and save it")
-    t.add_argument("--model", default="spencer_dyke",
-                   help=f"damper model, one of {available_dampers()}, or a preset file (fitted.json)")
+    t.add_argument("--damper", "--model", dest="model", default="spencer_dyke",
+                   help=f"damper model, one of {available_dampers()}, or a preset file (fitted.json); --model: the "
+                        "same option under its former name")
     t.add_argument("--preset", default=None, help="preset of a model given by name (default: the model's)")
     t.add_argument("--out", type=Path, required=True, help="network file to write (.npz)")
     t.add_argument("--dt", type=number(lo=0.0, hi=1.0, lo_open=True, unit="s"), default=DT,

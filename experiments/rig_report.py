@@ -29,8 +29,9 @@ def replay(damper, args: argparse.Namespace):
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--model", default="spencer_dyke",
-                   help=f"damper model, one of {available_dampers()}, or a preset file (fitted.json)")
+    p.add_argument("--damper", "--model", dest="model", default="spencer_dyke",
+                   help=f"damper model, one of {available_dampers()}, or a preset file (fitted.json); --model is "
+                        "the same option under its former name")
     p.add_argument("--preset", default=None,
                    help="parameter preset of the model (default: the model's default), or a preset file written by "
                         "mrd-env identify --save-preset")

@@ -109,3 +109,15 @@ def test_a_lab_executes_as_a_notebook(tmp_path, monkeypatch):
     outputs = [o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])]
     assert sum("image/png" in o.get("data", {}) for o in outputs) == len(FIGURES["lab1_rig"])
     assert not [o for o in outputs if o.output_type == "error"]
+
+
+def test_a_missing_record_ends_lab_2_with_one_line_and_figures_go_to_the_working_directory(tmp_path):
+    """MRD_LAB_RECORD naming no file: one line on stderr, exit code 2, no traceback; and without MRD_LAB_OUT the
+    lab's folder is made under the working directory's results/, never inside the installed package."""
+    env = {k: v for k, v in os.environ.items() if k != "MRD_LAB_OUT"}
+    env.update(MRD_LAB_RECORD="missing.csv", MPLBACKEND="Agg")
+    proc = subprocess.run([sys.executable, str(LABS / "lab2_identification.py")], cwd=tmp_path, env=env,
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stderr == "lab2_identification: MRD_LAB_RECORD=missing.csv: no such readable file\n"
+    assert (tmp_path / "results" / "labs" / "lab2_identification").is_dir()

@@ -15,7 +15,7 @@ def fitted(tmp_path_factory):
     """A record from the virtual rig (a Bouc–Wen damper with a stiffer hysteresis than the preset), fitted with
     identify and saved as a preset."""
     d = tmp_path_factory.mktemp("user")
-    assert main(["rig", "--model", "bouc_wen", "--preset", "spencer1997", "--commands", "1.0", "--cycles", "2",
+    assert main(["rig", "--damper", "bouc_wen", "--preset", "spencer1997", "--commands", "1.0", "--cycles", "2",
                  "--out", str(d / "rig")]) == 0
     record = d / "rig" / "bouc_wen_1V.csv"
     preset = d / "fitted.json"
@@ -80,3 +80,12 @@ def test_the_readme_quickstart_runs_and_warns_of_no_outdated_id():
         warnings.filterwarnings("error", message=".*out of date", category=DeprecationWarning)
         exec(compile(code + "\nobs, *_ = env.step(law.predict(obs)[0])\n", "README.md", "exec"), scope)
     assert scope["env"].observation_space.contains(scope["obs"])
+
+
+@pytest.mark.parametrize("command", [["rig"], ["inverse", "train", "--out", "n.npz"]])
+def test_the_damper_option_is_called_damper_everywhere_and_model_is_still_accepted(command):
+    from experiments.cli import build_parser
+
+    parser = build_parser(command[0])
+    for flag in ("--damper", "--model"):
+        assert parser.parse_args([*command, flag, "bouc_wen"]).model == "bouc_wen"

@@ -58,7 +58,7 @@ from mrd_env.report import figure
 from mrd_env.rig import random_test
 
 lab = Lab("lab2_identification")
-RECORD = os.environ.get("MRD_LAB_RECORD", "")  # a CSV path, or "" for the virtual rig's record
+RECORD = lab.user_file(os.environ.get("MRD_LAB_RECORD", ""), "MRD_LAB_RECORD")  # a CSV path, or "" for the rig's
 COLUMNS = {"t": "t", "x": "D", "command": "Y", "force": "F", "v": "V"}  # the NEES record's header names
 UNITS = {"t": "s", "x": "cm", "command": "V", "force": "N", "v": "cm/s"}
 SECONDS = 24.0 if full_length() else 6.0  # how much of the record to use (s): short fits for CI

@@ -1,7 +1,8 @@
 """What every lab shares: where its figures go, how they are saved, and the instructor's checks.
 
 A lab runs as a Jupyter notebook (through jupytext) and as a plain script (``python experiments/labs/lab1_rig.py``).
-Figures go to ``$MRD_LAB_OUT/<lab>/`` (default: ``results/labs/<lab>/`` of the repository) and, in a notebook, are
+Figures go to ``$MRD_LAB_OUT/<lab>/`` (default: ``results/labs/<lab>/`` of the working directory, never the
+installed package) and, in a notebook, are
 shown below the cell; :meth:`Lab.finish` prints the checks and fails — a non-zero exit code in a script, an
 ``AssertionError`` in a notebook — if any of them failed.
 """
@@ -13,7 +14,7 @@ import time
 from pathlib import Path
 
 OUT_ENV = "MRD_LAB_OUT"
-DEFAULT_OUT = Path(__file__).resolve().parents[2] / "results" / "labs"  # the repository's results/ (not in git)
+DEFAULT_OUT = Path("results") / "labs"  # relative to where the lab runs (a repository's results/ is not in git)
 FULL_ENV = "MRD_LAB_FULL"  # "1": the long versions of the runs a lab shortens for CI
 
 
@@ -63,6 +64,17 @@ class Lab:
         self.checks.append((what, ok, detail))
         print(f"[{'PASS' if ok else 'FAIL'}] {what}" + (f" — {detail}" if detail else ""))
         return ok
+
+    def user_file(self, path: str, setting: str) -> str:
+        """``path``, a file the student named (in ``setting``), checked before the lab uses it: a missing or
+        unreadable file ends a script with one line on stderr and exit code 2, and raises in a notebook."""
+        if path and not (os.path.isfile(path) and os.access(path, os.R_OK)):
+            msg = f"{self.name}: {setting}={path}: no such readable file"
+            if in_notebook():
+                raise FileNotFoundError(msg)
+            print(msg, file=sys.stderr)
+            sys.exit(2)
+        return path
 
     def finish(self) -> None:
         """Summarise; fail if any check failed (exit code 1 in a script, AssertionError in a notebook)."""
