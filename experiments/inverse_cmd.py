@@ -2,7 +2,7 @@
 
     mrd-env inverse achievable                          # desired forces the damper can produce (random commands)
     mrd-env inverse record --data FILE --columns ... --units ... --fs 3004.8     # a measured record
-    mrd-env inverse train --model spencer_dyke --preset spencer1997 --out net.npz
+    mrd-env inverse train --damper spencer_dyke --preset spencer1997 --out net.npz
 
 ``achievable``: for each plant model, a virtual-rig record under a random stroke and random commands
 (:func:`mrd_env.inverse.achievable_forces`) gives the desired force; every inverse built on the plant's own
@@ -169,7 +169,7 @@ def build_inverse(name: str, damper, dt: float, networks: dict):
                 shipped_network(damper)
             except ValueError:
                 print(f"note: no neural inverse for this {damper.name} damper (none ships for its parameters): train "
-                      "one with mrd-env inverse train --model <its preset file> and pass it with --network")
+                      "one with mrd-env inverse train --damper <its preset file> and pass it with --network")
                 return None
     return make_inverse(name, damper, dt=dt, **options)
 
@@ -340,7 +340,7 @@ class RecordedCommand(Inverse):
 def run_train(args: argparse.Namespace) -> int:
     from mrd_env.inverse.training import train_neural_inverse
 
-    _check_dampers("--model", [args.model])
+    _check_dampers("--damper", [args.model])
     damper = damper_of(args.model, args.preset)
     for name, lohi in (("--rms", args.rms), ("--bandwidth", args.bandwidth), ("--hold", args.hold)):
         if not (np.all(np.isfinite(lohi)) and 0 < lohi[0] <= lohi[1]):

@@ -14,9 +14,10 @@ evolution strategy instead, on the same scenarios and with the same outputs (:mo
 behind one interface (:mod:`.trainers`); the plant's environment, training distribution and validation come from its
 profile (:mod:`.plants`).
 
-Each run writes a folder ``<out>/<plant>_<algo>_s<seed>/`` holding the final agent (``agent.json``, ``model.zip``,
-``normalization.npz``: :func:`controllers.load_agent` reads it), ``best/`` (the best validation agent), the
-checkpoints, ``training.monitor.csv``, ``validation.csv`` and ``learning_curve.png``. ``agent.json`` records the plant,
+Each run writes a folder ``<out>/<plant>_<algo>_s<seed>/`` holding the final agent (``agent.json``, the policy's
+weights and the observation statistics, code-free: :func:`controllers.load_agent` reads them; SB3's ``model.zip``
+to resume training), ``best/`` (the best validation agent), the checkpoints, ``training.monitor.csv``,
+``validation.csv`` and ``learning_curve.png``; every agent save is atomic (:func:`controllers.agents.save_agent`). ``agent.json`` records the plant,
 the algorithm, the seed and budget, the environment options (``env_kwargs``), the hyperparameters, the wall
 time and the command that reproduces the run.
 """
@@ -264,10 +265,15 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"--eval-episodes must be >= 1, got {args.eval_episodes}")
     disturbance = None
     if args.disturbance is not None:
-        try:
-            disturbance = json.loads(args.disturbance)
-        except json.JSONDecodeError:
-            disturbance = args.disturbance  # a kind's name
+        text = args.disturbance.strip()
+        if text.startswith(("{", "[", '"')):  # meant as JSON: a malformed one is named as such, not taken for a kind's name
+            try:
+                disturbance = json.loads(text)
+            except json.JSONDecodeError as exc:
+                raise ValueError(f"--disturbance is not valid JSON ({exc.msg} at character {exc.pos}): "
+                                 f"{args.disturbance}") from None
+        else:
+            disturbance = text  # a kind's name
     if args.warm_start is not None:
         from controllers import available_controllers
         if args.algo != "cmaes":

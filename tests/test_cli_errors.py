@@ -261,7 +261,8 @@ MESSAGES = [  # (argv, what the one line says): the option by its name, values a
     (["inverse", "achievable", "--plants", "nope"], "--plants: unknown damper model(s) ['nope']; available"),
     (["inverse", "achievable", "--network", "{binary}"], "not a neural-inverse network file"),
     (["inverse", "train", "--history", "0"], "argument --history: 0 is invalid: must be a whole number >= 1"),
-    (["inverse", "train", "--model", "nope"], "--model: unknown damper model(s) ['nope']"),
+    (["inverse", "train", "--damper", "nope"], "--damper: unknown damper model(s) ['nope']"),
+    (["train", "--disturbance", '{{"kind": "iso8608", '], "--disturbance is not valid JSON (Expecting property name"),
 ]
 LEAKS = ("np.float64(", "np.int64(", "slice", "pickle", "NeuralOptions", "Traceback", "['nope', 'nope']")
 
