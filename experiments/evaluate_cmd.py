@@ -8,7 +8,8 @@ building: J1–J6), mean and 95 % interval over seeds and episodes (for agents, 
 then the mean over all test scenarios. Writes ``<out>/<plant>_evaluation.md``/``.csv`` and
 ``<out>/<plant>_evaluation.png`` (returns with their intervals), and ``<out>/<plant>_paired.md``/``.csv``: each
 agent minus the best law at each control step on the same episodes (:func:`paired`). By default the agents shipped with the project
-(``controllers/agents/``) are evaluated.
+(``controllers/agents/``) are evaluated. Agents load without running code from their folders; one that only has
+SB3's ``model.zip`` (pickles) is refused unless ``--trust-agent`` is given (docs/security.md).
 """
 from __future__ import annotations
 
@@ -157,7 +158,7 @@ def paired(results: dict[str, list[Episode]]) -> list[dict]:
 def plot(plant: str, rows: list[dict], path: Path) -> Path:
     """Mean return with its 95 % interval per controller, one group per scenario."""
     return grouped_bars(rows, "return", "return_lo95", "return_hi95", path,
-                        xlabel="episode return (1; mean, 95 % interval)",
+                        xlabel="episode return (dimensionless)",
                         title=f"{plant}: agents and classical laws on the held-out test scenarios")
 
 
@@ -175,6 +176,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--damper", default=None,
                    help="damper model name or preset file (fitted.json) of every row (default: the agents' own, "
                         "else the plant's)")
+    p.add_argument("--trust-agent", action="store_true",
+                   help="also load agents that only have SB3's model.zip: pickled Python objects, which can run any "
+                        "code; only for agents from a source you trust (each is converted once into "
+                        "<out>/converted-agents/ and evaluated from there)")
     p.add_argument("--quick", action="store_true", help="short scenarios (a smoke run)")
     p.add_argument("--out", type=Path, default=Path("results/evaluate"))
     p.add_argument("--no-progress", action="store_true")
@@ -184,7 +189,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from controllers import shipped_agents
-    from controllers.agents import agent_files
+    from controllers.agents import agent_files, code_free_agent
 
     if args.seeds < 1:
         raise ValueError(f"--seeds must be >= 1, got {args.seeds}")
@@ -211,6 +216,9 @@ def run(args: argparse.Namespace) -> int:
             if meta["plant"] not in chosen:
                 raise ValueError(f"agent {a} was trained on the {meta['plant']} plant; add --plant {meta['plant']}")
             chosen[meta["plant"]].append(a)
+    # an SB3 zip is loaded only if trusted, once, here: the rows load its code-free copy
+    chosen = {p: [code_free_agent(a, args.out / "converted-agents", trust=args.trust_agent) for a in agents]
+              for p, agents in chosen.items()}
     for p in plants:
         res = evaluate(p, chosen[p], args.laws, seeds=args.seeds, control_dt=args.control_dt, damper=args.damper,
                        laws_at_1ms=not args.no_1ms, mpc=not args.no_mpc, progress=not args.no_progress,

@@ -250,7 +250,7 @@ def mean_ci(values, confidence: float = 0.95, upper: float = math.inf) -> tuple[
 def grouped_bars(rows: list[dict], value: str, lo: str, hi: str, path: Path, *, xlabel: str, title: str,
                  refs: tuple[float, ...] = (), xlim: tuple[float, float] | None = None) -> Path:
     """One panel per scenario, a horizontal bar of ``rows[value]`` per controller (one colour per law, its 1 ms row
-    hatched) with the interval [lo, hi] where there is one; vertical lines at ``refs``. With ``xlim``, a bar beyond
+    hatched) with the interval [lo, hi] where there is one (the axis label names it only where one is drawn); vertical lines at ``refs``. With ``xlim``, a bar beyond
     the axis is drawn to its edge and labelled with its value, so that one very poor controller does not squash
     the others."""
     import matplotlib
@@ -266,6 +266,7 @@ def grouped_bars(rows: list[dict], value: str, lo: str, hi: str, path: Path, *, 
     y = np.arange(len(ctrls))[::-1]
     for k, s in enumerate(scen):
         ax = axes[k // ncol][k % ncol]
+        intervals = False
         for i, c in enumerate(ctrls):
             r = next((r for r in rows if r["scenario"] == s and r["controller"] == c), None)
             if r is None:
@@ -278,12 +279,14 @@ def grouped_bars(rows: list[dict], value: str, lo: str, hi: str, path: Path, *, 
                 ax.text(shown, y[i], f" {m:.2g} ", va="center", ha="left" if m < shown else "right", fontsize=7)
             elif np.isfinite(r[lo]) and np.isfinite(r[hi]):
                 ax.errorbar(m, y[i], xerr=[[m - r[lo]], [r[hi] - m]], color="k", lw=0.8, capsize=2)
+                intervals = True
         for j, ref in enumerate(refs):
             ax.axvline(ref, color="k", lw=0.8, ls="--" if j else "-")
         if xlim is not None:
             ax.set_xlim(*xlim)
         ax.set_title(s, fontsize=9)
-        ax.set_xlabel(xlabel, fontsize=8)
+        # an interval is named only in a panel that draws one (one episode draws none)
+        ax.set_xlabel(f"{xlabel}\n(mean; lines: 95 % interval)" if intervals else xlabel, fontsize=8)
         ax.grid(axis="x", alpha=0.3)
     for ax in axes.flat[len(scen):]:
         ax.set_visible(False)

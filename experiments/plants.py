@@ -66,7 +66,7 @@ class PlantProfile:
     normalise_by_passive_off: bool = False
     #: the bar chart's ratios (benchmark: worst case over the scenarios) and its y label
     bar_metrics: tuple = ()
-    bar_ylabel: str = "ratio to passive-off (1)"
+    bar_ylabel: str = "ratio to passive-off (dimensionless)"
     bar_legend_columns: int = 4
     #: model predictive control rows of ``mrd-env evaluate``: (label, control step (None: the comparison's),
     #: controller options, road preview)
@@ -192,7 +192,7 @@ BUILDING = PlantProfile(
     evaluation_metrics=("J1", "J2", "J3", "J4", "J5", "J6"),
     benchmark_metrics=("J1", "J2", "J3", "J4", "J5", "J6", "drift_peak", "acc_peak", "damper_force_peak"),
     response=_storey_response, response_axis=_storey_axis,
-    bar_metrics=("J1", "J2", "J3", "J4", "J5", "J6"), bar_ylabel="ratio to the uncontrolled building (1)",
+    bar_metrics=("J1", "J2", "J3", "J4", "J5", "J6"), bar_ylabel="ratio to the uncontrolled building (dimensionless)",
     bar_legend_columns=3,
     mpc=(("mpc", None, {}, False), ("mpc (reward)", 1e-3, {"weights": "reward"}, False)),
     warm_laws=_BUILDING_LAWS)

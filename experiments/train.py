@@ -132,7 +132,7 @@ def plot_seed_curves(run_dirs, path: Path, references: dict[str, float] | None =
         else:  # off the scale of the curves: named, not drawn
             ax.plot([], [], ls="none", label=f"{name}: {value:.4g} ({'above' if value > hi else 'below'}, off scale)")
     ax.set_xlabel(steps_label(Path(run_dirs[0])))
-    ax.set_ylabel("validation return, unseen seeds (1)")
+    ax.set_ylabel("validation return on unseen seeds (dimensionless)")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7)
     seeds = f"{len(curves)} seed{'s' if len(curves) > 1 else ''}"

@@ -222,7 +222,7 @@ def plot_shares(plant: str, rows: list[dict], path: Path) -> Path:
     are repeats); 0: the best passive setting, dashed 1: the clairvoyant optimum."""
 
     return grouped_bars(rows, "share of achievable gain", "share lo95", "share hi95", path,
-                        xlabel="share of the achievable gain (1)", refs=(0.0, 1.0), xlim=(-1.0, 1.05),
+                        xlabel="share of the achievable gain (dimensionless)", refs=(0.0, 1.0), xlim=(-1.0, 1.05),
                         title=f"{plant}: share of the achievable gain, (R − R_best passive) / (R_clairvoyant − "
                               "R_best passive); 0: best constant command, dashed 1: clairvoyant optimum")
 

@@ -163,7 +163,7 @@ ax_w = ax.twinx()
 fw = np.logspace(np.log10(0.5), np.log10(50), 200)
 ax_w.semilogx(fw, weighting_magnitude("Wk", fw), "k--", lw=1)
 ax_w.set_ylabel("|Wk(f)| (dashed)")
-ax.set_title(f"sprung acceleration spectrum, {c}, seed {histories[c, 'passive_off'].seed}")
+ax.set_title(f"sprung acceleration spectrum, {c}")
 lab.save(fig, "spectrum_wk.png")
 
 # %% [markdown]

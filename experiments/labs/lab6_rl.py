@@ -140,7 +140,7 @@ for i, name in enumerate(names):
              label=name)
     ax_c.plot(overall[name]["acc_weighted_rms"], overall[name]["tyre_load_ratio"], "o", ms=8, label=name)
 ax_r.set_xticks(np.arange(len(scenarios)), scenarios, fontsize=8)
-ax_r.set_ylabel("episode return, mean of the scenario's episodes (1)")
+ax_r.set_ylabel("episode return, mean of the scenario's episodes (dimensionless)")
 ax_r.grid(alpha=0.3, axis="y")
 ax_r.legend(fontsize=7, ncol=2)
 ax_r.set_title(f"PPO after {TIMESTEPS:,} steps, CMA-ES from skyhook after {CMAES_TIMESTEPS:,}, the laws\n"
