@@ -4,9 +4,9 @@ use of each model (15–25 s a model): the environments' scalar and vector steps
 compiles (:mod:`mrd_env.stepping.first_use`).
 
 Run it after installing (or before a class: the labs then start at once). The cache is
-``$MRD_ENV_CACHE_DIR/kernels`` (else ``~/.cache/mrd-env/kernels``); every later process finds it. The models
-compile in parallel on a local process pool (``--jobs``, default: every core; numba compiles one function at a
-time, so a model's compilation cannot be split, but models can run side by side).
+``$MRD_ENV_CACHE_DIR/kernels`` (else ``~/.cache/mrd-env/kernels``; :mod:`mrd_env.caches`); every later process
+finds it. The models compile in parallel on a local process pool (``--jobs``, default: every core; numba
+compiles one function at a time, so a model's compilation cannot be split, but models can run side by side).
 """
 from __future__ import annotations
 

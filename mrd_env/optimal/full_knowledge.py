@@ -154,9 +154,12 @@ def problem_digest(problem) -> str:
 
 
 def _jit_dir() -> Path:
+    """The compiled models' folder (``jit/`` of the optimal cache), checked private before use: a library there is
+    loaded into this process, so nobody else may write it (:func:`mrd_env.storage.private_folder`)."""
+    from ..storage import private_folder
     from .cache import cache_dir
 
-    return cache_dir() / "jit"
+    return private_folder(cache_dir() / "jit")
 
 
 def compile_function(f, name: str, progress=None):
@@ -166,6 +169,8 @@ def compile_function(f, name: str, progress=None):
     import tempfile
 
     import casadi as ca
+
+    from ..storage import atomic_path
 
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
@@ -179,18 +184,18 @@ def compile_function(f, name: str, progress=None):
         if not out.exists():
             if progress:
                 progress(f"compiling the model ({len(code) // 1000} kB of C)")
-            out.parent.mkdir(parents=True, exist_ok=True)
-            tmp_so = out.with_suffix(f".{os.getpid()}.tmp.so")
             cc = os.environ.get("CC", "gcc")
-            cmd = [cc, "-O2", "-fPIC", "-shared", str(src), "-o", str(tmp_so), "-lm"]
-            try:
-                subprocess.run(cmd, check=True, capture_output=True, text=True)
-            except FileNotFoundError as e:
-                raise RuntimeError(f"the clairvoyant solver compiles its model with a C compiler; {cc!r} was not "
-                                   "found (install gcc or set CC)") from e
-            except subprocess.CalledProcessError as e:
-                raise RuntimeError(f"compiling the model failed: {' '.join(cmd)}\n{e.stderr[-2000:]}") from e
-            tmp_so.replace(out)  # atomic: parallel workers never load half a library
+            # a new file of unpredictable name, renamed over ``out`` once compiled: parallel workers never load
+            # half a library, and nothing planted at a predictable name is written through
+            with atomic_path(out) as tmp_so:
+                cmd = [cc, "-O2", "-fPIC", "-shared", str(src), "-o", str(tmp_so), "-lm"]
+                try:
+                    subprocess.run(cmd, check=True, capture_output=True, text=True)
+                except FileNotFoundError as e:
+                    raise RuntimeError(f"the clairvoyant solver compiles its model with a C compiler; {cc!r} was "
+                                       "not found (install gcc or set CC)") from e
+                except subprocess.CalledProcessError as e:
+                    raise RuntimeError(f"compiling the model failed: {' '.join(cmd)}\n{e.stderr[-2000:]}") from e
             seconds = time.perf_counter() - t0
         else:
             seconds = 0.0

@@ -4,13 +4,14 @@ instead of compiling again."""
 from __future__ import annotations
 
 import hashlib
-import importlib.util
 import inspect
-import os
 import re
 import sys
-import tempfile
+import types
 from pathlib import Path
+
+from ..caches import cache_folder, read_regular
+from ..storage import write_text
 
 from . import first_use
 from .first_use import SwitchingKernel
@@ -28,19 +29,10 @@ _KERNELS: dict = {}
 
 
 def kernel_dir() -> Path:
-    """Where generated kernels (and numba's cache of them) live: $MRD_ENV_CACHE_DIR, else the user cache."""
-    env = os.environ.get("MRD_ENV_CACHE_DIR")
-    base = Path(env) if env else Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "mrd-env"
-    d = base / "kernels"
-    try:
-        d.mkdir(parents=True, exist_ok=True)
-        probe = d / f".probe-{os.getpid()}"
-        probe.write_text("")
-        probe.unlink()
-    except OSError:  # read-only home: fall back to the temporary directory
-        d = Path(tempfile.gettempdir()) / f"mrd-env-kernels-{os.getuid() if hasattr(os, 'getuid') else 0}"
-        d.mkdir(parents=True, exist_ok=True)
-    return d
+    """Where generated kernels (and numba's cache of them) live: ``kernels/`` in the project's cache folder
+    (:func:`mrd_env.caches.cache_folder`: ``$MRD_ENV_CACHE_DIR``, else the user cache, else a private temporary
+    folder), checked private (owned by this user, writable by nobody else) before every use."""
+    return cache_folder("kernels")
 
 
 def render(template: Path, header: str, footer: str = "") -> str:
@@ -128,23 +120,31 @@ def kernel_path(model_cls) -> Path:
 
 
 def write_generated_source(prefix: str, source: str, key: str) -> Path:
-    """Write ``source`` as ``<prefix>_<key>.py`` in the kernel cache folder (if it is not there yet); its path."""
+    """Write ``source`` as ``<prefix>_<key>.py`` in the kernel cache folder (if it is not there yet); its path.
+    The write is atomic and never follows a symlink (:func:`mrd_env.storage.write_text`)."""
     path = kernel_dir() / f"{prefix}_{key}.py"
-    if not path.exists() or path.read_text() != source:
-        tmp = path.with_suffix(f".{os.getpid()}.tmp")
-        tmp.write_text(source)
-        os.replace(tmp, path)  # atomic: concurrent processes never see half a file
+    if read_regular(path) != source.encode("utf-8"):
+        write_text(path, source)  # a new file renamed over the name: concurrent processes never see half a file
     return path
 
 
 def load_generated_module(prefix: str, source: str, key: str):
-    """Write ``source`` as ``<prefix>_<key>.py`` in the kernel cache folder (if needed) and import it."""
+    """Write ``source`` as ``<prefix>_<key>.py`` in the kernel cache folder (if needed) and import it.
+
+    What runs is ``source`` itself, compiled from memory under the file's name (numba's ``cache=True`` finds its
+    compilation beside that file, and checks it against the file's content), never the file read back after a
+    check: nothing written to the folder between the check and the import can run."""
     mod_name = f"{prefix}_{key}"
     if mod_name in sys.modules:
         return sys.modules[mod_name]
     path = write_generated_source(prefix, source, key)
-    spec = importlib.util.spec_from_file_location(mod_name, path)
-    module = importlib.util.module_from_spec(spec)
+    module = types.ModuleType(mod_name)
+    module.__file__ = str(path)
+    code = compile(source, str(path), "exec", dont_inherit=True)
     sys.modules[mod_name] = module
-    spec.loader.exec_module(module)
+    try:
+        exec(code, module.__dict__)
+    except BaseException:
+        sys.modules.pop(mod_name, None)
+        raise
     return module

@@ -20,12 +20,17 @@ import hashlib
 import os
 import subprocess
 import sys
+import tempfile
 import time
 import types
 import warnings
 from pathlib import Path
 
 import numpy as np
+
+from .. import caches
+from ..caches import read_regular
+from ..storage import write_text
 
 MODE_VARIABLE = "MRD_ENV_FIRST_USE"
 MODES = ("interpret", "wait")
@@ -109,7 +114,7 @@ def ready_marker(kernel_path: Path, part: str = "") -> Path:
 
 def mark_ready(kernel_path: Path, part: str = "") -> None:
     """Leave a ready marker of ``kernel_path`` (after those entry points were compiled into the cache)."""
-    ready_marker(kernel_path, part).write_text(f"compiled by process {os.getpid()} at {time.ctime()}\n")
+    write_text(ready_marker(kernel_path, part), f"compiled by process {os.getpid()} at {time.ctime()}\n")
 
 
 def _alive(pid: int) -> bool:
@@ -189,13 +194,25 @@ class SwitchingKernel:
         # the child imports this very mrd_env, however this process found it (an install, a path, a checkout)
         root = str(Path(__file__).resolve().parents[2])
         path = os.pathsep.join(p for p in (root, os.environ.get("PYTHONPATH", "")) if p)
-        env = dict(os.environ, **{MODE_VARIABLE: "wait", "PYTHONPATH": path})
-        # its own session: the compilation finishes (for the next process) even if this one is interrupted
-        with open(self._log, "w") as log:
+        # ... and compiles into the very cache folder this process checked and uses (a fallback one included)
+        from .codegen import kernel_dir
+
+        env = dict(os.environ, **{MODE_VARIABLE: "wait", "PYTHONPATH": path, caches.VARIABLE: str(kernel_dir().parent)})
+        # the log: a new file (O_EXCL: never a symlink or a file planted at its name) renamed to its name
+        log_fd, log_tmp = tempfile.mkstemp(prefix=f".{self._log.name}.", suffix=".tmp", dir=self._log.parent)
+        try:
+            os.replace(log_tmp, self._log)
+            # its own session: the compilation finishes (for the next process) even if this one is interrupted
             self._proc = subprocess.Popen([sys.executable, "-m", "mrd_env.warmup", self._model_name,
                                            "--lock", str(self._lock)],
-                                          stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT,
+                                          stdin=subprocess.DEVNULL, stdout=log_fd, stderr=subprocess.STDOUT,
                                           env=env, start_new_session=True)
+        except BaseException:
+            os.close(fd)
+            self._lock.unlink(missing_ok=True)
+            raise
+        finally:
+            os.close(log_fd)
         with os.fdopen(fd, "w") as f:
             f.write(str(self._proc.pid))
 
@@ -220,7 +237,7 @@ class SwitchingKernel:
         self._next_check = now + 0.5
         if self._proc is not None:
             if self._proc.poll() is not None and not self._marker.exists():
-                err = self._log.read_text(errors="replace").strip().splitlines()
+                err = (read_regular(self._log) or b"").decode(errors="replace").strip().splitlines()
                 warnings.warn(f"the background compilation of the {self._model_name} kernel failed "
                               f"({err[-1] if err else f'exit code {self._proc.returncode}'}); compiling it here",
                               RuntimeWarning, stacklevel=3)
