@@ -16,6 +16,7 @@ import argparse
 import contextlib
 import dataclasses
 import math
+import sys
 import warnings
 from pathlib import Path
 
@@ -31,7 +32,7 @@ from mrd_env.identification.options import METHODS, DataOptions, SearchOptions
 from mrd_env.identification.parameters import COMMAND_ETA, COMMAND_PARAMS, fixed_by_default
 from mrd_env.identification.prepare import FAULT_MODES, uniform_record
 from mrd_env.identification.presets import save_preset
-from mrd_env.identification.result import ParameterAtBound
+from mrd_env.identification.result import FitInterrupted, ParameterAtBound
 
 from mrd_env.report import write_table
 from mrd_env.validation import describe_range
@@ -284,7 +285,11 @@ def run(args: argparse.Namespace) -> int:
     with reported_warnings():
         if args.model == NEURAL:
             data = neural_data(args, fits, data)
-        fr = fit_model(args.model, fits, preset=args.preset, free=free, bounds=bounds, search=search, data=data)
+        try:
+            fr, stopped = fit_model(args.model, fits, preset=args.preset, free=free, bounds=bounds, search=search,
+                                    data=data), None
+        except FitInterrupted as exc:  # Ctrl-C or SIGTERM: the best parameters so far are written, then it stops
+            fr, stopped = exc.result, exc.__cause__
         v_rows, v_all, forces, _ = validate(fr.damper, whole, idx, data=fr_data(fr, data),
                                             offset=validation_offsets(fr, whole, idx))
     out = args.out
@@ -314,6 +319,10 @@ def run(args: argparse.Namespace) -> int:
         if path.suffix == ".md":
             print(path.read_text())
     print("wrote " + ", ".join(str(p) for p in written))
+    if stopped is not None:
+        print(f"interrupted after {fr.n_evaluations} evaluations: wrote the best parameters so far (not converged)",
+              file=sys.stderr)
+        raise stopped
     return 0
 
 

@@ -302,3 +302,45 @@ def test_bound_status_is_relative_to_the_span_and_to_the_bound():
     assert dataclasses.replace(res, bounds={**res.bounds, "c0a": (v / 1.0013, 10 * v)}).bound_status() == {
         "c0a": "at lower bound"}
     assert dataclasses.replace(res, bounds={**res.bounds, "c0a": (1.0, 1e200)}).bound_status() == {}
+
+
+def _interrupt_after(monkeypatch, calls: int, exc=KeyboardInterrupt):
+    """Ctrl-C (or SIGTERM's Terminated) at the ``calls``-th batch of residuals a fit asks for."""
+    from mrd_env.identification.problem import Problem
+
+    seen = {"n": 0}
+    original = Problem.residuals
+
+    def residuals(self, *a, **kw):
+        seen["n"] += 1
+        if seen["n"] == calls:
+            raise exc()
+        return original(self, *a, **kw)
+
+    monkeypatch.setattr(Problem, "residuals", residuals)
+
+
+def test_an_interrupted_fit_hands_back_the_best_parameters_so_far(monkeypatch):
+    from mrd_env.identification import FitInterrupted
+
+    _, recs, _ = synthetic("bouc_wen", random_s=2.0, sines=False)
+    _interrupt_after(monkeypatch, 4)
+    with pytest.raises(FitInterrupted) as caught:
+        fit_model("bouc_wen", recs, search={"maxiter": 50, **QUIET})
+    fr = caught.value.result
+    assert isinstance(caught.value.__cause__, KeyboardInterrupt) and isinstance(caught.value, KeyboardInterrupt)
+    assert not fr.converged and fr.message.startswith("interrupted") and fr.objective <= fr.initial_objective
+
+
+def test_identify_stopped_by_sigterm_writes_the_best_parameters_so_far_and_exits_143(monkeypatch, tmp_path, capsys):
+    from experiments.cli import Terminated, main
+
+    record = tmp_path / "rec.csv"
+    synthetic("bouc_wen", random_s=2.0, sines=False)[1][0].to_csv(record)
+    _interrupt_after(monkeypatch, 4, Terminated)
+    preset = tmp_path / "fitted.json"
+    assert main(["identify", "--data", str(record), "--model", "bouc_wen", "--maxiter", "50", "--no-progress",
+                 "--out", str(tmp_path / "fit"), "--save-preset", str(preset)]) == 143
+    assert load_preset(preset).name == "bouc_wen"
+    assert (tmp_path / "fit" / "bouc_wen_identify.md").exists()
+    assert "wrote the best parameters so far" in capsys.readouterr().err

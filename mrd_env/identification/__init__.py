@@ -19,7 +19,7 @@ from .fit import fit_model, reference_offset
 from .neural import NeuralForwardModel, NeuralOptions
 from .options import DataOptions, SearchOptions
 from .presets import load_preset, save_preset
-from .result import FitResult, ParameterAtBound
+from .result import FitInterrupted, FitResult, ParameterAtBound
 from .simulate import predict
 from .measures import error_displacement, error_measures, error_time, error_velocity, j1, j2
 from .propagate import propagate_sensor_errors
@@ -33,7 +33,7 @@ __all__ = [
     "LoadCell", "DisplacementSensor", "SensorSet", "apply_sensors",
     "Contribution", "UncertaintyBudget", "rss_budget", "table8_contributions", "TABLE8_DEFAULTS",
     "MonteCarloResult", "monte_carlo", "as_generator",
-    "FitResult", "ParameterAtBound", "fit_model", "reference_offset", "SearchOptions", "DataOptions",
+    "FitResult", "FitInterrupted", "ParameterAtBound", "fit_model", "reference_offset", "SearchOptions", "DataOptions",
     "NeuralOptions", "NeuralForwardModel", "predict",
     "find_faults", "Fault", "FaultsExcluded", "save_preset", "load_preset", "compare_models",
     "propagate_sensor_errors",

@@ -54,7 +54,7 @@ from .parameters import (COMMAND_PARAMS, make_params, valid_range, command_with,
                          fixed_by_default, initial_values)
 from .prepare import as_records, prepare_record
 from .problem import Problem
-from .result import FitResult, ParameterAtBound, record_measures, pooled_measures, record_info
+from .result import FitInterrupted, FitResult, ParameterAtBound, record_measures, pooled_measures, record_info
 from .simulate import predict
 
 __all__ = ["fit_model", "reference_offset", "SearchOptions", "DataOptions"]
@@ -139,16 +139,25 @@ def fit_model(model: str | DamperModel, records, *, preset: str | None = None, f
     prob, J0, (theta, nit, converged, message, history) = solve(preps, x0)
     damper = _fitted(cls, prob, theta, command, free_t)
     n_evaluations = prob.n_evaluations
-    for _ in range(ALIGN_ROUNDS if align else 0):  # the offset the fitted model prefers; fit again if it differs
-        moved = realigned(damper)
+    stopped = prob.interrupted
+    for _ in range(0 if stopped or not align else ALIGN_ROUNDS):  # the offset the fitted model prefers; fit again
+        moved = realigned(damper)                                # if it differs
         if moved is None:
             break
         offsets, preps = moved
         # from the fit so far and from the initial guess (the first may sit in the previous offset's optimum)
-        runs = [solve(preps, start) for start in (theta.copy(), x0)]
+        runs = []
+        for start in (theta.copy(), x0):
+            runs.append(solve(preps, start))
+            if runs[-1][0].interrupted is not None:
+                stopped = runs[-1][0].interrupted
+                break
         n_evaluations += sum(r[0].n_evaluations for r in runs)
         prob, _, (theta, nit, converged, message, history) = min(runs, key=lambda r: r[0].best)
         damper = _fitted(cls, prob, theta, command, free_t)
+        if stopped is not None:
+            converged, message = False, "interrupted: the best parameters found so far"
+            break
     J = float(prob.objective(theta[None, :])[0])
     per = [record_measures(p, predict(damper, p, **opts)[1]) for p in preps]
     settings = {"preset": preset_name, **dataclasses.asdict(search), **dataclasses.asdict(data),
@@ -158,6 +167,8 @@ def fit_model(model: str | DamperModel, records, *, preset: str | None = None, f
                    int(search.seed), J, J0, per, pooled_measures(per), time.perf_counter() - t_start,
                    n_evaluations, nit, bool(converged), str(message), tuple(history), prob.n_infeasible,
                    prob.n_diverged, record_info(preps), settings)
+    if stopped is not None:  # the caller saves the best so far, then the interruption goes on
+        raise FitInterrupted(fr) from stopped
     for msg in fr.bound_messages():  # a parameter held by its bound is not a fitted value: never silently
         warnings.warn(msg, ParameterAtBound, stacklevel=2)
     return fr

@@ -12,13 +12,20 @@ def run_search(prob: Problem, x0, search, desc: str):
     """(θ, iterations, converged, message, history of the best objective) of ``search.method`` from x0."""
     history: list[float] = []
     it = search.iterations
-    if search.method == "least_squares":
-        out = _run_least_squares(prob, x0, it, search.tol, search.diff_step, search.progress, desc, history,
-                                 central=(search.jacobian == "central"))
-    elif search.method == "differential_evolution":
-        out = _run_de(prob, x0, it, search.popsize, search.tol, int(search.seed), search.progress, desc, history)
-    else:
-        out = _run_pso(prob, x0, it, search.popsize, search.tol, int(search.seed), search.progress, desc, history)
+    try:
+        if search.method == "least_squares":
+            out = _run_least_squares(prob, x0, it, search.tol, search.diff_step, search.progress, desc, history,
+                                     central=(search.jacobian == "central"))
+        elif search.method == "differential_evolution":
+            out = _run_de(prob, x0, it, search.popsize, search.tol, int(search.seed), search.progress, desc, history)
+        else:
+            out = _run_pso(prob, x0, it, search.popsize, search.tol, int(search.seed), search.progress, desc,
+                           history)
+    except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM: the best point so far ends the search (fit_model says so)
+        if prob.best_theta is None:
+            raise
+        prob.interrupted = exc
+        out = (prob.best_theta.copy(), 0, False, "interrupted: the best parameters found so far")
     return (*out, history)
 
 

@@ -59,6 +59,7 @@ class Problem:
         self.n_diverged = 0
         self.best = math.inf
         self.best_theta = None
+        self.interrupted: KeyboardInterrupt | None = None  # set by run_search when Ctrl-C/SIGTERM ended the search
 
     # scaling
     def decode(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

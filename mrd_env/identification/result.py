@@ -24,6 +24,15 @@ class ParameterAtBound(UserWarning):
     """A parameter was fitted onto one of its bounds: the best fit may lie beyond it."""
 
 
+class FitInterrupted(KeyboardInterrupt):
+    """A fit stopped by Ctrl-C or SIGTERM: ``result`` is the :class:`FitResult` of the best parameters found so far
+    (not converged), for the caller to save; ``__cause__`` is the interruption itself."""
+
+    def __init__(self, result: "FitResult"):
+        super().__init__(f"fit of {result.model} interrupted after {result.n_evaluations} evaluations")
+        self.result = result
+
+
 @dataclass(frozen=True, eq=False)
 class FitResult:
     """Outcome of :func:`fit_model` (SI units throughout).
