@@ -194,10 +194,10 @@ class SwitchingKernel:
         # the child imports this very mrd_env, however this process found it (an install, a path, a checkout)
         root = str(Path(__file__).resolve().parents[2])
         path = os.pathsep.join(p for p in (root, os.environ.get("PYTHONPATH", "")) if p)
-        # ... and compiles into the very cache folder this process checked and uses (a fallback one included)
-        from .codegen import kernel_dir
-
-        env = dict(os.environ, **{MODE_VARIABLE: "wait", "PYTHONPATH": path, caches.VARIABLE: str(kernel_dir().parent)})
+        # ... and compiles into the very cache folder this process checked and uses (a fallback one included): the
+        # kernel's own folder is <root>/kernels
+        root_dir = str(self._lock.parent.parent)
+        env = dict(os.environ, **{MODE_VARIABLE: "wait", "PYTHONPATH": path, caches.VARIABLE: root_dir})
         # the log: a new file (O_EXCL: never a symlink or a file planted at its name) renamed to its name
         log_fd, log_tmp = tempfile.mkstemp(prefix=f".{self._log.name}.", suffix=".tmp", dir=self._log.parent)
         try:
