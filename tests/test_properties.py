@@ -1028,9 +1028,14 @@ def test_find_faults_spans_lie_in_the_record(n, seed, with_v, clip, spikes):
     for k in g.integers(0, n, spikes):
         F[k] += 1e5
     r = DamperRecord(t, x, np.zeros(n), F, g.standard_normal(n) if with_v else None)
-    for f in find_faults(r):
-        assert f.kind in ("saturation", "spike", "gap") and f.channel in ("x", "v", "force", "t")
+    found = find_faults(r)
+    for f in found:  # in order, apart; a segment holds its parts
+        assert f.kind in ("saturation", "spike", "gap", "run-away", "segment")
+        assert set(f.channel.split("+")) <= {"x", "v", "force", "t"}
         assert 0 <= f.i0 <= f.i1 < n and f.start == t[f.i0] and f.end == t[f.i1]
+        assert all(f.i0 <= p.i0 <= p.i1 <= f.i1 for p in f.parts)
+    assert all(a.i1 < b.i0 for a, b in zip(found, found[1:]))
+    assert [p for f in found for p in (f.parts or (f,))] == find_faults(r, merge_gap=0)
 
 
 @FEW

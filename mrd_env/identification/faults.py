@@ -27,6 +27,18 @@ design and is not searched):
   to the nearest samples at or below the median speed (where the motion left and rejoined the test's), and into
   an end of the record closer than a gap. The whole segment is a fault, not only its clipped samples: the motion
   that drove the load cell to its limit is no test either.
+
+Then the pieces are joined into **segments** (``merge_gap``, default 0.1 s; 0 returns the pieces as found): a test
+gone wrong shows as dozens of pieces (spikes, saturations, run-away spans) with short stretches between them that
+are no test either. Faults less than ``merge_gap`` apart form one segment, and a segment reaches on (and back) to
+where the motion rejoins the test: the first stretch of ``merge_gap`` seconds free of faults whose motion stays
+within the test's range (speed at most ``runaway_factor`` times the record's median speed, the run-away threshold;
+stroke inside the central 90 % of the strokes outside the faults, widened by its width on each side). With
+no such stretch between a segment and an end of the record, the segment runs into that end: a run-away that never
+rejoins the test is excluded to the end of the record. A segment of several pieces is one :class:`Fault` of kind
+"run-away" if one of its pieces is a run-away, else "segment"; its ``parts`` are the pieces (spikes of the input
+channels inside it are still repaired). A lone fault keeps its kind (widened, with itself as its part, where the
+motion beside it is out of the test's range); with the test on both sides it stays as it was found.
 """
 from __future__ import annotations
 
@@ -47,8 +59,9 @@ class FaultsExcluded(UserWarning):
 
 @dataclass(frozen=True)
 class Fault:
-    """One fault: ``kind`` ("saturation", "spike", "gap" or "run-away"), ``channel`` ("x", "v", "force" or "t"),
-    ``start`` and ``end`` (s, inclusive; the samples i0..i1)."""
+    """One fault: ``kind`` ("saturation", "spike", "gap", "run-away" or "segment"), ``channel`` ("x", "v",
+    "force" or "t"; a segment's channels joined by "+"), ``start`` and ``end`` (s, inclusive; the samples
+    i0..i1); ``parts``: the faults found inside a segment (empty for a fault found as it is)."""
 
     kind: str
     channel: str
@@ -56,14 +69,22 @@ class Fault:
     end: float
     i0: int
     i1: int
+    parts: tuple = ()
 
     def __str__(self) -> str:
         what = ("run-away (speed far beyond the test's, with a saturated channel)" if self.kind == "run-away"
+                else "segment of faults" if self.kind == "segment"
                 else f"{self.kind} of {self.channel}")
         where = f"{what} at t = {self.start:.5g}"
         if self.i0 == self.i1:
             return f"{where} s (1 sample)"
-        return f"{where}–{self.end:.5g} s ({self.i1 - self.i0 + 1} samples)"
+        out = f"{where}–{self.end:.5g} s ({self.i1 - self.i0 + 1} samples"
+        if self.parts:
+            counts: dict[str, int] = {}
+            for f in self.parts:
+                counts[f.kind] = counts.get(f.kind, 0) + 1
+            out += ": " + ", ".join(f"{k} {kind}{'s' if k > 1 else ''}" for kind, k in counts.items())
+        return out + ")"
 
 
 def _runs(flags: np.ndarray) -> list[tuple[int, int]]:
@@ -92,8 +113,9 @@ def _measured(record: DamperRecord) -> dict[str, np.ndarray]:
 
 def find_faults(record: DamperRecord, *, saturation_duration: float = 0.02, saturation_tol: float = 1e-4,
                 clip_samples: int = 5, spike_threshold: float = 20.0, gap_factor: float = 1.5,
-                runaway_factor: float = 8.0, runaway_gap: float = 0.05) -> list[Fault]:
-    """The faults of ``record`` (see the module docstring), in time order."""
+                runaway_factor: float = 8.0, runaway_gap: float = 0.05, merge_gap: float = 0.1) -> list[Fault]:
+    """The faults of ``record`` (see the module docstring), in time order, joined into segments where less than
+    ``merge_gap`` seconds apart or where the motion does not rejoin the test between them (0: the pieces)."""
     saturation_duration = check_scalar("saturation_duration", saturation_duration, 0.0, lo_open=True, unit="s")
     saturation_tol = check_scalar("saturation_tol", saturation_tol, 0.0, 1.0, lo_open=True)
     clip_samples = check_scalar("clip_samples", clip_samples, 2.0)
@@ -101,6 +123,7 @@ def find_faults(record: DamperRecord, *, saturation_duration: float = 0.02, satu
     gap_factor = check_scalar("gap_factor", gap_factor, 1.0, lo_open=True)
     runaway_factor = check_scalar("runaway_factor", runaway_factor, 1.0, lo_open=True)
     runaway_gap = check_scalar("runaway_gap", runaway_gap, 0.0, unit="s")
+    merge_gap = check_scalar("merge_gap", merge_gap, 0.0, unit="s")
     t = record.t
     steps = np.diff(t)
     dt = float(np.median(steps))
@@ -145,7 +168,54 @@ def find_faults(record: DamperRecord, *, saturation_duration: float = 0.02, satu
             i1 = after[0] - 1 if after.size else t.size - 1
             # a segment that stops short of an end of the record by less than a gap runs into it
             add("run-away", "v", 0 if i0 < gap else i0, t.size - 1 if t.size - 1 - i1 < gap else i1)
-    return sorted(faults, key=lambda f: (f.i0, f.channel))
+    faults.sort(key=lambda f: (f.i0, f.channel))
+    if merge_gap == 0 or not faults:
+        return faults
+    return _segments(faults, t, _test_range(record.x, speed, faults, runaway_factor * typical), merge_gap)
+
+
+def _test_range(x: np.ndarray, speed: np.ndarray, pieces: list[Fault], fast: float) -> np.ndarray:
+    """The samples whose motion is the test's: speed at most ``fast`` (when positive) and stroke inside the central
+    90 % of the strokes of the other such samples outside the faults ``pieces``, widened by its width on each
+    side (a sine's ±3 amplitudes, a Gaussian stroke's ±4.9 standard deviations)."""
+    ok = speed <= fast if fast > 0 else np.ones(x.size, dtype=bool)
+    base = ok & ~fault_mask(x.size, pieces)
+    lo, hi = np.percentile(x[base] if np.count_nonzero(base) >= 10 else x, [5.0, 95.0])
+    return ok & (x >= lo - (hi - lo)) & (x <= hi + (hi - lo))
+
+
+def _segments(pieces: list[Fault], t: np.ndarray, in_range: np.ndarray, merge_gap: float) -> list[Fault]:
+    """The faults ``pieces`` (in order) joined into segments: less than ``merge_gap`` s apart, or with no stretch of
+    ``merge_gap`` s of test between them (samples free of faults, speed in range: ``in_range``)."""
+    n = t.size
+    free = in_range & ~fault_mask(n, pieces)
+    dt = float(np.median(np.diff(t)))
+    g = max(1, int(np.ceil(merge_gap / dt - 1e-9)))
+    normal = [(a, b) for a, b in _runs(free) if b - a + 1 >= g]  # stretches where the test goes on
+    starts = np.array([a for a, _ in normal], dtype=np.int64)
+    ends = np.array([b for _, b in normal], dtype=np.int64)
+    spans: list[list[int]] = []
+    for f in pieces:
+        i0, i1 = f.i0, f.i1
+        k = np.searchsorted(ends, i0)  # the first stretch ending at or after the fault: none lies before it
+        i0 = int(ends[k - 1]) + 1 if k > 0 else 0  # back to the end of the last stretch of test, or the start
+        k = np.searchsorted(starts, i1, side="right")  # the first stretch starting after the fault
+        i1 = int(starts[k]) - 1 if k < starts.size else n - 1
+        if spans and t[i0] - t[spans[-1][1]] < merge_gap:
+            spans[-1][1] = max(spans[-1][1], i1)
+        else:
+            spans.append([i0, i1])
+    out = []
+    for i0, i1 in spans:
+        parts = tuple(f for f in pieces if f.i0 >= i0 and f.i1 <= i1)
+        if len(parts) == 1 and (parts[0].i0, parts[0].i1) == (i0, i1):
+            out.append(parts[0])  # a lone fault with the test on both sides
+            continue
+        kind = parts[0].kind if len(parts) == 1 else \
+            "run-away" if any(f.kind == "run-away" for f in parts) else "segment"
+        channels = "+".join(dict.fromkeys(c for f in parts for c in f.channel.split("+")))
+        out.append(Fault(kind, channels, float(t[i0]), float(t[i1]), int(i0), int(i1), parts))
+    return out
 
 
 def _chains(fast, saturated, gap: int) -> list[tuple[int, int]]:
@@ -173,7 +243,7 @@ def fault_mask(n: int, faults, margin: int = 0) -> np.ndarray:
 def repair_spikes(a: np.ndarray, faults, channel: str) -> np.ndarray:
     """``a`` with the single-sample spikes of ``channel`` replaced by the mean of their neighbours."""
     out = np.array(a, dtype=np.float64)
-    for f in faults:
+    for f in [p for f in faults for p in (f.parts or (f,))]:
         if f.kind == "spike" and f.channel == channel and 0 < f.i0 < out.size - 1:
             out[f.i0] = 0.5 * (out[f.i0 - 1] + out[f.i0 + 1])
     return out
