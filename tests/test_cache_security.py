@@ -10,6 +10,7 @@ import stat
 import sys
 import tempfile
 import warnings
+from pathlib import Path
 
 import pytest
 
@@ -246,3 +247,26 @@ def test_a_planted_symlink_at_a_cached_results_name_is_neither_read_nor_written_
     assert cache.load("clairvoyant", KEY) is None
     assert cache.store("clairvoyant", KEY, {"ret": 1.0}) == path
     assert victim.read_text() == VICTIM and not path.is_symlink() and cache.load("clairvoyant", KEY) == {"ret": 1.0}
+
+
+def test_the_kernel_cache_key_follows_every_import_of_the_models_code(tmp_path, monkeypatch):
+    """Absolute, relative, ``import a.b`` and ``from pkg import module`` imports are all followed (transitively),
+    so editing any module a damper model imports gives its kernel a new key (issue 38: only ``from .x import``
+    lines were followed, and an absolute import left a stale kernel)."""
+    from mrd_env.stepping import codegen
+
+    pkg = tmp_path / "mrd_env"
+    (pkg / "stepping").mkdir(parents=True)
+    (pkg / "dampers").mkdir()
+    files = {
+        "dampers/model.py": "from mrd_env.dampers.absolute import f\nfrom .relative import g\n"
+                            "import mrd_env.dampers.plain\nfrom .. import shared\nimport numpy as np\n",
+        "dampers/absolute.py": "from .deeper import h\n", "dampers/deeper.py": "", "dampers/relative.py": "",
+        "dampers/plain.py": "", "shared.py": "", "unrelated.py": "",
+    }
+    for name, text in files.items():
+        (pkg / name).write_text(text)
+    monkeypatch.setattr(codegen, "HERE", pkg / "stepping")
+    monkeypatch.setattr(codegen.inspect, "getsourcefile", lambda cls: str(pkg / "dampers" / "model.py"))
+    found = {str(p.relative_to(pkg)) for p in map(Path, codegen.model_modules(object))}
+    assert found == set(files) - {"unrelated.py"}

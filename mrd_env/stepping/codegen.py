@@ -3,9 +3,9 @@ disk (the source in the kernel folder, numba's compilation of it beside it), so 
 instead of compiling again."""
 from __future__ import annotations
 
+import ast
 import hashlib
 import inspect
-import re
 import sys
 import types
 from pathlib import Path
@@ -69,19 +69,44 @@ def kernel_source(model_cls) -> tuple[str, str]:
 
 
 def model_modules(model_cls) -> set[str]:
-    """Source files of the model's class and of every function its kernel calls, followed through the imports of
-    the damper package (e.g. the shared Bouc–Wen hysteresis)."""
-    files = {inspect.getsourcefile(model_cls)}
-    pkg = HERE.parent / "dampers"
+    """Source files of the model's class and of every ``mrd_env`` module they import, followed through every import
+    (relative or absolute, ``import`` or ``from ... import``; e.g. the shared Bouc–Wen hysteresis): whatever the
+    kernel may call is in its key."""
+    files = {str(Path(inspect.getsourcefile(model_cls)).resolve())}
     todo = list(files)
     while todo:
-        text = Path(todo.pop()).read_text(encoding="utf-8")
-        for name in re.findall(r"^from \.(\w+) import", text, flags=re.M):
-            f = str(pkg / f"{name}.py")
-            if f not in files and Path(f).exists():
+        for f in _imported_files(Path(todo.pop())):
+            if f not in files:
                 files.add(f)
                 todo.append(f)
     return files
+
+
+def _imported_files(path: Path) -> set[str]:
+    """The files of the ``mrd_env`` modules (and packages' ``__init__``) that the module at ``path`` imports."""
+    root = HERE.parent  # the mrd_env package folder
+    package = path.resolve().parent.relative_to(root.parent).parts  # e.g. ("mrd_env", "dampers")
+
+    def source(parts: tuple) -> Path | None:
+        if not parts or parts[0] != root.name:
+            return None
+        target = root.parent.joinpath(*parts)
+        return next((f for f in (target.with_suffix(".py"), target / "__init__.py") if f.is_file()), None)
+
+    out = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Import):
+            found = [source(tuple(a.name.split("."))) for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = tuple(node.module.split(".")) if node.module else ()
+            if node.level:
+                base = package[:len(package) - node.level + 1] + base
+            # ``from pkg import x``: x's own module where x is one, else the module that defines x
+            found = [source(base + (a.name,)) or source(base) for a in node.names]
+        else:
+            continue
+        out |= {str(f.resolve()) for f in found if f is not None}
+    return out
 
 
 def kernel_module(model_cls, *, compiled: bool = False):
