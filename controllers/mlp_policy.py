@@ -7,6 +7,7 @@ then its bias. :meth:`forward` evaluates a whole population of θ on a batch of 
 """
 from __future__ import annotations
 
+import io
 from pathlib import Path
 
 import numpy as np
@@ -48,10 +49,27 @@ class MLPPolicy:
         a = self.forward(self.layers(self.theta), (obs[None] if single else obs)[None])[0]
         return (a[0] if single else a).astype(np.float32), state
 
+    def to_bytes(self) -> bytes:
+        """The ``.npz`` file's bytes (``theta``, ``sizes``: arrays only)."""
+        buf = io.BytesIO()
+        np.savez(buf, theta=self.theta, sizes=np.asarray(self.sizes))
+        return buf.getvalue()
+
+    @classmethod
+    def from_bytes(cls, data: bytes) -> MLPPolicy:
+        """The policy of an ``.npz`` file's bytes, read as arrays only (no pickle); ``ValueError`` otherwise."""
+        try:
+            with np.load(io.BytesIO(data), allow_pickle=False) as z:
+                sizes, theta = z["sizes"], z["theta"]
+        except (OSError, ValueError, KeyError, EOFError) as exc:
+            raise ValueError(f"not a policy network file (arrays theta and sizes): {exc}") from None
+        if sizes.ndim != 1 or sizes.dtype.kind not in "iu" or theta.dtype.kind != "f":
+            raise ValueError("not a policy network file: sizes must be integers and theta numbers")
+        return cls(tuple(int(s) for s in sizes), theta)
+
     def save(self, path: str | Path) -> None:
-        np.savez(path, theta=self.theta, sizes=np.asarray(self.sizes))
+        Path(path).write_bytes(self.to_bytes())
 
     @classmethod
     def load(cls, path: str | Path) -> MLPPolicy:
-        with np.load(path) as z:
-            return cls(tuple(int(s) for s in z["sizes"]), z["theta"])
+        return cls.from_bytes(Path(path).read_bytes())

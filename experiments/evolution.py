@@ -130,7 +130,7 @@ def train_cmaes(plant: str, algo: str, seed: int, *, out: Path, timesteps: int |
     import cma
     import gymnasium as gym
 
-    from controllers.agents import ObservationNormalizer, write_agent
+    from controllers.agents import ObservationNormalizer, save_agent
     from controllers.base import AgentController
     from controllers.mlp_policy import MLPPolicy
 
@@ -163,15 +163,14 @@ def train_cmaes(plant: str, algo: str, seed: int, *, out: Path, timesteps: int |
 
     val, obs_kwargs = validation_split(plant, env_kwargs, eval_episodes)
 
-    def save(folder: Path, theta: np.ndarray, extra: dict) -> None:
-        folder.mkdir(parents=True, exist_ok=True)
-        MLPPolicy(policy.sizes, theta).save(folder / "policy.npz")
+    def save(folder: Path, theta: np.ndarray, extra: dict, in_place: bool = False) -> None:
         meta = {"name": agent_name("CMA-ES", seed, h, env_kwargs), "plant": plant, "env_id": env_id,
                 "algo": "CMA-ES", "recurrent": False, "seed": seed, "timesteps": timesteps, "env_kwargs": env_kwargs,
-                "hyperparameters": {**h, "warm_start": law}, "model": "policy.npz",
-                "normalization": None, "command": command,
+                "hyperparameters": {**h, "warm_start": law}, "command": command,
                 "wall_time_s": time.perf_counter() - t_start, **extra}
-        write_agent(folder, meta, ObservationNormalizer(mean, var, float(h["obs_clip"]), 1e-8))
+        # atomic: best/ swapped in whole, the run folder's own agent in place (controllers.agents.save_agent)
+        save_agent(folder, meta, policy=MLPPolicy(policy.sizes, theta), in_place=in_place,
+                   normalizer=ObservationNormalizer(mean, var, float(h["obs_clip"]), 1e-8))
 
     rows, best = [], -np.inf
 
@@ -209,14 +208,14 @@ def train_cmaes(plant: str, algo: str, seed: int, *, out: Path, timesteps: int |
                 fh.write(f"{returns.mean():.6g},{n},{time.perf_counter() - t_start:.3f}\n")
     except KeyboardInterrupt:  # the search so far is an agent: evaluate takes the folder
         bar.close()
-        save(run_dir, es.mean, {"timesteps_done": steps, "interrupted": True})
+        save(run_dir, es.mean, {"timesteps_done": steps, "interrupted": True}, in_place=True)
         plot_learning_curve(run_dir)
         print(f"interrupted at {steps} steps: saved the agent so far in {run_dir}", file=sys.stderr)
         raise
     bar.close()
     if eval_freq:
         validate(es.mean, steps)
-    save(run_dir, es.mean, {"timesteps_done": steps})
+    save(run_dir, es.mean, {"timesteps_done": steps}, in_place=True)
     plot_learning_curve(run_dir)
     venv.close()
     return run_dir

@@ -28,16 +28,16 @@ def clairvoyant_reference(plant: str, episodes: int = 8, progress: bool = True) 
 def draw(plant: str, agents: list[Path], out: Path, clairvoyant: bool = True, episodes: int = 8,
          title: str | None = None) -> Path | None:
     """The figure ``out`` for the agent folders ``agents`` (one plant, one set-up)."""
-    from controllers.agents import load_agent
+    from controllers.agents import OBSERVATION_OPTIONS, agent_files
 
     from .train import env_options, law_references, plot_seed_curves
 
     # the training distribution as the trainer defines it, with what the agent sees (agent.json stores ranges as
-    # JSON lists, which the environments read as choices)
-    first = load_agent(agents[0])
-    env_kwargs = {**env_options(plant), **first.observation_kwargs}
+    # JSON lists, which the environments read as choices); the metadata alone: no policy is loaded
+    meta = agent_files(agents[0])[1]
+    env_kwargs = {**env_options(plant), **{k: v for k, v in meta["env_kwargs"].items() if k in OBSERVATION_OPTIONS}}
     # a residual agent's own law is drawn too (its validation at step 0)
-    own = [first.meta["residual"]["law"]] if first.meta.get("residual") else []
+    own = [meta["residual"]["law"]] if meta.get("residual") else []
     refs = law_references(plant, env_kwargs, episodes, extra_laws=own)
     if clairvoyant:
         refs["clairvoyant (full knowledge, 1 ms)"] = clairvoyant_reference(plant, episodes)

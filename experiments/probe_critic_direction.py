@@ -101,10 +101,10 @@ class AgreementProbe:
         return a, None
 
 
-def _residual_critic(path: Path, ap: argparse.ArgumentParser, option: str):
+def _residual_critic(path: Path, ap: argparse.ArgumentParser, option: str, trust: bool = False):
     from controllers import load_agent
 
-    agent = load_agent(path)
+    agent = load_agent(path, trust=trust)
     if agent.meta["algo"] != "TD3" or not agent.meta.get("residual"):
         ap.error(f"{option} {path}: needs a TD3 agent trained with a residual, got {agent.meta['algo']}"
                  f"{' residual' if agent.meta.get('residual') else ''}")
@@ -164,6 +164,9 @@ def main(argv=None) -> int:
                     help="trained residual agents: does the critic rate the actor above the law?")
     ap.add_argument("--final-episodes", type=int, default=4, help="episodes per --final agent (>= 1; default 4)")
     ap.add_argument("--out", type=Path, default=Path("results/critic_direction"))
+    ap.add_argument("--trust-agent", action="store_true",
+                    help="also load agents that only have SB3's model.zip (pickles: they can run any code; only "
+                         "for agents you trust, e.g. your own runs saved before the code-free format)")
     args = ap.parse_args(argv)
     if args.agent is None and not args.final:
         ap.error("give --agent PATH (the critic's direction), --final PATH ... (the agreement), or both")
@@ -181,8 +184,8 @@ def main(argv=None) -> int:
 
     torch.set_num_threads(1)   # tiny networks: a second thread only spins when the machine is busy
 
-    agent = _residual_critic(args.agent, ap, "--agent") if args.agent else None
-    finals = [_residual_critic(p, ap, "--final") for p in args.final]
+    agent = _residual_critic(args.agent, ap, "--agent", args.trust_agent) if args.agent else None
+    finals = [_residual_critic(p, ap, "--final", args.trust_agent) for p in args.final]
     if agent is not None:
         md, _ = write_table(direction_rows(agent, args.eps, args.episodes, args.seed), args.out / "critic_direction",
                             title=f"Corrections from the critic of {agent.folder}, paired against the law",

@@ -5,7 +5,8 @@ checkpoints, TensorBoard logs, a hyperparameter search's pruning; residual polic
 correction to a law's command), the paired baseline (``paired_baseline``: rewards relative to a law on the same
 disturbance) and, for SAC, TD3 and TQC, the actor warm-up (``actor_warmup_steps``: the critic learns first) and the
 actor's own learning rate (``actor_learning_rate``; :mod:`.actor_warmup`). The agent folder is
-:func:`controllers.agents.write_agent`'s (``model.zip``)."""
+:func:`controllers.agents.save_agent`'s (the policy as arrays, code-free; SB3's ``model.zip`` beside it to resume
+training); every save is atomic."""
 from __future__ import annotations
 
 import math
@@ -251,7 +252,7 @@ def train_sb3(plant: str, algo: str, seed: int, *, out: Path, timesteps: int | N
     import torch
     from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
 
-    from controllers.agents import ObservationNormalizer, algorithm_class, write_agent
+    from controllers.agents import ObservationNormalizer, algorithm_class, save_agent
     from controllers.residual import zero_policy_output
     from controllers.training_wrappers import PairedBaselineVecEnv, ResidualVecEnv
 
@@ -295,17 +296,18 @@ def train_sb3(plant: str, algo: str, seed: int, *, out: Path, timesteps: int | N
         zero_policy_output(model)
     t_start = time.perf_counter()
 
-    def save(folder: Path, extra: dict) -> None:
-        folder.mkdir(parents=True, exist_ok=True)
-        model.save(folder / "model.zip")
+    def save(folder: Path, extra: dict, in_place: bool = False) -> None:
+        """The agent now, code-free (controllers.agents.save_agent), with SB3's model.zip to resume training:
+        swapped in whole (best/, checkpoints) or, in the run folder, ``in_place`` (atomic either way)."""
         meta = {"name": agent_name(label, seed, hyper, env_kwargs), "plant": plant, "env_id": env_id,
                 "algo": label, "recurrent": algo == "recurrentppo", "seed": seed, "timesteps": timesteps,
-                "env_kwargs": env_kwargs, "hyperparameters": hyper, "model": "model.zip", "residual": residual,
-                "normalization": None, "command": command, "wall_time_s": time.perf_counter() - t_start, **extra}
+                "env_kwargs": env_kwargs, "hyperparameters": hyper, "residual": residual,
+                "command": command, "wall_time_s": time.perf_counter() - t_start, **extra}
         # the statistics VecNormalize holds now, where it normalises observations (with norm_obs false they stay
         # at mean 0, variance 1, and a loaded agent would clip raw observations at ±clip_obs)
         normalizes = vecnorm is not None and vecnorm.norm_obs
-        write_agent(folder, meta, ObservationNormalizer.from_vecnormalize(vecnorm) if normalizes else None)
+        save_agent(folder, meta, policy=model.policy, sb3_model=model, in_place=in_place,
+                   normalizer=ObservationNormalizer.from_vecnormalize(vecnorm) if normalizes else None)
 
     # validation: the training distribution itself on seeds training never draws
     val, obs_kwargs = validation_split(plant, env_kwargs, eval_episodes)
@@ -315,12 +317,12 @@ def train_sb3(plant: str, algo: str, seed: int, *, out: Path, timesteps: int | N
     try:
         model.learn(total_timesteps=timesteps, callback=list(callbacks), tb_log_name=run_dir.name)
     except KeyboardInterrupt:  # the run so far is an agent: evaluate takes the folder
-        save(run_dir, {"timesteps_done": int(model.num_timesteps), "interrupted": True})
+        save(run_dir, {"timesteps_done": int(model.num_timesteps), "interrupted": True}, in_place=True)
         plot_learning_curve(run_dir)
         print(f"interrupted at {model.num_timesteps} steps: saved the agent so far in {run_dir} (the best "
               f"validated one in {run_dir / 'best'})", file=sys.stderr)
         raise
-    save(run_dir, {"timesteps_done": int(model.num_timesteps)})
+    save(run_dir, {"timesteps_done": int(model.num_timesteps)}, in_place=True)
     plot_learning_curve(run_dir)
     train_env.close()
     return run_dir

@@ -17,9 +17,9 @@ profile (:mod:`.plants`).
 Each run writes a folder ``<out>/<plant>_<algo>_s<seed>/`` holding the final agent (``agent.json``, the policy's
 weights and the observation statistics, code-free: :func:`controllers.load_agent` reads them; SB3's ``model.zip``
 to resume training), ``best/`` (the best validation agent), the checkpoints, ``training.monitor.csv``,
-``validation.csv`` and ``learning_curve.png``; every agent save is atomic (:func:`controllers.agents.save_agent`). ``agent.json`` records the plant,
-the algorithm, the seed and budget, the environment options (``env_kwargs``), the hyperparameters, the wall
-time and the command that reproduces the run.
+``validation.csv`` and ``learning_curve.png``; every agent save is atomic (:func:`controllers.agents.save_agent`).
+``agent.json`` records the plant, the algorithm, the seed and budget, the environment options (``env_kwargs``), the
+hyperparameters, the wall time and the command that reproduces the run.
 """
 from __future__ import annotations
 

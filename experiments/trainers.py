@@ -1,6 +1,6 @@
 """The trainer interface of ``mrd-env train``: every algorithm is a :class:`Trainer` in :data:`TRAINERS`, and every
 trainer does one job the same way — train one agent for one plant and seed on the plant's training distribution,
-validate it on unseen seeds, keep the best, and write the agent folder (:func:`controllers.agents.write_agent`) with
+validate it on unseen seeds, keep the best, and write the agent folder (:func:`controllers.agents.save_agent`) with
 the run's learning curves. What the trainers share lives here: the training environment's options
 (:func:`env_options`), the validation scenario (:func:`validation_split`), the validation table and console line,
 and the learning-curve figure.

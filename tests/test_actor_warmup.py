@@ -82,7 +82,10 @@ def test_the_option_reaches_training_and_the_agent_loads_as_plain_td3(tmp_path):
     meta = json.loads((run / "agent.json").read_text())
     assert meta["algo"] == "TD3" and meta["hyperparameters"]["actor_warmup_steps"] == 1000
     agent = load_agent(run)
-    assert type(agent.model) is algorithm_class("TD3")
+    # code-free (the policy rebuilt from its arrays: controllers.policy_format), TD3's own policy class
+    assert agent.model.algo == "TD3" and type(agent.model.policy).__name__ == "TD3Policy"
+    assert meta["resume"] == "model.zip" and type(algorithm_class("TD3").load(run / "model.zip").policy) is \
+        type(agent.model.policy)   # SB3's zip beside it, to resume training
     # the actor never moved (all 32 gradient steps inside the warm-up): the agent is still exactly its law
     obs = np.zeros((3, agent.model.observation_space.shape[0]), dtype=np.float32)
     assert np.all(agent.model.predict(obs, deterministic=True)[0] == 0.0)

@@ -106,10 +106,13 @@ def es_runs(tmp_path_factory):
 
 def test_cmaes_training_writes_an_agent_the_tooling_loads(es_runs, tmp_path):
     run = es_runs / "a" / "quarter_car_cmaes_s0"
-    for f in ("agent.json", "policy.npz", "normalization.npz", "training.monitor.csv", "validation.csv",
-              "learning_curve.png", "best/agent.json", "best/policy.npz"):
+    for f in ("agent.json", "training.monitor.csv", "validation.csv", "learning_curve.png", "best/agent.json",
+              "best/policy.npz", "best/normalization.npz"):
         assert (run / f).exists(), f
     meta = json.loads((run / "agent.json").read_text())
+    # the run folder's own agent: its files named by their digest (saved in place, atomically)
+    assert meta["model"].startswith("policy-") and (run / meta["model"]).exists()
+    assert meta["normalization"].startswith("normalization-") and (run / meta["normalization"]).exists()
     assert meta["algo"] == "CMA-ES" and meta["hyperparameters"]["warm_start"] == "skyhook_continuous"
     with (run / "validation.csv").open() as fh:
         rows = list(csv.DictReader(fh))

@@ -29,10 +29,15 @@ def trained(tmp_path_factory):
 def test_train_writes_agents_curves_and_the_best_validation_agent(trained):
     for seed in (0, 1):
         run = trained / f"building_ppo_s{seed}"
-        for f in ("agent.json", "model.zip", "normalization.npz", "training.monitor.csv", "validation.csv",
-                  "learning_curve.png", "best/agent.json", "best/model.zip"):
+        for f in ("agent.json", "model.zip", "training.monitor.csv", "validation.csv", "learning_curve.png",
+                  "best/agent.json", "best/policy.safetensors", "best/normalization.npz", "best/model.zip"):
             assert (run / f).exists(), f
         meta = json.loads((run / "agent.json").read_text())
+        # the run folder's own agent: code-free files named by their digest, agent.json naming them, model.zip to
+        # resume training; no file of an earlier save left
+        assert meta["model"].startswith("policy-") and meta["model"].endswith(".safetensors")
+        assert sorted(meta["files"]) == sorted([meta["model"], meta["normalization"]]) and meta["resume"] == "model.zip"
+        assert sorted(f.name for f in run.glob("policy-*")) == [meta["model"]]
         assert meta["format"] == "mrd-env-agent" and meta["plant"] == "building" and meta["seed"] == seed
         assert meta["env_kwargs"]["control_dt"] == 0.01 and meta["hyperparameters"]["n_envs"] == 2
         assert meta["command"].startswith(f"mrd-env train --plant building --seeds 0 1 --out {trained}")
