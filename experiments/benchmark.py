@@ -222,6 +222,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", type=Path, default=Path("results/benchmark"))
     p.add_argument("--agent", type=Path, nargs="*", default=[],
                    help="saved agents (a folder, .zip or .json written by mrd-env train) to score too")
+    p.add_argument("--trust-agent", action="store_true",
+                   help="also load agents that only have SB3's model.zip (pickles: they can run any code; only from a "
+                        "source you trust; converted once into <out>/converted-agents/)")
     p.add_argument("--no-progress", action="store_true")
     yardstick.add_mode_argument(p)
     sweep.add_arguments(p)
@@ -243,6 +246,12 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError(f"agent {path} was trained on the {plant} plant; add --plant {plant} (or both)")
     if args.seeds < 1:
         raise ValueError(f"--seeds must be >= 1, got {args.seeds}")
+    if agents:  # an SB3 zip only with --trust-agent, converted here once: the workers never unpickle
+        from controllers.agents import code_free_agent
+
+        storage.writable_folder(args.out)
+        agents = {code_free_agent(p, args.out / "converted-agents", trust=args.trust_agent): pl
+                  for p, pl in agents.items()}
     # names checked before any episode runs: a typo must not cost a progress bar and a built environment
     from mrd_env.dampers import damper_class
 

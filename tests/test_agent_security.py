@@ -213,3 +213,16 @@ def test_huge_environment_options_in_agent_json_are_refused(tmp_path):
         load_agent(folder)
     with pytest.raises(ValueError, match="unknown option"):
         load_agent(_edited(tmp_path / "b", env_kwargs={"banana": 1}))
+
+
+def test_benchmark_refuses_it_too_and_trust_is_its_only_way_in(malicious, tmp_path, capsys):
+    folder, marker = malicious
+    bench = ["benchmark", "--plant", "quarter_car", "--quick", "--controllers", "passive_off", "--yardstick", "off",
+             "--no-progress", "--agent", str(folder), "--out", str(tmp_path)]
+    assert main(bench) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--trust-agent" in err and "model.zip" in err and "Traceback" not in err
+    assert not marker.exists() and not list(tmp_path.glob("*.md"))
+    with pytest.warns(TrustedCodeWarning):
+        assert main([*bench, "--trust-agent"]) == 0
+    assert marker.exists() and (tmp_path / "converted-agents").is_dir()
