@@ -16,7 +16,20 @@ from .command_lag import effective_command
 from .dampers import DamperModel, make_damper
 from .records import DamperRecord
 from .stepping import SystemMatrices, run
+from .resources import check as check_memory, samples_text
 from .validation import MIN_RECORD_SAMPLES, as_generator, check_array, check_n_samples, check_scalar
+
+
+#: Bytes per sample and record while a test runs (stroke, velocity, acceleration, command, the integrator's inputs
+#: and forces, the records; measured: 165–181).
+SAMPLE_BYTES = 200
+
+
+def _check_test_memory(n_samples: float, n_records: int, dt: float, cause: str) -> None:
+    """``ValueError`` naming ``cause`` if a test of ``n_records`` records of ``n_samples`` exceeds the memory limit
+    (:mod:`mrd_env.resources`)."""
+    check_memory({f"{n_records} record{'s' if n_records > 1 else ''} of {samples_text(n_samples, dt)}":
+                  n_records * n_samples * SAMPLE_BYTES}, cause)
 
 
 def _as_damper(damper: DamperModel | str) -> DamperModel:
@@ -110,6 +123,8 @@ def sinusoidal_test(damper: DamperModel | str, amplitude: float, frequency: floa
         raise ValueError(f"cycles = {cycles:g} at {f:g} Hz lasts less than two steps dt = {dt:g} s: "
                          "give more cycles or a smaller dt")
     n = int(round(steps)) + 1
+    _check_test_memory(n, len(cmds), dt, f"cycles={cycles:g} at frequency={f:g} Hz, dt={dt:g} s and "
+                                         f"{len(cmds)} command level{'s' if len(cmds) > 1 else ''}")
     t = np.arange(n) * dt
     w = 2.0 * np.pi * f
     x = np.tile(X * np.sin(w * t), (len(cmds), 1))
@@ -137,6 +152,7 @@ def random_test(damper: DamperModel | str, rms: float, bandwidth: float, duratio
     if bw * n * dt < 1.0:  # the lowest non-zero frequency of the record is 1 / (n dt)
         raise ValueError(f"bandwidth = {bw:g} Hz is below the record's frequency resolution 1/duration = "
                          f"{1 / (n * dt):g} Hz, so the stroke would be empty: raise bandwidth or duration")
+    _check_test_memory(n, 1, dt, f"duration={duration:g} s at dt={dt:g} s")
     spec = np.fft.rfft(rng.standard_normal(n))
     freqs = np.fft.rfftfreq(n, dt)
     spec[(freqs > bw) | (freqs == 0.0)] = 0.0

@@ -35,7 +35,10 @@ def damper_class(name: str):
     """The model class of a name, or of the model a preset file holds (``"fitted.json"``)."""
     _load_all()
     if is_preset_file(name):
-        return damper_class(preset_model(name))
+        model = preset_model(name)  # a model name: a preset naming a preset file is resolved to its model
+        if model not in _MODELS:
+            raise ValueError(f"{name}: \"model\" {model!r} is not a damper model; available: {sorted(_MODELS)}")
+        return _MODELS[model]
     if not isinstance(name, str) or name not in _MODELS:
         raise ValueError(f"unknown damper model {name!r}; available: {sorted(_MODELS)}")
     return _MODELS[name]
@@ -74,28 +77,32 @@ def load_damper_preset(path: str | Path):
     from .base import CommandSpec
 
     path = Path(path)
-    doc = read_preset(path)
+    doc = read_preset(path)  # its structure checked (types, the model file it names), with the file in the errors
     if doc.get("model") == NEURAL_MODEL:
         raise ValueError(f"{path} holds a neural forward model (mrd_env.identification.load_preset reads it): the "
                          "environments, the rig and the inverses need a parametric damper model (fit one with "
                          "mrd-env identify --model <name>)")
-    cls = damper_class(doc.get("model", ""))
+    cls = damper_class(path)
     units = cls.Params.units()
-    pars = doc.get("parameters", {})
+    pars = doc["parameters"]
     missing = [k for k in units if k not in pars]
     extra = [k for k in pars if k not in units]
     if missing or extra:
         raise ValueError(f"{path}: parameters of {cls.name!r} do not match (missing {missing}, unknown {extra})")
     values = {}
     for k, entry in pars.items():
-        if entry.get("unit") != units[k]:
-            raise ValueError(f"{path}: parameter {k!r} is in {entry.get('unit')!r}, expected {units[k]!r} (SI)")
+        if entry["unit"] != units[k]:
+            raise ValueError(f"{path}: parameter {k!r} is in {entry['unit']!r}, expected {units[k]!r} (SI)")
         values[k] = float(entry["value"])
-    c = doc.get("command", {})
+    c = doc["command"]
+    fall = c.get("eta_fall")
     try:
-        fall = c.get("eta_fall")
         command = CommandSpec(c["unit"], float(c["v_min"]), float(c["v_max"]), float(c["eta"]),
                               None if fall is None else float(fall), float(c.get("delay_s", 0.0)))
-    except KeyError as exc:
-        raise ValueError(f"{path}: command channel lacks {exc}") from None
-    return cls(cls.Params(**values), command)
+    except ValueError as exc:
+        raise ValueError(f"{path}: \"command\": {exc}") from None
+    try:
+        params = cls.Params(**values)
+    except ValueError as exc:
+        raise ValueError(f"{path}: \"parameters\": {exc}") from None
+    return cls(params, command)

@@ -191,8 +191,9 @@ def peer_record(name: str) -> Record:
 
 
 def el_centro(component: str = "NS", time_scale: float = 1.0, amplitude_scale: float = 1.0,
-              dt: float | None = 1e-3, source: str = "peer") -> Record:
-    """The 1940 Imperial Valley (El Centro) record, scaled with :func:`scale_record` and resampled to ``dt``.
+              dt: float | None = 1e-3, source: str = "peer", *, duration: float | None = None) -> Record:
+    """The 1940 Imperial Valley (El Centro) record, scaled with :func:`scale_record` and resampled to ``dt``
+    (``duration``: only what an episode of that many seconds reads, as :func:`scale_record`).
 
     ``source="peer"``: PEER NGA RSN6 (baseline-corrected), ``component`` "NS" (ELC180, PGA 0.281 g), "EW"
     (ELC270, PGA 0.211 g) or "UP"; dt 0.01 s. ``source="classic"``: the older digitisation used in textbooks
@@ -212,11 +213,11 @@ def el_centro(component: str = "NS", time_scale: float = 1.0, amplitude_scale: f
         rec = Record(rec.dt, rec.data, rec.channels, rec.units, "Imperial Valley 1940, El Centro N-S (classic)")
     else:
         raise ValueError(f"source must be 'peer' or 'classic', got {source!r}")
-    return scale_record(rec, time_scale, amplitude_scale, dt)
+    return scale_record(rec, time_scale, amplitude_scale, dt, duration=duration)
 
 
 def scale_record(record: Record, time_scale: float = 1.0, amplitude_scale: float = 1.0,
-                 dt: float | None = 1e-3) -> Record:
+                 dt: float | None = 1e-3, *, duration: float | None = None) -> Record:
     """Replay ``record`` at t' = time_scale * t with values times ``amplitude_scale``, then resample to ``dt``.
 
     time_scale < 1 compresses time (a record replayed faster, as lab studies on small-scale models do, e.g.
@@ -224,6 +225,10 @@ def scale_record(record: Record, time_scale: float = 1.0, amplitude_scale: float
     values (the replay convention, not similitude scaling). Resampling is linear interpolation
     (:meth:`Record.resample`); ``dt=None`` keeps the scaled native step. Multi-channel records (e.g. z_r with
     zdot_r) can only be amplitude-scaled: a time scale would make the derivative channel inconsistent.
+
+    ``duration`` (s, with ``dt``): keep only what an episode of that length reads — the record is cropped before
+    it is resampled, to the samples up to ``duration`` plus two, whose values are those of the whole resampled
+    record bit for bit (a record replayed 1000× slower is not resampled over hours for a short episode).
     """
     if not isinstance(record, Record):
         raise ValueError(f"record must be a Record, got {type(record).__name__}")
@@ -244,8 +249,18 @@ def scale_record(record: Record, time_scale: float = 1.0, amplitude_scale: float
                          f"dt = {dt:g} s")
     if record.dt * s <= 0.0:  # underflow
         raise ValueError(f"time_scale = {s:g} makes the record's step {record.dt:g} s x {s:g} vanish")
-    scaled = Record(record.dt * s, data, record.channels, record.units, name)
-    return scaled if dt is None else scaled.resample(dt)
+    step = record.dt * s
+    if dt is None:
+        return Record(step, data, record.channels, record.units, name)
+    keep = None
+    if duration is not None:
+        duration = check_scalar("duration", duration, 0.0, lo_open=True, unit="s")
+        keep = n_samples_for(min(duration, record.duration * s), dt) + 2  # the episode's rows, and a margin
+        # every kept grid time t <= (keep - 1) dt lies between two kept samples of the record
+        m = math.ceil((keep - 1) * dt / step) + 2
+        if m < data.shape[0]:
+            data = data[:m]
+    return Record(step, data, record.channels, record.units, name).resample(dt, keep)
 
 
 def peak_ground_acceleration(record: Record) -> float:

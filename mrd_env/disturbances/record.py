@@ -94,8 +94,9 @@ class Record:
         self.channel(name)  # same error for an unknown channel
         return self.units[self.channels.index(name)]
 
-    def resample(self, dt: float) -> "Record":
-        """The record on the grid ``k * dt`` up to its duration, by linear interpolation of every channel.
+    def resample(self, dt: float, n_samples: int | None = None) -> "Record":
+        """The record on the grid ``k * dt`` up to its duration, by linear interpolation of every channel
+        (``n_samples``: only the first that many samples of that grid, the same values).
 
         No anti-alias filter is applied: resampling to a coarser step keeps the samples' values, so content
         above the new Nyquist frequency 1/(2 dt) aliases. Linear interpolation never exceeds the original
@@ -104,8 +105,11 @@ class Record:
         dt = check_scalar("dt", dt, 0.0, lo_open=True, unit="s")
         if dt > self.duration:
             raise ValueError(f"dt = {dt:g} s must be <= the record's duration {self.duration:g} s")
-        check_n_samples(self.duration / dt, f"the record's duration / dt = {self.duration:g} s / {dt:g} s")
+        if n_samples is None or n_samples > self.duration / dt + 1:
+            check_n_samples(self.duration / dt, f"the record's duration / dt = {self.duration:g} s / {dt:g} s")
         n = n_samples_for(self.duration, dt)
+        if n_samples is not None:
+            n = max(2, min(n, int(n_samples)))
         t_new = np.arange(n) * dt
         t_old = self.t
         data = np.column_stack([np.interp(t_new, t_old, self.data[:, j]) for j in range(self.data.shape[1])])

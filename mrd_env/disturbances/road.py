@@ -12,7 +12,8 @@ from typing import Mapping
 import numpy as np
 import scipy.fft
 
-from ..validation import check_scalar
+from ..resources import Budget
+from ..validation import check_n_samples, check_scalar
 from .record import (Record, as_generator, check_column, check_duration_dt, n_samples_for, read_table,
                      split_unit, unit_factor, LENGTH_UNITS, TIME_UNITS)
 
@@ -259,7 +260,8 @@ def sine_sweep(amplitude: float, f_start: float, f_end: float, duration: float, 
 
 
 def road_from_csv(path, *, height_column: str, distance_column: str | None = None, time_column: str | None = None,
-                  speed: float | None = None, units: Mapping[str, str] | None = None, dt: float = 1e-3) -> Record:
+                  speed: float | None = None, units: Mapping[str, str] | None = None, dt: float = 1e-3,
+                  duration: float | None = None, budget=None) -> Record:
     """A measured road profile from a text table with a header row (comma, semicolon or whitespace separated).
 
     Either height vs distance (``distance_column`` and a vehicle ``speed`` in m/s: t = (x - x_0) / speed) or
@@ -270,6 +272,10 @@ def road_from_csv(path, *, height_column: str, distance_column: str | None = Non
     The profile is linearly interpolated onto t_k = k dt and zdot_r is estimated by ``np.gradient`` (second-order
     central differences inside, second-order one-sided at the ends). Measured points farther apart than
     speed*dt are joined by straight lines, so zdot_r is then the piecewise slope times speed.
+
+    ``duration`` (s): keep only what an episode of that length reads (the first samples up to ``duration`` and
+    two more, equal to those of the whole profile). The samples are checked against the memory limit before they
+    are made (:mod:`mrd_env.resources`; ``budget``: an environment's :class:`~mrd_env.resources.Budget`).
     """
     if (distance_column is None) == (time_column is None):
         raise ValueError("give exactly one of distance_column (height vs distance, with speed) or time_column "
@@ -299,13 +305,24 @@ def road_from_csv(path, *, height_column: str, distance_column: str | None = Non
     check_column(z, lines, height_column, path, increasing=False)
 
     t = (x - x[0]) / speed if distance_column is not None else x - x[0]
+    name = os.path.basename(os.fspath(path))
+    seconds = t[-1]
+    if duration is not None:
+        seconds = min(seconds, check_scalar("duration", duration, 0.0, lo_open=True, unit="s"))
+    what = (f"the road profile {name!r} ({t[-1]:g} s"
+            + (f" at speed={speed:g} m/s" if distance_column is not None else "") + ")")
+    check_n_samples(seconds / dt, f"{what} at dt = {dt:g} s")
+    (budget or Budget()).check_record(seconds / dt + 1, dt, 2, what if seconds == t[-1] else
+                                      f"episode_seconds={seconds:g}", what="the road")
     n = n_samples_for(t[-1], dt)
     if n < 2:
         raise ValueError(f"dt = {dt:g} s must be <= the profile's duration {t[-1]:g} s")
+    if duration is not None:
+        n = min(n, n_samples_for(seconds, dt) + 2)  # np.gradient's one-sided end stays outside the episode
     t_new = np.arange(n) * dt
     z_new = np.interp(t_new, t, z)
     zdot = np.gradient(z_new, dt, edge_order=2)
-    return _road_record(z_new, zdot, dt, f"road profile {os.path.basename(os.fspath(path))}")
+    return _road_record(z_new, zdot, dt, f"road profile {name}")
 
 
 def _find_column(header: list[str], column: str, param: str, units, path) -> tuple[int, str]:

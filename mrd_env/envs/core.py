@@ -10,6 +10,7 @@ initial state of an episode, the episode metrics, the roles of its signals for t
 from __future__ import annotations
 
 import copy
+import reprlib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -20,6 +21,7 @@ from gymnasium.envs.registration import EnvSpec
 from ..dampers import DamperModel
 from ..disturbances import Record
 from ..plants import CoupledPlant, LinearPlant
+from ..resources import FLOAT, check as check_memory, episode_parts, format_bytes
 from ..stepping import HIST_FULL, HIST_NONE, HIST_PERIOD, Driver, Processing, noise_keys
 from .disturbance import Disturbance
 from .reward import CallableReward, QuadraticReward
@@ -83,6 +85,8 @@ class Assembly:
     renderer: Callable | None = None
     options: dict = field(default_factory=dict)        # the user's options, as given (for records and agents)
     preview_times: tuple[float, ...] = ()              # s ahead of the disturbance a preview sensor reads
+    episode_floats: int = 0                            # floats per record sample an episode's extras keep
+    reset_floats: int = 0                              # floats per record sample new_episode computes and drops
 
     @property
     def n_sub(self) -> int:
@@ -268,6 +272,7 @@ class EnvCore:
             self._stat_slices[s] = slice(k, k + sig[s].width)
             k += sig[s].width
         self.history_mode = history
+        self._check_memory(self.max_episode_steps, None)
         pr = Processing(G=sig.G, n_extra=sig.width - sig.G.shape[0] - asm.coupled.system.nd, filters=filters,
                         reward_cols=tuple(rcols), limit_cols=tuple(lcols), limits=tuple(limits),
                         penalty=(asm.limits.penalty, asm.limits.penalty_rate * asm.control_dt), stat_cols=tuple(stat_cols),
@@ -324,14 +329,10 @@ class EnvCore:
         asm = self.asm
         mask = np.ones(self.N, dtype=bool) if mask is None else np.asarray(mask, dtype=bool)
         idx = np.flatnonzero(mask)
-        recs = {}
-        for b in idx:
-            ep = asm.new_episode(asm.disturbance.sample(rngs[b], asm.dt))
-            self.episodes[b] = ep
-            recs[b] = ep.record
         n_sub = asm.n_sub
+        samples = {b: asm.disturbance.sample(rngs[b], asm.dt) for b in idx}
         rows = {}
-        for b, rec in recs.items():
+        for b, rec in samples.items():  # checked before anything changes: a refused reset leaves the env as it was
             n_steps = asm.episode_steps(rec.n_samples)
             if self.step_cap is not None:
                 n_steps = min(n_steps, self.step_cap)
@@ -339,6 +340,13 @@ class EnvCore:
                 raise ValueError(f"the disturbance record ({rec.duration:g} s) is shorter than one control period "
                                  f"({asm.control_dt:g} s)")
             rows[b] = n_steps * n_sub + 1
+        if asm.max_episode_steps is None:  # records of a length unknown at construction
+            self._check_memory((max(rows.values()) - 1) // n_sub, max(r.n_samples for r in samples.values()))
+        recs = {}
+        for b in idx:
+            ep = asm.new_episode(samples[b])
+            self.episodes[b] = ep
+            recs[b] = ep.record
         d = self.driver
         need = max(rows.values())
         if d.W.shape[1] < need or d.W.shape[0] != self.N:
@@ -368,6 +376,56 @@ class EnvCore:
         keys = np.zeros(self.N, dtype=np.int64)
         keys[idx] = noise_keys([rngs[b] for b in idx])
         d.reset(mask, Y0=Y0, keys=keys)
+
+    def _check_memory(self, steps: int | None, record_samples: int | None) -> None:
+        """``ValueError`` naming the options if :meth:`memory_parts` exceed the memory limit
+        (:mod:`mrd_env.resources`); called before anything is allocated."""
+        check_memory(self.memory_parts(steps, record_samples), self._memory_cause(steps))
+
+    def memory_parts(self, steps: int | None, record_samples: int | None = None) -> dict[str, float]:
+        """The estimate {what: bytes} of N environments' state and of their episodes of ``steps`` control steps
+        (None: the state alone) on records of ``record_samples`` (default: the disturbance's longest)."""
+        asm, N = self.asm, self.N
+        sig = asm.signals
+        nw, nd = asm.coupled.system.nw, asm.coupled.system.nd
+        n_meas = len(self.meas_cols)
+        depth = asm.sensors.delay + asm.sensors.history
+        # per environment: the dose ring buffer, the sensor FIFO, the observation, one row, the damper's state
+        state = FLOAT * (max(1, int(round(asm.dose_window / asm.dt))) + depth * n_meas + asm.sensors.history * n_meas
+                         + 2 * sig.width + 64 * nd + 4 * sig.G.shape[1])
+        parts = {f"the state of {N} environments ({format_bytes(state)} each)": N * state}
+        if steps is not None:
+            rows = steps * asm.n_sub + 1
+            n_rec = max(rows, record_samples or asm.disturbance.max_samples or rows)
+            parts.update(episode_parts(
+                rows=rows, record_samples=n_rec, num_envs=N, inputs=nw, record_channels=nw - 1,
+                history_width=sig.width if self.history_mode == HIST_FULL else 0, plant_floats=asm.episode_floats,
+                reset_floats=asm.reset_floats, per_env_records=asm.disturbance.random or bool(asm.preview_times),
+                generated_channels=len(asm.disturbance.channels) if asm.disturbance.random else 0, dt=asm.dt))
+        return parts
+
+    def _memory_cause(self, steps: int | None) -> str:
+        """The options that set the memory an episode takes, as the refusal names them."""
+        asm, N = self.asm, self.N
+        opts = asm.options
+        named = []
+        if steps is not None:
+            if opts.get("episode_seconds") is not None:
+                named.append(f"episode_seconds={asm.episode_seconds:g}")
+            else:
+                named.append(f"an episode of {steps * asm.control_dt:g} s (the length of "
+                             f"{asm.disturbance.describe()}, without episode_seconds)")
+            for k in ("ground_motion_params", "road_params", "ground_motion", "road"):
+                v = opts.get(k)
+                if isinstance(v, Mapping) and v:
+                    named.append(f"{k}={reprlib.repr(v)}")
+            if asm.dt != 1e-3:
+                named.append(f"dt={asm.dt:g}")
+            if asm.preview_times:
+                named.append(f"preview ({len(asm.preview_times)} times ahead)")
+        if N > 1 or steps is None:
+            named.append(f"num_envs={N}")
+        return ", ".join(named)
 
     def step(self, action: np.ndarray) -> int:
         """Advance the running environments by one control period (``action`` float64 (N·nd,)); env 0's status."""

@@ -10,6 +10,7 @@ from ..disturbances import Record, iso8608_road
 from ..metrics import weighting_sos
 from ..plants import CoupledPlant
 from ..plants.half_car import HalfCarParams, half_car
+from ..resources import FLOAT, Budget
 from . import options as opt
 from . import randomize
 from .base import MRDamperEnv
@@ -30,11 +31,14 @@ X_REF = 0.05  # m, suspension travel
 
 
 # --- the road: one rule, these kinds --------------------------------------------------------------------------
-def _iso8608(*, dt, episode_seconds, wheelbase, road_class="C", speed=20.0):
+def _iso8608(*, dt, episode_seconds, wheelbase, budget=None, road_class="C", speed=20.0):
     """An ISO 8608 road under both axles, new each episode; ``road_class`` may be a list and ``speed`` a range
     (lo, hi) to draw per episode (:mod:`.randomize`)."""
     if episode_seconds is None:
         raise ValueError("road 'iso8608' needs episode_seconds (s), got None")
+    # one road, the rear axle's lag longer (under a second at the slowest speeds a car drives)
+    (budget or Budget()).check_record(episode_seconds / dt + 1, dt, len(CHANNELS), f"episode_seconds={episode_seconds:g}",
+                                      what="the road", generated=True)
     n_samples = max(_axles_record(c, v, episode_seconds, dt, wheelbase, np.random.default_rng(0)).n_samples
                     for c in randomize.values("road_params['road_class']", road_class, lambda v: v)
                     for v in randomize.values("road_params['speed']", speed,
@@ -59,14 +63,15 @@ def _axles_record(road_class, speed, duration: float, dt: float, wheelbase: floa
 ROADS = {"iso8608": _iso8608}
 
 
-def road_source(road, road_params, dt: float, episode_seconds: float, wheelbase: float) -> Disturbance:
+def road_source(road, road_params, dt: float, episode_seconds: float, wheelbase: float,
+                budget: Budget | None = None) -> Disturbance:
     """The road part, by the quarter car's rule (:func:`.quarter_car.road_source`): a kind name (with
     ``road_params``), a dict {"kind": ..., options}, a Record with channels z_rf, zdot_rf, z_rr, zdot_rr (m, m/s),
     or a :class:`~.disturbance.Disturbance`."""
     from .quarter_car import road_source as car_road
 
     return car_road(road, road_params, dt, episode_seconds, kinds=ROADS, channels=CHANNELS, units=UNITS,
-                    wheelbase=wheelbase)
+                    wheelbase=wheelbase, budget=budget)
 
 
 # --- the assembly ------------------------------------------------------------------------------------------------
@@ -127,7 +132,8 @@ def assembly(*, plant_preset="sedan", plant_params=None, road="iso8608", road_pa
     return Assembly(
         kind="half_car", damper=d, plant_params=p, linear_plant=lp, coupled=coupled, signals=sm,
         sensor_names=SENSORS, sensors=opt.sensors(sensors, sensor_noise, sensor_delay, history, DEFAULT_SENSORS),
-        disturbance=road_source(road, road_params, dt, episode_seconds, p.wheelbase), reward=reward,
+        disturbance=road_source(road, road_params, dt, episode_seconds, p.wheelbase,
+                                budget=Budget(FLOAT * coupled.system.nw)), reward=reward,
         limits=Limits({"travel": opt.check_scalar("stroke_limit", stroke_limit, 0.0, lo_open=True, unit="m")},
                       penalty_rate=w["termination"]),
         new_episode=functools.partial(_new_episode, p), metrics=functools.partial(_metrics, static=static),

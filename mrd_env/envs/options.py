@@ -143,6 +143,9 @@ def weights(given, defaults: Mapping[str, float]) -> dict[str, float]:
 
 
 MAX_PREVIEW = 10.0  # s: a look-ahead sensor sees metres to tens of metres of road, well under 10 s
+#: The most preview times: each is an input channel of every row and a row and a column of the signal map (whose
+#: size grows with the square of the count).
+MAX_PREVIEW_TIMES = 1000
 
 
 def preview_times(preview, dt: float) -> tuple[float, ...]:
@@ -155,6 +158,9 @@ def preview_times(preview, dt: float) -> tuple[float, ...]:
     values = list(preview) if isinstance(preview, (list, tuple, np.ndarray)) else [preview]
     if not values:
         raise ValueError("preview must hold at least one time ahead (s); use None for no preview")
+    if len(values) > MAX_PREVIEW_TIMES:
+        raise ValueError(f"preview holds {len(values)} times ahead, at most {MAX_PREVIEW_TIMES}: each is an input "
+                         "channel of every row and a column of the signal map")
     out = []
     for v in values:
         if isinstance(v, bool):

