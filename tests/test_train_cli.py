@@ -68,3 +68,36 @@ def test_every_shipped_hyperparameter_file_passes_the_checks_made_before_trainin
         assert plant is not None, f"{path.name}: {env_id} is not a plant's environment"
         hyper = hyperparameters(algo, env_id, path)  # the trainer's own check of every key and value
         check_before_training(algo, hyper, env_id, env_options(plant.name))
+
+
+def test_sigterm_saves_a_loadable_agent_and_exits_143(tmp_path):
+    """SIGTERM (SLURM, docker stop, timeout) is handled like Ctrl-C: the run so far is saved as an agent that
+    loads, and the command exits 143 (issue 36: the process died silently, leaving no agent.json)."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+    from pathlib import Path
+
+    from controllers import load_agent
+
+    root = Path(__file__).resolve().parents[1]
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(root), os.environ.get("PYTHONPATH", "")])}
+    proc = subprocess.Popen([sys.executable, "-m", "experiments.cli", "train", "--algo", "ppo", "--timesteps",
+                             "10000000", "--set", "n_envs=1", "n_steps=64", "batch_size=64", "--eval-freq", "0",
+                             "--no-progress", "--out", str(tmp_path)], env=env, cwd=tmp_path,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 240
+    while time.monotonic() < deadline and proc.poll() is None:   # training has begun once SB3's monitor writes
+        if any(p.stat().st_size > 200 for p in tmp_path.glob("*/*monitor.csv")):
+            break
+        time.sleep(0.5)
+    assert proc.poll() is None, proc.communicate()
+    proc.send_signal(signal.SIGTERM)
+    out, err = proc.communicate(timeout=120)
+    assert proc.returncode == 143, err
+    assert "saved the agent so far" in err and err.rstrip().endswith("mrd-env train: terminated"), err
+    run = next(p.parent for p in tmp_path.glob("*/agent.json"))
+    assert json.loads((run / "agent.json").read_text())["interrupted"] is True
+    assert load_agent(run).predict([0.0] * load_agent(run).normalizer.shape[0])[0].shape == (1,)
