@@ -1,7 +1,8 @@
 """Gymnasium's own environment and vector-environment tests, for every registered id.
 
-What Gymnasium's test suite asserts of its environments (``tests/envs/test_envs.py``) and vector environments
-(``tests/vector/test_vector_env.py``, ``test_autoreset_mode.py``, ``test_vector_env_info.py``), written here
+What Gymnasium's test suite asserts of its environments (``tests/envs/test_envs.py``), their specs
+(``tests/envs/registration/test_make_vec.py``, ``test_env_spec.py``: every registered id, v0 and v1) and vector
+environments (``tests/vector/test_vector_env.py``, ``test_autoreset_mode.py``, ``test_vector_env_info.py``), written here
 for the mrd_env ids with the installed Gymnasium's checkers (``gymnasium.utils.env_checker``,
 ``passive_env_checker``, ``env_match``), nothing vendored; and the integrity points of issue 21 (refused calls
 change nothing, batched infos as SyncVectorEnv's, reset masks, make_vec's keywords, episode lengths in the spec,
@@ -338,6 +339,198 @@ def test_make_vec_autoreset(env_id, mode):
 
 
 # ---------------------------------------------------------------------------------------------------------------
+# tests/envs/registration (test_make_vec.py, test_env_spec.py): specs that round-trip (issue 37), every registered id
+
+ALL_IDS = tuple(sorted(i for i in gym.registry if i.startswith("mrd_env/")))
+#: make_vec's keywords in Gymnasium's test_make_vec_with_spec, for our ids: every vectorization mode, with and
+#: without render_mode, vector_kwargs, wrappers, a step cap, and options of the environment's own
+VEC_ROWS = {
+    "default": {}, "num_envs": {"num_envs": 3}, "native": {"vectorization_mode": "vector_entry_point"},
+    "sync": {"vectorization_mode": "sync"}, "async": {"vectorization_mode": "async"},
+    "sync-copy": {"vectorization_mode": "sync", "vector_kwargs": {"copy": False}},
+    "sync-wrappers": {"vectorization_mode": "sync", "wrappers": (gym.wrappers.TimeAwareObservation,)},
+    "native-rgb": {"vectorization_mode": "vector_entry_point", "render_mode": "rgb_array"},
+    "sync-rgb": {"vectorization_mode": "sync", "render_mode": "rgb_array"},
+    "async-rgb": {"vectorization_mode": "async", "render_mode": "rgb_array"},
+    "native-cap": {"vectorization_mode": "vector_entry_point", "max_episode_steps": 5},
+    "sync-cap": {"vectorization_mode": "sync", "max_episode_steps": 5},
+    "native-options": dict(SHORT), "sync-options": {"vectorization_mode": "sync", **SHORT},
+}
+
+
+def _has_wrapper(env, wrapper_type: type) -> bool:
+    """Gymnasium's tests' has_wrapper: a wrapper of that type (or a subclass) in the stack."""
+    while isinstance(env, gym.Wrapper):
+        if isinstance(env, wrapper_type):
+            return True
+        env = env.env
+    return False
+
+
+def _same_rollout(a, b, steps: int = 3, vector: bool = True) -> None:
+    assert data_equivalence(a.reset(seed=0), b.reset(seed=0), exact=True)
+    a.action_space.seed(1)
+    for _ in range(steps):
+        action = a.action_space.sample()
+        assert data_equivalence(a.step(action), b.step(action), exact=True)
+
+
+@pytest.mark.parametrize("row", VEC_ROWS)
+@pytest.mark.parametrize("env_id", ALL_IDS)
+def test_make_vec_with_spec(env_id, row):
+    """Gymnasium's test_make_vec_with_spec: make_vec(envs.spec) re-creates the vector env with an equal spec, the
+    same type, number of environments, spaces and render mode (and here the same rollout); the registered spec
+    given instead of the id builds the same (issue 37, item 1: the native rows failed, the re-created spec had
+    gained the keyword max_episode_steps)."""
+    kwargs = VEC_ROWS[row]
+    envs = gym.make_vec(env_id, **kwargs)
+    assert envs.spec is not None
+    recreated = gym.make_vec(envs.spec)
+    assert envs.spec == recreated.spec
+    assert envs.num_envs == recreated.num_envs and type(envs) is type(recreated)
+    assert envs.observation_space == recreated.observation_space
+    assert envs.single_observation_space == recreated.single_observation_space
+    assert envs.action_space == recreated.action_space and envs.single_action_space == recreated.single_action_space
+    assert envs.render_mode == recreated.render_mode == kwargs.get("render_mode")
+    _same_rollout(envs, recreated)
+    if "wrappers" not in kwargs:  # a callable does not go to JSON (Gymnasium refuses it)
+        from_json = gym.envs.registration.EnvSpec.from_json(envs.spec.to_json())
+        assert from_json == envs.spec
+        assert gym.make_vec(from_json).spec == envs.spec
+    by_spec = gym.make_vec(gym.spec(env_id), **kwargs)
+    assert by_spec.spec == envs.spec and type(by_spec) is type(envs)
+    for e in (envs, recreated, by_spec):
+        e.close()
+
+
+@pytest.mark.parametrize("env_id", ALL_IDS)
+def test_make_vec_wrappers(env_id):
+    """Gymnasium's test_make_vec_wrappers: a sub-environment whose spec states max_episode_steps is wrapped in a
+    TimeLimit (issue 37, item 1: the spec stated it with no TimeLimit); wrappers given are applied to every
+    sub-environment. Also for gym.make and gym.make(env.spec)."""
+    envs = gym.make_vec(env_id, num_envs=2, vectorization_mode="sync", **SHORT)
+    assert isinstance(envs, gym.vector.SyncVectorEnv) and len(envs.envs) == 2
+    for sub_env in envs.envs:
+        assert isinstance(sub_env, gym.Env) and sub_env.spec is not None
+        assert sub_env.spec.max_episode_steps == 10
+        assert _has_wrapper(sub_env, gym.wrappers.TimeLimit)
+        assert not _has_wrapper(sub_env, gym.wrappers.TransformObservation)
+    space = envs.single_observation_space
+    envs = gym.make_vec(env_id, num_envs=2, vectorization_mode="sync", **SHORT,
+                        wrappers=[lambda e: gym.wrappers.TransformObservation(e, lambda obs: obs * 2, space)])
+    assert all(_has_wrapper(e, gym.wrappers.TransformObservation) for e in envs.envs)
+    for env in (gym.make(env_id, **SHORT), gym.make(gym.make(env_id, **SHORT).spec)):
+        assert env.spec.max_episode_steps == 10 and _has_wrapper(env, gym.wrappers.TimeLimit)
+
+
+def _specs_of(env_id):
+    """The specs Gymnasium's test_env_spec_to_from_json takes, and the vector envs'."""
+    env = gym.make(env_id, **SHORT)
+    yield "registered", gym.spec(env_id)
+    yield "unwrapped", env.unwrapped.spec
+    yield "made", env.spec
+    yield "wrapped", gym.wrappers.NormalizeReward(gym.wrappers.TimeAwareObservation(env), gamma=0.8).spec
+    for mode in ("vector_entry_point", "sync"):
+        yield mode, gym.make_vec(env_id, num_envs=2, vectorization_mode=mode, **SHORT).spec
+
+
+@pytest.mark.parametrize("env_id", ALL_IDS)
+def test_every_spec_survives_json_and_recreation(env_id):
+    """Issue 37 (must show): every registered spec, and the specs of the environments made from it (scalar, wrapped,
+    native and sync vector), survive EnvSpec.to_json/from_json unchanged (item 2: ShearBuilding-v1's tuple
+    damper_floors came back a list), and gym.make / gym.make_vec of a made environment's spec re-create an equal
+    spec."""
+    for name, spec in _specs_of(env_id):
+        assert gym.envs.registration.EnvSpec.from_json(spec.to_json()) == spec, name
+        if name in ("vector_entry_point", "sync"):
+            assert gym.make_vec(spec).spec == spec, name
+        elif name in ("made", "wrapped"):
+            assert gym.make(spec).spec == spec, name
+    registered = gym.spec(env_id)
+    assert all(type(v) in (int, float, str, bool, list, dict) for v in registered.kwargs.values())
+    if env_id == "mrd_env/ShearBuilding-v1":  # the list [2]: one damper, in storey 2 (neither a range nor choices)
+        assert gym.make(env_id, **SHORT).unwrapped.plant_params.damper_floors == (2,)
+
+
+@pytest.mark.parametrize("env_id", ALL_IDS)
+def test_full_spec_integration(env_id):
+    """Gymnasium's test_full_integration: a wrapped environment's spec, through JSON, re-creates the same stack
+    (wrappers, render mode, the environment class) and the same steps."""
+    env = gym.make(env_id, render_mode="rgb_array", **SHORT)
+    env = gym.wrappers.NormalizeReward(gym.wrappers.TimeAwareObservation(env), gamma=0.8)
+    spec = env.spec
+    assert len(spec.additional_wrappers) == 2 and spec.max_episode_steps == 10
+    recreated_spec = gym.envs.registration.EnvSpec.from_json(spec.to_json())
+    assert recreated_spec == spec and recreated_spec.additional_wrappers == spec.additional_wrappers
+    recreated = gym.make(recreated_spec)
+    assert recreated.render_mode == "rgb_array" and recreated.spec == spec
+    assert isinstance(recreated, gym.wrappers.NormalizeReward) and recreated.gamma == 0.8
+    assert isinstance(recreated.env, gym.wrappers.TimeAwareObservation)
+    assert type(recreated.unwrapped) is type(env.unwrapped)
+    assert env.spec.pprint(disable_print=True) == recreated_spec.pprint(disable_print=True)
+    _same_rollout(env, recreated, steps=10)  # the whole episode
+
+
+def _ends_on_a_termination_at_the_last_step(env_id) -> dict:
+    """Short episodes whose first (seed 0, commands at the low end) ends by a stroke-limit termination on its last
+    (10th) step where the stroke peaks then (a limit between its peaks before and in that step), with terminations
+    among truncations in the random episodes that follow."""
+    env = gym.make(env_id, **SHORT)
+    env.reset(seed=0)
+    for _ in range(10):
+        env.step(env.action_space.low)
+    stroke = np.abs(env.unwrapped.signal(env.unwrapped.roles["damper_stroke"])).max(axis=1)
+    before, last = stroke[:91].max(), stroke.max()  # 10 physics rows a step
+    if last > before:
+        return dict(SHORT, stroke_limit=float(np.sqrt(before * last)))
+    return dict(SHORT, stroke_limit=4e-6 if "ShearBuilding" in env_id else 4e-3)
+
+
+def _rollouts(env, episodes: int = 4):
+    env.action_space.seed(0)
+    for ep in range(episodes):
+        yield ("reset", *env.reset(seed=ep if ep < 2 else None))
+        k, done = 0, False
+        while not done:
+            k += 1
+            out = env.step(env.action_space.low if ep == 0 else env.action_space.sample())
+            yield (k, *out)
+            done = out[2] or out[3]
+
+
+@pytest.mark.parametrize("env_id", ALL_IDS)
+def test_the_entry_points_time_limit_changes_no_step(env_id):
+    """Issue 37: gym.make's TimeLimit (the entry point's, at the environment's own length) states the length and
+    changes nothing: every reset and step, flags and infos included, as the environment class built alone gives
+    them; an episode that ends by a termination on its last step stays terminated and not truncated (a plain
+    TimeLimit would flag it truncated too)."""
+    kw = _ends_on_a_termination_at_the_last_step(env_id)
+    env = gym.make(env_id, **kw)
+    bare = type(env.unwrapped)(**{**gym.spec(env_id).kwargs, **kw})
+    assert isinstance(_unwrap_all(env)[-2], gym.wrappers.TimeLimit) and bare.spec is None
+    last_step_terminations = 0
+    for a, b in zip(_rollouts(env), _rollouts(bare), strict=True):
+        assert data_equivalence(a, b, exact=True), (a, b)
+        last_step_terminations += a[0] == 10 and a[3] and not a[4]
+    assert last_step_terminations >= ("HalfCar" not in env_id)  # the half car's stroke peaks early
+
+
+@pytest.mark.parametrize("env_id", ALL_IDS)
+def test_made_from_its_spec_steps_as_the_original(env_id):
+    """gym.make(env.spec) adds Gymnasium's TimeLimit at the spec's length around the environment: the same
+    episodes, ended at the same step, with the same infos (terminations and their reasons included); Gymnasium's
+    TimeLimit only flags a termination on the episode's last step truncated as well."""
+    env = gym.make(env_id, **_ends_on_a_termination_at_the_last_step(env_id))
+    again = gym.make(env.spec)
+    assert again.spec == env.spec and type(again.unwrapped) is type(env.unwrapped)
+    assert isinstance(again, gym.wrappers.TimeLimit) and again._max_episode_steps == 10
+    for a, b in zip(_rollouts(env), _rollouts(again), strict=True):
+        if a[0] == 10 and a[3]:
+            a = (*a[:4], True, a[5])
+        assert data_equivalence(a, b, exact=True), (a, b)
+
+
+# ---------------------------------------------------------------------------------------------------------------
 # issue 21: refused calls, make_vec's keywords, episode lengths, options, render_fps, SB3
 
 @pytest.mark.parametrize("env_id", IDS)
@@ -413,26 +606,34 @@ def test_make_vec_rgb_array_renders_every_environment(env_id):
                          ids=["defaults", "short", "uneven"])
 @pytest.mark.parametrize("env_id", IDS)
 def test_spec_max_episode_steps_is_the_episode_length(env_id, kw):
-    """Item 6: env.spec.max_episode_steps is the length of the env's own episodes, and no TimeLimit is added."""
+    """Item 6: env.spec.max_episode_steps is the length of the env's own episodes; issue 37: stated, as Gymnasium
+    states it, by a TimeLimit at that length (the entry point's), while the environment truncates itself at the
+    same step (unwrapped, and with make's max_episode_steps=-1); the native vector env states it in its spec and in
+    the spec's keywords, so that make_vec(spec) re-creates it."""
     kw = {"control_dt": 0.01, **kw}
     env = gym.make(env_id, **kw)
     n = env.spec.max_episode_steps
     assert isinstance(n, int) and n == env.unwrapped.max_episode_steps
-    wrapped, chain = env, []
-    while isinstance(wrapped, gym.Wrapper):
-        chain.append(type(wrapped))
-        wrapped = wrapped.env
-    assert gym.wrappers.TimeLimit not in chain
-    env.reset(seed=0)
-    steps = 0
-    while True:
-        steps += 1
-        _, _, term, trunc, _ = env.step(env.action_space.low)
-        if term or trunc:
-            break
-    assert trunc and steps == n
+    limits = [w for w in _unwrap_all(env) if isinstance(w, gym.wrappers.TimeLimit)]
+    assert [w._max_episode_steps for w in limits] == [n]
+    for e in (env, env.unwrapped, gym.make(env_id, max_episode_steps=-1, **kw)):
+        e.reset(seed=0)
+        steps = 0
+        while True:
+            steps += 1
+            _, _, term, trunc, _ = e.step(e.action_space.low)
+            if term or trunc:
+                break
+        assert trunc and steps == n
     venv = gym.make_vec(env_id, num_envs=2, **kw)
-    assert venv.unwrapped.spec.max_episode_steps == n
+    assert venv.unwrapped.spec.max_episode_steps == venv.unwrapped.spec.kwargs["max_episode_steps"] == n
+
+
+def _unwrap_all(env) -> list:
+    chain = [env]
+    while isinstance(chain[-1], gym.Wrapper):
+        chain.append(chain[-1].env)
+    return chain
 
 
 @pytest.mark.parametrize("env_id", IDS)

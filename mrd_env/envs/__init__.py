@@ -8,6 +8,12 @@ building), ``-v0`` with the physics-level ones (1 ms control, commands in V or A
 
 The environment classes are imported on first access, so that :func:`register_envs` (run by ``import mrd_env``)
 stays cheap.
+
+Episode length and the spec (issue 37): ``gym.make`` builds a scalar environment through an entry point of
+:mod:`.entry`, which wraps it in a TimeLimit at the environment's own episode length (it depends on the options),
+so that ``env.spec.max_episode_steps`` states it as Gymnasium's environments do and ``gym.make(env.spec)``
+re-creates the environment; the native vector environment puts the length in its spec and in the spec's keywords
+(see ``PlantDeclarations.spec`` in :mod:`.core`).
 """
 from __future__ import annotations
 
@@ -27,7 +33,8 @@ ENV_IDS = {env_id: f"{m}:{c}" for env_id, (m, c, _) in ENVS.items()}
 #: commands in V or A at every 1 ms step, the building as Dyke et al. (1996) built it (damper in storey 1).
 RL_DEFAULTS = {"control_dt": 0.01, "action_mode": "normalized"}
 V1 = {"mrd_env/QuarterCar-v1": ("mrd_env/QuarterCar-v0", dict(RL_DEFAULTS)),
-      "mrd_env/ShearBuilding-v1": ("mrd_env/ShearBuilding-v0", {**RL_DEFAULTS, "damper_floors": (2,)}),
+      # a list, not a tuple: every registered keyword must survive EnvSpec.to_json/from_json unchanged (issue 37)
+      "mrd_env/ShearBuilding-v1": ("mrd_env/ShearBuilding-v0", {**RL_DEFAULTS, "damper_floors": [2]}),
       "mrd_env/HalfCar-v1": ("mrd_env/HalfCar-v0", dict(RL_DEFAULTS))}
 
 _LAZY = {"MRDamperEnv": ".base", "MRDamperVectorEnv": ".vector", "QuarterCarEnv": ".quarter_car",
@@ -36,25 +43,30 @@ _LAZY = {"MRDamperEnv": ".base", "MRDamperVectorEnv": ".vector", "QuarterCarEnv"
          "env_info": ".vector", "Assembly": ".core", "EnvCore": ".core",
          "Sensors": ".sensors", "QuadraticReward": ".reward", "CallableReward": ".reward", "Limits": ".termination",
          "FixedRecord": ".disturbance", "Generated": ".disturbance", "Mixture": ".disturbance",
-         "Disturbance": ".disturbance"}
+         "Disturbance": ".disturbance", "EpisodeTimeLimit": ".entry", "TimeLimitedEntryPoint": ".entry"}
+
+
+#: id → gym.make's entry point: the scalar class in a TimeLimit at its own episode length (:mod:`.entry`)
+ENTRY_POINTS = {env_id: f"{__name__}.entry:{c}" for env_id, (_, c, _) in ENVS.items()}
 
 
 def register_envs() -> None:
     """Register the environments with Gymnasium (idempotent: ids already registered are left alone).
 
     No ``max_episode_steps`` is registered: an environment's episode length depends on its options
-    (``episode_seconds``, ``control_dt``, the disturbance), so each environment states its own in
-    ``env.spec.max_episode_steps`` and truncates itself; a registered value would add a TimeLimit at the wrong
-    length."""
+    (``episode_seconds``, ``control_dt``, the disturbance), so the entry point (:mod:`.entry`) wraps each
+    environment in a TimeLimit at its own length, which ``env.spec.max_episode_steps`` states; a
+    registered value would add a TimeLimit at the wrong length. Every registered keyword is JSON's (lists, not
+    tuples), so that the specs survive ``EnvSpec.to_json``/``from_json``."""
     import gymnasium
 
-    for env_id, (module, scalar, vector) in ENVS.items():
+    for env_id, (module, _, vector) in ENVS.items():
         if env_id not in gymnasium.registry:
-            gymnasium.register(id=env_id, entry_point=f"{module}:{scalar}", vector_entry_point=f"{module}:{vector}")
+            gymnasium.register(id=env_id, entry_point=ENTRY_POINTS[env_id], vector_entry_point=f"{module}:{vector}")
     for env_id, (base, defaults) in V1.items():
         if env_id not in gymnasium.registry:
-            module, scalar, vector = ENVS[base]
-            gymnasium.register(id=env_id, entry_point=f"{module}:{scalar}", vector_entry_point=f"{module}:{vector}",
+            module, _, vector = ENVS[base]
+            gymnasium.register(id=env_id, entry_point=ENTRY_POINTS[base], vector_entry_point=f"{module}:{vector}",
                                kwargs=defaults)
 
 
@@ -64,4 +76,4 @@ def __getattr__(name: str):
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-__all__ = ["ENVS", "ENV_IDS", "RL_DEFAULTS", "V1", "register_envs", *_LAZY]
+__all__ = ["ENVS", "ENV_IDS", "ENTRY_POINTS", "RL_DEFAULTS", "V1", "register_envs", *_LAZY]

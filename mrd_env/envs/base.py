@@ -81,9 +81,10 @@ class MRDamperEnv(PlantDeclarations, gym.Env):
 
     Episode end: ``terminated`` when a limit is exceeded (``info["termination_reason"] = "stroke_limit"``) or
     the simulation diverges (``"diverged: <message>"``, the last observation returned); ``truncated`` at the end
-    of the episode, after ``max_episode_steps`` steps (also ``env.spec.max_episode_steps``; no TimeLimit wrapper
-    is needed or added). The last step's info holds ``episode_metrics``. Every step's info has ``t`` (s); reset's
-    has ``disturbance`` (the record's name); ``damper_force`` and ``command`` (the last step's, (nd,)) are
+    of the episode, after ``max_episode_steps`` steps (the environment truncates itself; ``gym.make`` wraps it in
+    a TimeLimit at that length, which states it in ``env.spec.max_episode_steps`` and changes no step: see
+    :mod:`mrd_env.envs.entry`). The last step's info holds ``episode_metrics``. Every step's info has ``t`` (s);
+    reset's has ``disturbance`` (the record's name); ``damper_force`` and ``command`` (the last step's, (nd,)) are
     attributes of the environment.
 
     Rendering: ``render_mode="rgb_array"`` (a frame of the plant) or ``"human"`` (a window); ``render_fps`` in

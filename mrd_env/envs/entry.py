@@ -1,0 +1,73 @@
+"""``gym.make``'s entry points for the scalar environments (``mrd_env.envs.entry:QuarterCarEnv``, ...): each class,
+wrapped in a TimeLimit at its own episode length (issue 37).
+
+Why: the episode length depends on the options (``episode_seconds``, ``control_dt``, the disturbance), so no
+``max_episode_steps`` can be registered, yet Gymnasium reads the length from ``env.spec.max_episode_steps``
+(``TimeAwareObservation``, Stable-Baselines3, RL Zoo) under the rule that a spec with ``max_episode_steps`` has a
+TimeLimit at that length (its ``test_make_vec_wrappers``). An entry point may add its own wrappers: a TimeLimit
+added here states the length in the spec as Gymnasium's own environments do, so ``gym.make(env.spec)`` and
+``gym.make_vec(spec)`` re-create the environment with an equal spec (``make`` then adds Gymnasium's TimeLimit at the
+same length around it). The environment truncates itself at that step, with its infos; the wrapper
+(:class:`EpisodeTimeLimit`) only states the length and changes no episode.
+
+Alternatives weighed: the environment setting ``spec.max_episode_steps`` itself (before) broke Gymnasium's rule and
+``make_vec(spec)``'s re-creation; a registered length is wrong for most options; ``additional_wrappers`` in the
+registration would fix one length too and forbid the native vector env (``vector_entry_point`` refuses them).
+"""
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+from gymnasium.wrappers import TimeLimit
+
+
+class EpisodeTimeLimit(TimeLimit):
+    """Gymnasium's :class:`~gymnasium.wrappers.TimeLimit` at the environment's own episode length, which never
+    changes a step: the environment truncates itself at that step, and an episode that ends by a termination on
+    its last step stays terminated and not truncated (TimeLimit would set both flags). It counts the steps and
+    states ``max_episode_steps`` in the spec as TimeLimit does."""
+
+    def step(self, action: Any):
+        observation, reward, terminated, truncated, info = self.env.step(action)
+        self._elapsed_steps += 1
+        if self._elapsed_steps >= self._max_episode_steps and not terminated:
+            truncated = True  # the environment has said so already: a guard, not a change
+        return observation, reward, terminated, truncated, info
+
+
+class TimeLimitedEntryPoint:
+    """An entry point: the environment class ``module:name`` built from the options, in an
+    :class:`EpisodeTimeLimit` at its ``max_episode_steps`` (bare where that is unknown: a disturbance of records of
+    unknown length without ``episode_seconds``). ``metadata`` is the class's, so that ``gym.make`` sees its render
+    modes."""
+
+    def __init__(self, module: str, name: str):
+        self.module, self.name = module, name
+
+    @property
+    def env_class(self) -> type:
+        return getattr(importlib.import_module(self.module), self.name)
+
+    @property
+    def metadata(self) -> dict:
+        return self.env_class.metadata
+
+    def __call__(self, **options):
+        env = self.env_class(**options)
+        n = env.max_episode_steps
+        return env if n is None else EpisodeTimeLimit(env, int(n))
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}('{self.module}:{self.name}')"
+
+
+def __getattr__(name: str) -> TimeLimitedEntryPoint:
+    """``mrd_env.envs.entry:QuarterCarEnv`` (the registered entry point): the entry point of every scalar class in
+    :data:`mrd_env.envs.ENVS`, so that a plant added there needs nothing here."""
+    from . import ENVS
+
+    for module, scalar, _ in ENVS.values():
+        if scalar == name:
+            return TimeLimitedEntryPoint(module, scalar)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
