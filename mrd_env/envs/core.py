@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 from gymnasium.envs.registration import EnvSpec
+from gymnasium.vector import VectorEnv
 
 from ..dampers import DamperModel
 from ..disturbances import Record
@@ -188,17 +189,25 @@ class PlantDeclarations:
         are of unknown length, without ``episode_seconds``)."""
         return self.core.max_episode_steps
 
-    # Gymnasium's make() sets the spec after construction, with the registry's max_episode_steps (None: the
-    # episode length depends on the options); the environment knows its own and states it.
+    # The episode length in the spec (issue 37). No max_episode_steps is registered (it depends on the options).
+    # A scalar environment's spec is left as gym.make sets it (max_episode_steps None on the unwrapped
+    # environment): the entry point's TimeLimit at the environment's own length states it in env.spec, as
+    # Gymnasium's environments do (mrd_env.envs.entry). The native vector environment states it in
+    # its spec and, as the step cap make_vec(spec) passes back, in the spec's keywords (unless the keywords already
+    # cap the episodes): gym.make_vec(envs.spec) then re-creates an equal spec, a fixed point, and the cap, being
+    # the environment's own length, changes no episode. This is the form Gymnasium gives CartPole's vector env.
     @property
     def spec(self) -> EnvSpec | None:
         return self.__dict__.get("_spec")
 
     @spec.setter
     def spec(self, value: EnvSpec | None) -> None:
-        if value is not None:
+        n = self.max_episode_steps
+        if value is not None and isinstance(self, VectorEnv) and n is not None:
             value = copy.copy(value)
-            value.max_episode_steps = self.max_episode_steps
+            value.max_episode_steps = n
+            if "max_episode_steps" not in value.kwargs:
+                value.kwargs = {**value.kwargs, "max_episode_steps": n}
         self.__dict__["_spec"] = value
 
     def signal_matrices(self, name: str) -> dict[str, np.ndarray]:

@@ -489,7 +489,7 @@ class ShearBuildingEnv(MRDamperEnv):
     ## Version History
 
     * v1: the defaults an RL user expects and the benchmark's building — ``control_dt`` = 0.01 s (100 Hz),
-      ``action_mode="normalized"`` and the damper in storey 2 (``damper_floors=(2,)``, between floors 1 and 2,
+      ``action_mode="normalized"`` and the damper in storey 2 (``damper_floors=[2]``, between floors 1 and 2,
       where the control laws can be told apart; see :data:`mrd_env.envs.V1`).
     * v0: the physics-level defaults — a command in V or A at every 1 ms step, the damper in storey 1 as Dyke et
       al. (1996) built the lab model.
