@@ -18,9 +18,17 @@ whose episode ended waits for ``reset(options={"reset_mask": ...})``.
 mode). :func:`env_info` takes environment i's info out of a batch.
 
 A batch of actions is checked whole before any environment steps: a refused call changes nothing.
+
+Threads (``threads``): an int fixes the count. The default (``None``) is one thread below 64 environments and,
+from 64 (with more than one numba thread), a :class:`ThreadTuner`: it steps on one thread, tries every numba
+thread for a few steps every 10 s (sooner when the chosen count slows down) and keeps the faster (threads only
+when they save 10 %), so that a process that starts or stops beside it (a test suite, a second training) moves
+it within seconds. On an idle machine threads pay; on a shared one numba's default OpenMP layer spins in its
+waits and one thread is faster (issue 36, docs/speed.md). The results do not depend on the count, bit for bit.
 """
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 
 import numpy as np
@@ -29,6 +37,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from ..stepping import BAD_ACTION, DIVERGED, HIST_FULL, HIST_NONE, RUNNING, TERMINATED, TRUNCATED
+from ..stepping.driver import PARALLEL_FROM
 from .base import action_space, as_action, force_actuation, render_fps
 from .core import Assembly, EnvCore, PlantDeclarations, assemble
 
@@ -38,8 +47,9 @@ class MRDamperVectorEnv(PlantDeclarations, VectorEnv):
     class, plus ``num_envs``, ``autoreset_mode``, ``render_mode`` ("rgb_array": ``render()`` returns one frame per
     environment, as Gymnasium's vector environments do; each environment then keeps its episode's history),
     ``max_episode_steps`` (episodes end, truncated, after at most that many steps, as ``gym.make``'s TimeLimit)
-    and ``threads`` (numba threads of the step: default every thread numba has from 64 environments, else 1; the
-    results are the same for any count; 1 where other processes share the cores, see docs/speed.md)."""
+    and ``threads`` (numba threads of the step; default: one below 64 environments, from 64 the faster of one
+    and every numba thread, timed while stepping (:class:`ThreadTuner`); the results are the same for any count,
+    see docs/speed.md)."""
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 1000, "autoreset_mode": AutoresetMode.NEXT_STEP}
     env_id = ""
@@ -71,9 +81,11 @@ class MRDamperVectorEnv(PlantDeclarations, VectorEnv):
         self.num_envs = N = int(num_envs)
         self.render_mode = render_mode
         self.metadata = {**type(self).metadata, "autoreset_mode": mode, "render_fps": render_fps(asm.control_dt)}
+        tuned = threads is None  # the default: one thread, or timed against every thread (from 64 envs)
         self.core = core = EnvCore(asm, N, history=HIST_FULL if render_mode else HIST_NONE,
                                    step_cap=None if max_episode_steps is None else int(max_episode_steps),
-                                   threads=threads)
+                                   threads=default_threads(N) if tuned else threads)
+        self.thread_tuner = ThreadTuner(core.driver.threads) if tuned and core.driver.threads > 1 else None
         self.single_observation_space = _box(core.driver.n_obs)
         self.single_action_space = action_space(asm)
         self.observation_space = batch_space(self.single_observation_space, N)
@@ -191,7 +203,10 @@ class MRDamperVectorEnv(PlantDeclarations, VectorEnv):
         if restart is not None:  # NEXT_STEP: the environments that ended last step start again, and do not step
             core.start(self._rngs, restart)
             self._status[restart] = TRUNCATED
-        core.step(a)
+        if self.thread_tuner is None:
+            core.step(a)
+        else:
+            self.thread_tuner.step(core, a)
         if restart is not None:
             self._status[restart] = RUNNING
         rewards = self._reward.copy()
@@ -272,6 +287,105 @@ class MRDamperVectorEnv(PlantDeclarations, VectorEnv):
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
+
+
+def default_threads(num_envs: int) -> int:
+    """The threads a vector environment of ``num_envs`` environments is built with when ``threads`` is not given:
+    every numba thread (``numba.get_num_threads()``) from 64 environments, else 1; with more than one, the
+    :class:`ThreadTuner` then chooses at each step between them and one."""
+    import numba
+
+    return numba.get_num_threads() if num_envs >= PARALLEL_FROM else 1
+
+
+class ThreadTuner:
+    """The default thread count of a vector environment's step, chosen by timing it while it steps.
+
+    It starts on one thread and keeps a running mean of the step time of the count it runs (time constant
+    ``memory`` seconds). Every ``interval`` seconds (wall clock) — or sooner, ``soonest`` seconds after the last
+    trial at the earliest, once the running mean says the other count would win — it tries the other count for
+    about ``trial`` seconds of steps at the chosen count's pace (at least ``probe`` steps), after an untimed step
+    (the first step after a switch wakes or parks the threads). Every thread (``many``, the count the driver was
+    built with) wins if its mean step time is below ``margin`` × one thread's (threads burn more CPU time than they
+    save wall time). A trial stops as soon as the other count can no longer win, so that trying a count that spins
+    on a busy machine costs at most ``trial`` seconds; long enough that OpenMP's occasional step stalled behind a
+    descheduled thread is seen. The counts only move the work between numba's threads: every environment's results
+    are the same, bit for bit.
+
+    ``threads``: the count chosen; ``choices``: how many trials ended on (one thread, ``many``)."""
+
+    interval = 10.0  # s between trials
+    soonest = 1.0  # s after a trial before the next, when the chosen count slows down
+    trial = 0.25  # s of steps (at the chosen count's pace) timed in a trial
+    probe = 5  # timed steps of a trial at least
+    memory = 1.0  # s: time constant of the running mean step time
+    margin = 0.9  # every thread must take less than 0.9 × one thread's step time
+
+    def __init__(self, many: int, clock=time.perf_counter):
+        self.many = int(many)
+        self.clock = clock
+        self.choices = [0, 0]
+        self._restart()
+
+    def _restart(self) -> None:
+        self.threads = 1
+        self._mean: float | None = None  # running mean step time (s) of the chosen count
+        self._seen = 0  # steps timed on it since it was chosen
+        self._other: float | None = None  # the other count's mean step time at its last trial
+        self._trial: list[float] | None = None  # step times of the other count while it is tried
+        self._length = self.probe  # timed steps of the trial
+        self._skip = True  # the next step is the first after a switch: not timed
+        self._last = -np.inf  # clock at the end of the last trial
+
+    def __setstate__(self, state: dict) -> None:  # a copy (another process, another clock) starts again
+        self.__dict__.update(state)
+        self._restart()
+
+    def _many_wins(self, one: float, many: float) -> bool:
+        return many < self.margin * one
+
+    def _wins(self, t_other: float) -> bool:
+        """Whether the other count, at ``t_other`` s a step, beats the chosen one at its running mean."""
+        if self.threads == 1:
+            return self._many_wins(self._mean, t_other)
+        return not self._many_wins(t_other, self._mean)
+
+    def step(self, core, action) -> int:
+        """``core.step(action)`` on the chosen count, or on the other during a trial (``core.driver.threads``)."""
+        if self._trial is None and self._seen >= self.probe:
+            since = self.clock() - self._last
+            if since >= self.interval or (since >= self.soonest and self._other is not None
+                                          and self._wins(self._other)):
+                self._trial, self._skip = [], True
+                self._length = int(min(10_000, max(self.probe, np.ceil(self.trial / self._mean))))
+        n = self.threads if self._trial is None else (1 if self.threads > 1 else self.many)
+        core.driver.threads = n
+        t0 = self.clock()
+        status = core.step(action)
+        elapsed = self.clock() - t0
+        if self._skip:
+            self._skip = False
+        elif self._trial is None:
+            self._seen += 1  # the first steps: their plain mean; then a mean over the last ``memory`` seconds
+            w = max(1.0 / self._seen, min(1.0, elapsed / self.memory))
+            self._mean = elapsed if self._mean is None else self._mean + w * (elapsed - self._mean)
+        else:
+            self._trial.append(elapsed)
+            self._judge(n)
+        return status
+
+    def _judge(self, n: int) -> None:
+        """End the trial of count ``n`` once it is complete or can no longer win."""
+        times = self._trial
+        if len(times) < self._length and self._wins(sum(times) / self._length):  # it may still win: go on
+            return
+        t_other = sum(times) / len(times)
+        if len(times) == self._length and self._wins(t_other):
+            self._other, self._mean, self.threads, self._seen = self._mean, t_other, n, len(times)
+        else:
+            self._other = t_other
+        self.choices[self.threads > 1] += 1
+        self._trial, self._skip, self._last = None, True, self.clock()
 
 
 class _SubEnv:
