@@ -21,10 +21,11 @@ A batch of actions is checked whole before any environment steps: a refused call
 
 Threads (``threads``): an int fixes the count. The default (``None``) is one thread below 64 environments and,
 from 64 (with more than one numba thread), a :class:`ThreadTuner`: it steps on one thread, tries every numba
-thread for a few steps every 10 s (sooner when the chosen count slows down) and keeps the faster (threads only
-when they save 10 %), so that a process that starts or stops beside it (a test suite, a second training) moves
-it within seconds. On an idle machine threads pay; on a shared one numba's default OpenMP layer spins in its
-waits and one thread is faster (issue 36, docs/speed.md). The results do not depend on the count, bit for bit.
+thread for about 0.25 s of steps every 10 s (sooner when the chosen count slows down) and keeps the faster
+(threads only when they save 10 %), so that a process that starts or stops beside it (a test suite, a second
+training) moves it within seconds. On an idle machine threads pay; on a shared one numba's default OpenMP layer
+spins in its waits and one thread is faster (issue 36, docs/speed.md). The results do not depend on the count,
+bit for bit.
 """
 from __future__ import annotations
 
