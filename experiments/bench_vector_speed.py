@@ -23,7 +23,7 @@ from mrd_env.report import write_table
 from mrd_env.stepping.first_use import set_mode
 
 
-def _rate(venv, n_steps: int, actions) -> float:
+def rate(venv, n_steps: int, actions) -> float:
     """Env-steps per second over n_steps vector steps."""
     t0 = time.perf_counter()
     for k in range(n_steps):
@@ -51,17 +51,17 @@ def bench(sizes=(1, 64, 256, 1024, 4096), repeats: int = 5, seconds: float = 1.0
             lo, hi = venv.single_action_space.low, venv.single_action_space.high
             acts[label] = (np.tile(lo, (N, 1)).astype(np.float64), np.tile(hi, (N, 1)).astype(np.float64))
             venv.reset(seed=0)
-            _rate(venv, 3, acts[label])  # compile / load the kernels
+            rate(venv, 3, acts[label])  # compile / load the kernels
         cart.reset(seed=0)
         cacts = (np.zeros(N, dtype=np.int64), np.ones(N, dtype=np.int64))
         # steps per timing run: about ``seconds`` of work at the rate of a first short run
-        steps = {label: max(20, int(seconds * _rate(venv, 20, acts[label]) / N)) for label, (venv, _) in cases.items()}
-        csteps = max(100, int(seconds * _rate(cart, 100, cacts) / N))
+        steps = {label: max(20, int(seconds * rate(venv, 20, acts[label]) / N)) for label, (venv, _) in cases.items()}
+        csteps = max(100, int(seconds * rate(cart, 100, cacts) / N))
         rates: dict[str, list] = {k: [] for k in list(cases) + ["cartpole"]}
         for _ in range(repeats):
             for label, (venv, _) in cases.items():
-                rates[label].append(_rate(venv, steps[label], acts[label]))
-            rates["cartpole"].append(_rate(cart, csteps, cacts))
+                rates[label].append(rate(venv, steps[label], acts[label]))
+            rates["cartpole"].append(rate(cart, csteps, cacts))
         cp = float(np.median(rates["cartpole"]))
         for label, (venv, n_sub) in cases.items():
             r = float(np.median(rates[label]))

@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from experiments.bench_vector_speed import _rate
+from experiments.bench_vector_speed import rate
 
 ENV_ID = "mrd_env/QuarterCar-v1"
 LAYERS = ("omp", "tbb", "workqueue")
@@ -72,7 +72,7 @@ def _worker(conn, layer: str | None, env: dict | None = None) -> None:
                 lo, hi = venv.single_action_space.low, venv.single_action_space.high
                 acts = (np.tile(lo, (N, 1)).astype(np.float64), np.tile(hi, (N, 1)).astype(np.float64))
                 venv.reset(seed=0)
-                _rate(venv, 3, acts)  # load the kernels, start the threads
+                rate(venv, 3, acts)  # load the kernels, start the threads
                 envs[key] = (venv, acts)
                 tuner = venv.unwrapped.thread_tuner
                 n = tuner.many if tuner else venv.unwrapped.core.driver.threads
@@ -80,11 +80,11 @@ def _worker(conn, layer: str | None, env: dict | None = None) -> None:
             elif msg[0] == "calibrate":
                 _, key, seconds = msg
                 venv, acts = envs[key]
-                conn.send(max(20, int(seconds * _rate(venv, 20, acts) / venv.num_envs)))
+                conn.send(max(20, int(seconds * rate(venv, 20, acts) / venv.num_envs)))
             elif msg[0] == "time":
                 _, key, steps = msg
                 venv, acts = envs[key]
-                conn.send((_rate(venv, steps, acts), _threads(venv.unwrapped)))
+                conn.send((rate(venv, steps, acts), _threads(venv.unwrapped)))
         except Exception as e:  # a layer that does not load: reported, its rows dropped
             conn.send(e)
     for venv, _ in envs.values():
