@@ -3,7 +3,7 @@
 Both wrap the SB3 bridge (:func:`mrd_env.envs.sb3.make_sb3_vec_env`) directly, below ``VecMonitor`` and
 ``VecNormalize``, because they read raw observations and rewards::
 
-    venv = make_sb3_vec_env("mrd_env/QuarterCar-v0", n_envs=16, seed=0, action_mode="normalized", control_dt=0.01)
+    venv = make_sb3_vec_env("mrd_env/QuarterCarPhysical-v0", n_envs=16, seed=0, action_mode="normalized", control_dt=0.01)
     venv = VecMonitor(ResidualVecEnv(venv, "skyhook_continuous"))   # below the paired baseline: the own returns
     venv = VecNormalize(PairedBaselineVecEnv(venv, "skyhook_continuous"))
 

@@ -68,7 +68,7 @@ def save_version(model, base: dict, k: int, folder: Path, mode: str) -> None:
     from controllers.agents import save_agent
 
     norm = set_version(model, base, k)
-    meta = {"name": f"version {k}", "plant": "quarter_car", "env_id": "mrd_env/QuarterCar-v0", "algo": "PPO",
+    meta = {"name": f"version {k}", "plant": "quarter_car", "env_id": "mrd_env/QuarterCarPhysical-v0", "algo": "PPO",
             "env_kwargs": {}, "version": k}
     if mode == "naive":
         return naive_save(folder, meta, model, norm)

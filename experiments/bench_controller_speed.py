@@ -43,7 +43,7 @@ def bench(env_id: str, names, n: int = 3000) -> list[dict]:
 def main() -> int:
     set_mode("wait")  # time the compiled kernel, never the interpreted one of a first use
     assert set(QC_CONTROLLERS) | set(BUILDING_CONTROLLERS) <= set(available_controllers())
-    rows = bench("mrd_env/QuarterCar-v0", QC_CONTROLLERS) + bench("mrd_env/ShearBuilding-v0", BUILDING_CONTROLLERS)
+    rows = bench("mrd_env/QuarterCarPhysical-v0", QC_CONTROLLERS) + bench("mrd_env/ShearBuildingPhysical-v0", BUILDING_CONTROLLERS)
     print(markdown_table(rows, title="Controller predict() cost (µs per call)", floatfmt=".3g"))
     return 0
 

@@ -54,10 +54,10 @@ def _time_steps(env, n: int, actions) -> float:
 
 def bench(steps: int = 20000, repeats: int = 9) -> tuple[list[dict], float]:
     cases = [
-        ("QuarterCar-v0 (default, control 1 ms)", "mrd_env/QuarterCar-v0", {"episode_seconds": 60.0}, 1),
-        ("QuarterCar-v0 (control_dt 10 ms)", "mrd_env/QuarterCar-v0",
+        ("QuarterCarPhysical-v0 (default, control 1 ms)", "mrd_env/QuarterCarPhysical-v0", {"episode_seconds": 60.0}, 1),
+        ("QuarterCarPhysical-v0 (control_dt 10 ms)", "mrd_env/QuarterCarPhysical-v0",
          {"episode_seconds": 60.0, "control_dt": 0.01}, 10),
-        ("ShearBuilding-v0 (default, control 1 ms)", "mrd_env/ShearBuilding-v0", {}, 1),
+        ("ShearBuildingPhysical-v0 (default, control 1 ms)", "mrd_env/ShearBuildingPhysical-v0", {}, 1),
     ]
     rows = []
     envs = []
@@ -119,7 +119,7 @@ def main(argv=None) -> int:
     md, _ = write_table(rows, args.out / "env_speed", title="Environment step speed (gymnasium.make, same run)",
                         floatfmt=".3g")
     text = md.read_text()
-    text += (f"\nFull El Centro episode of ShearBuilding-v0 (reset + {ep['steps']} steps, "
+    text += (f"\nFull El Centro episode of ShearBuildingPhysical-v0 (reset + {ep['steps']} steps, "
              f"{ep['simulated_s']:.2f} s simulated at 1 kHz): {ep['wall_s']:.3f} s wall time.\n")
     storage.write_text(md, text)
     print(text)

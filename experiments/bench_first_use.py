@@ -1,7 +1,7 @@
 """First use: a fresh Python process that makes, resets and steps an environment, with an empty and with a warm
 kernel cache, next to the same first use of CartPole-v1 in the same run (issue: speed where users wait).
 
-Run: ``python -m experiments.bench_first_use [--env-id mrd_env/QuarterCar-v0] [--damper spencer_dyke]
+Run: ``python -m experiments.bench_first_use [--env-id mrd_env/QuarterCarPhysical-v0] [--damper spencer_dyke]
 [--repeats 2] [--out results/bench]``.
 
 Each row is a new interpreter (``python -c``) timed from its spawn to the end of its first ``env.step``, wall
@@ -88,7 +88,7 @@ def _median(xs):
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--env-id", default="mrd_env/QuarterCar-v0")
+    ap.add_argument("--env-id", default="mrd_env/QuarterCarPhysical-v0")
     ap.add_argument("--damper", default="spencer_dyke", help="damper model of the environment")
     ap.add_argument("--repeats", type=int, default=2)
     ap.add_argument("--out", type=Path, default=Path("results/bench"))

@@ -5,7 +5,7 @@ Run: ``python -m experiments.bench_interpreted_kernel [--model spencer_dyke] [--
 
 A damper model's generated kernel source (:func:`mrd_env.stepping.codegen.kernel_source`) is executed as plain
 Python (:func:`mrd_env.stepping.first_use.interpreted_module`: ``nb.njit`` the identity, ``prange`` = ``range``),
-and a QuarterCar-v0 episode with sensor noise (which
+and a QuarterCarPhysical-v0 episode with sensor noise (which
 exercises the counter-based Gaussian generator's 64-bit wrap-around) is stepped once by the compiled kernel and
 once by the interpreted one, same seed and same random actions. If the two agree bit for bit, an environment can
 step interpreted while a background process compiles, and switch to the compiled kernel when the disk cache holds
@@ -29,7 +29,7 @@ def interpreted_kernel(model_cls) -> types.ModuleType:
 
 
 def episode(model: str, steps: int, interpreted: bool, seed: int = 3):
-    """(observations, rewards, µs per step) of a noisy QuarterCar-v0 episode, the compiled or interpreted step."""
+    """(observations, rewards, µs per step) of a noisy QuarterCarPhysical-v0 episode, the compiled or interpreted step."""
     import warnings
 
     import gymnasium as gym
@@ -40,7 +40,7 @@ def episode(model: str, steps: int, interpreted: bool, seed: int = 3):
     set_mode("wait")  # the compiled row is the compiled kernel, never a first use's interpreted one
 
     warnings.filterwarnings("ignore", category=RuntimeWarning)  # numpy's uint64 wrap-around, intended
-    env = gym.make("mrd_env/QuarterCar-v0", damper=model, episode_seconds=30.0,
+    env = gym.make("mrd_env/QuarterCarPhysical-v0", damper=model, episode_seconds=30.0,
                    sensor_noise={"sprung_acc": 0.05, "travel": 1e-4}).unwrapped
     env.reset(seed=seed)
     if interpreted:
@@ -69,7 +69,7 @@ def main(argv=None) -> int:
         oi, ri, ti = episode(model, args.steps, True)
         same = np.array_equal(oc, oi) and np.array_equal(rc, ri)
         all_same &= same
-        print(f"{model:24s} {args.steps} steps of QuarterCar-v0 with sensor noise: "
+        print(f"{model:24s} {args.steps} steps of QuarterCarPhysical-v0 with sensor noise: "
               f"{'the same bit for bit' if same else 'DIFFERENT'}; compiled {tc:.1f} µs per step, "
               f"interpreted {ti:.0f} µs per step", flush=True)
     return 0 if all_same else 1

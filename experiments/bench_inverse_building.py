@@ -4,7 +4,7 @@
 
 For each inverse — the default on–off law (``inverse=None``, the benchmark's clipped-optimal row) and
 ``ClippedOptimal(env, inverse=name)`` with "heaviside", "sid", "model", "neural" — one El Centro episode of
-``mrd_env/ShearBuilding-v0`` (the benchmark's scenario: the damper in storey 2, the record replayed at 0.2× time,
+``mrd_env/ShearBuildingPhysical-v0`` (the benchmark's scenario: the damper in storey 2, the record replayed at 0.2× time,
 Spencer–Dyke prototype damper, the default sensors; ``--damper-floors 1`` puts the damper in storey 1, as the lab
 building of Dyke et al. 1996 has it) gives the criteria J1–J6 (normalised by the uncontrolled building), the peak damper
 force, how closely the damper force followed the LQR's desired force f_c (NRMSE and E_t of the achieved force

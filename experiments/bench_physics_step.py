@@ -4,7 +4,7 @@
 Run: ``python -m experiments.bench_physics_step [--seconds 20] [--repeats 5] [--out results/bench]``.
 
 Both rows advance the same system — quarter car set A with the automotive Spencer–Dyke damper (the default
-``QuarterCar-v0``), a class-C ISO 8608 road at 20 m/s, the command switching between v_min and v_max every 50 ms —
+``QuarterCarPhysical-v0``), a class-C ISO 8608 road at 20 m/s, the command switching between v_min and v_max every 50 ms —
 over one record of ``--seconds`` at dt = 1 ms, one compiled call for the whole record (no per-call overhead):
 
 * **accurate**: the project's stepping routine (:mod:`mrd_env.stepping`: SDIRK2, Newton on the damper's unknowns,

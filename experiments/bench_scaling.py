@@ -34,7 +34,7 @@ def _train(backend, jobs, steps):
 
     with tempfile.TemporaryDirectory() as d:
         folders = train("quarter_car", "ppo", [0, 1], out=Path(d), timesteps=steps, eval_freq=0,
-                        hyper=hyperparameters("ppo", "mrd_env/QuarterCar-v0"), env_kwargs=env_options("quarter_car"),
+                        hyper=hyperparameters("ppo", "mrd_env/QuarterCarPhysical-v0"), env_kwargs=env_options("quarter_car"),
                         backend=backend, jobs=jobs)
         from controllers import load_agent
         return [np.concatenate([v.numpy().ravel() for v in load_agent(f).model.policy.state_dict().values()])

@@ -5,7 +5,7 @@ Run: ``python -m experiments.bench_training_speed [--n-envs 1 8 64] [--timesteps
 
 Both paths train the same PPO (MlpPolicy, n_steps = 2048 / n_envs rounded up to 16, batch 64, 2 epochs, CPU,
 ``torch.set_num_threads(1)`` so that the network does not take the second core from the environments) on
-``mrd_env/QuarterCar-v0`` at a 10 ms control step with normalised actions; the figure is env-steps per second of
+``mrd_env/QuarterCarPhysical-v0`` at a 10 ms control step with normalised actions; the figure is env-steps per second of
 ``model.learn`` (simulation and learning together), the median of the repeats.
 """
 from __future__ import annotations
@@ -19,7 +19,7 @@ import numpy as np
 from mrd_env.report import write_table
 from mrd_env.stepping.first_use import set_mode
 
-ENV_ID = "mrd_env/QuarterCar-v0"
+ENV_ID = "mrd_env/QuarterCarPhysical-v0"
 ENV_KW = dict(control_dt=0.01, action_mode="normalized")
 
 
@@ -64,7 +64,7 @@ def main(argv=None) -> int:
     ap.add_argument("--out", type=Path, default=Path("results/bench"))
     args = ap.parse_args(argv)
     rows = bench(args.n_envs, args.timesteps, args.repeats)
-    md, _ = write_table(rows, args.out / "training_speed", title="PPO training throughput (QuarterCar-v0, 10 ms "
+    md, _ = write_table(rows, args.out / "training_speed", title="PPO training throughput (QuarterCarPhysical-v0, 10 ms "
                         "control; median of repeats)", floatfmt=".4g")
     print(md.read_text())
     return 0

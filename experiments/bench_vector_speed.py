@@ -37,12 +37,12 @@ def bench(sizes=(1, 64, 256, 1024, 4096), repeats: int = 5, seconds: float = 1.0
     rows = []
     for N in sizes:
         cases = {
-            "QuarterCar-v0, control 1 ms": (gym.make_vec("mrd_env/QuarterCar-v0", num_envs=N,
+            "QuarterCarPhysical-v0, control 1 ms": (gym.make_vec("mrd_env/QuarterCarPhysical-v0", num_envs=N,
                                                          vectorization_mode="vector_entry_point"), 1),
-            "QuarterCar-v0, control 10 ms": (gym.make_vec("mrd_env/QuarterCar-v0", num_envs=N,
+            "QuarterCarPhysical-v0, control 10 ms": (gym.make_vec("mrd_env/QuarterCarPhysical-v0", num_envs=N,
                                                           vectorization_mode="vector_entry_point",
                                                           control_dt=0.01), 10),
-            "ShearBuilding-v0, control 1 ms": (gym.make_vec("mrd_env/ShearBuilding-v0", num_envs=N,
+            "ShearBuildingPhysical-v0, control 1 ms": (gym.make_vec("mrd_env/ShearBuildingPhysical-v0", num_envs=N,
                                                             vectorization_mode="vector_entry_point"), 1),
         }
         cart = CartPoleVectorEnv(num_envs=N)

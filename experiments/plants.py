@@ -110,7 +110,7 @@ _CAR_LAWS = ("passive_off", "passive_on", "skyhook_on_off", "skyhook_continuous"
              "clipped_optimal")
 
 QUARTER_CAR = PlantProfile(
-    name="quarter_car", env_id="mrd_env/QuarterCar-v0", title="quarter car",
+    name="quarter_car", env_id="mrd_env/QuarterCarPhysical-v0", title="quarter car",
     options={},
     training={"road": {"kind": "iso8608", "road_class": ["B", "C", "D"], "speed": (10.0, 30.0)},
               "episode_seconds": 10.0},
@@ -171,7 +171,7 @@ _BUILDING_LAWS = ("passive_off", "passive_on", "clipped_optimal", "clipped_optim
                   "max_energy_dissipation", "modulated_friction")
 
 BUILDING = PlantProfile(
-    name="building", env_id="mrd_env/ShearBuilding-v0", title="building",
+    name="building", env_id="mrd_env/ShearBuildingPhysical-v0", title="building",
     options=_BUILDING_OPTIONS,
     training={**_BUILDING_OPTIONS, "ground_motion": {"kind": "mixture", "sources": [
         {"kind": "kanai_tajimi", "omega_g": (10.0, 25.0), "zeta_g": (0.3, 0.8), "pga": (0.1 * G, 0.5 * G),
@@ -208,7 +208,7 @@ _HALF_CAR_OPTIONS = {"sensors": ("body_acc", "pitch_acc", "travel", "travel_rate
                                  "damper_force", "command")}
 
 HALF_CAR = PlantProfile(
-    name="half_car", env_id="mrd_env/HalfCar-v0", title="half car",
+    name="half_car", env_id="mrd_env/HalfCarPhysical-v0", title="half car",
     options=_HALF_CAR_OPTIONS,
     training={**_HALF_CAR_OPTIONS, **QUARTER_CAR.training},
     disturbance_key="road", tests=_half_car_tests,
@@ -226,7 +226,7 @@ HALF_CAR = PlantProfile(
     # and active bound have not been checked on it: the yardstick refuses it rather than report unchecked numbers
     no_yardstick="mrd_env.optimal's clairvoyant optimum and active bound are validated on the quarter car and the "
                  "building only",
-    hyperparams_fallback="mrd_env/QuarterCar-v0")
+    hyperparams_fallback="mrd_env/QuarterCarPhysical-v0")
 
 
 #: Every plant by its short name.

@@ -5,17 +5,9 @@ everything is scored on (:func:`held_out_scenarios`: the held-out test scenarios
 """
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass, field
 
-import gymnasium.logger  # noqa: F401  (it installs a DeprecationWarning filter when first imported: ours goes first)
-
 from .plants import PLANTS, profile
-
-# The experiments use the physics-level -v0 ids on purpose (laws at 1 ms, commands in V or A; see mrd_env.envs.V1):
-# Gymnasium's note that a -v1 exists is for users of gym.make, not for every line of a report. Every command imports
-# this module (and so do the sweep's worker processes, through the tasks' modules).
-warnings.filterwarnings("ignore", message=r".*mrd_env/\w+-v0 is out of date", category=DeprecationWarning)
 
 #: {plant: environment id} of every plant (:data:`.plants.PLANTS`).
 ENV_IDS = {name: p.env_id for name, p in PLANTS.items()}

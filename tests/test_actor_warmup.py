@@ -18,7 +18,7 @@ from experiments.cli import main
 from experiments.train import env_options, train_one
 from mrd_env.envs.sb3 import make_sb3_vec_env
 
-CAR = "mrd_env/QuarterCar-v0"
+CAR = "mrd_env/QuarterCarPhysical-v0"
 
 
 def _kw():
@@ -117,7 +117,7 @@ def test_bad_warm_up_values_are_one_line_before_training(args, message, capsys, 
     extra = []
     if args[1] == "td3":   # td3 has no shipped hyperparameter file
         path = tmp_path / "td3.yml"
-        path.write_text("mrd_env/QuarterCar-v0:\n  n_envs: 1\n  policy: MlpPolicy\n", encoding="utf-8")
+        path.write_text("mrd_env/QuarterCarPhysical-v0:\n  n_envs: 1\n  policy: MlpPolicy\n", encoding="utf-8")
         extra = ["--hyperparams", str(path)]
     assert main(["train", *args, *extra, "--out", str(tmp_path / "out"), "--no-progress"]) == 2
     err = capsys.readouterr().err

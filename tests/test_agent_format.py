@@ -18,7 +18,7 @@ from controllers.agents import (AgentDigestError, ObservationNormalizer, Trusted
 sb3 = pytest.importorskip("stable_baselines3")
 pytest.importorskip("safetensors")
 REFERENCE = Path(__file__).parent / "data" / "shipped_agent_actions.npz"
-CAR = "mrd_env/QuarterCar-v0"
+CAR = "mrd_env/QuarterCarPhysical-v0"
 N_OBS = 8  # the quarter car's default observation
 
 

@@ -12,15 +12,15 @@ from experiments.cli import main
 
 
 def short_building():
-    return [Scenario("El Centro 1.5 s", "mrd_env/ShearBuilding-v0",
+    return [Scenario("El Centro 1.5 s", "mrd_env/ShearBuildingPhysical-v0",
                      dict(ground_motion="el_centro", ground_motion_params={"time_scale": 0.2}, episode_seconds=1.5))]
 
 
 def test_controller_on_env_without_needed_sensors_raises():
-    env = gym.make("mrd_env/QuarterCar-v0", episode_seconds=0.5, sensors=("sprung_acc", "travel"))
+    env = gym.make("mrd_env/QuarterCarPhysical-v0", episode_seconds=0.5, sensors=("sprung_acc", "travel"))
     with pytest.raises(ValueError, match="sprung_vel"):
         SkyhookOnOff(env)
-    env_b = gym.make("mrd_env/ShearBuilding-v0", sensors=("abs_acc", "ground_acc"), episode_seconds=0.5)
+    env_b = gym.make("mrd_env/ShearBuildingPhysical-v0", sensors=("abs_acc", "ground_acc"), episode_seconds=0.5)
     with pytest.raises(ValueError, match="damper_force"):
         ClippedOptimal(env_b)
 
@@ -49,7 +49,7 @@ def test_benchmark_reports_are_well_formed_and_reproducible(tmp_path):
 
 
 def test_quarter_car_benchmark_with_seeded_roads(tmp_path):
-    sc = [Scenario("ISO-C 1 s", "mrd_env/QuarterCar-v0",
+    sc = [Scenario("ISO-C 1 s", "mrd_env/QuarterCarPhysical-v0",
                    dict(road="iso8608", road_params={"road_class": "C", "speed": 20.0}, episode_seconds=1.0), seeds=(3,))]
     eps = run_benchmark("quarter_car", ["passive_off", "skyhook_on_off", "groundhook"], sc, out=tmp_path,
                         progress=False)
@@ -67,7 +67,7 @@ def test_benchmark_tables_hold_means_over_seeds_and_figures_only_ratios(tmp_path
     bar chart draws ratios only; a history shows at most four controllers."""
     from experiments.benchmark import HISTORY_LINES
 
-    sc = [Scenario("ISO-C 1 s", "mrd_env/QuarterCar-v0",
+    sc = [Scenario("ISO-C 1 s", "mrd_env/QuarterCarPhysical-v0",
                    dict(road="iso8608", road_params={"road_class": "C", "speed": 20.0}, episode_seconds=0.5),
                    seeds=(3, 4))]
     ctrls = ["passive_off", "passive_on", "skyhook_on_off", "groundhook", "hybrid"]
@@ -109,7 +109,7 @@ def test_building_history_follows_the_damper_storey():
 
 
 def test_agent_and_classical_controllers_share_the_loop():
-    env = gym.make("mrd_env/ShearBuilding-v0", sensors=("abs_acc", "damper_force", "drift", "damper_velocity",
+    env = gym.make("mrd_env/ShearBuildingPhysical-v0", sensors=("abs_acc", "damper_force", "drift", "damper_velocity",
                                                         "ground_acc"), episode_seconds=0.3)
 
     class Constant:  # anything with SB3's predict
@@ -133,7 +133,7 @@ def test_model_based_estimate_stays_at_rest_despite_the_damper_preload():
     from mrd_env.disturbances import Record
 
     quiet = Record(1e-3, np.zeros((1001, 1)), ("xg_ddot",), ("m/s^2",))
-    env = gym.make("mrd_env/ShearBuilding-v0", sensors=("abs_acc", "damper_force", "ground_acc"),
+    env = gym.make("mrd_env/ShearBuildingPhysical-v0", sensors=("abs_acc", "damper_force", "ground_acc"),
                    ground_motion=quiet, episode_seconds=0.8)
     co = ClippedOptimal(env)
     obs, _ = env.reset(seed=0)
@@ -148,12 +148,12 @@ def test_a_vector_environment_scores_every_seed_as_scalar_episodes_would():
     return of a scalar episode with that seed."""
     from experiments.benchmark import evaluate_batch
 
-    sc = Scenario("KT", "mrd_env/ShearBuilding-v0", dict(ground_motion="kanai_tajimi", episode_seconds=0.6),
+    sc = Scenario("KT", "mrd_env/ShearBuildingPhysical-v0", dict(ground_motion="kanai_tajimi", episode_seconds=0.6),
                   seeds=(4, 5, 6))
     sensors = ("abs_acc", "drift", "damper_force", "damper_velocity", "ground_acc")
     batch = evaluate_batch(lambda v: make_controller("clipped_optimal", v), sc, "drift", sensors=sensors)
     for seed, ep in zip(sc.seeds, batch):
-        env = gym.make("mrd_env/ShearBuilding-v0", sensors=sensors, **sc.options)
+        env = gym.make("mrd_env/ShearBuildingPhysical-v0", sensors=sensors, **sc.options)
         single = evaluate(make_controller("clipped_optimal", env), env, seed, "drift")
         assert ep.metrics == single.metrics and ep.episode_return == single.episode_return
 

@@ -14,7 +14,7 @@ from mrd_env.optimal import active_bound, episode_problem
 from mrd_env.optimal.bound import sos_state_space
 from mrd_env.plants.response import foh_response
 
-CASES = {"car": ("mrd_env/QuarterCar-v0", {}), "building": ("mrd_env/ShearBuilding-v0", {"damper_floors": (2,)})}
+CASES = {"car": ("mrd_env/QuarterCarPhysical-v0", {}), "building": ("mrd_env/ShearBuildingPhysical-v0", {"damper_floors": (2,)})}
 
 
 @pytest.fixture(scope="module", params=sorted(CASES))
@@ -91,7 +91,7 @@ def test_the_linear_plant_with_first_order_hold_forces_is_the_environment(proble
 
 
 def test_stroke_limit_is_imposed_and_infeasibility_is_an_error():
-    p = episode_problem("mrd_env/QuarterCar-v0", seed=1000000, control_dt=0.001, episode_seconds=2.0,
+    p = episode_problem("mrd_env/QuarterCarPhysical-v0", seed=1000000, control_dt=0.001, episode_seconds=2.0,
                         road_params={"road_class": "D", "speed": 20.0}, stroke_limit=0.02)
     free = _free_response(p)
     travel = free[:, 0] - free[:, 1]
@@ -126,4 +126,4 @@ def test_bad_inputs_raise_value_errors(problem):
     with pytest.raises(ValueError, match="tol"):
         active_bound(problem, tol=0.5)
     with pytest.raises(ValueError, match="EpisodeProblem"):
-        active_bound("mrd_env/QuarterCar-v0")
+        active_bound("mrd_env/QuarterCarPhysical-v0")

@@ -18,7 +18,7 @@ SEED = 1_000_000
 def car():
     from experiments.yardstick import warm_starts
 
-    p = episode_problem("mrd_env/QuarterCar-v0", seed=SEED, control_dt=0.01, **CAR)
+    p = episode_problem("mrd_env/QuarterCarPhysical-v0", seed=SEED, control_dt=0.01, **CAR)
     return p, warm_starts(p, "quarter_car")
 
 
@@ -48,7 +48,7 @@ def test_result_re_simulates_to_the_same_return_bit_for_bit(car, car_result):
 def test_building_optimum_is_at_least_every_warm_start():
     from experiments.yardstick import warm_starts
 
-    p = episode_problem("mrd_env/ShearBuilding-v0", seed=SEED, control_dt=0.01, **BUILDING)
+    p = episode_problem("mrd_env/ShearBuildingPhysical-v0", seed=SEED, control_dt=0.01, **BUILDING)
     r = cv.clairvoyant(p, warm_starts=warm_starts(p, "building"), cache=False, progress=False)
     assert r.ret >= max(r.warm_returns.values())
     assert r.source == "optimiser" and r.ret > max(r.warm_returns.values())
@@ -106,9 +106,9 @@ def test_cache_hit_returns_the_same_and_another_set_up_is_refused(tmp_path, monk
     full = {**cv._default_warm_starts(p), **starts}
     assert cache.load("clairvoyant", cv.cache_key(p, full, **settings)) is not None
     for other in (dict(damper_params={"c0a": 900.0}), dict(plant_preset="set_b")):
-        q = episode_problem("mrd_env/QuarterCar-v0", seed=SEED, control_dt=0.01, **CAR, **other)
+        q = episode_problem("mrd_env/QuarterCarPhysical-v0", seed=SEED, control_dt=0.01, **CAR, **other)
         assert cache.load("clairvoyant", cv.cache_key(q, full, **settings)) is None
-    q = episode_problem("mrd_env/QuarterCar-v0", seed=SEED + 1, control_dt=0.01, **CAR)
+    q = episode_problem("mrd_env/QuarterCarPhysical-v0", seed=SEED + 1, control_dt=0.01, **CAR)
     assert cache.load("clairvoyant", cv.cache_key(q, full, **settings)) is None
     # a stored result whose key is not the episode's (an edited file) is refused
     path = next(tmp_path.joinpath("optimal").glob("clairvoyant-*.json"))
@@ -135,14 +135,14 @@ def test_a_failed_solve_returns_the_best_warm_start_and_says_so(monkeypatch, car
 
 def test_unsupported_damper_and_too_long_episodes_are_refused(monkeypatch):
     with pytest.raises(ValueError, match="spencer_dyke.*bouc_wen"):
-        cv.clairvoyant("mrd_env/QuarterCar-v0", seed=0, control_dt=0.01, damper="bingham", episode_seconds=0.5,
+        cv.clairvoyant("mrd_env/QuarterCarPhysical-v0", seed=0, control_dt=0.01, damper="bingham", episode_seconds=0.5,
                        progress=False, cache=False)
     monkeypatch.setattr(cv, "MAX_ROWS", 400)
     with pytest.raises(ValueError, match=r"up to 0\.4 s"):
-        cv.clairvoyant("mrd_env/QuarterCar-v0", seed=0, control_dt=0.01, episode_seconds=1.0, progress=False,
+        cv.clairvoyant("mrd_env/QuarterCarPhysical-v0", seed=0, control_dt=0.01, episode_seconds=1.0, progress=False,
                        cache=False)
     with pytest.raises(ValueError, match="warm start"):
-        p = episode_problem("mrd_env/QuarterCar-v0", seed=0, control_dt=0.01, episode_seconds=0.2)
+        p = episode_problem("mrd_env/QuarterCarPhysical-v0", seed=0, control_dt=0.01, episode_seconds=0.2)
         cv.clairvoyant(p, warm_starts=["skyhook_on_off"], progress=False, cache=False)
 
 
@@ -156,7 +156,7 @@ def test_nmpc_runs_an_episode_and_beats_passive_off():
     from controllers.nmpc import NonlinearMPC
 
     def run(make):
-        env = gym.make("mrd_env/QuarterCar-v0", control_dt=0.01, **CAR).unwrapped
+        env = gym.make("mrd_env/QuarterCarPhysical-v0", control_dt=0.01, **CAR).unwrapped
         c = make(env)
         obs, _ = env.reset(seed=SEED)
         total, done = 0.0, False
@@ -171,6 +171,6 @@ def test_nmpc_runs_an_episode_and_beats_passive_off():
     assert c.horizon == 5 and len(c.solve_stats) == 150
     assert ret > off + 0.01 * abs(off)
     with pytest.raises(ValueError, match="horizon"):
-        NonlinearMPC(gym.make("mrd_env/QuarterCar-v0", control_dt=0.01, **CAR).unwrapped, horizon=0)
+        NonlinearMPC(gym.make("mrd_env/QuarterCarPhysical-v0", control_dt=0.01, **CAR).unwrapped, horizon=0)
     with pytest.raises(ValueError, match="spencer_dyke"):
-        NonlinearMPC(gym.make("mrd_env/QuarterCar-v0", damper="bingham", **CAR).unwrapped)
+        NonlinearMPC(gym.make("mrd_env/QuarterCarPhysical-v0", damper="bingham", **CAR).unwrapped)

@@ -40,7 +40,7 @@ def files(tmp_path):
                                   "0.004,0,0,4\n")
     paths["out_file"].write_text("not a folder")
     paths["scalar_yml"] = tmp_path / "scalar.yml"  # an entry that is not a mapping
-    paths["scalar_yml"].write_text("mrd_env/QuarterCar-v0: 3\n")
+    paths["scalar_yml"].write_text("mrd_env/QuarterCarPhysical-v0: 3\n")
     # a load cell clipped over the last 3 % of the record: the faults leave a 1 % held-back part nothing to score
     tc = np.arange(2000) * 1e-3
     xc = 0.01 * np.sin(2 * np.pi * tc)
@@ -49,7 +49,7 @@ def files(tmp_path):
     paths["clipped"] = DamperRecord(tc, xc, np.ones_like(tc), fc, command_unit="V").to_csv(tmp_path / "clipped.csv")
     # saved agents (a folder holding agent.json and the model): without metadata, with broken, foreign or
     # incomplete metadata, for an unknown environment, without the model, and a valid quarter-car one
-    good_meta = {"format": "mrd-env-agent", "plant": "quarter_car", "env_id": "mrd_env/QuarterCar-v0",
+    good_meta = {"format": "mrd-env-agent", "plant": "quarter_car", "env_id": "mrd_env/QuarterCarPhysical-v0",
                  "algo": "PPO", "env_kwargs": {}, "model": "model.zip"}
     for stem, meta in (("agent_no_meta", None), ("agent_bad_json", "{"), ("agent_foreign", json.dumps({"x": 1})),
                        ("agent_no_keys", json.dumps({"format": "mrd-env-agent", "plant": "quarter_car"})),
@@ -253,7 +253,7 @@ MESSAGES = [  # (argv, what the one line says): the option by its name, values a
     (["benchmark", "--plant", "building", "--controllers", "groundhook"],
      "--controllers: groundhook does not apply to the building"),
     (["evaluate", "--plant", "building", "--laws", "groundhook"], "--laws: groundhook does not apply to the building"),
-    (["train", "--hyperparams", "{scalar_yml}"], "the entry for mrd_env/QuarterCar-v0 must be a mapping"),
+    (["train", "--hyperparams", "{scalar_yml}"], "the entry for mrd_env/QuarterCarPhysical-v0 must be a mapping"),
     (["train", "--set", "normalize=3"], "hyperparameter normalize must be true, false or a mapping"),
     (["compare-models", "--data", "{good}", "--models", "bingham", "bingham"],
      "--models: bingham given more than once"),

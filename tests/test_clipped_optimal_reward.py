@@ -10,7 +10,7 @@ import mrd_env  # noqa: F401
 from controllers import available_controllers, make_controller
 from controllers.model_based import ClippedOptimal
 
-BUILDING = "mrd_env/ShearBuilding-v0"
+BUILDING = "mrd_env/ShearBuildingPhysical-v0"
 OPTIONS = dict(damper_floors=(2,), control_dt=0.01, ground_motion="kanai_tajimi", episode_seconds=6.0)
 
 

@@ -73,7 +73,7 @@ def test_environments_use_the_same_command_dynamics():
     import mrd_env  # noqa: F401  (registers the environments)
 
     def run(command):
-        env = gym.make("mrd_env/QuarterCar-v0", damper=make_damper("bingham", command=command))
+        env = gym.make("mrd_env/QuarterCarPhysical-v0", damper=make_damper("bingham", command=command))
         obs, _ = env.reset(seed=3)
         out = [obs]
         for _ in range(5):
@@ -86,7 +86,7 @@ def test_environments_use_the_same_command_dynamics():
     held = run({"delay": 1.0})  # the command never arrives within the run: the damper stays at v_min
     passive = run({"eta": 190.0})
     assert not np.array_equal(held, base)
-    env = gym.make("mrd_env/QuarterCar-v0", damper=make_damper("bingham"))
+    env = gym.make("mrd_env/QuarterCarPhysical-v0", damper=make_damper("bingham"))
     env.reset(seed=3)
     ref = [env.step(env.action_space.low)[0] for _ in range(5)]
     # the physics of the held run is that of a run at v_min; only the applied command (the last column) differs

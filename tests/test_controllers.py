@@ -98,7 +98,7 @@ def test_hybrid_is_not_passive_on_on_a_road():
     of the reference page was at u_max on every step at α = 0.5, and on 84 % of them at α = 0.6)."""
     import gymnasium as gym
 
-    env = gym.make("mrd_env/QuarterCar-v0")
+    env = gym.make("mrd_env/QuarterCarPhysical-v0")
     ctrl = Hybrid(env, alpha=0.5)
     o, _ = env.reset(seed=1)
     u = []

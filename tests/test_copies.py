@@ -25,12 +25,12 @@ COPIES = {"pickle": lambda e: pickle.loads(pickle.dumps(e)), "deepcopy": copy.de
 #: option sets whose state a copy must carry: sensor noise, delay and history; the force mode's inverse (its
 #: observer's memory); the preview's record channels; a random disturbance per episode
 VARIANTS = {
-    "mrd_env/QuarterCar-v0": [{}, dict(sensor_noise={"travel": 1e-3}, sensor_delay=2, history=3),
+    "mrd_env/QuarterCarPhysical-v0": [{}, dict(sensor_noise={"travel": 1e-3}, sensor_delay=2, history=3),
                               dict(action_mode="force", inverse="heaviside"), dict(preview=(0.02, 0.05),
                                                               sensors=(*DEFAULT_SENSORS, "road_preview"))],
-    "mrd_env/ShearBuilding-v0": [{}, dict(ground_motion="kanai_tajimi", sensor_noise={"drift": 1e-6}),
+    "mrd_env/ShearBuildingPhysical-v0": [{}, dict(ground_motion="kanai_tajimi", sensor_noise={"drift": 1e-6}),
                                  dict(action_mode="force", inverse="heaviside", stroke_limit=4e-6)],
-    "mrd_env/HalfCar-v0": [{}, dict(sensor_noise={"damper_force": 5.0}, history=2, stroke_limit=4e-3)],
+    "mrd_env/HalfCarPhysical-v0": [{}, dict(sensor_noise={"damper_force": 5.0}, history=2, stroke_limit=4e-3)],
 }
 CASES = [(env_id, i) for env_id, variants in VARIANTS.items() for i in range(len(variants))]
 PROPERTY = settings(max_examples=10, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -111,7 +111,7 @@ def test_a_copy_made_before_reset_and_one_that_renders(env_id, how):
 @pytest.mark.parametrize("how", sorted(COPIES))
 def test_force_mode_with_an_observer_inverse_copies(inverse, how):
     """The inverses that step a damper model (their compiled one-step module is reloaded, not pickled)."""
-    env = gym.make("mrd_env/QuarterCar-v0", action_mode="force", inverse=inverse, **SHORT)
+    env = gym.make("mrd_env/QuarterCarPhysical-v0", action_mode="force", inverse=inverse, **SHORT)
     env.reset(seed=0)
     env.step([100.0])
     _lockstep(env, COPIES[how](env), _actions(env.action_space, 0, 12))
@@ -119,7 +119,7 @@ def test_force_mode_with_an_observer_inverse_copies(inverse, how):
 
 @pytest.mark.parametrize("how", sorted(COPIES))
 def test_a_vector_env_that_renders_copies(how):
-    venv = gym.make_vec("mrd_env/HalfCar-v0", num_envs=2, render_mode="rgb_array", **SHORT)
+    venv = gym.make_vec("mrd_env/HalfCarPhysical-v0", num_envs=2, render_mode="rgb_array", **SHORT)
     venv.reset(seed=0)
     venv.step(venv.action_space.sample())
     frames = venv.render()
@@ -132,7 +132,7 @@ def test_a_vector_env_that_renders_copies(how):
 
 def test_copies_are_independent():
     """Stepping a copy leaves the original where it was (the views of the compiled state are re-bound)."""
-    env = gym.make("mrd_env/QuarterCar-v0", **SHORT)
+    env = gym.make("mrd_env/QuarterCarPhysical-v0", **SHORT)
     env.reset(seed=0)
     obs0 = env.unwrapped._obs0.copy()
     twin = cloudpickle.loads(cloudpickle.dumps(env))

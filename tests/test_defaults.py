@@ -1,5 +1,5 @@
-"""The defaults a user meets (issue 22): the v1 ids are what an RL user expects out of the box; v0 keeps the
-physics-level defaults."""
+"""The defaults a user meets (issue 22): the v1 ids are what an RL user expects out of the box; the Physical-v0 ids
+keep the physics-level defaults (issue 36: under their own names, not as an outdated version)."""
 import warnings
 
 import gymnasium as gym
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import mrd_env  # noqa: F401
-from mrd_env.envs import V1
+from mrd_env.envs import RENAMED, V1
 
 SHORT = {"episode_seconds": 0.5}
 
@@ -34,8 +34,30 @@ def test_v1_building_has_the_benchmarks_damper_storey_and_v0_the_labs():
     from experiments.scenarios import PLANT
 
     v1 = gym.make("mrd_env/ShearBuilding-v1", **SHORT).unwrapped
-    v0 = gym.make("mrd_env/ShearBuilding-v0", **SHORT).unwrapped
+    v0 = gym.make("mrd_env/ShearBuildingPhysical-v0", **SHORT).unwrapped
     assert tuple(v1.assembly.options["damper_floors"]) == tuple(PLANT["building"]["damper_floors"]) == (2,)
     assert np.array_equal(v0.linear_plant.S, [[1.0, 0.0, 0.0]])     # storey 1: the ground floor's drift
     assert np.array_equal(v1.linear_plant.S, [[-1.0, 1.0, 0.0]])    # storey 2: floor 2 relative to floor 1
     assert v0.control_dt == 0.001 and v0.action_mode == "physical"
+
+
+@pytest.mark.parametrize("former", sorted(RENAMED))
+def test_a_former_physical_id_warns_with_the_new_name_and_makes_the_same_environment(former):
+    """The physics-level set-up has its own name (Gymnasium called a -v0 beside a -v1 out of date): its former id
+    still makes the same environment, step for step, after a warning naming the id to use now."""
+    now = RENAMED[former]
+    with pytest.warns(DeprecationWarning, match=f"{former} is the former name of {now}"):
+        old = gym.make(former, episode_seconds=0.05)
+    new = gym.make(now, episode_seconds=0.05)
+    assert old.unwrapped.spec.kwargs == new.unwrapped.spec.kwargs and type(old.unwrapped) is type(new.unwrapped)
+    (o1, _), (o2, _) = old.reset(seed=3), new.reset(seed=3)
+    assert np.array_equal(o1, o2)
+    a = new.action_space.sample()
+    assert all(np.array_equal(x, y) for x, y in zip(old.step(a)[:4], new.step(a)[:4]))
+
+
+def test_no_registered_id_is_called_out_of_date_but_the_former_ones():
+    for env_id in [i for i in gym.registry if i.startswith("mrd_env/") and i not in RENAMED]:
+        with warnings.catch_warnings():
+            warnings.filterwarnings("error", message=".*out of date", category=DeprecationWarning)
+            gym.make(env_id, episode_seconds=0.02).close()

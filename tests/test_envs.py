@@ -1,4 +1,4 @@
-"""The Gymnasium environments (mrd_env/QuarterCar-v0, mrd_env/ShearBuilding-v0): API conformance for every
+"""The Gymnasium environments (mrd_env/QuarterCarPhysical-v0, mrd_env/ShearBuildingPhysical-v0): API conformance for every
 damper model, determinism, input validation, termination/truncation with metrics, rendering."""
 from __future__ import annotations
 
@@ -20,8 +20,8 @@ from mrd_env.plants import ShearBuildingParams
 
 register_envs()  # until mrd_env/__init__.py calls it
 
-QC = "mrd_env/QuarterCar-v0"
-SB = "mrd_env/ShearBuilding-v0"
+QC = "mrd_env/QuarterCarPhysical-v0"
+SB = "mrd_env/ShearBuildingPhysical-v0"
 IDS = (QC, SB)
 SHORT = {"episode_seconds": 0.5}
 ZERO_FORCE = {"fc_a": 0.0, "fc_b": 0.0, "c0a": 0.0, "c0b": 0.0, "f0": 0.0}

@@ -12,11 +12,11 @@ import mrd_env  # noqa: F401  (registers the environments)
 from mrd_env.dampers import available_dampers
 
 SCENARIOS = {
-    "quarter car, default road": ("mrd_env/QuarterCar-v0", {}),
-    "quarter car, bump": ("mrd_env/QuarterCar-v0", {"road": "bump", "stroke_limit": 1.0}),
-    "quarter car, ISO class D": ("mrd_env/QuarterCar-v0", {"road_params": {"road_class": "D"},
+    "quarter car, default road": ("mrd_env/QuarterCarPhysical-v0", {}),
+    "quarter car, bump": ("mrd_env/QuarterCarPhysical-v0", {"road": "bump", "stroke_limit": 1.0}),
+    "quarter car, ISO class D": ("mrd_env/QuarterCarPhysical-v0", {"road_params": {"road_class": "D"},
                                                            "stroke_limit": 1.0}),
-    "building, default record": ("mrd_env/ShearBuilding-v0", {}),
+    "building, default record": ("mrd_env/ShearBuildingPhysical-v0", {}),
 }
 
 

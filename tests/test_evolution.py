@@ -63,7 +63,7 @@ def test_common_random_numbers_make_the_comparison_paired():
     """Candidates with the same weights meet the same disturbances, so they score exactly alike; other seeds give
     other returns."""
     P, E = 3, 2
-    venv = gym.make_vec("mrd_env/QuarterCar-v0", num_envs=P * E, vectorization_mode="vector_entry_point",
+    venv = gym.make_vec("mrd_env/QuarterCarPhysical-v0", num_envs=P * E, vectorization_mode="vector_entry_point",
                         **{**TRAINING["quarter_car"], "episode_seconds": 0.3}, action_mode="normalized",
                         control_dt=0.01)
     pol = MLPPolicy((venv.single_observation_space.shape[0], 4, 1))

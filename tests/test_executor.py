@@ -103,12 +103,12 @@ def test_tune_runs_trials_and_writes_the_best_hyperparameters(tmp_path):
     from experiments.cli import main
 
     base = tmp_path / "base.yml"
-    base.write_text(yaml.safe_dump({"mrd_env/QuarterCar-v0": {"n_envs": 2, "policy": "MlpPolicy", "normalize": True,
+    base.write_text(yaml.safe_dump({"mrd_env/QuarterCarPhysical-v0": {"n_envs": 2, "policy": "MlpPolicy", "normalize": True,
                                                               "n_epochs": 1}}))
     assert main(["tune", "--plant", "quarter_car", "--trials", "2", "--timesteps", "128", "--eval-freq", "64",
                  "--eval-episodes", "1", "--hyperparams", str(base), "--backend", "serial", "--out",
                  str(tmp_path / "t"), "--no-progress"]) == 0
-    best = yaml.safe_load((tmp_path / "t" / "quarter_car_ppo_best.yml").read_text())["mrd_env/QuarterCar-v0"]
+    best = yaml.safe_load((tmp_path / "t" / "quarter_car_ppo_best.yml").read_text())["mrd_env/QuarterCarPhysical-v0"]
     assert best["n_envs"] == 2 and best["n_steps"] in (64, 128, 256, 512) and 1e-5 <= best["learning_rate"] <= 1e-3
     rows = (tmp_path / "t" / "quarter_car_ppo_trials.csv").read_text().splitlines()
     assert len(rows) == 1 + 2
@@ -196,7 +196,7 @@ def test_tune_residual_space_starts_at_the_recipe_and_keeps_gamma_high(tmp_path)
              "scale": 0.5}, "n_steps": 256, "batch_size": 1024, "n_epochs": 5, "gamma": 0.998, "gae_lambda": 0.99,
              "learning_rate": 1e-4, "policy_kwargs": {"log_std_init": -3.5}}
     base = tmp_path / "base.yml"
-    base.write_text(yaml.safe_dump({"mrd_env/QuarterCar-v0": entry}))
+    base.write_text(yaml.safe_dump({"mrd_env/QuarterCarPhysical-v0": entry}))
     assert main(["tune", "--plant", "quarter_car", "--space", "residual", "--trials", "3", "--timesteps", "64",
                  "--eval-freq", "64", "--eval-episodes", "1", "--hyperparams", str(base), "--backend", "serial",
                  "--out", str(tmp_path / "t"), "--no-progress"]) == 0
@@ -206,7 +206,7 @@ def test_tune_residual_space_starts_at_the_recipe_and_keeps_gamma_high(tmp_path)
     assert len(rows) == 3
     assert float(rows[0]["residual_scale"]) == 0.5 and float(rows[0]["gamma"]) == 0.998
     assert all(0.995 <= float(r["gamma"]) <= 0.999 and 0.2 <= float(r["residual_scale"]) <= 1.0 for r in rows)
-    best = yaml.safe_load((tmp_path / "t" / "quarter_car_ppo_best.yml").read_text())["mrd_env/QuarterCar-v0"]
+    best = yaml.safe_load((tmp_path / "t" / "quarter_car_ppo_best.yml").read_text())["mrd_env/QuarterCarPhysical-v0"]
     assert best["residual"]["law"] == "skyhook_continuous" and "residual_scale" not in best
     assert 0.2 <= best["residual"]["scale"] <= 1.0 and -3.5 <= best["policy_kwargs"]["log_std_init"] <= -1.0
 
@@ -227,7 +227,7 @@ def test_tune_residual_space_of_td3_starts_at_the_recipe_and_searches_its_pace(t
              "gamma": 0.998, "tau": 0.01, "train_freq": 4, "noise_type": "normal", "noise_std": 0.05,
              "policy_kwargs": {"net_arch": [8]}}
     base = tmp_path / "base.yml"
-    base.write_text(yaml.safe_dump({"mrd_env/QuarterCar-v0": entry}))
+    base.write_text(yaml.safe_dump({"mrd_env/QuarterCarPhysical-v0": entry}))
     args = ["tune", "--plant", "quarter_car", "--algo", "td3", "--space", "residual", "--trials", "2", "--timesteps",
             "64", "--eval-freq", "64", "--eval-episodes", "1", "--hyperparams", str(base), "--backend", "serial",
             "--out", str(tmp_path / "t"), "--no-progress"]
@@ -237,10 +237,10 @@ def test_tune_residual_space_of_td3_starts_at_the_recipe_and_searches_its_pace(t
     first = rows[0]
     assert float(first["noise_std"]) == 0.05 and float(first["tau"]) == 0.01 and int(first["actor_warmup_steps"]) == 0
     assert all(0.99 <= float(r["gamma"]) <= 0.999 and 0.01 <= float(r["noise_std"]) <= 0.2 for r in rows)
-    best = yaml.safe_load((tmp_path / "t" / "quarter_car_td3_best.yml").read_text())["mrd_env/QuarterCar-v0"]
+    best = yaml.safe_load((tmp_path / "t" / "quarter_car_td3_best.yml").read_text())["mrd_env/QuarterCarPhysical-v0"]
     assert 0.1 <= best["residual"]["scale"] <= 1.0 and "actor_warmup_steps" in best
 
-    base.write_text(yaml.safe_dump({"mrd_env/QuarterCar-v0": {**entry, "tau": 0.3}}))
+    base.write_text(yaml.safe_dump({"mrd_env/QuarterCarPhysical-v0": {**entry, "tau": 0.3}}))
     capsys.readouterr()
     assert main([*args[:-2], str(tmp_path / "u"), "--no-progress"]) == 2
     assert "entry's tau must be one of" in capsys.readouterr().err and not (tmp_path / "u").exists()

@@ -17,9 +17,9 @@ from mrd_env.stepping.first_use import SwitchingKernel
 
 
 def _episode(model, steps, *, switch_at=None, marker=None, seed=3):
-    """Observations and rewards of a noisy QuarterCar-v0 episode under random commands; with ``marker``, the
+    """Observations and rewards of a noisy QuarterCarPhysical-v0 episode under random commands; with ``marker``, the
     ready marker is created before step ``switch_at``."""
-    env = gym.make("mrd_env/QuarterCar-v0", damper=model, episode_seconds=30.0,
+    env = gym.make("mrd_env/QuarterCarPhysical-v0", damper=model, episode_seconds=30.0,
                    sensor_noise={"sprung_acc": 0.05, "travel": 1e-4}).unwrapped
     env.reset(seed=seed)
     rng = np.random.default_rng(seed)

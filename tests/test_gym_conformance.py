@@ -144,7 +144,7 @@ def test_vector_env_equals_sync_vector_env(env_id, mode):
     ``_key`` masks, ``final_obs``/``final_info`` in SAME_STEP mode) as SyncVectorEnv over the scalar envs gives
     them, bit for bit, over several autoresets and a termination (issue 21, items 3 and 4)."""
     # a stroke limit the random commands exceed in some environments: terminations among truncations
-    native, sync = _pair(env_id, mode, stroke_limit={"mrd_env/ShearBuilding-v0": 4e-6}.get(env_id, 4e-3),
+    native, sync = _pair(env_id, mode, stroke_limit={"mrd_env/ShearBuildingPhysical-v0": 4e-6}.get(env_id, 4e-3),
                          sensor_noise={"damper_force": 2.0})
     assert native.num_envs == sync.num_envs
     assert native.observation_space == sync.observation_space
@@ -175,7 +175,7 @@ def _sprung_energy(period):
 def test_vector_env_pays_a_callable_reward_as_sync_vector_env(mode):
     """A reward given as a Python function of the period's signals: the native vector env pays it, as the scalar
     environments under SyncVectorEnv do (it paid the compiled part only, zero here)."""
-    native, sync = _pair("mrd_env/QuarterCar-v0", mode, reward=_sprung_energy)
+    native, sync = _pair("mrd_env/QuarterCarPhysical-v0", mode, reward=_sprung_energy)
     assert data_equivalence(native.reset(seed=0), sync.reset(seed=0), exact=True)
     native.action_space.seed(0)
     paid = []
@@ -553,7 +553,7 @@ def test_a_refused_batch_changes_nothing(env_id):
 
 def test_a_refused_scalar_action_changes_nothing():
     """Item 2, scalar: with two dampers, a NaN second command used to leave the first one written."""
-    env = gym.make("mrd_env/HalfCar-v0", **SHORT).unwrapped
+    env = gym.make("mrd_env/HalfCarPhysical-v0", **SHORT).unwrapped
     env.reset(seed=0)
     env.step([1.0, 1.0])
     cmd, fs = env.command, env.core.driver.fs.copy()
@@ -659,7 +659,7 @@ def test_spec_of_a_mixture_bounds_its_episodes():
     roads = [FixedRecord(r, ROAD_CHANNELS, ROAD_UNITS, 1e-3) for r in
              (bump(0.02, 1.0, 10.0, t_start=0.1, duration=0.3, dt=1e-3),
               sine_sweep(0.01, 1.0, 5.0, 0.5, dt=1e-3))]
-    env = gym.make("mrd_env/QuarterCar-v0", road=Mixture(roads), control_dt=0.01)
+    env = gym.make("mrd_env/QuarterCarPhysical-v0", road=Mixture(roads), control_dt=0.01)
     assert env.spec.max_episode_steps == 50
     lengths = set()
     for seed in range(8):
@@ -681,10 +681,10 @@ COMMON_OPTIONS = {  # the README's options for every environment, each at a valu
     "render_mode": "rgb_array",
 }
 OWN_OPTIONS = {  # the plant's own: preset and disturbance (given together)
-    "mrd_env/QuarterCar-v0": {"road": "bump", "road_params": {"height": 0.01}, "plant_preset": "set_b"},
-    "mrd_env/ShearBuilding-v0": {"ground_motion": "kanai_tajimi", "ground_motion_params": {"pga": 1.0},
+    "mrd_env/QuarterCarPhysical-v0": {"road": "bump", "road_params": {"height": 0.01}, "plant_preset": "set_b"},
+    "mrd_env/ShearBuildingPhysical-v0": {"ground_motion": "kanai_tajimi", "ground_motion_params": {"pga": 1.0},
                                  "plant_preset": "three_storey"},
-    "mrd_env/HalfCar-v0": {"road": "iso8608", "road_params": {"road_class": "D", "speed": 15.0},
+    "mrd_env/HalfCarPhysical-v0": {"road": "iso8608", "road_params": {"road_class": "D", "speed": 15.0},
                            "plant_preset": "sedan"}}
 
 
@@ -707,8 +707,8 @@ def test_every_env_takes_the_options_common_to_all(env_id):
     venv = gym.make_vec(env_id, num_envs=2, **vec)
     venv.reset(seed=0)
     venv.step(venv.action_space.sample())
-    other = {"mrd_env/QuarterCar-v0": "ground_motion", "mrd_env/ShearBuilding-v0": "road",
-             "mrd_env/HalfCar-v0": "preview"}[env_id]
+    other = {"mrd_env/QuarterCarPhysical-v0": "ground_motion", "mrd_env/ShearBuildingPhysical-v0": "road",
+             "mrd_env/HalfCarPhysical-v0": "preview"}[env_id]
     with pytest.raises(ValueError, match=rf"unknown option\(s\) \['{other}'\]"):
         gym.make(env_id, **{other: None})
 
@@ -720,20 +720,20 @@ def test_half_car_takes_roads_and_reward_weights():
     kw = dict(episode_seconds=0.05)
     rewards = []
     for weights in ({}, {"comfort": 2.0, "travel": 1.0, "tyre": 1.0}):
-        env = gym.make("mrd_env/HalfCar-v0", reward_weights=weights, **kw)
+        env = gym.make("mrd_env/HalfCarPhysical-v0", reward_weights=weights, **kw)
         env.reset(seed=0)
         rewards.append(env.step([1.0, 1.0])[1])
     assert rewards[1] == pytest.approx(2 * rewards[0], rel=1e-12)
     z = np.linspace(0.0, 0.01, 200)
     rec = Record(1e-3, np.column_stack([z, np.full(200, 0.05), z, np.full(200, 0.05)]),
                  ("z_rf", "zdot_rf", "z_rr", "zdot_rr"), ("m", "m/s", "m", "m/s"), "ramp")
-    env = gym.make("mrd_env/HalfCar-v0", road=rec, **kw)
+    env = gym.make("mrd_env/HalfCarPhysical-v0", road=rec, **kw)
     _, info = env.reset(seed=0)
     assert info["disturbance"] == "ramp"
     for bad, match in ((dict(road="bump"), "road: unknown kind"), (dict(road_params={"speed": -1.0}), "speed"),
                        (dict(reward_weights={"pitch": 1.0}), "reward_weights"), (dict(reward=3), "reward")):
         with pytest.raises(ValueError, match=match):
-            gym.make("mrd_env/HalfCar-v0", **kw, **bad)
+            gym.make("mrd_env/HalfCarPhysical-v0", **kw, **bad)
 
 
 @pytest.mark.parametrize("env_id", IDS)
@@ -772,7 +772,7 @@ def test_sb3_bridge_logs_episode_returns_without_vec_monitor():
 
     from mrd_env.envs.sb3 import make_sb3_vec_env
 
-    venv = make_sb3_vec_env("mrd_env/QuarterCar-v0", n_envs=2, seed=0, episode_seconds=0.05, control_dt=0.01)
+    venv = make_sb3_vec_env("mrd_env/QuarterCarPhysical-v0", n_envs=2, seed=0, episode_seconds=0.05, control_dt=0.01)
     venv.reset()
     total = np.zeros(2)
     for k in range(5):
@@ -795,8 +795,8 @@ def test_sb3_bridge_gives_what_dummy_vec_env_gives():
     from mrd_env.envs.sb3 import make_sb3_vec_env
 
     kw = dict(episode_seconds=0.03, control_dt=0.01, stroke_limit=3e-3)
-    bridge = make_sb3_vec_env("mrd_env/QuarterCar-v0", n_envs=3, seed=0, **kw)
-    dummy = DummyVecEnv([lambda: gym.make("mrd_env/QuarterCar-v0", **kw) for _ in range(3)])
+    bridge = make_sb3_vec_env("mrd_env/QuarterCarPhysical-v0", n_envs=3, seed=0, **kw)
+    dummy = DummyVecEnv([lambda: gym.make("mrd_env/QuarterCarPhysical-v0", **kw) for _ in range(3)])
     dummy.seed(0)
     np.testing.assert_array_equal(bridge.reset(), dummy.reset())
     assert bridge.reset_infos == dummy.reset_infos
@@ -825,7 +825,7 @@ def test_sb3_bridge_set_attr_and_env_method_honour_indices():
     """Item 9: the environments share one native vector env; a subset of indices is refused, not ignored."""
     from mrd_env.envs.sb3 import make_sb3_vec_env
 
-    venv = make_sb3_vec_env("mrd_env/QuarterCar-v0", n_envs=3, seed=0, **SHORT)
+    venv = make_sb3_vec_env("mrd_env/QuarterCarPhysical-v0", n_envs=3, seed=0, **SHORT)
     venv.set_attr("tag", "x")
     venv.set_attr("tag", "y", indices=[2, 0, 1])
     assert venv.get_attr("tag", indices=[0, 2]) == ["y", "y"]

@@ -104,7 +104,7 @@ def test_half_car_episode_starts_in_static_equilibrium_on_the_road():
 
     import mrd_env  # noqa: F401  (registers the environments)
 
-    env = gym.make("mrd_env/HalfCar-v0")
+    env = gym.make("mrd_env/HalfCarPhysical-v0")
     env.reset(seed=3)
     base = env.unwrapped
     zs, th, zf, zr = base.plant_state[:4]

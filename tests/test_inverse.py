@@ -354,7 +354,7 @@ def _episode(ctrl, env, steps):
 def test_clipped_optimal_with_the_heaviside_inverse_is_the_default_law():
     from controllers import ClippedOptimal
 
-    env = gym.make("mrd_env/ShearBuilding-v0", sensors=B_SENSORS)
+    env = gym.make("mrd_env/ShearBuildingPhysical-v0", sensors=B_SENSORS)
     a = _episode(ClippedOptimal(env), env, 600)
     b = _episode(ClippedOptimal(env, inverse="heaviside"), env, 600)
     assert np.array_equal(a, b) and 0 < np.mean(a > 0) < 1
@@ -363,7 +363,7 @@ def test_clipped_optimal_with_the_heaviside_inverse_is_the_default_law():
 def test_clipped_optimal_with_the_model_inverse_runs_a_vector_env():
     from controllers import ClippedOptimal
 
-    venv = gym.make_vec("mrd_env/ShearBuilding-v0", num_envs=2, vectorization_mode="vector_entry_point",
+    venv = gym.make_vec("mrd_env/ShearBuildingPhysical-v0", num_envs=2, vectorization_mode="vector_entry_point",
                         sensors=B_SENSORS, episode_seconds=0.3)
     ctrl = ClippedOptimal(venv, inverse="model")
     obs, _ = venv.reset(seed=[0, 1])
@@ -379,11 +379,11 @@ def test_clipped_optimal_with_the_model_inverse_runs_a_vector_env():
 def test_force_actuation_needs_the_damper_motion_sensors():
     from mrd_env.envs.actuation import ForceActuation
 
-    env = gym.make("mrd_env/ShearBuilding-v0", sensors=("abs_acc", "damper_force"))
+    env = gym.make("mrd_env/ShearBuildingPhysical-v0", sensors=("abs_acc", "damper_force"))
     with pytest.raises(ValueError, match="damper_stroke"):
         ForceActuation(env, "model")
     ForceActuation(env, "heaviside")  # the on–off law reads the force only
-    full = gym.make("mrd_env/ShearBuilding-v0", sensors=B_SENSORS)
+    full = gym.make("mrd_env/ShearBuildingPhysical-v0", sensors=B_SENSORS)
     act = ForceActuation(full, "sid")
     obs, _ = full.reset(seed=0)
     c = act.from_observation(100.0, obs)
@@ -394,7 +394,7 @@ def test_force_actuation_needs_the_damper_motion_sensors():
 
 # --- action_mode="force": an agent's desired force, converted by the inverse inside the step --------------------
 
-QC, SB = "mrd_env/QuarterCar-v0", "mrd_env/ShearBuilding-v0"
+QC, SB = "mrd_env/QuarterCarPhysical-v0", "mrd_env/ShearBuildingPhysical-v0"
 
 
 @pytest.mark.parametrize("env_id", [QC, SB])
@@ -553,8 +553,8 @@ def test_half_car_force_mode_acts_on_both_dampers():
     from gymnasium.utils.env_checker import check_env as gym_check_env
 
     with pytest.raises(ValueError, match="travel_rate"):
-        gym.make("mrd_env/HalfCar-v0", action_mode="force")
-    env = gym.make("mrd_env/HalfCar-v0", action_mode="force", episode_seconds=0.2,
+        gym.make("mrd_env/HalfCarPhysical-v0", action_mode="force")
+    env = gym.make("mrd_env/HalfCarPhysical-v0", action_mode="force", episode_seconds=0.2,
                    sensors=("body_acc", "pitch_acc", "travel", "travel_rate", "damper_force", "command"))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")

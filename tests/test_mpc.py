@@ -19,8 +19,8 @@ from controllers import MPC, ClippedOptimal, available_controllers, make_control
 from controllers.model_based import dlqr, sampled_lq, van_loan
 from controllers.mpc import damper_force_limit
 
-CAR = "mrd_env/QuarterCar-v0"
-BUILDING = "mrd_env/ShearBuilding-v0"
+CAR = "mrd_env/QuarterCarPhysical-v0"
+BUILDING = "mrd_env/ShearBuildingPhysical-v0"
 
 
 def _env(env_id, **options):

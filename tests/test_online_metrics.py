@@ -30,7 +30,7 @@ def _assert_same(online: dict, offline: dict) -> None:
         assert online[key] == pytest.approx(offline[key], rel=RTOL, abs=0.0), key
 
 
-@pytest.mark.parametrize("env_id", ["mrd_env/QuarterCar-v1", "mrd_env/QuarterCar-v0"])
+@pytest.mark.parametrize("env_id", ["mrd_env/QuarterCar-v1", "mrd_env/QuarterCarPhysical-v0"])
 def test_quarter_car_metrics_online_equal_offline(env_id):
     env, info = _episode(env_id, 1, episode_seconds=3.0)
     acc, travel = env.signal("sprung_acc")[:, 0], env.signal("travel")[:, 0]

@@ -10,7 +10,7 @@ import mrd_env  # noqa: F401  (registers the environments)
 from mrd_env.disturbances import Record, bump
 from mrd_env.envs.quarter_car import DEFAULT_SENSORS
 
-QC = "mrd_env/QuarterCar-v0"
+QC = "mrd_env/QuarterCarPhysical-v0"
 WITH_PREVIEW = (*DEFAULT_SENSORS, "road_preview")
 
 

@@ -7,7 +7,7 @@ from mrd_env.optimal import episode_problem
 CAR = dict(road="iso8608", road_params={"road_class": "C", "speed": 20.0}, episode_seconds=1.0)
 BUILDING = dict(damper_floors=(2,), ground_motion="el_centro", ground_motion_params={"time_scale": 0.2},
                 episode_seconds=1.0)
-CASES = [("mrd_env/QuarterCar-v0", CAR), ("mrd_env/ShearBuilding-v0", BUILDING)]
+CASES = [("mrd_env/QuarterCarPhysical-v0", CAR), ("mrd_env/ShearBuildingPhysical-v0", BUILDING)]
 
 
 @pytest.mark.parametrize("env_id, options", CASES)
@@ -24,7 +24,7 @@ def test_quadratic_terms_reproduce_the_environment_return(env_id, options):
 
 
 def test_disturbance_and_state_match_the_environment():
-    p = episode_problem("mrd_env/QuarterCar-v0", seed=1_000_003, control_dt=0.01, **CAR)
+    p = episode_problem("mrd_env/QuarterCarPhysical-v0", seed=1_000_003, control_dt=0.01, **CAR)
     assert p.n_rows == p.n_steps * p.n_sub + 1 == 1001
     assert np.all(p.W[:, -1] == 1.0)                       # the preload channel
     np.testing.assert_array_equal(p.x0, [p.W[0, 0], p.W[0, 0], p.W[0, 1], p.W[0, 1]])  # at rest on the road
@@ -36,7 +36,7 @@ def test_disturbance_and_state_match_the_environment():
 def test_commands_of_a_law_and_bad_commands():
     from controllers import make_controller
 
-    p = episode_problem("mrd_env/QuarterCar-v0", seed=1_000_000, control_dt=0.01, **CAR)
+    p = episode_problem("mrd_env/QuarterCarPhysical-v0", seed=1_000_000, control_dt=0.01, **CAR)
     on = p.commands_of(lambda e: make_controller("passive_on", e))
     assert on.shape == (p.n_steps, 1) and np.all(on == p.v_max)
     # a law at a coarser rate: its commands are held over the problem's steps
@@ -51,6 +51,6 @@ def test_commands_of_a_law_and_bad_commands():
     with pytest.raises(ValueError, match="finite"):
         p.replay(np.full((p.n_steps, 1), np.nan))
     with pytest.raises(ValueError, match="force"):
-        episode_problem("mrd_env/QuarterCar-v0", seed=0, action_mode="force")
+        episode_problem("mrd_env/QuarterCarPhysical-v0", seed=0, action_mode="force")
     with pytest.raises(ValueError, match="seed"):
-        episode_problem("mrd_env/QuarterCar-v0", seed=1.5)
+        episode_problem("mrd_env/QuarterCarPhysical-v0", seed=1.5)

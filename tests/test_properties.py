@@ -26,7 +26,7 @@ from mrd_env.rig import random_test, simulate, sinusoidal_test
 from mrd_env.validation import as_real
 
 DAMPERS = available_dampers()
-QC, SB = "mrd_env/QuarterCar-v0", "mrd_env/ShearBuilding-v0"
+QC, SB = "mrd_env/QuarterCarPhysical-v0", "mrd_env/ShearBuildingPhysical-v0"
 
 # Kernels are compiled once per damper model and cached on disk; the examples themselves take milliseconds.
 FEW = settings(max_examples=25, deadline=None)

@@ -13,7 +13,7 @@ from experiments.cli import main
 from experiments.train import env_options, train_one
 from mrd_env.envs.sb3 import make_sb3_vec_env
 
-CAR = "mrd_env/QuarterCar-v0"
+CAR = "mrd_env/QuarterCarPhysical-v0"
 
 
 class Constant:

@@ -112,8 +112,8 @@ def test_recurrent_policies_work_with_the_tooling(tmp_path):
 
 
 def test_history_stacks_past_observations_for_memoryless_policies():
-    env = gym.make("mrd_env/QuarterCar-v0", episode_seconds=0.1, history=3, control_dt=0.01)
-    one = gym.make("mrd_env/QuarterCar-v0", episode_seconds=0.1, control_dt=0.01)
+    env = gym.make("mrd_env/QuarterCarPhysical-v0", episode_seconds=0.1, history=3, control_dt=0.01)
+    one = gym.make("mrd_env/QuarterCarPhysical-v0", episode_seconds=0.1, control_dt=0.01)
     assert env.observation_space.shape[0] == 3 * one.observation_space.shape[0]
     obs, _ = env.reset(seed=0)
     o1, _ = one.reset(seed=0)
@@ -176,7 +176,7 @@ def test_rewards_separate_random_passive_and_the_best_law():
 
 
 def test_training_distributions_draw_new_episodes():
-    for plant, env_id in (("quarter_car", "mrd_env/QuarterCar-v0"), ("building", "mrd_env/ShearBuilding-v0")):
+    for plant, env_id in (("quarter_car", "mrd_env/QuarterCarPhysical-v0"), ("building", "mrd_env/ShearBuildingPhysical-v0")):
         env = gym.make(env_id, **TRAINING[plant], control_dt=0.01)
         recs = []
         for seed in (0, 1, 2):

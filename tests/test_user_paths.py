@@ -33,12 +33,12 @@ def test_identify_then_rig_environments_benchmark_train_and_evaluate_on_the_pres
     with (d / "rig2" / "bouc_wen_summary.csv").open() as fh:
         assert all(float(r["F_max (N)"]) > 0 for r in csv.DictReader(fh))
     # Python: every environment takes the file as its damper
-    for env_id in ("mrd_env/QuarterCar-v0", "mrd_env/ShearBuilding-v0", "mrd_env/HalfCar-v0"):
+    for env_id in ("mrd_env/QuarterCarPhysical-v0", "mrd_env/ShearBuildingPhysical-v0", "mrd_env/HalfCarPhysical-v0"):
         env = gym.make(env_id, damper=str(preset), episode_seconds=0.05)
         assert env.unwrapped.damper.name == "bouc_wen"
         assert env.unwrapped.damper.params.alpha_b == doc["parameters"]["alpha_b"]["value"]
     with pytest.raises(ValueError, match="preset file"):
-        gym.make("mrd_env/QuarterCar-v0", damper=str(preset), damper_preset="spencer1997")
+        gym.make("mrd_env/QuarterCarPhysical-v0", damper=str(preset), damper_preset="spencer1997")
     # the benchmark
     assert main(["benchmark", "--plant", "building", "--quick", "--controllers", "passive_off", "clipped_optimal",
                  "--damper", str(preset), "--yardstick", "off", "--out", str(d / "bench"), "--no-progress"]) == 0
@@ -68,7 +68,7 @@ def test_a_bad_preset_file_is_one_line(tmp_path, capsys):
 
 def test_the_readme_quickstart_runs_and_warns_of_no_outdated_id():
     """The README's Python quickstart, as a newcomer pastes it: it runs, and its id is not one Gymnasium calls out
-    of date (a -v0 id prints "consider upgrading to version v1" beside the -v1 ids)."""
+    of date (a former -v0 id prints "consider upgrading to version v1" beside the -v1 ids)."""
     import re
     import warnings
     from pathlib import Path

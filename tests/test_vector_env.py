@@ -12,7 +12,7 @@ import mrd_env  # noqa: F401  (registers the environments)
 from mrd_env.envs import QuarterCarVectorEnv, ShearBuildingVectorEnv
 from mrd_env.envs.vector import env_info
 
-QC, SB = "mrd_env/QuarterCar-v0", "mrd_env/ShearBuilding-v0"
+QC, SB = "mrd_env/QuarterCarPhysical-v0", "mrd_env/ShearBuildingPhysical-v0"
 
 
 def _scalar_episode(env_id, seed, actions, **kw):
@@ -131,7 +131,7 @@ def test_a_plant_added_in_two_files_works_with_every_part_and_the_laws():
 
     from controllers import make_controller
 
-    env = gym.make("mrd_env/HalfCar-v0", episode_seconds=0.2,
+    env = gym.make("mrd_env/HalfCarPhysical-v0", episode_seconds=0.2,
                    sensors=("body_acc", "travel", "travel_rate", "body_vel_at_axles", "wheel_vel", "damper_force"))
     check_env(env.unwrapped, skip_render_check=True)
     assert env.action_space.shape == (2,)
@@ -143,7 +143,7 @@ def test_a_plant_added_in_two_files_works_with_every_part_and_the_laws():
             if term or trunc:
                 break
         assert trunc and np.isfinite(info["episode_metrics"]["acc_weighted_rms"])
-    venv = gym.make_vec("mrd_env/HalfCar-v0", num_envs=3, vectorization_mode="vector_entry_point",
+    venv = gym.make_vec("mrd_env/HalfCarPhysical-v0", num_envs=3, vectorization_mode="vector_entry_point",
                         episode_seconds=0.05)
     obs, _ = venv.reset(seed=0)
     assert obs.shape == (3, 1 + 1 + 2 + 2 + 2)
@@ -154,7 +154,7 @@ def test_threads_change_the_speed_not_the_results():
     with an error naming it."""
     runs = []
     for threads in (1, 2):
-        venv = gym.make_vec("mrd_env/QuarterCar-v0", num_envs=64, vectorization_mode="vector_entry_point",
+        venv = gym.make_vec("mrd_env/QuarterCarPhysical-v0", num_envs=64, vectorization_mode="vector_entry_point",
                             control_dt=0.01, episode_seconds=0.5, threads=threads)
         assert venv.unwrapped.core.driver.threads == threads
         obs, _ = venv.reset(seed=4)
@@ -168,4 +168,4 @@ def test_threads_change_the_speed_not_the_results():
         venv.close()
     assert all(np.array_equal(a, b) for a, b in zip(*runs))
     with pytest.raises(ValueError, match="threads must be an int >= 1"):
-        gym.make_vec("mrd_env/QuarterCar-v0", num_envs=4, vectorization_mode="vector_entry_point", threads=0)
+        gym.make_vec("mrd_env/QuarterCarPhysical-v0", num_envs=4, vectorization_mode="vector_entry_point", threads=0)

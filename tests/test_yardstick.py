@@ -38,7 +38,7 @@ def test_share_rows_pool_episodes_and_give_intervals_only_with_repeats():
 
 def test_cache_returns_only_the_exact_key(tmp_path, monkeypatch):
     monkeypatch.setattr("mrd_env.optimal.cache.cache_dir", lambda: tmp_path / "optimal")  # kernels stay cached
-    key = {"env_id": "mrd_env/QuarterCar-v0", "seed": 1, "damper_params": {"c0a": 1.0}}
+    key = {"env_id": "mrd_env/QuarterCarPhysical-v0", "seed": 1, "damper_params": {"c0a": 1.0}}
     assert cache.load("clairvoyant", key) is None
     path = cache.store("clairvoyant", key, {"ret": -3.5})
     assert path.parent == tmp_path / "optimal" and cache.load("clairvoyant", key) == {"ret": -3.5}
@@ -81,7 +81,7 @@ def test_the_yardstick_brackets_every_controller_on_an_episode(tmp_path, monkeyp
     from experiments.yardstick import episode_yardstick
 
     monkeypatch.setattr("mrd_env.optimal.cache.cache_dir", lambda: tmp_path / "optimal")  # kernels stay cached
-    sc = Scenario("ISO-C 1 s", "mrd_env/QuarterCar-v0",
+    sc = Scenario("ISO-C 1 s", "mrd_env/QuarterCarPhysical-v0",
                   dict(road="iso8608", road_params={"road_class": "C", "speed": 20.0}, episode_seconds=1.0),
                   seeds=(1_000_000,))
     agents = shipped_agents("quarter_car")

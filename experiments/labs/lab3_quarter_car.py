@@ -18,7 +18,7 @@
 # much the tyre load varies) and rattle space (how far the suspension travels). A passive damper picks one point
 # of that trade-off; a semi-active MR damper changes its damping every millisecond and can leave the passive
 # curve. Here the plant is the quarter car `set_a` (sprung 320 kg, unsprung 40 kg) with the automotive
-# Spencer–Dyke damper (0–2 V), on ISO 8608 random roads at 20 m/s (`mrd_env/QuarterCar-v0`).
+# Spencer–Dyke damper (0–2 V), on ISO 8608 random roads at 20 m/s (`mrd_env/QuarterCarPhysical-v0`).
 #
 # **Learning objectives.** After this lab you can
 # 1. score a suspension with the ISO 2631-1 frequency-weighted acceleration (Wk), the suspension travel and the

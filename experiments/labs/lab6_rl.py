@@ -73,7 +73,7 @@ from mrd_env.report import figure
 lab = Lab("lab6_rl")
 TIMESTEPS = 1_000_000 if full_length() else 40_000
 CMAES_TIMESTEPS = 2_000_000 if full_length() else 128_000  # one generation: 16 policies × 8 episodes × 1000 steps
-env_id = "mrd_env/QuarterCar-v0"
+env_id = "mrd_env/QuarterCarPhysical-v0"
 env_kwargs = env_options("quarter_car", control_dt=0.01)
 print("training distribution:", TRAINING["quarter_car"])
 print("environment options:", env_kwargs)

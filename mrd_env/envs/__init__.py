@@ -1,10 +1,16 @@
-"""Gymnasium environments: ``mrd_env/QuarterCar``, ``mrd_env/ShearBuilding`` and ``mrd_env/HalfCar``, scalar and
-native vector; ``-v1`` with the defaults an RL user expects (10 ms control, normalised actions, the benchmark's
-building), ``-v0`` with the physics-level ones (1 ms control, commands in V or A, the lab building): see ``V1``.
+"""Gymnasium environments: the quarter car, the shear building and the half car, scalar and native vector, each in two
+set-ups: ``mrd_env/QuarterCar-v1`` (``ShearBuilding-v1``, ``HalfCar-v1``) with the defaults an RL user expects (10 ms
+control, normalised actions, the benchmark's building), and ``mrd_env/QuarterCarPhysical-v0`` (...) with the
+physics-level ones (1 ms control, commands in V or A, the lab building): see ``V1``.
+
+The two set-ups are two environments, not two versions of one: Gymnasium reads ``-v0`` beside ``-v1`` of the same
+name as an outdated version (it says "out of date" at every ``make``), so the physics-level set-up has its own name.
+Its former ids (``mrd_env/QuarterCar-v0``, ...) still make the same environment, with a warning naming the new one
+(:data:`RENAMED`).
 
 >>> import gymnasium as gym, mrd_env
->>> env = gym.make("mrd_env/QuarterCar-v0", road="iso8608", road_params={"road_class": "D"})
->>> venv = gym.make_vec("mrd_env/QuarterCar-v0", num_envs=64, vectorization_mode="vector_entry_point")
+>>> env = gym.make("mrd_env/QuarterCarPhysical-v0", road="iso8608", road_params={"road_class": "D"})
+>>> venv = gym.make_vec("mrd_env/QuarterCarPhysical-v0", num_envs=64, vectorization_mode="vector_entry_point")
 
 The environment classes are imported on first access, so that :func:`register_envs` (run by ``import mrd_env``)
 stays cheap.
@@ -21,9 +27,9 @@ import importlib
 
 #: id → (module, scalar class, vector class)
 ENVS = {
-    "mrd_env/QuarterCar-v0": ("mrd_env.envs.quarter_car", "QuarterCarEnv", "QuarterCarVectorEnv"),
-    "mrd_env/ShearBuilding-v0": ("mrd_env.envs.shear_building", "ShearBuildingEnv", "ShearBuildingVectorEnv"),
-    "mrd_env/HalfCar-v0": ("mrd_env.envs.half_car", "HalfCarEnv", "HalfCarVectorEnv"),
+    "mrd_env/QuarterCarPhysical-v0": ("mrd_env.envs.quarter_car", "QuarterCarEnv", "QuarterCarVectorEnv"),
+    "mrd_env/ShearBuildingPhysical-v0": ("mrd_env.envs.shear_building", "ShearBuildingEnv", "ShearBuildingVectorEnv"),
+    "mrd_env/HalfCarPhysical-v0": ("mrd_env.envs.half_car", "HalfCarEnv", "HalfCarVectorEnv"),
 }
 ENV_IDS = {env_id: f"{m}:{c}" for env_id, (m, c, _) in ENVS.items()}
 #: The v1 ids: what an RL user expects out of the box (Stable-Baselines3's docs and RL Zoo), the set-up the project's
@@ -32,10 +38,14 @@ ENV_IDS = {env_id: f"{m}:{c}" for env_id, (m, c, _) in ENVS.items()}
 #: apart (in storey 1, passive-on is within 0.5 % of the best law). The v0 ids keep the physics-level defaults:
 #: commands in V or A at every 1 ms step, the building as Dyke et al. (1996) built it (damper in storey 1).
 RL_DEFAULTS = {"control_dt": 0.01, "action_mode": "normalized"}
-V1 = {"mrd_env/QuarterCar-v1": ("mrd_env/QuarterCar-v0", dict(RL_DEFAULTS)),
+#: former id → its name now (the same set-up; the former ids warn, then make it: agents saved before keep loading)
+RENAMED = {"mrd_env/QuarterCar-v0": "mrd_env/QuarterCarPhysical-v0",
+           "mrd_env/ShearBuilding-v0": "mrd_env/ShearBuildingPhysical-v0",
+           "mrd_env/HalfCar-v0": "mrd_env/HalfCarPhysical-v0"}
+V1 = {"mrd_env/QuarterCar-v1": ("mrd_env/QuarterCarPhysical-v0", dict(RL_DEFAULTS)),
       # a list, not a tuple: every registered keyword must survive EnvSpec.to_json/from_json unchanged (issue 37)
-      "mrd_env/ShearBuilding-v1": ("mrd_env/ShearBuilding-v0", {**RL_DEFAULTS, "damper_floors": [2]}),
-      "mrd_env/HalfCar-v1": ("mrd_env/HalfCar-v0", dict(RL_DEFAULTS))}
+      "mrd_env/ShearBuilding-v1": ("mrd_env/ShearBuildingPhysical-v0", {**RL_DEFAULTS, "damper_floors": [2]}),
+      "mrd_env/HalfCar-v1": ("mrd_env/HalfCarPhysical-v0", dict(RL_DEFAULTS))}
 
 _LAZY = {"MRDamperEnv": ".base", "MRDamperVectorEnv": ".vector", "QuarterCarEnv": ".quarter_car",
          "QuarterCarVectorEnv": ".quarter_car", "ShearBuildingEnv": ".shear_building",
@@ -48,6 +58,11 @@ _LAZY = {"MRDamperEnv": ".base", "MRDamperVectorEnv": ".vector", "QuarterCarEnv"
 
 #: id → gym.make's entry point: the scalar class in a TimeLimit at its own episode length (:mod:`.entry`)
 ENTRY_POINTS = {env_id: f"{__name__}.entry:{c}" for env_id, (_, c, _) in ENVS.items()}
+
+
+def former_id_entry(former: str) -> str:
+    """The entry point's attribute name of a former id (``mrd_env/QuarterCar-v0`` → ``QuarterCar_v0``)."""
+    return former.split("/")[-1].replace("-", "_")
 
 
 def register_envs() -> None:
@@ -68,6 +83,11 @@ def register_envs() -> None:
             module, _, vector = ENVS[base]
             gymnasium.register(id=env_id, entry_point=ENTRY_POINTS[base], vector_entry_point=f"{module}:{vector}",
                                kwargs=defaults)
+    for former, now in RENAMED.items():
+        if former not in gymnasium.registry:
+            module, scalar, vector = ENVS[now]
+            gymnasium.register(id=former, entry_point=f"{__name__}.entry:{former_id_entry(former)}",
+                               vector_entry_point=f"{module}:{vector}")
 
 
 def __getattr__(name: str):

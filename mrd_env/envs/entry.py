@@ -62,12 +62,32 @@ class TimeLimitedEntryPoint:
         return f"{type(self).__name__}('{self.module}:{self.name}')"
 
 
+class FormerIdEntryPoint(TimeLimitedEntryPoint):
+    """The entry point of a former id (:data:`mrd_env.envs.RENAMED`): the same environment, after a
+    ``DeprecationWarning`` that names the id to use now."""
+
+    def __init__(self, module: str, name: str, former: str, now: str):
+        super().__init__(module, name)
+        self.former, self.now = former, now
+
+    def __call__(self, **options):
+        import warnings
+
+        warnings.warn(f"{self.former} is the former name of {self.now} (the same physics-level set-up): use "
+                      f"{self.now}", DeprecationWarning, stacklevel=2)
+        return super().__call__(**options)
+
+
 def __getattr__(name: str) -> TimeLimitedEntryPoint:
     """``mrd_env.envs.entry:QuarterCarEnv`` (the registered entry point): the entry point of every scalar class in
-    :data:`mrd_env.envs.ENVS`, so that a plant added there needs nothing here."""
-    from . import ENVS
+    :data:`mrd_env.envs.ENVS`, so that a plant added there needs nothing here; ``QuarterCar_v0``: a former id's."""
+    from . import ENVS, RENAMED, former_id_entry
 
     for module, scalar, _ in ENVS.values():
         if scalar == name:
             return TimeLimitedEntryPoint(module, scalar)
+    for former, now in RENAMED.items():
+        if former_id_entry(former) == name:
+            module, scalar, _ = ENVS[now]
+            return FormerIdEntryPoint(module, scalar, former, now)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -1,4 +1,4 @@
-"""Half car with MR dampers at the front and the rear (``mrd_env/HalfCar-v0``): the example of a plant added
+"""Half car with MR dampers at the front and the rear (``mrd_env/HalfCarPhysical-v0``): the example of a plant added
 to the library — this module, the plant's module and one line in :data:`mrd_env.envs.ENVS`."""
 from __future__ import annotations
 
@@ -159,7 +159,7 @@ class HalfCarEnv(MRDamperEnv):
 
     ## Action Space
 
-    Two commands (front, rear), a ``Box`` of shape ``(2,)``, float32: in ``-v0`` in V or A, [v_min, v_max] of
+    Two commands (front, rear), a ``Box`` of shape ``(2,)``, float32: in ``Physical-v0`` in V or A, [v_min, v_max] of
     the preset ([0, 2] V for the default "automotive" Spencer–Dyke damper); in ``-v1`` normalised to [−1, 1];
     with ``action_mode="force"`` the desired damper forces (N). See :class:`~mrd_env.envs.base.MRDamperEnv`.
 
@@ -200,7 +200,7 @@ class HalfCarEnv(MRDamperEnv):
 
     ``terminated`` when a |travel| exceeds ``stroke_limit`` (0.1 m; ``info["termination_reason"] =
     "stroke_limit"``) or the simulation diverges; ``truncated`` after ``episode_seconds`` (10 s:
-    ``env.spec.max_episode_steps`` 10 000 steps in ``-v0``, 1 000 in ``-v1``).
+    ``env.spec.max_episode_steps`` 10 000 steps in ``Physical-v0``, 1 000 in ``-v1``).
 
     ``info["episode_metrics"]`` at the end of an episode: acc_weighted_rms (Wk, m/s²), pitch_acc_rms (rad/s²),
     travel_peak (m, both axles), tyre_load_ratio (the larger axle's r.m.s. dynamic tyre load over its static
@@ -225,12 +225,12 @@ class HalfCarEnv(MRDamperEnv):
     * v0: the physics-level defaults — commands in V or A at every 1 ms step.
     """
 
-    env_id = "mrd_env/HalfCar-v0"
+    env_id = "mrd_env/HalfCarPhysical-v0"
     build = staticmethod(assembly)
 
 
 class HalfCarVectorEnv(MRDamperVectorEnv):
     """``num_envs`` half cars in one compiled call (options as :class:`HalfCarEnv`)."""
 
-    env_id = "mrd_env/HalfCar-v0"
+    env_id = "mrd_env/HalfCarPhysical-v0"
     build = staticmethod(assembly)

@@ -1,4 +1,4 @@
-"""Quarter car with an MR damper between the sprung and unsprung masses (``mrd_env/QuarterCar-v0``)."""
+"""Quarter car with an MR damper between the sprung and unsprung masses (``mrd_env/QuarterCarPhysical-v0``)."""
 from __future__ import annotations
 
 import dataclasses
@@ -300,7 +300,7 @@ class QuarterCarEnv(MRDamperEnv):
 
     ## Action Space
 
-    One command, a ``Box`` of shape ``(1,)``, float32: in ``-v0`` the damper's command in V or A,
+    One command, a ``Box`` of shape ``(1,)``, float32: in ``Physical-v0`` the damper's command in V or A,
     [v_min, v_max] of the preset ([0, 2] V for the default "automotive" Spencer–Dyke damper); in ``-v1``
     normalised to [−1, 1] (``action_mode="normalized"``); with ``action_mode="force"`` the desired damper force
     beyond the static preload (N). See :class:`~mrd_env.envs.base.MRDamperEnv` for clipping and the command lag.
@@ -357,7 +357,7 @@ class QuarterCarEnv(MRDamperEnv):
 
     ``terminated`` when |travel| exceeds ``stroke_limit`` (0.1 m; ``info["termination_reason"] =
     "stroke_limit"``) or the simulation diverges; ``truncated`` after ``episode_seconds`` (10 s for generated
-    roads: ``env.spec.max_episode_steps`` steps, 10 000 in ``-v0``, 1 000 in ``-v1``).
+    roads: ``env.spec.max_episode_steps`` steps, 10 000 in ``Physical-v0``, 1 000 in ``-v1``).
 
     ``info["episode_metrics"]`` at the end of an episode: acc_weighted_rms, acc_rms, acc_vdv, acc_mtvv (ISO 2631-1
     Wk; MTVV over 1 s), travel_rms, travel_peak, tyre_load_rms, tyre_load_ratio, damper_force_rms,
@@ -405,13 +405,13 @@ class QuarterCarEnv(MRDamperEnv):
     * v0: the physics-level defaults — a command in V or A at every 1 ms step.
     """
 
-    env_id = "mrd_env/QuarterCar-v0"
+    env_id = "mrd_env/QuarterCarPhysical-v0"
     build = staticmethod(assembly)
 
 
 class QuarterCarVectorEnv(MRDamperVectorEnv):
-    """``num_envs`` quarter cars in one compiled call (``gymnasium.make_vec("mrd_env/QuarterCar-v0", num_envs=N,
+    """``num_envs`` quarter cars in one compiled call (``gymnasium.make_vec("mrd_env/QuarterCarPhysical-v0", num_envs=N,
     vectorization_mode="vector_entry_point", **options)``; options as :class:`QuarterCarEnv`)."""
 
-    env_id = "mrd_env/QuarterCar-v0"
+    env_id = "mrd_env/QuarterCarPhysical-v0"
     build = staticmethod(assembly)

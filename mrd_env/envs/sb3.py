@@ -12,7 +12,7 @@ Monitor writes), and ``reset_infos[i]`` the new episode's. The native environmen
 mode for this.
 
 >>> from mrd_env.envs.sb3 import make_sb3_vec_env
->>> venv = make_sb3_vec_env("mrd_env/QuarterCar-v0", n_envs=8, seed=0, control_dt=0.01)
+>>> venv = make_sb3_vec_env("mrd_env/QuarterCarPhysical-v0", n_envs=8, seed=0, control_dt=0.01)
 """
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""N-storey shear building with MR dampers under ground acceleration (``mrd_env/ShearBuilding-v0``)."""
+"""N-storey shear building with MR dampers under ground acceleration (``mrd_env/ShearBuildingPhysical-v0``)."""
 from __future__ import annotations
 
 import dataclasses
@@ -392,13 +392,13 @@ class ShearBuildingEnv(MRDamperEnv):
     ## Description
 
     N-storey shear building (default: the three-storey Notre Dame lab model with the Spencer–Dyke prototype
-    damper between the ground and floor 1 in ``-v0``, between floors 1 and 2 in ``-v1``) under a ground
+    damper between the ground and floor 1 in ``Physical-v0``, between floors 1 and 2 in ``-v1``) under a ground
     acceleration; physics at ``dt`` = 1 ms. The task: reduce interstorey drift and floor acceleration by choosing
     only the dampers' commands (semi-active control). Equations: :mod:`mrd_env.plants.shear_building`.
 
     ## Action Space
 
-    One command per damper, a ``Box`` of shape ``(n_dampers,)`` (``(1,)`` by default), float32: in ``-v0`` the
+    One command per damper, a ``Box`` of shape ``(n_dampers,)`` (``(1,)`` by default), float32: in ``Physical-v0`` the
     command in V or A, [v_min, v_max] of the preset ([0, 2.25] V for the default "spencer1997" Spencer–Dyke
     damper); in ``-v1`` normalised to [−1, 1]; with ``action_mode="force"`` the desired damper force (N). See
     :class:`~mrd_env.envs.base.MRDamperEnv`.
@@ -450,7 +450,7 @@ class ShearBuildingEnv(MRDamperEnv):
     ``terminated`` when a damper's |stroke| exceeds ``stroke_limit`` (0.05 m; ``info["termination_reason"] =
     "stroke_limit"``) or the simulation diverges; ``truncated`` at the end of the record or of
     ``episode_seconds`` (El Centro replayed 5× faster: 10.742 s, ``env.spec.max_episode_steps`` 10 742 steps in
-    ``-v0``, 1 074 in ``-v1``).
+    ``Physical-v0``, 1 074 in ``-v1``).
 
     ``info["episode_metrics"]``: :func:`~mrd_env.metrics.building_metrics` of the controlled building (drift,
     drift ratio, acceleration, base shear, damper force/stroke peaks) and :func:`~mrd_env.metrics.benchmark_criteria`
@@ -495,12 +495,12 @@ class ShearBuildingEnv(MRDamperEnv):
       al. (1996) built the lab model.
     """
 
-    env_id = "mrd_env/ShearBuilding-v0"
+    env_id = "mrd_env/ShearBuildingPhysical-v0"
     build = staticmethod(assembly)
 
 
 class ShearBuildingVectorEnv(MRDamperVectorEnv):
     """``num_envs`` buildings in one compiled call (options as :class:`ShearBuildingEnv`)."""
 
-    env_id = "mrd_env/ShearBuilding-v0"
+    env_id = "mrd_env/ShearBuildingPhysical-v0"
     build = staticmethod(assembly)
