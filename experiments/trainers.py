@@ -267,7 +267,7 @@ def plot_learning_curve(run_dir: Path) -> Path | None:
     if not drawn:
         return None
     ax.set_xlabel(steps_label(run_dir))
-    ax.set_ylabel("episode return (1)")
+    ax.set_ylabel("episode return (dimensionless)")
     ax.set_title(run_dir.name)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
