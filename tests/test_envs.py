@@ -569,6 +569,7 @@ def test_the_buildings_record_time_scale_is_a_field_of_its_preset_not_a_type_rul
     passed = gym.make("mrd_env/ShearBuildingPhysical-v0", plant_params=THREE_STOREY, episode_seconds=0.5).unwrapped
     assert named.assembly.plant_params.record_time_scale == passed.assembly.plant_params.record_time_scale == 0.2
     (o1, _), (o2, _) = named.reset(seed=0), passed.reset(seed=0)
+    assert np.array_equal(o1, o2)
     for _ in range(100):
         s1, s2 = named.step(named.action_space.high), passed.step(passed.action_space.high)
         assert np.array_equal(s1[0], s2[0]) and s1[1] == s2[1]
