@@ -64,8 +64,8 @@ class MPC(ClippedOptimal):
     the reward's own terms, see :class:`~.model_based.ClippedOptimal`), ``force_ref``, ``frame``, ``inverse`` and
     the observer's options as :class:`~.model_based.ClippedOptimal`.
 
-    ``weights="reward"`` on the car, tuned on the validation roads (``experiments.scenarios.validation``): the road
-    frame, ``f_max=1e5`` (a bound that never binds: the default 857 N cuts the desired force below what the damper
+    ``weights="reward"`` on the car, tuned on the validation roads
+    (``experiments.common.scenarios.validation``): the road frame, ``f_max=1e5`` (a bound that never binds: the default 857 N cuts the desired force below what the damper
     gives, and the on–off law then releases the damper), ``force_ref`` 1000 N at a 1 ms control step and 200 N at
     10 ms, with preview a horizon that spans it (1 ms: H = 100; 10 ms: H = 10). On the held-out ISO C/D roads at
     20 m/s: at 1 ms −9.11/−9.04 without preview (skyhook_continuous −9.13/−9.06, the objective's MPC −9.34/−9.76)

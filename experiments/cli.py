@@ -21,20 +21,22 @@ import signal
 import sys
 
 COMMANDS = {
-    "rig": ("experiments.rig_report", "virtual damper test rig: loops (PNG), records (CSV), peak/energy table"),
-    "benchmark": ("experiments.benchmark", "controller × scenario benchmark: Markdown/CSV tables and figures"),
-    "train": ("experiments.train", "train agents (Stable-Baselines3, RL Zoo conventions): curves, best agent, "
-                                   "checkpoints"),
-    "warmup": ("experiments.warmup_cmd", "compile every damper model's kernels into the disk cache now (once)"),
-    "yardstick": ("experiments.yardstick_cmd", "the best any controller could do on each test episode (clairvoyant "
-                                           "optimum, active bound) and every controller's share of it"),
-    "evaluate": ("experiments.evaluate_cmd", "agents and classical laws side by side on the held-out scenarios"),
-    "tune": ("experiments.tune", "hyperparameter search for train (Optuna; pool or Ray workers)"),
-    "identify": ("experiments.identify_cmd",
+    "rig": ("experiments.commands.rig", "virtual damper test rig: loops (PNG), records (CSV), peak/energy table"),
+    "benchmark": ("experiments.commands.benchmark",
+                  "controller × scenario benchmark: Markdown/CSV tables and figures"),
+    "train": ("experiments.commands.train",
+              "train agents (Stable-Baselines3, RL Zoo conventions): curves, best agent, checkpoints"),
+    "warmup": ("experiments.commands.warmup", "compile every damper model's kernels into the disk cache now (once)"),
+    "yardstick": ("experiments.commands.yardstick",
+                  "the best any controller could do on each test episode (clairvoyant optimum, active bound) and "
+                  "every controller's share of it"),
+    "evaluate": ("experiments.commands.evaluate", "agents and classical laws side by side on the held-out scenarios"),
+    "tune": ("experiments.commands.tune", "hyperparameter search for train (Optuna; pool or Ray workers)"),
+    "identify": ("experiments.commands.identify",
                  "fit a damper model to a measured record: errors table, figure, JSON preset"),
-    "compare-models": ("experiments.compare_models_cmd",
+    "compare-models": ("experiments.commands.compare_models",
                        "fit several damper models to a record and compare them on the held-back part"),
-    "inverse": ("experiments.inverse_cmd",
+    "inverse": ("experiments.commands.inverse",
                 "inverse models: force-tracking tables and figures (achievable forces, a measured record); train one"),
 }
 

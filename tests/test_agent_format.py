@@ -37,7 +37,7 @@ class Stub(gym.Env):
 @pytest.mark.parametrize("name", [p.name for p in shipped_agents()])
 def test_shipped_agents_act_as_the_models_they_were_exported_from_bit_for_bit(name):
     """The reference actions were computed from the SB3 models (their model.zip, as trained) and the CMA-ES networks
-    before the export (experiments/export_agent.py --reference)."""
+    before the export (experiments/scripts/export_agent.py --reference)."""
     agent = load_agent(Path(shipped_agents()[0]).parent / name)
     with np.load(REFERENCE) as ref:
         obs, actions = ref[f"{name}__obs"], ref[f"{name}__actions"]
@@ -217,7 +217,7 @@ def test_a_residual_agent_on_a_raw_observation_says_to_bind_it():
 
 def test_the_trainers_saves_load_code_free(tmp_path):
     """mrd-env train's run folder, best/ and checkpoints: code-free agents (model.zip beside them, to resume)."""
-    from experiments.train import train_one
+    from experiments.commands.train import train_one
 
     kw = {"episode_seconds": 0.2, "control_dt": 0.01}
     run = train_one("quarter_car", "ppo", 0, out=tmp_path, timesteps=64, env_kwargs=kw, eval_freq=32,

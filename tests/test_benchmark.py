@@ -7,7 +7,7 @@ import pytest
 
 import mrd_env  # noqa: F401  (registers the environments)
 from controllers import AgentController, ClippedOptimal, SkyhookOnOff, make_controller
-from experiments.benchmark import Scenario, evaluate, run_benchmark
+from experiments.commands.benchmark import Scenario, evaluate, run_benchmark
 from experiments.cli import main
 
 
@@ -65,7 +65,7 @@ def test_quarter_car_benchmark_with_seeded_roads(tmp_path):
 def test_benchmark_tables_hold_means_over_seeds_and_figures_only_ratios(tmp_path):
     """Issue 22: the table a report quotes is the mean over a scenario's seeds (every episode in its own CSV); the
     bar chart draws ratios only; a history shows at most four controllers."""
-    from experiments.benchmark import HISTORY_LINES
+    from experiments.commands.benchmark import HISTORY_LINES
 
     sc = [Scenario("ISO-C 1 s", "mrd_env/QuarterCarPhysical-v0",
                    dict(road="iso8608", road_params={"road_class": "C", "speed": 20.0}, episode_seconds=0.5),
@@ -80,7 +80,7 @@ def test_benchmark_tables_hold_means_over_seeds_and_figures_only_ratios(tmp_path
     sky = [float(r["return"]) for r in per_episode if r["controller"] == "skyhook_on_off"]
     row = next(r for r in means if r["controller"] == "skyhook_on_off" and r["scenario"] == "ISO-C 1 s")
     assert float(row["return"]) == pytest.approx(np.mean(sky)) and row["episodes"] == "2"
-    from experiments.benchmark import history_selection
+    from experiments.commands.benchmark import history_selection
 
     shown = history_selection([e for e in eps if e.scenario == eps[0].scenario])
     assert len(shown) == HISTORY_LINES and {"passive_off", "passive_on"} <= {e.controller for e in shown}
@@ -91,7 +91,7 @@ def test_history_shows_one_line_per_law():
     and then the next law."""
     from types import SimpleNamespace
 
-    from experiments.benchmark import history_selection
+    from experiments.commands.benchmark import history_selection
 
     eps = [SimpleNamespace(controller=c, episode_return=r) for c, r in
            [("passive_off", -2.1), ("passive_on", -1.0), ("clipped_optimal", -0.85), ("clipped_optimal+model", -0.855),
@@ -101,7 +101,7 @@ def test_history_shows_one_line_per_law():
 
 
 def test_building_history_follows_the_damper_storey():
-    from experiments.evaluation import response_of
+    from experiments.common.evaluation import response_of
 
     assert response_of({"damper_floors": (2,)}, "building") == "drift[1]"
     assert response_of({}, "building") == "drift[0]"
@@ -146,7 +146,7 @@ def test_model_based_estimate_stays_at_rest_despite_the_damper_preload():
 def test_a_vector_environment_scores_every_seed_as_scalar_episodes_would():
     """The benchmark's batched evaluation (one vector env, one row per seed) gives each seed the metrics and
     return of a scalar episode with that seed."""
-    from experiments.benchmark import evaluate_batch
+    from experiments.commands.benchmark import evaluate_batch
 
     sc = Scenario("KT", "mrd_env/ShearBuildingPhysical-v0", dict(ground_motion="kanai_tajimi", episode_seconds=0.6),
                   seeds=(4, 5, 6))
@@ -173,7 +173,7 @@ def test_the_default_controller_set_runs_on_a_fitted_damper_leaving_out_the_rows
     err = capsys.readouterr().err
     assert "note: clipped_optimal+neural left out of the building benchmark: no neural inverse ships" in err
     table = (out / "building_benchmark.md").read_text()
-    from experiments.plants import profile
+    from experiments.common.plants import profile
     for law in profile("building").benchmark_laws:
         assert (law in table) == (law != "clipped_optimal+neural"), law
     assert main(["benchmark", "--plant", "building", "--quick", "--damper", str(preset), "--controllers",

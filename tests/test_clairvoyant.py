@@ -16,7 +16,7 @@ SEED = 1_000_000
 
 @pytest.fixture(scope="module")
 def car():
-    from experiments.yardstick import warm_starts
+    from experiments.common.yardstick import warm_starts
 
     p = episode_problem("mrd_env/QuarterCarPhysical-v0", seed=SEED, control_dt=0.01, **CAR)
     return p, warm_starts(p, "quarter_car")
@@ -46,7 +46,7 @@ def test_result_re_simulates_to_the_same_return_bit_for_bit(car, car_result):
 
 
 def test_building_optimum_is_at_least_every_warm_start():
-    from experiments.yardstick import warm_starts
+    from experiments.common.yardstick import warm_starts
 
     p = episode_problem("mrd_env/ShearBuildingPhysical-v0", seed=SEED, control_dt=0.01, **BUILDING)
     r = cv.clairvoyant(p, warm_starts=warm_starts(p, "building"), cache=False, progress=False)

@@ -220,9 +220,10 @@ def test_help_exits_0_without_importing_the_commands():
             "from experiments.cli import main\n"
             "with contextlib.redirect_stdout(io.StringIO()) as out:\n"
             "    rc = main(['--help'])\n"
-            "mods = [m for m in ('experiments.rig_report', 'experiments.benchmark', 'experiments.train',\n"
-            "        'experiments.evaluate_cmd', 'experiments.scenarios', 'experiments.warmup_cmd',\n"
-            "        'experiments.identify_cmd', 'experiments.compare_models_cmd', 'mrd_env.rig',\n"
+            "mods = [m for m in ('experiments.commands.rig', 'experiments.commands.benchmark',\n"
+            "        'experiments.commands.train', 'experiments.commands.evaluate', 'experiments.common.scenarios',\n"
+            "        'experiments.commands.warmup', 'experiments.commands.identify',\n"
+            "        'experiments.commands.compare_models', 'mrd_env.rig',\n"
             "        'mrd_env.identification', 'stable_baselines3', 'torch') if m in sys.modules]\n"
             "print(rc, 'COMMANDS' if all(c in out.getvalue() for c in ('rig', 'benchmark', 'train', 'evaluate', 'identify',\n"
             "      'compare-models')) else 'missing', mods)\n")
@@ -297,7 +298,7 @@ def test_warmup_compiles_models_side_by_side(capsys):
 
 def _raising_run(monkeypatch, exc):
     """``mrd-env yardstick`` made to raise ``exc`` once its options are parsed."""
-    import experiments.yardstick_cmd as cmd
+    import experiments.commands.yardstick as cmd
 
     def run(args):
         raise exc

@@ -31,7 +31,7 @@ def test_v1_is_the_rl_set_up_and_passes_sb3s_checker_without_warnings(env_id):
 
 
 def test_v1_building_has_the_benchmarks_damper_storey_and_v0_the_labs():
-    from experiments.scenarios import PLANT
+    from experiments.common.scenarios import PLANT
 
     v1 = gym.make("mrd_env/ShearBuilding-v1", **SHORT).unwrapped
     v0 = gym.make("mrd_env/ShearBuildingPhysical-v0", **SHORT).unwrapped

@@ -14,10 +14,10 @@ import mrd_env  # noqa: F401
 from controllers import load_agent, make_controller
 from controllers.mlp_policy import MLPPolicy
 from experiments.cli import main
-from experiments.evaluation import evaluate_batch
-from experiments.evolution import NormalizedPolicy, _returns, check
-from experiments.scenarios import HELD_OUT_SEED, PLANT, TRAINING, held_out_scenarios, validation
-from experiments.warm_start import fit_policy
+from experiments.common.evaluation import evaluate_batch
+from experiments.common.evolution import NormalizedPolicy, _returns, check
+from experiments.common.scenarios import HELD_OUT_SEED, PLANT, TRAINING, held_out_scenarios, validation
+from experiments.common.warm_start import fit_policy
 
 TINY = ["--algo", "cmaes", "--timesteps", "1500", "--eval-freq", "500", "--eval-episodes", "2", "--no-progress",
         "--set", "popsize=4", "episodes=2", "hidden=[4]", "env_kwargs={episode_seconds: 0.3}"]
@@ -166,8 +166,8 @@ def test_benchmark_building_has_its_damper_where_the_command_matters():
 def test_paired_comparison_cancels_what_the_episodes_share():
     """Agent minus the best law on the same episodes: the episodes' common part cancels, the agent's seeds are
     averaged per episode, random commands are never the best law, and each control step has its own best."""
-    from experiments.evaluate_cmd import paired
-    from experiments.evaluation import Episode
+    from experiments.commands.evaluate import paired
+    from experiments.common.evaluation import Episode
 
     def ep(ctrl, label, r):
         z = np.zeros(1)
@@ -189,10 +189,10 @@ def test_paired_comparison_cancels_what_the_episodes_share():
 def test_an_agents_seeds_count_once_per_episode_in_the_summary_and_the_shares():
     """An agent trained on 3 seeds, on 3 test episodes: 3 episodes, not 9, in the summary and in the shares, and
     the interval of its seeds' means per episode (its seeds are not independent draws of an episode)."""
-    from experiments.evaluate_cmd import summarise
-    from experiments.evaluation import Episode, mean_ci
-    from experiments.scenarios import base_scenario
-    from experiments.yardstick import EpisodeYardstick, share_rows
+    from experiments.commands.evaluate import summarise
+    from experiments.common.evaluation import Episode, mean_ci
+    from experiments.common.scenarios import base_scenario
+    from experiments.common.yardstick import EpisodeYardstick, share_rows
 
     def ep(ctrl, label, r):
         z = np.zeros(1)
@@ -224,7 +224,7 @@ def test_a_preview_agent_is_named_and_filed_apart_from_the_plain_one(es_runs, tm
 def test_every_evaluation_row_has_its_own_label(dt):
     """At 1 ms the car's MPC+preview row tuned for 1 ms (100-step horizon) stands alone: the one tuned for the
     comparison's step is not added under the same label (their episodes would be pooled as one controller's)."""
-    from experiments.evaluate_cmd import LAWS, law_rows
+    from experiments.commands.evaluate import LAWS, law_rows
 
     rows = law_rows("quarter_car", LAWS["quarter_car"], {"control_dt": dt})
     labels = [label for label, _, _ in rows]

@@ -144,8 +144,8 @@ def test_a_resumed_study_draws_new_trials(tmp_path, monkeypatch):
     """Rerunning `mrd-env tune` adds trials the first run did not propose (the same sampler seed would repeat
     them), and a new study with the same seed proposes the same ones (reproducible)."""
     pytest.importorskip("optuna")
-    import experiments.train as train_mod
-    from experiments.tune import tune
+    import experiments.commands.train as train_mod
+    from experiments.commands.tune import tune
 
     monkeypatch.setattr(train_mod, "train_one", _fake_train_one({}))
 
@@ -171,8 +171,8 @@ def test_tune_prunes_a_trial_below_the_median_after_the_warm_up(tmp_path, monkey
     trial's (until 2026-11-27 it was: a residual trial below its law was pruned only where the earlier trials'
     median stood above the law)."""
     pytest.importorskip("optuna")
-    import experiments.train as train_mod
-    from experiments.tune import tune
+    import experiments.commands.train as train_mod
+    from experiments.commands.tune import tune
 
     stopped_at = {}
     monkeypatch.setattr(train_mod, "train_one", _fake_train_one(stopped_at, untrained))
@@ -249,7 +249,7 @@ def test_tune_residual_space_of_td3_starts_at_the_recipe_and_searches_its_pace(t
 def test_a_trials_value_is_its_best_validation_once_trained():
     """The untrained residual agent (its law, at step 0) does not set a trial's value: trials that fall below the
     law are ranked by how far they fell, not tied with it."""
-    from experiments.tune import trial_value
+    from experiments.commands.tune import trial_value
 
     rows = [{"timesteps": "0", "validation_return": "-9.26"}, {"timesteps": "20000", "validation_return": "-10.5"},
             {"timesteps": "40000", "validation_return": "-9.8"}]

@@ -418,7 +418,7 @@ def test_reward_weights_beat_the_objective_on_validation_episodes():
     """On validation episodes (seeds training never draws): the car with road preview at 10 ms (3 s of four
     roads, force_ref 200 N as tuned) and the building at 10 ms (four records) score better with the reward's own
     cost than with the objective's, in total and on most episodes."""
-    from experiments.scenarios import validation
+    from experiments.common.scenarios import validation
 
     car = validation("quarter_car")[0]
     env = _preview_env(**{**car.options, "episode_seconds": 3.0}, control_dt=0.01)

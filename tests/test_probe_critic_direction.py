@@ -1,12 +1,12 @@
-"""experiments/probe_critic_direction.py (issue 23): on a tiny TD3 residual it writes the critic's-direction table
-(the law, ε along the gradient and at random for each ε, the argmax) and the agreement table; bad options are one
-line of usage error naming the option."""
+"""experiments/scripts/probe_critic_direction.py (issue 23): on a tiny TD3 residual it writes the critic's-direction
+table (the law, ε along the gradient and at random for each ε, the argmax) and the agreement table; bad options are
+one line of usage error naming the option."""
 import csv
 
 import pytest
 
-from experiments.probe_critic_direction import main
-from experiments.train import env_options, train_one
+from experiments.scripts.probe_critic_direction import main
+from experiments.commands.train import env_options, train_one
 
 
 @pytest.fixture(scope="module")

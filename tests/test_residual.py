@@ -10,7 +10,7 @@ from controllers import load_agent, make_controller
 from controllers.residual import Residual, ResidualController
 from controllers.training_wrappers import PairedBaselineVecEnv, ResidualVecEnv
 from experiments.cli import main
-from experiments.train import env_options, train_one
+from experiments.commands.train import env_options, train_one
 from mrd_env.envs.sb3 import make_sb3_vec_env
 
 CAR = "mrd_env/QuarterCarPhysical-v0"
@@ -88,7 +88,7 @@ def test_a_bad_boundary_is_refused_by_name():
     env = gym.make(CAR, **_kw())
     with pytest.raises(ValueError, match=r"residual boundary must be one of \['reflect', 'clip'\], got 'wrap'"):
         Residual(env, "passive_on", boundary="wrap")
-    from experiments.trainers import residual_spec
+    from experiments.common.trainers import residual_spec
     with pytest.raises(ValueError, match="boundary must be one of"):
         residual_spec({"law": "passive_on", "boundary": "wrap"})
     assert residual_spec({"law": "passive_on", "boundary": "clip"})["boundary"] == "clip"
@@ -129,7 +129,7 @@ def test_a_residual_agent_trains_starts_at_its_law_and_loads(tmp_path):
     # its first validation, before any update, is the law's own validation return
     import csv
 
-    from experiments.train import law_references
+    from experiments.commands.train import law_references
     first = float(next(csv.DictReader((run / "validation.csv").open()))["validation_return"])
     assert first == law_references("quarter_car", kw, 1)["skyhook_continuous @ 10 ms"]
     # the saved agent acts as its law plus its correction
@@ -150,7 +150,7 @@ def test_a_residual_agent_trains_starts_at_its_law_and_loads(tmp_path):
 def test_off_policy_residual_agents_start_at_their_law(algo):
     from controllers.agents import _algorithm
     from controllers.residual import zero_policy_output
-    from experiments.train import ALGOS
+    from experiments.commands.train import ALGOS
 
     venv = ResidualVecEnv(make_sb3_vec_env(CAR, n_envs=1, seed=0, **_kw()), "skyhook_continuous")
     model = _algorithm(ALGOS[algo])("MlpPolicy", venv, device="cpu", learning_starts=10)
@@ -180,8 +180,8 @@ def test_bad_residual_options_are_one_line_before_training(args, message, capsys
 
 def test_a_preview_agent_with_history_keeps_what_it_sees_through_evaluation(tmp_path):
     """--preview and --history reach the agent's record, and an evaluation rebuilds that observation."""
-    from experiments.evaluation import evaluate_batch
-    from experiments.scenarios import held_out_scenarios, preview_options
+    from experiments.common.evaluation import evaluate_batch
+    from experiments.common.scenarios import held_out_scenarios, preview_options
 
     kw = {**preview_options("quarter_car", _kw(history=2))}
     run = train_one("quarter_car", "ppo", 0, out=tmp_path, timesteps=64, env_kwargs=kw, eval_freq=10_000,
@@ -400,7 +400,7 @@ def test_held_the_twin_meets_the_agents_next_road_whoever_ends_first():
 
 
 def test_a_bad_hold_is_refused_by_name(capsys, tmp_path):
-    from experiments.trainers import residual_spec
+    from experiments.common.trainers import residual_spec
 
     for bad in (0, 2.5, True):
         with pytest.raises(ValueError, match="hold must be an int >= 1"):
@@ -418,7 +418,7 @@ def test_a_held_residual_agent_trains_starts_at_its_law_at_1ms_and_loads(tmp_pat
     saved agent binds to a 1 ms environment as a held residual controller."""
     import csv
 
-    from experiments.train import law_references
+    from experiments.commands.train import law_references
 
     kw = _kw(control_dt=0.001)
     run = train_one("quarter_car", "ppo", 0, out=tmp_path, timesteps=64, env_kwargs=kw, eval_freq=10_000,

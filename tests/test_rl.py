@@ -12,8 +12,8 @@ import pytest
 import mrd_env  # noqa: F401
 from controllers import CONTROLLERS, load_agent, make_controller
 from experiments.cli import main
-from experiments.evaluation import evaluate_batch
-from experiments.scenarios import HELD_OUT_SEED, TRAINING, held_out_scenarios, validation
+from experiments.common.evaluation import evaluate_batch
+from experiments.common.scenarios import HELD_OUT_SEED, TRAINING, held_out_scenarios, validation
 
 TINY = ["--timesteps", "256", "--eval-freq", "128", "--eval-episodes", "1", "--no-progress",
         "--set", "n_envs=2", "n_steps=64", "batch_size=64", "n_epochs=1"]
@@ -188,7 +188,7 @@ def test_training_distributions_draw_new_episodes():
 
 
 def test_linear_schedules_follow_rl_zoo():
-    from experiments.train import check_hyperparameters, schedule
+    from experiments.commands.train import check_hyperparameters, schedule
 
     lr = schedule("lin_3e-4")
     assert lr(1.0) == pytest.approx(3e-4) and lr(0.5) == pytest.approx(1.5e-4) and lr(0.0) == 0.0

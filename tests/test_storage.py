@@ -81,7 +81,7 @@ def test_a_symlink_leaving_the_folder_is_refused(tmp_path):
 
 
 def test_sigterm_ends_a_command_like_ctrl_c_with_exit_143(monkeypatch, capsys):
-    import experiments.yardstick_cmd as cmd
+    import experiments.commands.yardstick as cmd
     from experiments.cli import main
 
     seen = []

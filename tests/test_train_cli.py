@@ -5,8 +5,8 @@ import json
 import pytest
 
 from experiments.cli import main
-from experiments.train import available_algos, env_options, train_one
-from experiments.trainers import HYPERPARAMS
+from experiments.commands.train import available_algos, env_options, train_one
+from experiments.common.trainers import HYPERPARAMS
 
 
 def test_only_algorithms_with_hyperparameters_are_offered(capsys):
@@ -55,9 +55,9 @@ def test_every_shipped_hyperparameter_file_passes_the_checks_made_before_trainin
     the docs print must not end in a bad-option error. The algorithm is the file name's first word."""
     import yaml
 
-    from experiments.plants import by_env_id
-    from experiments.train import check_before_training
-    from experiments.trainers import TRAINERS, hyperparameters
+    from experiments.common.plants import by_env_id
+    from experiments.commands.train import check_before_training
+    from experiments.common.trainers import TRAINERS, hyperparameters
 
     algo = path.stem.split("-")[0]
     assert algo in TRAINERS, f"{path.name}: no algorithm {algo!r}"

@@ -4,8 +4,8 @@ import math
 import numpy as np
 import pytest
 
-from experiments.evaluation import Episode
-from experiments.yardstick import EpisodeYardstick, share_rows
+from experiments.common.evaluation import Episode
+from experiments.common.yardstick import EpisodeYardstick, share_rows
 from mrd_env.optimal import cache
 
 
@@ -51,8 +51,8 @@ def test_cache_returns_only_the_exact_key(tmp_path, monkeypatch):
 
 
 def test_report_without_a_cached_yardstick_says_how_to_get_one(tmp_path, monkeypatch):
-    from experiments.scenarios import held_out_scenarios
-    from experiments.yardstick import report
+    from experiments.common.scenarios import held_out_scenarios
+    from experiments.common.yardstick import report
 
     monkeypatch.setattr("mrd_env.optimal.cache.cache_dir", lambda: tmp_path / "optimal")  # kernels stay cached
     scen = held_out_scenarios("quarter_car", quick=True)[:1]
@@ -63,7 +63,7 @@ def test_report_without_a_cached_yardstick_says_how_to_get_one(tmp_path, monkeyp
 
 def test_intervals_only_where_there_are_repeats_and_never_beyond_the_possible():
     """Issue 22: one episode has no interval; a return (≤ 0) never gets an interval reaching above zero."""
-    from experiments.evaluation import mean_ci
+    from experiments.common.evaluation import mean_ci
 
     m, lo, hi = mean_ci([-2.0])
     assert m == -2.0 and math.isnan(lo) and math.isnan(hi)
@@ -76,9 +76,9 @@ def test_the_yardstick_brackets_every_controller_on_an_episode(tmp_path, monkeyp
     """On one held-out car episode: no law, no shipped agent and no MPC (with or without preview) beats the
     clairvoyant return, and the clairvoyant stays below the active bound, which covers their forces."""
     from controllers import shipped_agents
-    from experiments.evaluation import controller_episodes
-    from experiments.scenarios import Scenario, preview_options
-    from experiments.yardstick import episode_yardstick
+    from experiments.common.evaluation import controller_episodes
+    from experiments.common.scenarios import Scenario, preview_options
+    from experiments.common.yardstick import episode_yardstick
 
     monkeypatch.setattr("mrd_env.optimal.cache.cache_dir", lambda: tmp_path / "optimal")  # kernels stay cached
     sc = Scenario("ISO-C 1 s", "mrd_env/QuarterCarPhysical-v0",
@@ -127,7 +127,7 @@ def test_report_writes_the_yardstick_and_shares_tables_and_figure(tmp_path):
     and controller (the share computed from the returns), the figure, and a note for episodes without a yardstick."""
     import csv
 
-    from experiments.yardstick import write_report
+    from experiments.common.yardstick import write_report
 
     ys = [EpisodeYardstick(f"ISO-C s{i}", i, -10.0, 2.0, -6.0, "optimiser", 1.0, bound=-4.0, f_max=3000.0,
                            bound_seconds=0.5) for i in (1, 2)]
@@ -149,8 +149,8 @@ def test_report_writes_the_yardstick_and_shares_tables_and_figure(tmp_path):
 def test_the_yardstick_is_of_the_damper_the_controllers_ran_on():
     """Another damper's returns are scored against yardsticks solved on that damper (their own cache keys); the
     plant's own damper, named or not, keeps the scenarios (and the cached yardsticks) as they are."""
-    from experiments.scenarios import held_out_scenarios
-    from experiments.yardstick import on_damper
+    from experiments.common.scenarios import held_out_scenarios
+    from experiments.common.yardstick import on_damper
     from mrd_env.optimal import episode_problem
 
     scen = held_out_scenarios("quarter_car", quick=True)[:1]
@@ -165,8 +165,8 @@ def test_the_yardstick_is_of_the_damper_the_controllers_ran_on():
 def test_the_yardstick_key_changes_with_what_the_result_depends_on(monkeypatch):
     """A default the options do not name (the car's reward weights) changes the key: a cached yardstick of the
     old problem is not served for the new one."""
-    from experiments.scenarios import held_out_scenarios
-    from experiments.yardstick import YARDSTICK_DT, yardstick_key
+    from experiments.common.scenarios import held_out_scenarios
+    from experiments.common.yardstick import YARDSTICK_DT, yardstick_key
     from mrd_env.envs import quarter_car
     from mrd_env.optimal import episode_problem
 

@@ -47,9 +47,9 @@ from scipy.signal import welch
 
 import mrd_env  # noqa: F401  (registers the environments)
 from controllers import Controller, make_controller
-from experiments.evaluation import evaluate_batch
+from experiments.common.evaluation import evaluate_batch
+from experiments.common.scenarios import held_out_scenarios
 from experiments.labs.labkit import Lab
-from experiments.scenarios import held_out_scenarios
 from mrd_env.metrics import weighting_magnitude
 from mrd_env.report import figure
 

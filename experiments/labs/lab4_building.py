@@ -48,9 +48,9 @@ import numpy as np
 
 import mrd_env  # noqa: F401  (registers the environments)
 from controllers import ClippedOptimal, LinearDesign, make_controller
-from experiments.evaluation import evaluate_batch
+from experiments.common.evaluation import evaluate_batch
+from experiments.common.scenarios import held_out_scenarios
 from experiments.labs.labkit import Lab
-from experiments.scenarios import held_out_scenarios
 from mrd_env.disturbances import el_centro
 from mrd_env.report import figure
 

@@ -44,9 +44,9 @@ import numpy as np
 
 import mrd_env  # noqa: F401  (registers the environments)
 from controllers import ClippedOptimal, make_controller
-from experiments.evaluation import evaluate_batch
+from experiments.common.evaluation import evaluate_batch
+from experiments.common.scenarios import held_out_scenarios
 from experiments.labs.labkit import Lab
-from experiments.scenarios import held_out_scenarios
 from mrd_env import make_damper
 from mrd_env.inverse import achievable_forces, make_inverse, nrmse, track
 from mrd_env.report import figure

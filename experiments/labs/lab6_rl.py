@@ -64,10 +64,10 @@ import numpy as np
 
 import mrd_env  # noqa: F401  (registers the environments)
 from controllers import shipped_agents
-from experiments.evaluate_cmd import evaluate, summarise
+from experiments.commands.evaluate import evaluate, summarise
+from experiments.commands.train import env_options, hyperparameters, train_one
+from experiments.common.scenarios import TRAINING
 from experiments.labs.labkit import Lab, full_length
-from experiments.scenarios import TRAINING
-from experiments.train import env_options, hyperparameters, train_one
 from mrd_env.report import figure
 
 lab = Lab("lab6_rl")
@@ -113,7 +113,7 @@ print("validation returns:", ", ".join(f"{int(s)}: {r:.2f}" for s, r in
 # ## Task 3 — Compare on the held-out test roads
 # Score both agents, a random-command baseline and the classical laws on the test scenarios (ISO 8608 class C and
 # D at 20 m/s on unseen seeds, class A at 30 m/s — a class never trained on — and a 5 cm bump), all at the
-# agents' 10 ms control step and sensors (`experiments.evaluate_cmd.evaluate`, what `mrd-env evaluate` runs).
+# agents' 10 ms control step and sensors (`experiments.commands.evaluate.evaluate`, what `mrd-env evaluate` runs).
 
 # %%
 laws = ("random", "passive_off", "passive_on", "skyhook_continuous", "groundhook")

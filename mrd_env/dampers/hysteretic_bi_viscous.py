@@ -122,7 +122,7 @@ def _project(p, s, x, xd, u):
     s[1] = branch(xd, s[0], p[P_TAU], p[P_A_S])
 
 
-# Derived preset (not published; `python -m experiments.derive_hbv_preset`): least-squares fit of the model with
+# Derived preset (not published; `python -m experiments.scripts.derive_hbv_preset`): least-squares fit of the model with
 # quadratic command laws to the steady force record of the Spencer–Dyke prototype set (one cycle each at
 # 1.5 cm / 2.5 Hz, 0, 0.75, 1.5 and 2.25 V, simulated at 0.1 ms), f0 fixed to the preload −k1 x0 = −71.5 N,
 # F_yield, c_ps and c_pre non-decreasing and v0 non-increasing over 0–2.25 V, so that the energy per cycle grows

@@ -44,7 +44,8 @@ MAX_ITER = 12
 
 # The entry points here and in the driver are compiled without numba's reference counting (``_nrt=False``): they
 # allocate nothing (the scratch is the caller's), and with it every view of an array (Vn[0], Z[o:o + ns], ...) costs
-# an atomic increment and decrement of its owner's count — half of the step's time (experiments/bench_physics_step).
+# an atomic increment and decrement of its owner's count — half of the step's time
+# (experiments/scripts/bench_physics_step).
 
 
 @nb.njit(cache=True, _nrt=False)

@@ -1,0 +1,243 @@
+"""``mrd-env evaluate``: agents and classical laws side by side on the held-out test scenarios.
+
+Every controller sees the same sensors at the same control step: the agents' (their observation options,
+:data:`controllers.agents.OBSERVATION_OPTIONS`), which are the plant's measured set by default; the laws run
+there too, and once more at 1 ms (their own best rate) as extra rows. For each controller and scenario: the
+environment's return and the field's metrics (quarter car: Wk-weighted r.m.s. acceleration, travel, tyre load;
+building: J1–J6), mean and 95 % interval over seeds and episodes (for agents, over their training seeds too);
+then the mean over all test scenarios. Writes ``<out>/<plant>_evaluation.md``/``.csv`` and
+``<out>/<plant>_evaluation.png`` (returns with their intervals), and ``<out>/<plant>_paired.md``/``.csv``: each
+agent minus the best law at each control step on the same episodes (:func:`paired`). By default the agents shipped with the project
+(``controllers/agents/``) are evaluated. Agents load without running code from their folders; one that only has
+SB3's ``model.zip`` (pickles) is refused unless ``--trust-agent`` is given (docs/security.md).
+"""
+from __future__ import annotations
+
+import argparse
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+
+from mrd_env.report import write_table
+
+from ..common import sweep, yardstick
+from ..common.evaluation import Episode, check_laws, controller_episodes, episode_means, grouped_bars, mean_ci
+from ..common.plants import PLANTS, chosen_plants, plant_choices, profile
+from ..common.scenarios import base_scenario, held_out_scenarios, preview_options
+
+#: Per plant: the metric columns, the classical laws compared by default and the model predictive control rows —
+#: (label, control step (None: the comparison's), controller options, preview) — of :mod:`.plants`.
+METRICS = {name: p.evaluation_metrics for name, p in PLANTS.items()}
+LAWS = {name: p.laws for name, p in PLANTS.items()}
+MPC = {name: [tuple(row) for row in p.mpc] for name, p in PLANTS.items()}
+
+
+def evaluate(plant: str, agents=(), laws=None, *, seeds: int = 3, control_dt: float | None = None,
+             laws_at_1ms: bool = True, mpc: bool = True, damper: str | None = None, progress: bool = True, quick: bool = False, backend: str = "serial",
+             jobs: int | None = None, address: str | None = None) -> dict[str, list[Episode]]:
+    """{controller name: episodes on every test scenario}. Agents with the same name (an algorithm trained on
+    several seeds) are pooled under one row. One task per controller and scenario (:mod:`mrd_env.executor`)."""
+    from controllers import load_agent
+
+    from mrd_env.executor import Task, run_tasks
+
+    loaded = [load_agent(a) for a in agents]
+    for a in loaded:
+        if a.plant != plant:
+            raise ValueError(f"agent {a.folder} was trained on the {a.plant} plant, not {plant}")
+    obs_kw = dict(loaded[0].observation_kwargs) if loaded else {}
+    if control_dt is not None:
+        obs_kw["control_dt"] = float(control_dt)
+    damper = comparison_damper(damper, [a.env_kwargs for a in loaded])
+    extra = {} if damper is None else {"damper": damper}
+    # the laws keep their own memory (filters, observers): the same sensors, without the agent's stacked history
+    # and without the road ahead, which only the rows that say preview see (a preview agent listed first must not
+    # hand it to the laws and the plain MPC rows)
+    law_kw = {**{k: v for k, v in obs_kw.items() if k not in ("action_mode", "preview")}, "history": 1, **extra}
+    if law_kw.get("sensors"):
+        law_kw["sensors"] = tuple(s for s in law_kw["sensors"] if s != "road_preview")
+    rows = [(f"agent {a.name.split(' s')[0]}", Path(a.folder), dict(extra)) for a in loaded]
+    rows += law_rows(plant, LAWS[plant] if laws is None else laws, law_kw, laws_at_1ms=laws_at_1ms, mpc=mpc)
+    scenarios = held_out_scenarios(plant, seeds=seeds, quick=quick)
+    tasks = [Task(controller_episodes, (ctrl, sc, profile(plant).response(sc.options)), kw,
+                  label=f"{sc.name} / {label}")
+             for sc in scenarios for label, ctrl, kw in rows]
+    results = iter(run_tasks(tasks, backend=backend, jobs=jobs, address=address, progress=progress,
+                             desc=f"evaluate {plant}"))
+    out: dict[str, list[Episode]] = defaultdict(list)
+    for _sc in scenarios:
+        for label, _, _ in rows:
+            out[label] += next(results)
+    return dict(out)
+
+
+def comparison_damper(damper: str | None, agents_env_kwargs) -> str | None:
+    """The damper of every row: the one asked for, else the one the agents were trained with (a fitted preset
+    file, say), else None (the plant's own)."""
+    trained_on = {str(kw.get("damper")) for kw in agents_env_kwargs if kw.get("damper") is not None}
+    if damper is None and trained_on:
+        if len(trained_on) > 1:
+            raise ValueError(f"the agents were trained on different dampers {sorted(trained_on)}: choose one with "
+                             "--damper")
+        damper = trained_on.pop()
+    return damper
+
+
+def law_rows(plant: str, laws, law_kw: dict, *, laws_at_1ms: bool = True, mpc: bool = True) -> list[tuple]:
+    """(row label, controller, environment options) of the laws at the comparison's step (``law_kw``'s
+    control_dt) and at 1 ms, and of the plant's MPC rows; ``ValueError`` if two rows would share a label (their
+    episodes would be pooled as one controller's)."""
+    dt = law_kw.get("control_dt", 1e-3)
+    rows = [(f"{name} @ {dt * 1e3:g} ms", name, law_kw) for name in laws]
+    if laws_at_1ms and abs(dt - 1e-3) > 1e-12:
+        rows += [(f"{name} @ 1 ms", name, {**law_kw, "control_dt": 1e-3}) for name in laws]
+    if mpc:
+        for label, step, options, preview in MPC[plant]:
+            if step is None and any(other == label and s is not None and abs(s - dt) < 1e-12
+                                    for other, s, _, _ in MPC[plant]):
+                continue  # the row tuned for this very step stands for it (e.g. MPC+preview at 1 ms)
+            kw = {**law_kw, "control_dt": dt if step is None else step}
+            rows.append((f"{label} @ {kw['control_dt'] * 1e3:g} ms", ("mpc", options),
+                         preview_options(plant, kw) if preview else kw))
+    labels = [label for label, _, _ in rows]
+    twice = sorted({label for label in labels if labels.count(label) > 1})
+    if twice:
+        raise ValueError(f"--laws: the rows {twice} would each be evaluated twice (a law given twice, or one the MPC "
+                         "rows hold: add --no-mpc)")
+    return rows
+
+
+def summarise(plant: str, results: dict[str, list[Episode]]) -> list[dict]:
+    """Rows: per scenario and controller, mean and 95 % interval over the episodes of the return and the mean of
+    the metrics (an agent trained on several seeds with its seeds' mean on each episode); then the mean over the
+    test scenarios (``all test scenarios``)."""
+    rows = []
+    scen = list(dict.fromkeys(base_scenario(e.scenario) for eps in results.values() for e in eps))
+    for s in scen + ["all test scenarios"]:
+        for ctrl, eps in results.items():
+            mine = [e for e in eps if s == "all test scenarios" or base_scenario(e.scenario) == s]
+            if not mine:
+                continue
+            returns = list(episode_means(mine).values())
+            m, lo, hi = mean_ci(returns, upper=0.0)
+            row = {"scenario": s, "controller": ctrl, "episodes": len(returns), "return": m, "return_lo95": lo,
+                   "return_hi95": hi}
+            for k in METRICS[plant]:
+                row[k] = float(np.mean(list(episode_means(mine, lambda e, k=k: e.metrics.get(k, np.nan)).values())))
+            row["terminated"] = sum(1 for e in mine if "terminated" in e.metrics)
+            rows.append(row)
+    return rows
+
+
+def paired(results: dict[str, list[Episode]]) -> list[dict]:
+    """Each agent against the best law (by mean return over the test scenarios; random commands excluded) at each
+    control step, episode by episode — the same roads or ground motions, so their variation cancels: the mean
+    difference of return (positive: the agent is better) and its 95 % interval, per scenario and over all. An
+    agent trained on several seeds counts with its mean over the seeds on each episode."""
+    agents = [c for c in results if c.startswith("agent ")]
+    # the best law on equal information: random commands and the preview rows (which see the road ahead) excluded
+    laws = [c for c in results if not c.startswith(("agent ", "random ")) and "preview" not in c]
+    rows = []
+    for a in agents:
+        mine = episode_means(results[a])
+        for rate in dict.fromkeys(c.split(" @ ")[-1] for c in laws):
+            at_rate = [c for c in laws if c.endswith(f"@ {rate}")]
+            best = max(at_rate, key=lambda c: np.mean([e.episode_return for e in results[c]]))
+            law = episode_means(results[best])
+            labels = [k for k in mine if k in law]
+            scen = list(dict.fromkeys(base_scenario(k) for k in labels))
+            for s in scen + ["all test scenarios"]:
+                diff = [mine[k] - law[k] for k in labels if s == "all test scenarios" or base_scenario(k) == s]
+                m, lo, hi = mean_ci(diff)
+                rows.append({"comparison": f"{a} − {best}", "scenario": s, "episodes": len(diff),
+                             "difference": m, "difference_lo95": lo, "difference_hi95": hi})
+    return rows
+
+
+def plot(plant: str, rows: list[dict], path: Path) -> Path:
+    """Mean return with its 95 % interval per controller, one group per scenario."""
+    return grouped_bars(rows, "return", "return_lo95", "return_hi95", path,
+                        xlabel="episode return (dimensionless)",
+                        title=f"{plant}: agents and classical laws on the held-out test scenarios")
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--plant", choices=plant_choices(both=True), default="both",
+                   help="a plant, both (building and quarter car) or all")
+    p.add_argument("--agents", type=Path, nargs="*", default=None,
+                   help="agent folders (or files in them) written by mrd-env train (default: the shipped agents)")
+    p.add_argument("--laws", nargs="*", default=None, help="classical laws (default: all that apply)")
+    p.add_argument("--seeds", type=int, default=3, help="episodes per random test scenario (default 3)")
+    p.add_argument("--control-dt", type=float, default=None,
+                   help="control step of the comparison (default: the agents'; 1 ms without agents)")
+    p.add_argument("--no-1ms", action="store_true", help="do not add the laws at their own 1 ms rate")
+    p.add_argument("--no-mpc", action="store_true", help="leave out model predictive control (and its preview row)")
+    p.add_argument("--damper", default=None,
+                   help="damper model name or preset file (fitted.json) of every row (default: the agents' own, "
+                        "else the plant's)")
+    p.add_argument("--trust-agent", action="store_true",
+                   help="also load agents that only have SB3's model.zip: pickled Python objects, which can run any "
+                        "code; only for agents from a source you trust (each is converted once into "
+                        "<out>/converted-agents/ and evaluated from there)")
+    p.add_argument("--quick", action="store_true", help="short scenarios (a smoke run)")
+    p.add_argument("--out", type=Path, default=Path("results/evaluate"))
+    p.add_argument("--no-progress", action="store_true")
+    yardstick.add_mode_argument(p)
+    sweep.add_arguments(p)
+
+
+def run(args: argparse.Namespace) -> int:
+    from controllers import shipped_agents
+    from controllers.agents import agent_files, code_free_agent
+
+    if args.seeds < 1:
+        raise ValueError(f"--seeds must be >= 1, got {args.seeds}")
+    plants = chosen_plants(args.plant)
+    check_laws("--laws", args.laws, plants)
+    executor = sweep.options(args)
+    if args.damper is not None:
+        from mrd_env.dampers import damper_class
+        damper_class(args.damper)  # ValueError naming the models, or the preset file's problem
+    args.out.mkdir(parents=True, exist_ok=True)
+    if args.control_dt is not None:  # checked by the environment itself, before any episode runs
+        import gymnasium as gym
+
+        import mrd_env  # noqa: F401
+        for p in plants:
+            gym.make(profile(p).env_id, control_dt=args.control_dt).close()
+    chosen = {p: [] for p in plants}
+    if args.agents is None:
+        for p in plants:
+            chosen[p] = shipped_agents(p)
+    else:
+        for a in args.agents:
+            meta = agent_files(a)[1]  # ValueError for a bad path
+            if meta["plant"] not in chosen:
+                raise ValueError(f"agent {a} was trained on the {meta['plant']} plant; add --plant {meta['plant']}")
+            chosen[meta["plant"]].append(a)
+    # an SB3 zip is loaded only if trusted, once, here: the rows load its code-free copy
+    chosen = {p: [code_free_agent(a, args.out / "converted-agents", trust=args.trust_agent) for a in agents]
+              for p, agents in chosen.items()}
+    for p in plants:
+        res = evaluate(p, chosen[p], args.laws, seeds=args.seeds, control_dt=args.control_dt, damper=args.damper,
+                       laws_at_1ms=not args.no_1ms, mpc=not args.no_mpc, progress=not args.no_progress,
+                       quick=args.quick, **executor)
+        rows = summarise(p, res)
+        md, csv_path = write_table(rows, args.out / f"{p}_evaluation", floatfmt=".4g",
+                                   title=f"{p}: return and metrics on the held-out test scenarios (mean, 95 % interval)")
+        fig = plot(p, [r for r in rows if r["scenario"] != "all test scenarios"], args.out / f"{p}_evaluation.png")
+        print(md.read_text())
+        print(f"wrote {md}, {csv_path}, {fig}")
+        pairs = paired(res)
+        if pairs:
+            md, _ = write_table(pairs, args.out / f"{p}_paired", floatfmt=".4g",
+                                title=f"{p}: agent minus the best law at each control step, on the same episodes "
+                                      "(mean, 95 % interval; positive: the agent is better)")
+            print(md.read_text())
+        damper = comparison_damper(args.damper, [agent_files(a)[1].get("env_kwargs") or {} for a in chosen[p]])
+        text = yardstick.report(p, res, held_out_scenarios(p, seeds=args.seeds, quick=args.quick), args.out,
+                                args.yardstick, damper=damper, progress=not args.no_progress, **executor)
+        if text:
+            print(text)
+    return 0
