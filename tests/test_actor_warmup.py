@@ -15,7 +15,7 @@ from controllers.residual import zero_policy_output
 from controllers.training_wrappers import ResidualVecEnv
 from experiments.common.actor_warmup import with_actor_warmup
 from experiments.cli import main
-from experiments.commands.train import env_options, train_one
+from experiments.common.trainers import env_options, train_one
 from mrd_env.envs.sb3 import make_sb3_vec_env
 
 CAR = "mrd_env/QuarterCarPhysical-v0"

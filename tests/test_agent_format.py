@@ -217,7 +217,7 @@ def test_a_residual_agent_on_a_raw_observation_says_to_bind_it():
 
 def test_the_trainers_saves_load_code_free(tmp_path):
     """mrd-env train's run folder, best/ and checkpoints: code-free agents (model.zip beside them, to resume)."""
-    from experiments.commands.train import train_one
+    from experiments.common.trainers import train_one
 
     kw = {"episode_seconds": 0.2, "control_dt": 0.01}
     run = train_one("quarter_car", "ppo", 0, out=tmp_path, timesteps=64, env_kwargs=kw, eval_freq=32,

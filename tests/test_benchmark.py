@@ -7,7 +7,9 @@ import pytest
 
 import mrd_env  # noqa: F401  (registers the environments)
 from controllers import AgentController, ClippedOptimal, SkyhookOnOff, make_controller
-from experiments.commands.benchmark import Scenario, evaluate, run_benchmark
+from experiments.commands.benchmark import run_benchmark
+from experiments.common.evaluation import evaluate
+from experiments.common.scenarios import Scenario
 from experiments.cli import main
 
 
@@ -146,7 +148,7 @@ def test_model_based_estimate_stays_at_rest_despite_the_damper_preload():
 def test_a_vector_environment_scores_every_seed_as_scalar_episodes_would():
     """The benchmark's batched evaluation (one vector env, one row per seed) gives each seed the metrics and
     return of a scalar episode with that seed."""
-    from experiments.commands.benchmark import evaluate_batch
+    from experiments.common.evaluation import evaluate_batch
 
     sc = Scenario("KT", "mrd_env/ShearBuildingPhysical-v0", dict(ground_motion="kanai_tajimi", episode_seconds=0.6),
                   seeds=(4, 5, 6))

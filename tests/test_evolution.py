@@ -224,7 +224,7 @@ def test_a_preview_agent_is_named_and_filed_apart_from_the_plain_one(es_runs, tm
 def test_every_evaluation_row_has_its_own_label(dt):
     """At 1 ms the car's MPC+preview row tuned for 1 ms (100-step horizon) stands alone: the one tuned for the
     comparison's step is not added under the same label (their episodes would be pooled as one controller's)."""
-    from experiments.commands.evaluate import LAWS, law_rows
+    from experiments.common.comparison import LAWS, law_rows
 
     rows = law_rows("quarter_car", LAWS["quarter_car"], {"control_dt": dt})
     labels = [label for label, _, _ in rows]

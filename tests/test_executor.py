@@ -144,10 +144,10 @@ def test_a_resumed_study_draws_new_trials(tmp_path, monkeypatch):
     """Rerunning `mrd-env tune` adds trials the first run did not propose (the same sampler seed would repeat
     them), and a new study with the same seed proposes the same ones (reproducible)."""
     pytest.importorskip("optuna")
-    import experiments.commands.train as train_mod
+    import experiments.common.trainers as trainers
     from experiments.commands.tune import tune
 
-    monkeypatch.setattr(train_mod, "train_one", _fake_train_one({}))
+    monkeypatch.setattr(trainers, "train_one", _fake_train_one({}))
 
     def params(st):
         return [tuple(sorted(t.params.items())) for t in st.trials]
@@ -171,11 +171,11 @@ def test_tune_prunes_a_trial_below_the_median_after_the_warm_up(tmp_path, monkey
     trial's (until 2026-11-27 it was: a residual trial below its law was pruned only where the earlier trials'
     median stood above the law)."""
     pytest.importorskip("optuna")
-    import experiments.commands.train as train_mod
+    import experiments.common.trainers as trainers
     from experiments.commands.tune import tune
 
     stopped_at = {}
-    monkeypatch.setattr(train_mod, "train_one", _fake_train_one(stopped_at, untrained))
+    monkeypatch.setattr(trainers, "train_one", _fake_train_one(stopped_at, untrained))
     st = tune("quarter_car", "ppo", trials=4, timesteps=320, eval_freq=64, out=tmp_path, backend="serial",
               progress=False)
     states = [t.state.name for t in st.trials]

@@ -205,14 +205,14 @@ DATA_ARGS = ["--columns", "t=t,x=D,command=Y,force=F,v=V", "--units", "t=s,x=cm,
 
 
 def test_identify_cli_writes_tables_figure_and_preset(tmp_path, capsys):
-    from experiments import identify_cmd
+    from experiments.commands import identify
     data = write_nees_like(tmp_path / "rec.csv")
     p = argparse.ArgumentParser()
-    identify_cmd.add_arguments(p)
+    identify.add_arguments(p)
     out = tmp_path / "out"
     args = p.parse_args(["--data", str(data), *DATA_ARGS, "--model", "bingham", "--fit-fraction", "0.6",
                          "--t-start", "0.1", "--out", str(out), "--save-preset", str(tmp_path / "fitted.json")])
-    assert identify_cmd.run(args) == 0
+    assert identify.run(args) == 0
     md = (out / "bingham_identify.md").read_text()
     assert "| part | samples | E_t % | E_x % | E_v % | J2 N |" in md and "| validation |" in md
     with (out / "bingham_identify.csv").open() as fh:
@@ -229,14 +229,14 @@ def test_identify_cli_writes_tables_figure_and_preset(tmp_path, capsys):
 
 
 def test_compare_models_cli_writes_table_and_overlays(tmp_path):
-    from experiments import compare_models_cmd
+    from experiments.commands import compare_models
     data = write_nees_like(tmp_path / "rec.csv")
     p = argparse.ArgumentParser()
-    compare_models_cmd.add_arguments(p)
+    compare_models.add_arguments(p)
     out = tmp_path / "cmp"
     args = p.parse_args(["--data", str(data), *DATA_ARGS, "--models", "bingham", "bouc_wen", "--maxiter", "40",
                          "--out", str(out)])
-    assert compare_models_cmd.run(args) == 0
+    assert compare_models.run(args) == 0
     md = (out / "comparison.md").read_text()
     assert md.count("\n| bingham |") + md.count("\n| bouc_wen |") == 2
     assert "| model | free params | offset samples | fit E_t % | E_t % | E_x % | E_v % | J2 N |" in md

@@ -6,7 +6,7 @@ import csv
 import pytest
 
 from experiments.scripts.probe_critic_direction import main
-from experiments.commands.train import env_options, train_one
+from experiments.common.trainers import env_options, train_one
 
 
 @pytest.fixture(scope="module")

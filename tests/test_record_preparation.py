@@ -166,16 +166,16 @@ def test_cross_record_validation_table(tmp_path):
 
 
 def test_identify_cli_validate_and_align(tmp_path, capsys):
-    from experiments import identify_cmd
+    from experiments.commands import identify
     d, a = _record(duration=1.0, rng=1)
     _, b = _record(duration=1.0, rng=2)
     pa, pb = a.to_csv(tmp_path / "a.csv"), b.to_csv(tmp_path / "b.csv")
     p = argparse.ArgumentParser()
-    identify_cmd.add_arguments(p)
+    identify.add_arguments(p)
     out = tmp_path / "out"
     args = p.parse_args(["--data", str(pa), "--validate", str(pb), "--model", "bingham", "--fit-lag", "--align",
                          "--maxiter", "30", "--no-progress", "--out", str(out)])
-    assert identify_cmd.run(args) == 0
+    assert identify.run(args) == 0
     with (out / "bingham_identify.csv").open() as fh:
         rows = list(csv.DictReader(fh))
     assert [r["part"] for r in rows] == ["fit", "validation (other record)"]

@@ -10,7 +10,7 @@ from controllers import load_agent, make_controller
 from controllers.residual import Residual, ResidualController
 from controllers.training_wrappers import PairedBaselineVecEnv, ResidualVecEnv
 from experiments.cli import main
-from experiments.commands.train import env_options, train_one
+from experiments.common.trainers import env_options, train_one
 from mrd_env.envs.sb3 import make_sb3_vec_env
 
 CAR = "mrd_env/QuarterCarPhysical-v0"
@@ -150,7 +150,7 @@ def test_a_residual_agent_trains_starts_at_its_law_and_loads(tmp_path):
 def test_off_policy_residual_agents_start_at_their_law(algo):
     from controllers.agents import _algorithm
     from controllers.residual import zero_policy_output
-    from experiments.commands.train import ALGOS
+    from experiments.common.trainers import ALGOS
 
     venv = ResidualVecEnv(make_sb3_vec_env(CAR, n_envs=1, seed=0, **_kw()), "skyhook_continuous")
     model = _algorithm(ALGOS[algo])("MlpPolicy", venv, device="cpu", learning_starts=10)

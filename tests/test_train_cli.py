@@ -5,7 +5,7 @@ import json
 import pytest
 
 from experiments.cli import main
-from experiments.commands.train import available_algos, env_options, train_one
+from experiments.common.trainers import available_algos, env_options, train_one
 from experiments.common.trainers import HYPERPARAMS
 
 

@@ -22,9 +22,9 @@ from mrd_env import storage
 from mrd_env.report import markdown_table, write_table
 
 from ..common import sweep, yardstick
-from ..common.evaluation import Episode, applicable_laws, check_laws, controller_episodes, evaluate, evaluate_batch, response_of  # noqa: F401
+from ..common.evaluation import Episode, applicable_laws, check_laws, controller_episodes, response_of
 from ..common.plants import PLANTS, chosen_plants, plant_choices, profile
-from ..common.scenarios import Scenario, base_scenario, held_out_scenarios  # noqa: F401  (Scenario: re-exported)
+from ..common.scenarios import base_scenario, held_out_scenarios
 
 #: The controllers and metric columns of each plant (:attr:`.plants.PlantProfile.benchmark_laws`,
 #: ``benchmark_metrics``); the two published plants' under their former names.
@@ -236,9 +236,14 @@ def scenario_rows(scenarios) -> list[dict]:
              "options": ", ".join(f"{k}={v}" for k, v in sc.options.items()) or "defaults"} for sc in scenarios]
 
 
-def run(args: argparse.Namespace) -> int:
-    from ..commands.train import agent_metadata
+def agent_metadata(path: str | Path) -> dict:
+    """The metadata of a saved agent (its folder or a file in it); ``ValueError`` for a missing or bad agent."""
+    from controllers.agents import agent_files
 
+    return agent_files(path)[1]
+
+
+def run(args: argparse.Namespace) -> int:
     plants = chosen_plants(args.plant)
     agents = {path: agent_metadata(path)["plant"] for path in args.agent}  # ValueError for a bad path
     for path, plant in agents.items():

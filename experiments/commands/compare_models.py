@@ -11,8 +11,8 @@ from mrd_env.identification.compare import compare_models, split_records
 from mrd_env.identification.neural import NAME as NEURAL
 
 from ..common import sweep
-from ..commands.identify import (add_data_arguments, free_with_command, grid_dt, load_data, neural_data, number, options,
-                           reported_warnings)
+from ..common.fitting import (add_data_arguments, free_with_command, grid_dt, load_data, neural_data, number,
+                              options, reported_warnings)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

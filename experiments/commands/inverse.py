@@ -29,7 +29,7 @@ from mrd_env.inverse import INVERSES, make_inverse, plot_tracking, track
 from mrd_env.inverse.base import Inverse
 from mrd_env.report import write_table
 
-from ..commands.identify import add_data_arguments, number
+from ..common.fitting import add_data_arguments, number
 
 DT = 1e-3
 
@@ -238,7 +238,7 @@ def run_record(args: argparse.Namespace) -> int:
     from mrd_env.identification.prepare import prepare_record
     from mrd_env.inverse.training import train_neural_inverse
 
-    from ..commands.identify import free_with_command, grid_dt, load_data, options
+    from ..common.fitting import free_with_command, grid_dt, load_data, options
 
     _check_inverses(args.inverses)
     _check_dampers("--model", [args.model])

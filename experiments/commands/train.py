@@ -33,35 +33,9 @@ import numpy as np
 
 from ..common import sweep
 from ..common.plants import PLANTS, plant_choices, profile
-# the trainer interface and what its trainers share (re-exported: ``experiments.commands.train`` is the commands' module)
-from ..common.sb3_trainer import NOISE_TYPES, algorithm_kwargs, check_laws, check_with_sb3, schedule  # noqa: F401
-from ..common.trainers import (HYPERPARAMS, TRAINERS, available_algos, check_hyperparameters, env_options,  # noqa: F401
-                       hyperparameters, plot_learning_curve, residual_spec, run_name, steps_label, trainer,
-                       validation_split)
-
-#: {--algo: the algorithm's name} of every trainer (:data:`.trainers.TRAINERS`).
-ALGOS = {algo: t.label for algo, t in TRAINERS.items()}
-
-
-def agent_metadata(path: str | Path) -> dict:
-    """The metadata of a saved agent (its folder or a file in it); ``ValueError`` for a missing or bad agent."""
-    from controllers.agents import agent_files
-
-    return agent_files(path)[1]
-
-
-def train_one(plant: str, algo: str, seed: int, *, out: Path, timesteps: int | None = None,
-              hyper: dict | None = None, env_kwargs: dict | None = None, eval_freq: int = 20_000,
-              eval_episodes: int = 8, checkpoint_freq: int = 0, tensorboard: bool = False, progress: bool = False,
-              command: str = "", report=None, warm_start: str | None = None) -> Path:
-    """Train one agent with the trainer of ``algo`` (:data:`.trainers.TRAINERS`); return its folder. ``report``
-    (SB3): told every validation, stops the training when it returns False (a hyperparameter search's pruning);
-    ``warm_start`` (CMA-ES): a law's name, which the policy imitates before training (:mod:`.warm_start`)."""
-    profile(plant)  # ValueError naming the plants
-    return trainer(algo).train(plant, seed, out=out, timesteps=timesteps, hyper=hyper, env_kwargs=env_kwargs,
-                               eval_freq=eval_freq, eval_episodes=eval_episodes, checkpoint_freq=checkpoint_freq,
-                               tensorboard=tensorboard, progress=progress, command=command, report=report,
-                               warm_start=warm_start)
+from ..common.sb3_trainer import check_laws, check_with_sb3
+from ..common.trainers import (ALGOS, available_algos, env_options, hyperparameters, residual_spec, run_name,
+                               steps_label, train_one, validation_split)
 
 
 def _parse_overrides(items) -> dict:

@@ -24,7 +24,7 @@ from mrd_env import storage
 
 from ..common import sweep
 from ..common.plants import plant_choices, profile
-from ..commands.train import ALGOS, env_options, hyperparameters
+from ..common.trainers import ALGOS, env_options, hyperparameters
 
 
 SEARCHABLE = ("ppo", "recurrentppo", "sac", "tqc", "td3")
@@ -187,7 +187,7 @@ def worker(plant: str, algo: str, study: str, out: Path, n_trials: int, timestep
     with ``seed``, the sampler draws with ``tpe_seed`` (default ``seed``)."""
     import optuna
 
-    from ..commands.train import train_one
+    from ..common.trainers import train_one
 
     env_id = profile(plant).env_id
     base = hyperparameters(algo, env_id, hyperparams)

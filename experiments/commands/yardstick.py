@@ -29,7 +29,7 @@ def run(args: argparse.Namespace) -> int:
     from controllers import shipped_agents
 
     from ..common import sweep
-    from ..commands.evaluate import evaluate
+    from ..common.comparison import evaluate
 
     if args.seeds < 1:
         raise ValueError(f"--seeds must be >= 1, got {args.seeds}")

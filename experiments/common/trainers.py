@@ -83,6 +83,24 @@ def trainer(algo: str) -> Trainer:
     return TRAINERS[algo]
 
 
+#: {--algo: the algorithm's name} of every trainer (:data:`TRAINERS`).
+ALGOS = {algo: t.label for algo, t in TRAINERS.items()}
+
+
+def train_one(plant: str, algo: str, seed: int, *, out: Path, timesteps: int | None = None,
+              hyper: dict | None = None, env_kwargs: dict | None = None, eval_freq: int = 20_000,
+              eval_episodes: int = 8, checkpoint_freq: int = 0, tensorboard: bool = False, progress: bool = False,
+              command: str = "", report=None, warm_start: str | None = None) -> Path:
+    """Train one agent with the trainer of ``algo`` (:data:`TRAINERS`); return its folder. ``report``
+    (SB3): told every validation, stops the training when it returns False (a hyperparameter search's pruning);
+    ``warm_start`` (CMA-ES): a law's name, which the policy imitates before training (:mod:`.warm_start`)."""
+    profile(plant)  # ValueError naming the plants
+    return trainer(algo).train(plant, seed, out=out, timesteps=timesteps, hyper=hyper, env_kwargs=env_kwargs,
+                               eval_freq=eval_freq, eval_episodes=eval_episodes, checkpoint_freq=checkpoint_freq,
+                               tensorboard=tensorboard, progress=progress, command=command, report=report,
+                               warm_start=warm_start)
+
+
 # --- hyperparameter entries -----------------------------------------------------------------------------------------
 #: The shipped hyperparameter files: ``<algo>.yml`` (RL Zoo's layout, keyed by environment id).
 HYPERPARAMS = Path(__file__).parents[1] / "hyperparams"

@@ -1,5 +1,5 @@
-"""The yardstick (``mrd-env yardstick``: :mod:`.yardstick_cmd`): the best any controller could do on each held-out
-test episode, and every controller scored by the share of that achievable gain it captures.
+"""The yardstick (``mrd-env yardstick``: :mod:`experiments.commands.yardstick`): the best any controller could do on
+each held-out test episode, and every controller scored by the share of that achievable gain it captures.
 
 Per episode (a scenario and a seed):
 

@@ -64,9 +64,10 @@ import numpy as np
 
 import mrd_env  # noqa: F401  (registers the environments)
 from controllers import shipped_agents
-from experiments.commands.evaluate import evaluate, summarise
-from experiments.commands.train import env_options, hyperparameters, train_one
+from experiments.commands.evaluate import summarise
+from experiments.common.comparison import evaluate
 from experiments.common.scenarios import TRAINING
+from experiments.common.trainers import env_options, hyperparameters, train_one
 from experiments.labs.labkit import Lab, full_length
 from mrd_env.report import figure
 

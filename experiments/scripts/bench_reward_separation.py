@@ -13,7 +13,7 @@ import numpy as np
 
 from mrd_env.report import write_table
 
-from ..commands.evaluate import LAWS
+from ..common.comparison import LAWS
 from ..common.evaluation import evaluate_batch, mean_ci
 from ..common.scenarios import held_out_scenarios
 from mrd_env.stepping.first_use import set_mode

@@ -30,7 +30,8 @@ def _benchmark(backend, jobs):
 
 
 def _train(backend, jobs, steps):
-    from ..commands.train import env_options, hyperparameters, train
+    from ..commands.train import train
+    from ..common.trainers import env_options, hyperparameters
 
     with tempfile.TemporaryDirectory() as d:
         folders = train("quarter_car", "ppo", [0, 1], out=Path(d), timesteps=steps, eval_freq=0,

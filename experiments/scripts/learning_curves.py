@@ -30,7 +30,8 @@ def draw(plant: str, agents: list[Path], out: Path, clairvoyant: bool = True, ep
     """The figure ``out`` for the agent folders ``agents`` (one plant, one set-up)."""
     from controllers.agents import OBSERVATION_OPTIONS, agent_files
 
-    from ..commands.train import env_options, law_references, plot_seed_curves
+    from ..commands.train import law_references, plot_seed_curves
+    from ..common.trainers import env_options
 
     # the training distribution as the trainer defines it, with what the agent sees (agent.json stores ranges as
     # JSON lists, which the environments read as choices); the metadata alone: no policy is loaded
