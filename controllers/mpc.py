@@ -64,14 +64,14 @@ class MPC(ClippedOptimal):
     the reward's own terms, see :class:`~.model_based.ClippedOptimal`), ``force_ref``, ``frame``, ``inverse`` and
     the observer's options as :class:`~.model_based.ClippedOptimal`.
 
-    ``weights="reward"`` on the car, tuned on the validation roads
-    (``experiments.common.scenarios.validation``): the road frame, ``f_max=1e5`` (a bound that never binds: the default 857 N cuts the desired force below what the damper
-    gives, and the on–off law then releases the damper), ``force_ref`` 1000 N at a 1 ms control step and 200 N at
-    10 ms, with preview a horizon that spans it (1 ms: H = 100; 10 ms: H = 10). On the held-out ISO C/D roads at
-    20 m/s: at 1 ms −9.11/−9.04 without preview (skyhook_continuous −9.13/−9.06, the objective's MPC −9.34/−9.76)
-    and −7.97/−7.80 with it (objective, H = 100: −9.25/−9.27); at 10 ms −9.20/−9.12 with preview (objective
-    −9.87/−9.89), but −10.50/−10.23 without (objective −10.29/−10.15, skyhook −9.27/−9.23): at a 10 ms step no
-    force_ref beats the objective's weights both on validation and on test, so the default stays the objective.
+    ``weights="reward"`` on the car, tuned on the validation roads (``experiments.common.scenarios.validation``): the
+    road frame, ``f_max=1e5`` (a bound that never binds: the default 857 N cuts the desired force below what the damper
+    gives, and the on–off law then releases the damper), ``force_ref`` 1000 N at a 1 ms control step and 200 N at 10 ms,
+    with preview a horizon that spans it (1 ms: H = 100; 10 ms: H = 10). On the held-out ISO C/D roads at 20 m/s: at
+    1 ms −9.11/−9.04 without preview (skyhook_continuous −9.13/−9.06, the objective's MPC −9.34/−9.76) and −7.97/−7.80
+    with it (objective, H = 100: −9.25/−9.27); at 10 ms −9.20/−9.12 with preview (objective −9.87/−9.89), but
+    −10.50/−10.23 without (objective −10.29/−10.15, skyhook −9.27/−9.23): at a 10 ms step no force_ref beats the
+    objective's weights both on validation and on test, so the default stays the objective.
 
     With preview the road (the samples of this and the earlier readings, linearly interpolated to the horizon's
     period boundaries: :meth:`road_ahead`) is a known input, first-order hold between period boundaries, both in

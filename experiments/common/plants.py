@@ -163,7 +163,7 @@ def _storey_axis(response: str) -> tuple[str, float]:
 #: the environment's default — passive-on is within 0.5 % of the best law at any control rate on the test records
 #: (El Centro N-S: passive-on −0.392, clipped-optimal at 1 ms −0.391), so no command policy can be told apart
 #: from passive-on; in storey 2 clipped-optimal at 1 ms is 15–18 % better than passive-on on the test records
-#: (``tests/test_evolution.py`` checks El Centro N-S).
+#: (``tests/experiments/test_evolution.py`` checks El Centro N-S).
 _BUILDING_OPTIONS = {"damper_floors": (2,)}
 # clipped_optimal_reward: clipped-optimal designed for the reward at the control step, the best law at 10 ms
 # (docs/rl-agents.md: −0.691 on the validation episodes against the default design's −0.745)

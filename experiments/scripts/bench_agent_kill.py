@@ -12,7 +12,7 @@ and ``agent.json`` (:func:`controllers.agents.save_agent`; ``best``: the folder 
 swapped in; ``run``: files named by their digest, ``agent.json`` last). The versions differ in both weights and
 statistics. The saving process is forked from this one (Linux, macOS), so that a kill costs no interpreter start;
 the moments are drawn uniformly over a window of several saves (seeded). Prints one line per kill and the count of
-loadable folders; ``tests/test_agent_kill.py`` runs it.
+loadable folders; ``tests/controllers/test_agent_kill.py`` runs it.
 """
 from __future__ import annotations
 

@@ -8,7 +8,8 @@ An agent that has only SB3's ``model.zip`` is read from it, which runs the Pytho
 ``--trust-agent`` only for a zip whose source you trust (your own training run). The exported agent's actions are
 checked against the source's, bit for bit, before anything is written. Without a destination the folder is converted
 where it is (its ``model.zip`` left out). ``--reference FILE`` also writes, for each source agent, observations and
-the actions the source gives on them (what ``tests/test_agent_format.py`` checks the shipped agents against).
+the actions the source gives on them (what ``tests/controllers/test_agent_format.py`` checks the shipped agents
+against).
 
 How the shipped PPO agents were converted (their ``model.zip`` as trained, then removed)::
 

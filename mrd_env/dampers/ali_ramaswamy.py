@@ -91,7 +91,8 @@ class AliRamaswamyParams(DamperParams):
                              f"x_a = {self.x_a:g} m: " + "; ".join(bad))
 
 
-# the index of each parameter in p, in field order (AliRamaswamyParams.index_constants(); tests/test_param_indices.py)
+# the index of each parameter in p, in field order (AliRamaswamyParams.index_constants();
+# tests/dampers/test_param_indices.py)
 (P_C1, P_C2, P_C3, P_C4, P_C5, P_C6, P_K1, P_K2, P_K3, P_K4, P_K5, P_K6, P_ALPHA1, P_ALPHA2, P_ALPHA3, P_ALPHA4,
  P_ALPHA5, P_ALPHA6, P_X_A, P_F0, P_GAMMA, P_BETA, P_A, P_N) = range(24)
 

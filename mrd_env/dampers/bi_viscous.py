@@ -37,7 +37,8 @@ from .base import CommandSpec, DamperModel, DamperParams, Preset, no_projection,
 from .registry import register
 
 
-# the index of each parameter in p, in field order (BiViscousParams.index_constants(); tests/test_param_indices.py)
+# the index of each parameter in p, in field order (BiViscousParams.index_constants();
+# tests/dampers/test_param_indices.py)
 P_FY_A, P_FY_B, P_C_PS_A, P_C_PS_B, P_C_PRE_A, P_C_PRE_B, P_F0 = range(7)
 
 

@@ -26,7 +26,8 @@ class BinghamParams(DamperParams):
                        fixed=FIXED_SMOOTHING)
 
 
-# the index of each parameter in p, in field order (BinghamParams.index_constants(); tests/test_param_indices.py)
+# the index of each parameter in p, in field order (BinghamParams.index_constants();
+# tests/dampers/test_param_indices.py)
 P_FC_A, P_FC_B, P_C0A, P_C0B, P_F0, P_V_S = range(6)
 
 

@@ -10,7 +10,7 @@ condition). State: z (m).
 As in eq. (7), k0b multiplies (x − x0): with an accumulator preload x0 larger than the stroke, a k0b > 0 adds
 −k0b·x0·u, a force that falls with the command. Every preset has k0b = 0; a fit that frees k0b and x0 can
 find such a model: check a fitted one's energy per cycle over the command range on the rig, as
-``tests/test_dampers_physics.py`` does for the presets.
+``tests/dampers/test_dampers_physics.py`` does for the presets.
 """
 from __future__ import annotations
 
@@ -44,7 +44,8 @@ class BoucWenParams(DamperParams):
                              "(otherwise z has no saturation)")
 
 
-# the index of each parameter in p, in field order (BoucWenParams.index_constants(); tests/test_param_indices.py)
+# the index of each parameter in p, in field order (BoucWenParams.index_constants();
+# tests/dampers/test_param_indices.py)
 P_C0A, P_C0B, P_K0A, P_K0B, P_X0, P_ALPHA_A, P_ALPHA_B, P_GAMMA, P_BETA, P_A, P_N = range(11)
 
 

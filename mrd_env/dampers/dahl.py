@@ -43,7 +43,7 @@ class DahlParams(DamperParams):
     f0: float = param(unit="N", doc="force offset")
 
 
-# the index of each parameter in p, in field order (DahlParams.index_constants(); tests/test_param_indices.py)
+# the index of each parameter in p, in field order (DahlParams.index_constants(); tests/dampers/test_param_indices.py)
 P_C0A, P_C0B, P_K0, P_FD_A, P_FD_B, P_SIGMA, P_F0 = range(7)
 
 

@@ -91,7 +91,8 @@ class DominguezParams(DamperParams):
                        fixed=FIXED_SMOOTHING)
 
 
-# the index of each parameter in p, in field order (DominguezParams.index_constants(); tests/test_param_indices.py)
+# the index of each parameter in p, in field order (DominguezParams.index_constants();
+# tests/dampers/test_param_indices.py)
 (P_C1, P_C2, P_C3, P_C4, P_K1, P_K2, P_ALPHA1, P_ALPHA2, P_ALPHA3, P_ALPHA4, P_GAMMA1, P_GAMMA2, P_FZ01, P_FZ02,
  P_FZ03, P_FZ04, P_I_C, P_D1, P_D2, P_D3, P_D4, P_OMEGA, P_X_MAX, P_X_S) = range(24)
 

@@ -61,7 +61,8 @@ class GamotaFiliskoParams(DamperParams):
     f0: float = param(unit="N", doc="force offset (accumulator)")
 
 
-# the index of each parameter in p, in field order (GamotaFiliskoParams.index_constants(); tests/test_param_indices.py)
+# the index of each parameter in p, in field order (GamotaFiliskoParams.index_constants();
+# tests/dampers/test_param_indices.py)
 P_FC_A, P_FC_B, P_C0A, P_C0B, P_K1A, P_K1B, P_C1, P_K2A, P_K2B, P_F0 = range(10)
 
 
@@ -96,7 +97,7 @@ def _force(p, s, x, xd, xdd, u):
 # 2100 + 350 u N·s/m, c1 = its roll-off dashpot c1a = 28300 N·s/m, k1 = its k0 = 4690 N/m (relaxation time
 # c1/k1 = 6 s: at test frequencies the Kelvin–Voigt element acts as the series dashpot c1), f0 = −k1 x0 =
 # −71.5 N. At 1.5 cm / 2.5 Hz, 0–2.25 V, peak forces are within 7 N and the energy per cycle within 0.3 % of
-# the prototype's (checked in tests/test_models_batch_a.py).
+# the prototype's (checked in tests/dampers/test_models_batch_a.py).
 PROTOTYPE = GamotaFiliskoParams(fc_a=90.15, fc_b=447.5, c0a=2100.0, c0b=350.0, k1a=4690.0, k1b=0.0,
                                 c1=28300.0, k2a=4.214e6, k2b=2.092e7, f0=-71.5)
 

@@ -48,7 +48,7 @@ class HyperbolicTangentParams(DamperParams):
                        fixed=FIXED_SMOOTHING)
 
 
-# the index of each parameter in p, in field order (checked by tests/test_param_indices.py)
+# the index of each parameter in p, in field order (checked by tests/dampers/test_param_indices.py)
 P_C_A, P_C_B, P_K, P_ALPHA_A, P_ALPHA_B, P_BETA, P_DELTA, P_F0, P_X_S = range(9)
 
 

@@ -94,7 +94,7 @@ class HystereticBiViscousParams(DamperParams):
                        fixed=FIXED_SMOOTHING)
 
 
-# the index of each parameter in p, in field order (checked by tests/test_param_indices.py)
+# the index of each parameter in p, in field order (checked by tests/dampers/test_param_indices.py)
 (P_FY_0, P_FY_1, P_FY_2, P_FY_3, P_FY_4, P_C_PS_0, P_C_PS_1, P_C_PS_2, P_C_PS_3, P_C_PS_4, P_C_PRE_0, P_C_PRE_1,
  P_C_PRE_2, P_C_PRE_3, P_C_PRE_4, P_V0_0, P_V0_1, P_V0_2, P_V0_3, P_V0_4, P_F0, P_TAU, P_A_S) = range(23)
 
@@ -126,7 +126,7 @@ def _project(p, s, x, xd, u):
 # quadratic command laws to the steady force record of the Spencer–Dyke prototype set (one cycle each at
 # 1.5 cm / 2.5 Hz, 0, 0.75, 1.5 and 2.25 V, simulated at 0.1 ms), f0 fixed to the preload −k1 x0 = −71.5 N,
 # F_yield, c_ps and c_pre non-decreasing and v0 non-increasing over 0–2.25 V, so that the energy per cycle grows
-# with the command (tests/test_dampers_physics.py; inside the v0 band the force at one velocity can still fall
+# with the command (tests/dampers/test_dampers_physics.py; inside the v0 band the force at one velocity can still fall
 # a little); force RMS residual 39.4 N (c_pre_2 and v0_2 printed by the script rounded here towards the monotone
 # side: at 2.25 V their laws' slopes are +0.06 N·s/m per V and −5·10⁻⁹ m/s per V). Over 0–2.25 V: F_yield 160–999 N, c_ps 1.71–2.62 kN·s/m, c_pre
 # 2.56–28.6 kN·s/m, v0 19.9–2.4 mm/s. (The fit without the monotone laws, this preset until 2026-11-25, had a

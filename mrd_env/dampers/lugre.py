@@ -44,7 +44,7 @@ class LuGreParams(DamperParams):
     f0: float = param(unit="N", doc="force offset")
 
 
-# the index of each parameter in p, in field order (LuGreParams.index_constants(); tests/test_param_indices.py)
+# the index of each parameter in p, in field order (LuGreParams.index_constants(); tests/dampers/test_param_indices.py)
 P_SIGMA0, P_SIGMA0B, P_A0, P_SIGMA1, P_SIGMA2A, P_SIGMA2B, P_F0 = range(7)
 
 

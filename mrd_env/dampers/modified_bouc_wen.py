@@ -69,7 +69,7 @@ class ModifiedBoucWenParams(DamperParams):
                              "(otherwise z has no saturation)")
 
 
-# the index of each parameter in p, in field order (checked by tests/test_param_indices.py)
+# the index of each parameter in p, in field order (checked by tests/dampers/test_param_indices.py)
 P_M, P_A1A, P_A1B, P_A2, P_P, P_KA, P_KB, P_X0, P_ALPHA_A, P_ALPHA_B, P_GAMMA, P_BETA, P_A, P_N = range(14)
 
 

@@ -51,7 +51,7 @@ class NonsymmetricBoucWenParams(BoucWenParams):
 
 
 
-# the index of each parameter in p, in field order (checked by tests/test_param_indices.py)
+# the index of each parameter in p, in field order (checked by tests/dampers/test_param_indices.py)
 P_C0A, P_C0B, P_K0A, P_K0B, P_X0, P_ALPHA_A, P_ALPHA_B, P_GAMMA, P_BETA, P_A, P_N, P_MU, P_X_S = range(13)
 
 

@@ -56,7 +56,8 @@ class SigmoidParams(DamperParams):
                        fixed=FIXED_SMOOTHING)
 
 
-# the index of each parameter in p, in field order (SigmoidParams.index_constants(); tests/test_param_indices.py)
+# the index of each parameter in p, in field order (SigmoidParams.index_constants();
+# tests/dampers/test_param_indices.py)
 P_FY_A, P_FY_B, P_C_A, P_C_B, P_BETA, P_V_H, P_F0, P_TAU, P_A_S = range(9)
 
 

@@ -44,7 +44,8 @@ class SpencerDykeParams(DamperParams):
                              "(otherwise z has no saturation)")
 
 
-# the index of each parameter in p, in field order (SpencerDykeParams.index_constants(); tests/test_param_indices.py)
+# the index of each parameter in p, in field order (SpencerDykeParams.index_constants();
+# tests/dampers/test_param_indices.py)
 P_C0A, P_C0B, P_K0, P_C1A, P_C1B, P_K1, P_X0, P_ALPHA_A, P_ALPHA_B, P_GAMMA, P_BETA, P_A, P_N = range(13)
 
 

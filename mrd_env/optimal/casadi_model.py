@@ -19,7 +19,7 @@ twice-differentiable functions, so
   η_fall + (η_rise − η_fall)·(1 + sg(v − u))/2 with sg(a) = a/sqrt(a² + ε_u²), ``eps_u`` in command units
   (default 1e-3; no switch at all when the lag is symmetric).
 
-With every ε → 0 the expressions are the project's own functions (``tests/test_casadi_model.py`` checks the
+With every ε → 0 the expressions are the project's own functions (``tests/optimal/test_casadi_model.py`` checks the
 states' derivatives, the force and their Jacobians against ``rhs``/``force_law``/``partials`` at random states, and
 the discretised model against the rig). The environment itself never smooths anything: every figure the
 optimiser reports is re-simulated there.

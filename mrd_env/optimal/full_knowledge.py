@@ -26,12 +26,12 @@ a whole episode. Measured alternatives (README, issue 20): direct transcription 
 (states and stages as unknowns, IPOPT + MUMPS, exact Hessian) took 0.4 s per iteration for a 1 s car episode and
 stalled far from convergence (−0.909 after 300 iterations and 126 s, where single shooting reaches −0.811 in 28 s).
 
-The search starts from warm starts — command sequences: the laws' and agents' own commands on the episode, which
-the caller supplies (``mrd_env`` does not import ``controllers``; ``experiments.common.yardstick.warm_starts`` builds
-them), plus passive-off and passive-on — from the ``n_starts`` best of them by their environment return. Every result and
-every warm start is re-simulated in the environment (:meth:`EpisodeProblem.replay`) and the best is kept: the figure
-reported is always the environment's return, and no warm start scores more on that episode, by construction. A
-failed solve says so (``status``, ``failed``); the best warm start is then returned, ``source`` naming it.
+The search starts from warm starts — command sequences: the laws' and agents' own commands on the episode, which the
+caller supplies (``mrd_env`` does not import ``controllers``; ``experiments.common.yardstick.warm_starts`` builds them),
+plus passive-off and passive-on — from the ``n_starts`` best of them by their environment return. Every result and every
+warm start is re-simulated in the environment (:meth:`EpisodeProblem.replay`) and the best is kept: the figure reported
+is always the environment's return, and no warm start scores more on that episode, by construction. A failed solve says
+so (``status``, ``failed``); the best warm start is then returned, ``source`` naming it.
 
 Results are cached as JSON (:mod:`.cache`), keyed by the episode (environment, options, seed, steps, damper
 parameters and command channel), a digest of the plant matrices, the disturbance and the reward's terms, the solver

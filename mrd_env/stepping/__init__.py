@@ -31,7 +31,7 @@ step's count, the count doubles (up to ``max_substeps``) until an a-posteriori e
 Wanner, *Solving ODEs II*, IV.8 — is within ``rtol``·|state| + ``atol`` for every state (defaults
 :data:`~mrd_env.stepping.scheme.RTOL` = 0.1 and :data:`~mrd_env.stepping.scheme.ATOL` = 1e-5 in SI units with at
 most 8 sub-steps; the resulting force errors against Radau are in docs/stepping.md and in
-``tests/test_integrator_accuracy.py``, ``tests/test_plants.py``). A Newton solve that does not
+``tests/stepping/test_integrator_accuracy.py``, ``tests/plants/test_plants.py``). A Newton solve that does not
 converge also halves the sub-step. The output grid stays fixed at ``dt`` whatever the splitting, and the
 splitting depends only on the state, so runs are reproducible bit for bit.
 

@@ -3,7 +3,7 @@ process compiles it into the disk cache, then switch to the compiled kernel.
 
 numba needs 15–25 s to compile a damper model's kernel the first time (docs/speed.md). The generated kernel
 source, executed by the interpreter (``nb.njit`` the identity, ``prange`` = ``range``), computes the same numbers
-bit for bit, at about 0.5 ms per 1 ms step (tests/test_first_use.py). So with an empty cache,
+bit for bit, at about 0.5 ms per 1 ms step (tests/stepping/test_first_use.py). So with an empty cache,
 :func:`~mrd_env.stepping.codegen.kernel_module` returns a :class:`SwitchingKernel`: its entry points run the
 interpreted kernel, a background ``python -m mrd_env.warmup <model>`` compiles what a first use needs (the scalar
 and vector steps and the rig) and leaves a *ready marker* beside the kernel, and the next call after the marker

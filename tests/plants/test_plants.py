@@ -9,7 +9,7 @@ from mrd_env import make_damper
 from mrd_env.disturbances import el_centro, iso8608_road
 from mrd_env.plants import CoupledPlant, quarter_car, shear_building
 
-from reference_models import bouc_wen_zdot, nrmse
+from tests.reference_models import bouc_wen_zdot, nrmse
 
 DT = 1e-3
 

@@ -82,7 +82,7 @@ def test_sigterm_saves_a_loadable_agent_and_exits_143(tmp_path):
 
     from controllers import load_agent
 
-    root = Path(__file__).resolve().parents[1]
+    root = Path(__file__).resolve().parents[2]
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(root), os.environ.get("PYTHONPATH", "")])}
     proc = subprocess.Popen([sys.executable, "-m", "experiments.cli", "train", "--algo", "ppo", "--timesteps",
                              "10000000", "--set", "n_envs=1", "n_steps=64", "batch_size=64", "--eval-freq", "0",

@@ -73,7 +73,7 @@ def test_the_readme_quickstart_runs_and_warns_of_no_outdated_id():
     import warnings
     from pathlib import Path
 
-    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text()
     code = re.search(r"```python\n(.*?)```", readme, re.S).group(1)
     scope = {}
     with warnings.catch_warnings():

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 LABS = ROOT / "experiments" / "labs"
 
 #: lab script → the figures it must write (relative to $MRD_LAB_OUT/<lab>/)

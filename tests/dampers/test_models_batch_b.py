@@ -17,7 +17,7 @@ from mrd_env import available_dampers, make_damper
 from mrd_env.stepping import SystemMatrices, run
 from mrd_env.rig import sinusoidal_test
 
-from reference_models import bouc_wen_zdot, nrmse
+from tests.reference_models import bouc_wen_zdot, nrmse
 
 DT = 1e-3
 MODELS = ["modified_bouc_wen", "ali_ramaswamy", "nonsymmetric_bouc_wen", "hyperbolic_tangent", "sigmoid",

@@ -10,7 +10,7 @@ from mrd_env import make_damper
 from mrd_env.plants import CoupledPlant
 from mrd_env.plants.half_car import half_car
 
-from reference_models import nrmse
+from tests.reference_models import nrmse
 
 DT = 1e-3
 T = 1.5

@@ -244,7 +244,7 @@ def test_a_preview_agent_listed_first_hands_the_road_ahead_to_no_law(tmp_path):
 
     from experiments.cli import main
 
-    agent = Path(__file__).parents[1] / "controllers" / "agents" / "quarter_car_cmaes_preview"
+    agent = Path(__file__).parents[2] / "controllers" / "agents" / "quarter_car_cmaes_preview"
     assert main(["evaluate", "--plant", "quarter_car", "--agents", str(agent), "--laws", "skyhook_continuous",
                  "--quick", "--seeds", "1", "--yardstick", "off", "--no-progress", "--out", str(tmp_path)]) == 0
     rows = {r["controller"] for r in csv.DictReader((tmp_path / "quarter_car_evaluation.csv").open())}

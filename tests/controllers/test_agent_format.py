@@ -17,7 +17,7 @@ from controllers.agents import (AgentDigestError, ObservationNormalizer, Trusted
 
 sb3 = pytest.importorskip("stable_baselines3")
 pytest.importorskip("safetensors")
-REFERENCE = Path(__file__).parent / "data" / "shipped_agent_actions.npz"
+REFERENCE = Path(__file__).parents[1] / "data" / "shipped_agent_actions.npz"
 CAR = "mrd_env/QuarterCarPhysical-v0"
 N_OBS = 8  # the quarter car's default observation
 
@@ -48,7 +48,7 @@ def test_shipped_folders_carry_no_code_and_every_file_is_packaged():
     import fnmatch
     import tomllib
 
-    root = Path(__file__).parents[1]
+    root = Path(__file__).parents[2]
     globs = tomllib.loads((root / "pyproject.toml").read_text())["tool"]["setuptools"]["package-data"]["controllers"]
     for folder in shipped_agents():
         meta = json.loads((folder / "agent.json").read_text())

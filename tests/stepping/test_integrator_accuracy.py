@@ -5,7 +5,7 @@ import pytest
 from mrd_env.dampers import make_damper
 from mrd_env.stepping import SystemMatrices, run
 
-from reference_models import bouc_wen_reference, nrmse, spencer_dyke_reference
+from tests.reference_models import bouc_wen_reference, nrmse, spencer_dyke_reference
 
 DT = 1e-3
 # (amplitude m, frequency Hz, duration s): nominal, 10x velocity by frequency, 10x velocity by amplitude

@@ -14,7 +14,7 @@ from mrd_env import available_dampers, make_damper
 from mrd_env.stepping import SystemMatrices, run
 from mrd_env.rig import sinusoidal_test
 
-from reference_models import nrmse
+from tests.reference_models import nrmse
 
 MODELS = ["bi_viscous", "hysteretic_bi_viscous", "gamota_filisko", "dominguez"]
 X, FREQ = 0.015, 2.5  # the prototype test: 1.5 cm at 2.5 Hz

@@ -440,7 +440,7 @@ def test_residual_hold_from_the_cli_holds_the_yamls_residual(tmp_path):
     from pathlib import Path
 
     args = ["train", "--plant", "quarter_car", "--algo", "ppo", "--hyperparams",
-            str(Path(__file__).parents[1] / "experiments" / "hyperparams" / "ppo-residual.yml"), "--residual-hold",
+            str(Path(__file__).parents[2] / "experiments" / "hyperparams" / "ppo-residual.yml"), "--residual-hold",
             "10", "--control-dt", "0.001",
             "--timesteps", "64", "--set", "n_envs=2", "--set", "n_steps=32", "--set", "batch_size=32",
             "--eval-freq", "0", "--seeds", "0", "--out", str(tmp_path), "--no-progress"]
