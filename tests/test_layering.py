@@ -109,12 +109,28 @@ def test_stepping_imports_nothing_above_it():
     modules below it."""
     below = {"mrd_env.command_lag", "mrd_env.validation", "mrd_env.errors",
              "mrd_env.storage", "mrd_env.caches"}  # files and cache folders: they import nothing of the project's
-
     graph = import_graph()
     for name, edges in graph.items():
         if name.startswith("mrd_env.stepping"):
             bad = {e for e in edges if not e.startswith("mrd_env.stepping") and e not in below}
             assert not bad, f"{name} imports {sorted(bad)}"
+
+
+def test_experiments_in_four_parts_import_downwards_only():
+    """experiments/: ``common`` (what the commands, scripts and labs share) imports no command, script or lab; a
+    command imports no other command, script or lab (each verb stands alone on the shared part)."""
+    graph = import_graph("experiments")
+    assert {"experiments.common.evaluation", "experiments.commands.benchmark"} <= set(graph)  # the parts are seen
+    for name, edges in graph.items():
+        part = name.split(".")[1] if name.count(".") else ""
+        if part == "common":
+            bad = {e for e in edges if e.split(".")[1:2] and e.split(".")[1] in ("commands", "scripts", "labs")}
+        elif part == "commands":
+            bad = {e for e in edges if e.startswith(("experiments.scripts", "experiments.labs"))
+                   or (e.startswith("experiments.commands.") and e != name)}
+        else:
+            continue
+        assert not bad, f"{name} imports {sorted(bad)}"
 
 
 @pytest.mark.parametrize("package", ["mrd_env", "controllers", "experiments"])
