@@ -31,6 +31,8 @@ from pathlib import Path
 
 import numpy as np
 
+from mrd_env.envs import RL_DEFAULTS
+
 from ..common import sweep
 from ..common.plants import PLANTS, plant_choices, profile
 from ..common.sb3_trainer import check_laws, check_with_sb3
@@ -180,7 +182,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--hyperparams", type=Path, default=None, help="YAML file (default experiments/hyperparams/<algo>.yml)")
     p.add_argument("--set", nargs="+", action="extend", default=[], metavar="KEY=VALUE",
                    help="override hyperparameters (YAML values; repeatable)")
-    p.add_argument("--control-dt", type=float, default=0.01, help="agent step in s (a multiple of 1 ms; default 0.01)")
+    p.add_argument("--control-dt", type=float, default=RL_DEFAULTS["control_dt"],
+                   help=f"agent step in s (a multiple of 1 ms; default {RL_DEFAULTS['control_dt']:g}, as the v1 ids)")
     p.add_argument("--sensors", nargs="+", default=None, help="sensor names (default: the plant's measured set)")
     p.add_argument("--history", type=int, default=1, help="control steps stacked in the observation (default 1)")
     p.add_argument("--preview", action="store_true",

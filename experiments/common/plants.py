@@ -18,7 +18,7 @@ Half car (a sedan in the pitch plane, a damper at each axle; every sensor a law 
 car's roads (ISO 8608 class B, C or D at [10, 30] m/s) under both axles; validation: unseen seeds; test: class C
 and D at 20 m/s and class A at 30 m/s (unseen seeds). The environment has no bump road, so the test set has none.
 
-This module imports nothing of the project but :mod:`mrd_env.constants`: :mod:`.scenarios` builds the scenario
+This module imports nothing of the project but :mod:`mrd_env.constants` and the ids' table of :mod:`mrd_env.envs`: :mod:`.scenarios` builds the scenario
 objects from it.
 """
 from __future__ import annotations
@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 from mrd_env.constants import GRAVITY as G
+from mrd_env.envs import BENCHMARK_DAMPER_FLOORS
 
 #: A test case of a plant: (name, environment options, seeded) — seeded cases run once per test seed, the others
 #: (a recorded earthquake, a bump) once.
@@ -164,7 +165,7 @@ def _storey_axis(response: str) -> tuple[str, float]:
 #: (El Centro N-S: passive-on −0.392, clipped-optimal at 1 ms −0.391), so no command policy can be told apart
 #: from passive-on; in storey 2 clipped-optimal at 1 ms is 15–18 % better than passive-on on the test records
 #: (``tests/experiments/test_evolution.py`` checks El Centro N-S).
-_BUILDING_OPTIONS = {"damper_floors": (2,)}
+_BUILDING_OPTIONS = {"damper_floors": BENCHMARK_DAMPER_FLOORS}
 # clipped_optimal_reward: clipped-optimal designed for the reward at the control step, the best law at 10 ms
 # (docs/rl-agents.md: −0.691 on the validation episodes against the default design's −0.745)
 _BUILDING_LAWS = ("passive_off", "passive_on", "clipped_optimal", "clipped_optimal_reward", "lyapunov",

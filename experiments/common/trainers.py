@@ -27,6 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
+from mrd_env.envs import RL_DEFAULTS
+
 from .plants import by_env_id, profile
 from .scenarios import TRAINING, Scenario, validation
 
@@ -198,11 +200,12 @@ def agent_name(label: str, seed: int, hyper: dict, env_kwargs: dict) -> str:
 
 
 # --- what every trainer shares ------------------------------------------------------------------------------------
-def env_options(plant: str, control_dt: float = 0.01, sensors=None, history: int = 1,
+def env_options(plant: str, control_dt: float = RL_DEFAULTS["control_dt"], sensors=None, history: int = 1,
                 disturbance=None, **extra) -> dict:
     """The training environment's options: the plant's training distribution (or ``disturbance``), normalised
     actions, the control step, and the observation options."""
-    kw = {**TRAINING[plant], "action_mode": "normalized", "control_dt": float(control_dt), "history": int(history)}
+    kw = {**TRAINING[plant], "action_mode": RL_DEFAULTS["action_mode"], "control_dt": float(control_dt),
+          "history": int(history)}
     if sensors:
         kw["sensors"] = list(sensors)
     if disturbance is not None:

@@ -31,20 +31,22 @@ ENVS = {
     "mrd_env/ShearBuildingPhysical-v0": ("mrd_env.envs.shear_building", "ShearBuildingEnv", "ShearBuildingVectorEnv"),
     "mrd_env/HalfCarPhysical-v0": ("mrd_env.envs.half_car", "HalfCarEnv", "HalfCarVectorEnv"),
 }
-ENV_IDS = {env_id: f"{m}:{c}" for env_id, (m, c, _) in ENVS.items()}
 #: The v1 ids: what an RL user expects out of the box (Stable-Baselines3's docs and RL Zoo), the set-up the project's
 #: own training and benchmark use — a 10 ms control step (100 Hz: 1 000 steps per 10 s episode, physics still at
 #: 1 ms), actions normalised to [−1, 1], and the building with its damper in storey 2, where the laws can be told
 #: apart (in storey 1, passive-on is within 0.5 % of the best law). The v0 ids keep the physics-level defaults:
 #: commands in V or A at every 1 ms step, the building as Dyke et al. (1996) built it (damper in storey 1).
 RL_DEFAULTS = {"control_dt": 0.01, "action_mode": "normalized"}
+#: The benchmark's building: its damper in storey 2 (between floors 1 and 2), where the laws can be told apart.
+BENCHMARK_DAMPER_FLOORS = (2,)
 #: former id → its name now (the same set-up; the former ids warn, then make it: agents saved before keep loading)
 RENAMED = {"mrd_env/QuarterCar-v0": "mrd_env/QuarterCarPhysical-v0",
            "mrd_env/ShearBuilding-v0": "mrd_env/ShearBuildingPhysical-v0",
            "mrd_env/HalfCar-v0": "mrd_env/HalfCarPhysical-v0"}
 V1 = {"mrd_env/QuarterCar-v1": ("mrd_env/QuarterCarPhysical-v0", dict(RL_DEFAULTS)),
       # a list, not a tuple: every registered keyword must survive EnvSpec.to_json/from_json unchanged (issue 37)
-      "mrd_env/ShearBuilding-v1": ("mrd_env/ShearBuildingPhysical-v0", {**RL_DEFAULTS, "damper_floors": [2]}),
+      "mrd_env/ShearBuilding-v1": ("mrd_env/ShearBuildingPhysical-v0",
+                                   {**RL_DEFAULTS, "damper_floors": list(BENCHMARK_DAMPER_FLOORS)}),
       "mrd_env/HalfCar-v1": ("mrd_env/HalfCarPhysical-v0", dict(RL_DEFAULTS))}
 
 _LAZY = {"MRDamperEnv": ".base", "MRDamperVectorEnv": ".vector", "QuarterCarEnv": ".quarter_car",
@@ -96,4 +98,4 @@ def __getattr__(name: str):
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-__all__ = ["ENVS", "ENV_IDS", "ENTRY_POINTS", "RL_DEFAULTS", "V1", "register_envs", *_LAZY]
+__all__ = ["ENVS", "ENTRY_POINTS", "RL_DEFAULTS", "BENCHMARK_DAMPER_FLOORS", "V1", "RENAMED", "register_envs", *_LAZY]
