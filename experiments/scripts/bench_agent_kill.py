@@ -29,26 +29,32 @@ N_VERSIONS = 4
 N_OBS = 9
 
 
-def build_model():
-    """A small PPO model (the trainer's kind of policy) on a stand-in environment of the quarter car's shape."""
+def stub_env(n_obs: int):
+    """A stand-in environment with a car's spaces (``n_obs`` observations, one command in [-1, 1]): a policy needs
+    only the spaces."""
     import gymnasium as gym
-    import torch
     from gymnasium import spaces
-    from stable_baselines3 import PPO
-
-    torch.set_num_threads(1)
 
     class Stub(gym.Env):
-        observation_space = spaces.Box(-np.inf, np.inf, (N_OBS,), np.float32)
+        observation_space = spaces.Box(-np.inf, np.inf, (n_obs,), np.float32)
         action_space = spaces.Box(-1.0, 1.0, (1,), np.float32)
 
         def reset(self, seed=None, options=None):
-            return np.zeros(N_OBS, np.float32), {}
+            return np.zeros(n_obs, np.float32), {}
 
         def step(self, action):
-            return np.zeros(N_OBS, np.float32), 0.0, False, False, {}
+            return np.zeros(n_obs, np.float32), 0.0, False, False, {}
 
-    return PPO("MlpPolicy", Stub(), n_steps=64, batch_size=64, device="cpu", seed=0,
+    return Stub()
+
+
+def build_model():
+    """A small PPO model (the trainer's kind of policy) on a stand-in environment of the quarter car's shape."""
+    import torch
+    from stable_baselines3 import PPO
+
+    torch.set_num_threads(1)
+    return PPO("MlpPolicy", stub_env(N_OBS), n_steps=64, batch_size=64, device="cpu", seed=0,
                policy_kwargs={"net_arch": {"pi": [64, 64], "vf": [64, 64]}})
 
 

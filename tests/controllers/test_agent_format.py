@@ -9,11 +9,11 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 import pytest
-from gymnasium import spaces
 
 import mrd_env  # noqa: F401
 from controllers.agents import (AgentDigestError, ObservationNormalizer, TrustedCodeWarning, agent_digest,
                                 export_agent, load_agent, same_actions, save_agent, shipped_agents, write_agent)
+from experiments.scripts.bench_agent_kill import stub_env
 
 sb3 = pytest.importorskip("stable_baselines3")
 pytest.importorskip("safetensors")
@@ -22,16 +22,9 @@ CAR = "mrd_env/QuarterCarPhysical-v0"
 N_OBS = 8  # the quarter car's default observation
 
 
-class Stub(gym.Env):
+def Stub():
     """A stand-in environment with the quarter car's spaces (the policies only need the spaces)."""
-    observation_space = spaces.Box(-np.inf, np.inf, (N_OBS,), np.float32)
-    action_space = spaces.Box(-1.0, 1.0, (1,), np.float32)
-
-    def reset(self, seed=None, options=None):
-        return np.zeros(N_OBS, np.float32), {}
-
-    def step(self, action):
-        return np.zeros(N_OBS, np.float32), 0.0, False, False, {}
+    return stub_env(N_OBS)
 
 
 @pytest.mark.parametrize("name", [p.name for p in shipped_agents()])
