@@ -165,57 +165,24 @@ def continuous_filter(sos: np.ndarray, dt: float):
     return A * (1.0 / s)[:, None] * s[None, :], B / s[:, None], C * s[None, :], D
 
 
-#: The nominal disturbances of weights="reward"'s fixed reference scales, per plant kind (:func:`nominal_reference`).
-NOMINAL_ROAD = {"road_class": "C", "speed": 20.0, "duration": 100.0, "seed": 0}
-NOMINAL_GROUND_MOTION = {"kind": "kanai_tajimi", "episode_seconds": 10.0, "seeds": (0, 1, 2, 3)}
 _NOMINAL_CACHE: dict = {}
 
 
 def nominal_reference(env) -> dict:
     """{reward signal: mean square} of the environment's reward normaliser on a fixed nominal disturbance — what
     the reward divides each term by, with the episode's own disturbance replaced by a nominal one a controller can
-    know in advance (the per-episode scale depends on the road or record the controller has not seen).
-
-    Quarter car: the conventional passive car's mean squares (:func:`mrd_env.envs.quarter_car.passive_reference`)
-    on an ISO 8608 class-C road at 20 m/s, 100 s (``method="fft"``, seed 0; the long-run values: 10 s episodes
-    scatter around them by ±10–50 %, travel the most); the fixed reference scales for a car without a passive damper.
-    Shear building: the uncontrolled building's mean squares of drift and absolute acceleration, summed over the
-    floors, on four 10 s Kanai–Tajimi records with the nominal parameters (ω_g 15.6 rad/s, ζ_g 0.6, PGA 0.3 g; seeds
-    0–3), replayed at the environment's time scale. Cached per plant and time step."""
+    know in advance (the per-episode scale depends on the road or record the controller has not seen). The plant
+    declares it (``Assembly.nominal_reference``, in its folder: e.g. the conventional passive car on a class-C
+    road, the uncontrolled building under nominal Kanai–Tajimi records). Cached per plant and time step."""
     base = getattr(env, "unwrapped", env)
     asm = base.assembly
     key = (asm.kind, repr(asm.plant_params), float(base.dt), repr(asm.options.get("plant_params")))
     if key in _NOMINAL_CACHE:
         return dict(_NOMINAL_CACHE[key])
-    dt, p = float(base.dt), asm.plant_params
-    if asm.kind == "quarter_car":
-        from mrd_env.disturbances import iso8608_road
-        from mrd_env.envs import quarter_car as qc
-
-        if p.passive_c > 0:
-            nom = NOMINAL_ROAD
-            rec = iso8608_road(nom["road_class"], nom["speed"], nom["duration"], dt, rng=nom["seed"], method="fft")
-            z0, zd0 = rec.data[0]
-            ref = qc.passive_reference(p, rec, np.array([z0, z0, zd0, zd0]), rec.n_samples, dt)
-        else:
-            ref = {"comfort": qc.A_REF ** 2, "travel": qc.X_REF ** 2, "tyre": p.static_tyre_load ** 2}
-        out = {qc.REWARD_SIGNALS[k]: v for k, v in ref.items()}
-    elif asm.kind == "shear_building":
-        from mrd_env.envs import shear_building as sb
-
-        nom = NOMINAL_GROUND_MOTION
-        src = sb.ground_motion_source(nom["kind"], None, dt, nom["episode_seconds"], p.record_time_scale)
-        heights = np.asarray(p.storey_heights if p.storey_heights is not None
-                             else [sb.DEFAULT_STOREY_HEIGHT] * p.n_floors)
-        d_ms = a_ms = 0.0
-        for seed in nom["seeds"]:
-            u = sb.uncontrolled(asm.linear_plant, p, heights, src.sample(np.random.default_rng(seed), dt))
-            d_ms += float(np.sum(np.mean(u["drift"] ** 2, axis=0)))
-            a_ms += float(np.sum(np.mean(u["abs_acc"] ** 2, axis=0)))
-        out = {"drift": d_ms / len(nom["seeds"]), "abs_acc": a_ms / len(nom["seeds"])}
-    else:
-        raise ValueError(f"weights='reward' knows the nominal reference of the quarter car and the shear building, "
-                         f"not of a {asm.kind!r} environment: pass weights={{signal: weight}}")
+    if asm.nominal_reference is None:
+        raise ValueError(f"weights='reward' needs the plant's nominal reference, which the {asm.kind!r} "
+                         f"environment does not declare: pass weights={{signal: weight}}")
+    out = dict(asm.nominal_reference())
     _NOMINAL_CACHE[key] = out
     return dict(out)
 

@@ -1,6 +1,6 @@
 """mrd-env: Gymnasium environments, damper models and identification tools for MR dampers."""
 from .dampers import available_dampers, make_damper
-from .envs import register_envs
+from .plants.registry import register_envs
 from .errors import SimulationDivergedError
 
 register_envs()  # makes gymnasium.make("mrd_env/QuarterCarPhysical-v0") etc. work after `import mrd_env`

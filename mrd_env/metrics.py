@@ -1,4 +1,5 @@
-"""Performance metrics: ISO 2631-1 ride comfort, quarter-car and building responses, benchmark criteria.
+"""Performance metrics: ISO 2631-1 ride comfort (frequency weighting, r.m.s., VDV, MTVV) and the signal checks the
+plants' metrics share (each plant's own metrics are in its folder: ``mrd_env/plants/<plant>/metrics.py``).
 
 All inputs and outputs are in SI units; time runs along axis 0 of every signal. Wherever a sample
 interval ``dt`` (s) is expected, a uniformly spaced time vector of the signal's length is accepted too.
@@ -37,7 +38,7 @@ from __future__ import annotations
 
 import math
 from functools import lru_cache
-from typing import Callable, Iterable, Mapping
+from typing import Callable
 
 import numpy as np
 from scipy import fft as sfft
@@ -74,7 +75,7 @@ def _weighting_params(kind: str) -> dict[str, float]:
         raise ValueError(f"kind = {kind!r} is invalid: must be one of {sorted(_WEIGHTINGS)}") from None
 
 
-def _signal(name: str, value, *, n: int | None = None, columns: bool = False) -> np.ndarray:
+def as_signal(name: str, value, *, n: int | None = None, columns: bool = False) -> np.ndarray:
     """A finite signal with time along axis 0 (``columns``: 2-D (n_samples, n_channels), 1-D = one
     channel); ``n`` the required number of samples."""
     try:
@@ -93,15 +94,15 @@ def _signal(name: str, value, *, n: int | None = None, columns: bool = False) ->
     return a
 
 
-def _series(name: str, value, n: int | None = None) -> np.ndarray:
+def as_series(name: str, value, n: int | None = None) -> np.ndarray:
     """A finite 1-D signal of ``n`` samples."""
-    a = _signal(name, value, n=n)
+    a = as_signal(name, value, n=n)
     if a.ndim != 1:
         raise ValueError(f"{name} must be 1-dimensional (n_samples,), got shape {a.shape}")
     return a
 
 
-def _sample_interval(dt, n: int) -> float:
+def sample_interval(dt, n: int) -> float:
     """Sample interval in s from a scalar ``dt`` or a uniformly spaced time vector of ``n`` samples."""
     if np.ndim(dt) == 0:
         return check_scalar("dt", dt, 0.0, lo_open=True, unit="s")
@@ -228,8 +229,8 @@ def weighted_acceleration(a, dt, kind: str = "Wk", method: str = "iir") -> np.nd
     """
     if method not in ("iir", "fft"):
         raise ValueError(f"method = {method!r} is invalid: must be 'iir' or 'fft'")
-    a = _signal("a", a)
-    step = _sample_interval(dt, a.shape[0])
+    a = as_signal("a", a)
+    step = sample_interval(dt, a.shape[0])
     if method == "iir":
         return signal.sosfilt(weighting_sos(kind, step), a, axis=0)
     _weighting_params(kind)
@@ -238,7 +239,7 @@ def weighted_acceleration(a, dt, kind: str = "Wk", method: str = "iir") -> np.nd
 
 def rms(x, axis: int = 0):
     """Root mean square over ``axis`` (ISO 2631-1 §6.2 basic evaluation: mean over the whole record)."""
-    x = _signal("x", x)
+    x = as_signal("x", x)
     return np.sqrt(np.mean(np.square(x), axis=axis))
 
 
@@ -252,8 +253,8 @@ def vdv(a_w, dt):
 
     ``a_w`` must already be frequency-weighted (:func:`weighted_acceleration`).
     """
-    a_w = _signal("a_w", a_w)
-    return np.sum(a_w ** 4, axis=0) ** 0.25 * _sample_interval(dt, a_w.shape[0]) ** 0.25
+    a_w = as_signal("a_w", a_w)
+    return np.sum(a_w ** 4, axis=0) ** 0.25 * sample_interval(dt, a_w.shape[0]) ** 0.25
 
 
 def running_rms(a_w, dt, tau: float = 1.0) -> np.ndarray:
@@ -263,8 +264,8 @@ def running_rms(a_w, dt, tau: float = 1.0) -> np.ndarray:
     The signal is taken as zero before the record, so the first ``tau`` s ramp up as in a meter
     started at rest. ``a_w`` must already be frequency-weighted.
     """
-    a_w = _signal("a_w", a_w)
-    step = _sample_interval(dt, a_w.shape[0])
+    a_w = as_signal("a_w", a_w)
+    step = sample_interval(dt, a_w.shape[0])
     tau = check_scalar("tau", tau, 0.0, lo_open=True, unit="s")
     window = max(1, int(round(tau / step)))
     energy = np.cumsum(np.square(a_w), axis=0)
@@ -276,191 +277,3 @@ def running_rms(a_w, dt, tau: float = 1.0) -> np.ndarray:
 def mtvv(a_w, dt, tau: float = 1.0):
     """Maximum transient vibration value MTVV = max a_w(t0) of :func:`running_rms` (ISO 2631-1 §6.3.1), m/s²."""
     return np.max(running_rms(a_w, dt, tau), axis=0)
-
-
-# ----------------------------------------------------------------------------------------------
-# quarter car
-# ----------------------------------------------------------------------------------------------
-
-def quarter_car_metrics(dt, sprung_acc, suspension_travel, dynamic_tyre_load=None, *,
-                        tyre_deflection=None, tyre_stiffness: float | None = None,
-                        static_tyre_load: float | None = None, kind: str = "Wk",
-                        method: str = "iir", tau: float = 1.0) -> dict[str, float]:
-    """Ride comfort, suspension working space and road holding of one quarter-car record.
-
-    ``sprung_acc`` (m/s²), ``suspension_travel`` (m, from static equilibrium) and either
-    ``dynamic_tyre_load`` (N, tyre force minus its static value) or ``tyre_deflection`` (m, from static)
-    with ``tyre_stiffness`` (N/m) — all 1-D of the same length. Returns (floats):
-
-    ``acc_weighted_rms`` — ISO 2631-1 ``kind``-weighted r.m.s. sprung acceleration, m/s²;
-    ``acc_rms`` — unweighted r.m.s., m/s²; ``acc_vdv`` — weighted VDV, m/s^1.75;
-    ``acc_mtvv`` — weighted MTVV over ``tau``, m/s²; ``travel_rms``, ``travel_peak`` — m;
-    ``tyre_load_rms`` — N (if a tyre input is given); ``tyre_load_ratio`` — tyre_load_rms over
-    ``static_tyre_load`` (N, > 0; if given), the road-holding index (below 1/3, a Gaussian dynamic load
-    exceeds the static load — the tyre lifts off — less than 0.14 % of the time).
-    """
-    acc = _series("sprung_acc", sprung_acc)
-    n = acc.shape[0]
-    travel = _series("suspension_travel", suspension_travel, n)
-    step = _sample_interval(dt, n)
-    a_w = weighted_acceleration(acc, step, kind, method)
-    out = {
-        "acc_weighted_rms": float(rms(a_w)),
-        "acc_rms": float(rms(acc)),
-        "acc_vdv": float(vdv(a_w, step)),
-        "acc_mtvv": float(mtvv(a_w, step, tau)),
-        "travel_rms": float(rms(travel)),
-        "travel_peak": float(np.max(np.abs(travel))),
-    }
-
-    if dynamic_tyre_load is not None and tyre_deflection is not None:
-        raise ValueError("give either dynamic_tyre_load or tyre_deflection, not both")
-    if tyre_deflection is not None:
-        if tyre_stiffness is None:
-            raise ValueError("tyre_deflection needs tyre_stiffness (N/m, > 0)")
-        k_t = check_scalar("tyre_stiffness", tyre_stiffness, 0.0, lo_open=True, unit="N/m")
-        load = k_t * _series("tyre_deflection", tyre_deflection, n)
-    elif dynamic_tyre_load is not None:
-        load = _series("dynamic_tyre_load", dynamic_tyre_load, n)
-    else:
-        load = None
-    if load is not None:
-        out["tyre_load_rms"] = float(rms(load))
-        if static_tyre_load is not None:
-            static = check_scalar("static_tyre_load", static_tyre_load, 0.0, lo_open=True, unit="N")
-            out["tyre_load_ratio"] = out["tyre_load_rms"] / static
-    elif static_tyre_load is not None:
-        raise ValueError("static_tyre_load needs dynamic_tyre_load or tyre_deflection")
-    return out
-
-
-# ----------------------------------------------------------------------------------------------
-# buildings and the structural-control benchmark criteria
-# ----------------------------------------------------------------------------------------------
-
-def _peak(x: np.ndarray) -> float:
-    return float(np.max(np.abs(x)))
-
-
-def _worst_rms(x: np.ndarray) -> float:
-    """Largest per-channel r.m.s. (the benchmark's "normed" response, max over storeys/floors)."""
-    return float(np.max(rms(x)))
-
-
-def building_metrics(dt, drift, storey_heights, abs_acc, base_shear=None, damper_force=None, *,
-                     floor_masses=None, damper_stroke=None, displacement=None) -> dict[str, float]:
-    """Peak and r.m.s. responses of one seismic record of a building.
-
-    Signals have time along axis 0 and the same number of samples; 2-D ones may be 1-D for one channel:
-
-    * ``drift`` (n, n_storeys): interstorey drifts, m; ``storey_heights``: (n_storeys,) or scalar, m > 0;
-    * ``abs_acc`` (n, n_floors): absolute floor accelerations, m/s²;
-    * ``base_shear`` (n,): N; if omitted but ``floor_masses`` (n_floors,) kg are given, the base shear
-      is the floors' total inertia force Σ m_i·ẍ_a,i (which includes any device at the base);
-    * ``damper_force`` (n, n_dampers), N; ``damper_stroke`` (n, n_dampers), m;
-      ``displacement`` (n, n_floors): floor displacements relative to the ground, m.
-
-    Keys: ``drift_peak``, ``drift_rms`` (m); ``drift_ratio_peak``, ``drift_ratio_rms`` (−);
-    ``acc_peak``, ``acc_rms`` (m/s²); and where the inputs are given ``base_shear_peak``,
-    ``base_shear_rms`` (N), ``damper_force_peak`` (N), ``damper_stroke_peak`` (m), ``disp_peak`` (m).
-    Peaks are over time and channels; r.m.s. values are the largest per-channel r.m.s. over the record.
-    """
-    d = _signal("drift", drift, columns=True)
-    n, n_storeys = d.shape
-    # Uniform sampling makes peaks and r.m.s. values step-free; dt is checked for a consistent API.
-    _sample_interval(dt, n)
-    h = check_array("storey_heights", storey_heights, unit="m")
-    if h.ndim > 1 or (h.ndim == 1 and h.size != n_storeys):
-        raise ValueError(f"storey_heights must be a scalar or have {n_storeys} entries (one per drift "
-                         f"column), got shape {h.shape}")
-    if np.any(h <= 0):
-        raise ValueError(f"storey_heights must be > 0 m, got minimum {h.min():g} m")
-    acc = _signal("abs_acc", abs_acc, n=n, columns=True)
-    ratio = d / h
-
-    out = {
-        "drift_peak": _peak(d), "drift_rms": _worst_rms(d),
-        "drift_ratio_peak": _peak(ratio), "drift_ratio_rms": _worst_rms(ratio),
-        "acc_peak": _peak(acc), "acc_rms": _worst_rms(acc),
-    }
-    if base_shear is None and floor_masses is not None:
-        m = check_array("floor_masses", floor_masses, shape=(acc.shape[1],), unit="kg")
-        if np.any(m <= 0):
-            raise ValueError(f"floor_masses must be > 0 kg, got minimum {m.min():g} kg")
-        base_shear = acc @ m
-    if base_shear is not None:
-        v = _series("base_shear", base_shear, n)
-        out["base_shear_peak"], out["base_shear_rms"] = _peak(v), _worst_rms(v)
-    for name, value, key in (("damper_force", damper_force, "damper_force_peak"),
-                             ("damper_stroke", damper_stroke, "damper_stroke_peak"),
-                             ("displacement", displacement, "disp_peak")):
-        if value is not None:
-            out[key] = _peak(_signal(name, value, n=n, columns=True))
-    return out
-
-
-# Criterion → the building_metrics key it normalises (controlled over uncontrolled).
-_BENCHMARK_J = {
-    "J1": "drift_ratio_peak", "J2": "acc_peak", "J3": "base_shear_peak",
-    "J4": "drift_ratio_rms", "J5": "acc_rms", "J6": "base_shear_rms",
-}
-
-
-def _positive(d: Mapping[str, float], name: str, key: str, criterion: str) -> float:
-    value = check_scalar(f"{name}[{key!r}]", d[key], 0.0)
-    if value == 0.0:
-        raise ValueError(f"{name}[{key!r}] = 0: {criterion} is undefined — the uncontrolled response it "
-                         "normalises by must be non-zero")
-    return value
-
-
-def benchmark_criteria(controlled: Mapping[str, float], uncontrolled: Mapping[str, float], *,
-                       building_weight: float | None = None) -> dict[str, float]:
-    """Evaluation criteria of the seismic structural-control benchmark for one record.
-
-    After the benchmark of Ohtori et al. (2004, J. Eng. Mech.) — an UNVERIFIED recollection: the
-    project's reference page could not check the definitions or numbering against the paper.
-    ``controlled``/``uncontrolled`` are :func:`building_metrics` dicts of the same record. Ratios,
-    < 1 is better:
-
-    J1 peak interstorey drift ratio, J2 peak absolute floor acceleration, J3 peak base shear;
-    J4–J6 the same with r.m.s. ("normed") responses — each over the uncontrolled value (J3/J6 only if
-    both dicts have base shear). Control effort, where the inputs exist: ``force_over_weight`` — peak
-    device force over ``building_weight`` (N, e.g. ``G * total_mass``); ``stroke_peak`` — peak device
-    stroke, m; ``stroke_over_disp`` — that stroke over the uncontrolled peak floor displacement (the
-    normalisation is part of the same unverified recollection).
-    Take the maximum over several records with :func:`max_over_records`.
-    """
-    out = {}
-    for criterion, key in _BENCHMARK_J.items():
-        has_c, has_u = key in controlled, key in uncontrolled
-        if has_c != has_u:
-            which = "uncontrolled" if has_c else "controlled"
-            raise ValueError(f"{which} lacks {key!r}, needed for {criterion}; compute both with the same inputs")
-        if has_c:
-            out[criterion] = (check_scalar(f"controlled[{key!r}]", controlled[key], 0.0)
-                              / _positive(uncontrolled, "uncontrolled", key, criterion))
-    if "damper_force_peak" in controlled and building_weight is not None:
-        w = check_scalar("building_weight", building_weight, 0.0, lo_open=True, unit="N")
-        out["force_over_weight"] = check_scalar("controlled['damper_force_peak']",
-                                                controlled["damper_force_peak"], 0.0) / w
-    if "damper_stroke_peak" in controlled:
-        stroke = check_scalar("controlled['damper_stroke_peak']", controlled["damper_stroke_peak"], 0.0)
-        out["stroke_peak"] = stroke
-        if "disp_peak" in uncontrolled:
-            out["stroke_over_disp"] = stroke / _positive(uncontrolled, "uncontrolled", "disp_peak",
-                                                        "stroke_over_disp")
-    return out
-
-
-def max_over_records(records: Iterable[Mapping[str, float]]) -> dict[str, float]:
-    """Key-wise maximum of per-record criteria — the benchmark's worst case over earthquakes."""
-    records = list(records)
-    if not records:
-        raise ValueError("records must hold at least one criteria dict")
-    keys = set(records[0])
-    for i, r in enumerate(records[1:], start=1):
-        if set(r) != keys:
-            raise ValueError(f"records[{i}] has keys {sorted(r)}, expected {sorted(keys)} like records[0]")
-    return {k: max(check_scalar(f"records[{i}][{k!r}]", r[k]) for i, r in enumerate(records))
-            for k in records[0]}

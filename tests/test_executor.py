@@ -74,11 +74,11 @@ def test_benchmark_on_a_local_ray_instance_equals_the_serial_table(tmp_path):
     from experiments.cli import main
 
     for backend in ("serial", "ray"):
-        assert main(["benchmark", "--plant", "building", "--quick", "--seeds", "1", "--controllers", "passive_on",
+        assert main(["benchmark", "--plant", "shear_building", "--quick", "--seeds", "1", "--controllers", "passive_on",
                      "clipped_optimal", "--backend", backend, "--jobs", "2", "--out", str(tmp_path / backend),
                      "--no-progress"]) == 0
-    assert (tmp_path / "serial" / "building_benchmark.csv").read_text() == \
-        (tmp_path / "ray" / "building_benchmark.csv").read_text()
+    assert (tmp_path / "serial" / "shear_building_benchmark.csv").read_text() == \
+        (tmp_path / "ray" / "shear_building_benchmark.csv").read_text()
 
 
 def test_training_seeds_on_a_pool_equal_serial_ones(tmp_path):

@@ -6,6 +6,8 @@ import pytest
 from scipy import signal
 
 from mrd_env import metrics as M
+from mrd_env.plants.quarter_car import metrics as QM
+from mrd_env.plants.shear_building import metrics as BM
 
 # ISO 2631-1 |Wk| check values (reference page, section 6)
 WK_CHECK = {1.0: 0.482, 2.0: 0.531, 4.0: 0.967, 5.0: 1.039, 6.3: 1.054, 8.0: 1.036, 10.0: 0.988,
@@ -117,7 +119,7 @@ def test_quarter_car_metrics_of_sinusoidal_responses():
     travel = travel_amp * np.cos(2 * np.pi * f * t)
     deflection = defl_amp * np.sin(2 * np.pi * f * t + 0.3)
     static = (320 + 40) * M.G
-    m = M.quarter_car_metrics(DT, acc, travel, tyre_deflection=deflection, tyre_stiffness=k_t,
+    m = QM.quarter_car_metrics(DT, acc, travel, tyre_deflection=deflection, tyre_stiffness=k_t,
                               static_tyre_load=static)
     # the high-pass start-up transient is a small part of a 60 s record
     assert m["acc_weighted_rms"] == pytest.approx(M.weighting_magnitude("Wk", f) * acc_amp / math.sqrt(2),
@@ -131,13 +133,13 @@ def test_quarter_car_metrics_of_sinusoidal_responses():
     assert m["tyre_load_rms"] == pytest.approx(k_t * defl_amp / math.sqrt(2), rel=1e-3)
     assert m["tyre_load_ratio"] == pytest.approx(m["tyre_load_rms"] / static, rel=1e-12)
     # the tyre load given directly is equivalent to deflection × stiffness
-    m2 = M.quarter_car_metrics(t, acc, travel, k_t * deflection, static_tyre_load=static)
+    m2 = QM.quarter_car_metrics(t, acc, travel, k_t * deflection, static_tyre_load=static)
     assert m2 == pytest.approx(m, rel=1e-12)
 
 
 def test_quarter_car_metrics_without_tyre_input_omit_tyre_keys():
     _, acc = sine(1.0, 2.0, 2.0)
-    m = M.quarter_car_metrics(DT, acc, 0 * acc)
+    m = QM.quarter_car_metrics(DT, acc, 0 * acc)
     assert set(m) == {"acc_weighted_rms", "acc_rms", "acc_vdv", "acc_mtvv", "travel_rms", "travel_peak"}
 
 
@@ -155,7 +157,7 @@ def building_record(scale=1.0, n=4000):
 
 
 def test_building_metrics_of_sinusoidal_response():
-    m = M.building_metrics(**building_record())
+    m = BM.building_metrics(**building_record())
     # drift ratio: storey 1 peaks at 0.010/0.5 = 0.02, storey 2 at 0.006/0.3 = 0.02
     assert m["drift_peak"] == pytest.approx(0.010, rel=1e-6)
     assert m["drift_ratio_peak"] == pytest.approx(0.02, rel=1e-6)
@@ -171,43 +173,43 @@ def test_building_metrics_of_sinusoidal_response():
     # a given base shear takes precedence over the floor masses
     rec = building_record()
     rec["base_shear"] = 2 * (rec["abs_acc"] @ np.array(rec["floor_masses"]))
-    assert M.building_metrics(**rec)["base_shear_peak"] == pytest.approx(2600.0, rel=1e-6)
+    assert BM.building_metrics(**rec)["base_shear_peak"] == pytest.approx(2600.0, rel=1e-6)
 
 
 def test_benchmark_criteria_normalisation():
-    unc = M.building_metrics(**building_record())
-    same = M.benchmark_criteria(unc, unc)
+    unc = BM.building_metrics(**building_record())
+    same = BM.benchmark_criteria(unc, unc)
     assert same == pytest.approx({f"J{i}": 1.0 for i in range(1, 7)} | {"stroke_peak": 0.004,
                                                                         "stroke_over_disp": 0.25})
     # responses scale linearly, so a uniformly halved response gives J = 1/2
-    half = M.building_metrics(**building_record(scale=0.5))
+    half = BM.building_metrics(**building_record(scale=0.5))
     w = 300.0 * M.G
-    j = M.benchmark_criteria(half, unc, building_weight=w)
+    j = BM.benchmark_criteria(half, unc, building_weight=w)
     for i in range(1, 7):
         assert j[f"J{i}"] == pytest.approx(0.5, rel=1e-9)
     assert j["force_over_weight"] == pytest.approx(400.0 / w, rel=1e-9)
     # the benchmark reports the worst record
-    worst = M.max_over_records([j, M.benchmark_criteria(unc, unc, building_weight=w)])
+    worst = BM.max_over_records([j, BM.benchmark_criteria(unc, unc, building_weight=w)])
     assert worst["J1"] == pytest.approx(1.0) and worst["force_over_weight"] == pytest.approx(800.0 / w)
 
 
 def test_benchmark_criteria_without_base_shear_skip_j3_j6():
     rec = building_record()
     del rec["floor_masses"]
-    m = M.building_metrics(**rec)
-    assert set(M.benchmark_criteria(m, m)) >= {"J1", "J2", "J4", "J5"}
-    assert not {"J3", "J6"} & set(M.benchmark_criteria(m, m))
+    m = BM.building_metrics(**rec)
+    assert set(BM.benchmark_criteria(m, m)) >= {"J1", "J2", "J4", "J5"}
+    assert not {"J3", "J6"} & set(BM.benchmark_criteria(m, m))
 
 
 # ---------------------------------------------------------------- validation
 
 def test_zero_uncontrolled_response_is_a_clear_error():
-    unc = M.building_metrics(**building_record())
-    zero = M.building_metrics(**building_record(scale=0.0))
+    unc = BM.building_metrics(**building_record())
+    zero = BM.building_metrics(**building_record(scale=0.0))
     with pytest.raises(ValueError, match=r"uncontrolled\['drift_ratio_peak'\] = 0.*J1"):
-        M.benchmark_criteria(unc, zero)
+        BM.benchmark_criteria(unc, zero)
     with pytest.raises(ValueError, match="controlled lacks 'base_shear_peak'"):
-        M.benchmark_criteria({k: v for k, v in unc.items() if not k.startswith("base")}, unc)
+        BM.benchmark_criteria({k: v for k, v in unc.items() if not k.startswith("base")}, unc)
 
 
 @pytest.mark.parametrize("call, match", [
@@ -216,7 +218,7 @@ def test_zero_uncontrolled_response_is_a_clear_error():
     (lambda: M.weighted_rms(np.ones(100), 0.05), r"dt = 0.05 is invalid.*Wk weighting needs"),
     (lambda: M.weighted_rms(np.r_[1.0, np.nan, 2.0], DT), r"^a contains a non-finite value.*must be finite"),
     (lambda: M.weighted_rms(np.ones(100), float("nan")), r"dt = nan is invalid: must be finite"),
-    (lambda: M.building_metrics(DT, np.full((10, 2), np.inf), 3.0, np.ones((10, 2))),
+    (lambda: BM.building_metrics(DT, np.full((10, 2), np.inf), 3.0, np.ones((10, 2))),
      r"^drift contains a non-finite value.*must be finite"),
     (lambda: M.weighted_rms(np.ones(100), DT, kind="Wx"), r"kind = 'Wx' is invalid: must be one of"),
     (lambda: M.weighted_rms(np.ones(100), DT, method="x"), r"method = 'x' is invalid"),
@@ -224,22 +226,22 @@ def test_zero_uncontrolled_response_is_a_clear_error():
     (lambda: M.weighting_magnitude("Wk", [-1.0]), r"^f has values .* outside the valid range"),
     (lambda: M.vdv(np.ones((0,)), DT), r"a_w must hold at least one sample"),
     (lambda: M.running_rms(np.ones(10), DT, tau=0), r"tau = 0 is invalid: must be .*> 0"),
-    (lambda: M.quarter_car_metrics(DT, np.ones(10), np.ones(9)), r"suspension_travel must have 10 samples"),
-    (lambda: M.quarter_car_metrics(DT, np.ones((10, 2)), np.ones(10)), r"sprung_acc must be 1-dimensional"),
-    (lambda: M.quarter_car_metrics(DT, np.ones(10), np.ones(10), np.ones(10), static_tyre_load=0.0),
+    (lambda: QM.quarter_car_metrics(DT, np.ones(10), np.ones(9)), r"suspension_travel must have 10 samples"),
+    (lambda: QM.quarter_car_metrics(DT, np.ones((10, 2)), np.ones(10)), r"sprung_acc must be 1-dimensional"),
+    (lambda: QM.quarter_car_metrics(DT, np.ones(10), np.ones(10), np.ones(10), static_tyre_load=0.0),
      r"static_tyre_load = 0.0 is invalid: must be .*> 0"),
-    (lambda: M.quarter_car_metrics(DT, np.ones(10), np.ones(10), tyre_deflection=np.ones(10)),
+    (lambda: QM.quarter_car_metrics(DT, np.ones(10), np.ones(10), tyre_deflection=np.ones(10)),
      r"tyre_deflection needs tyre_stiffness"),
-    (lambda: M.building_metrics(DT, np.ones((10, 2)), [3.0], np.ones((10, 2))), r"storey_heights must .* 2 entries"),
-    (lambda: M.building_metrics(DT, np.ones((10, 2)), [3.0, 0.0], np.ones((10, 2))), r"storey_heights must be > 0"),
-    (lambda: M.building_metrics(DT, np.ones((10, 2)), 3.0, np.ones((9, 2))), r"abs_acc must have 10 samples"),
-    (lambda: M.building_metrics(DT, np.ones((10, 2, 1)), 3.0, np.ones((10, 2))), r"drift must be \(n_samples"),
-    (lambda: M.building_metrics(DT, np.ones((10, 2)), 3.0, np.ones((10, 2)), floor_masses=[1.0]),
+    (lambda: BM.building_metrics(DT, np.ones((10, 2)), [3.0], np.ones((10, 2))), r"storey_heights must .* 2 entries"),
+    (lambda: BM.building_metrics(DT, np.ones((10, 2)), [3.0, 0.0], np.ones((10, 2))), r"storey_heights must be > 0"),
+    (lambda: BM.building_metrics(DT, np.ones((10, 2)), 3.0, np.ones((9, 2))), r"abs_acc must have 10 samples"),
+    (lambda: BM.building_metrics(DT, np.ones((10, 2, 1)), 3.0, np.ones((10, 2))), r"drift must be \(n_samples"),
+    (lambda: BM.building_metrics(DT, np.ones((10, 2)), 3.0, np.ones((10, 2)), floor_masses=[1.0]),
      r"floor_masses must have shape \(2,\)"),
-    (lambda: M.benchmark_criteria({"acc_peak": 1.0, "damper_force_peak": 1.0}, {"acc_peak": 1.0},
+    (lambda: BM.benchmark_criteria({"acc_peak": 1.0, "damper_force_peak": 1.0}, {"acc_peak": 1.0},
                                   building_weight=-1), r"building_weight = -1 is invalid"),
-    (lambda: M.max_over_records([{"J1": 1.0}, {"J2": 1.0}]), r"records\[1\] has keys"),
-    (lambda: M.max_over_records([]), r"records must hold at least one"),
+    (lambda: BM.max_over_records([{"J1": 1.0}, {"J2": 1.0}]), r"records\[1\] has keys"),
+    (lambda: BM.max_over_records([]), r"records must hold at least one"),
 ])
 def test_invalid_inputs_raise_value_error_naming_the_argument(call, match):
     with pytest.raises(ValueError, match=match):

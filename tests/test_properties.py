@@ -512,7 +512,7 @@ def _check_bad_option(env_id: str, base: dict, option: str, value) -> None:
     with pytest.raises(ValueError) as info:
         if option == "render_mode" and not isinstance(value, str):
             # gymnasium.make itself calls render_mode.endswith() before the environment sees it
-            from mrd_env.envs import QuarterCarEnv, ShearBuildingEnv
+            from mrd_env.plants import QuarterCarEnv, ShearBuildingEnv
             (QuarterCarEnv if env_id == QC else ShearBuildingEnv)(**options)
         else:
             _run_env(env_id, options)

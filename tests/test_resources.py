@@ -15,8 +15,8 @@ import mrd_env  # noqa: F401  (registers the environments)
 from mrd_env import resources
 from mrd_env.disturbances import Record, el_centro, road_from_csv, scale_record
 from mrd_env.envs.disturbance import Disturbance
-from mrd_env.envs.quarter_car import QuarterCarEnv, QuarterCarVectorEnv
-from mrd_env.envs.shear_building import ShearBuildingEnv
+from mrd_env.plants.quarter_car.env import QuarterCarEnv, QuarterCarVectorEnv
+from mrd_env.plants.shear_building.env import ShearBuildingEnv
 from mrd_env.rig import random_test, sinusoidal_test
 
 SB, QC, HC = "mrd_env/ShearBuilding-v1", "mrd_env/QuarterCar-v1", "mrd_env/HalfCar-v1"

@@ -29,9 +29,9 @@ from ..common.scenarios import base_scenario, held_out_scenarios
 #: The controllers and metric columns of each plant (:attr:`.plants.PlantProfile.benchmark_laws`,
 #: ``benchmark_metrics``); the two published plants' under their former names.
 QC_CONTROLLERS = PLANTS["quarter_car"].benchmark_laws
-BUILDING_CONTROLLERS = PLANTS["building"].benchmark_laws
+BUILDING_CONTROLLERS = PLANTS["shear_building"].benchmark_laws
 QC_METRICS = PLANTS["quarter_car"].benchmark_metrics
-BUILDING_METRICS = PLANTS["building"].benchmark_metrics
+BUILDING_METRICS = PLANTS["shear_building"].benchmark_metrics
 
 
 def run_benchmark(plant: str, controllers=None, scenarios=None, *, damper: str = "spencer_dyke",

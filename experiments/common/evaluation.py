@@ -151,7 +151,7 @@ def controller_episodes(controller, scenario: Scenario, response: str = "", **en
             options["damper"] = env_options["damper"]
         return evaluate_batch(lambda v: agent.bind(v), scenario, response, name=agent.name, **options)
     if controller == "passive_ref":
-        from mrd_env.plants import quarter_car
+        from mrd_env.plants.quarter_car import quarter_car
 
         c = quarter_car(scenario.options.get("plant_preset", "set_a")).passive_c
         opts = {**env_options, "damper": "bingham", "damper_params": dict(fc_a=0.0, fc_b=0.0, c0a=c, c0b=0.0,

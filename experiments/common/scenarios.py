@@ -26,7 +26,7 @@ def preview_options(plant: str, options: dict) -> dict:
     """``options`` with the road-preview sensor added to its sensors (the car only)."""
     if not profile(plant).preview:
         raise ValueError(f"road preview is a sensor of the quarter car, not of the {plant}")
-    from mrd_env.envs.quarter_car import DEFAULT_SENSORS
+    from mrd_env.plants.quarter_car.env import DEFAULT_SENSORS
 
     sensors = tuple(options.get("sensors") or DEFAULT_SENSORS)
     return {**options, "sensors": (*sensors, "road_preview"), "preview": PREVIEW}

@@ -55,7 +55,7 @@ from mrd_env.disturbances import el_centro
 from mrd_env.report import figure
 
 lab = Lab("lab4_building")
-scenario = held_out_scenarios("building", plant_options={})[0]  # El Centro N-S, ×0.2 time; damper in storey 1
+scenario = held_out_scenarios("shear_building", plant_options={})[0]  # El Centro N-S, ×0.2 time; damper in storey 1
 env = gym.make(scenario.env_id, **scenario.options).unwrapped
 design = LinearDesign(env)  # the linear model the environment declares
 A, Bf, Bw = design.A, design.Bf, design.Bw

@@ -144,7 +144,7 @@ for k in labels:
 # El Centro.
 
 # %%
-scenario = held_out_scenarios("building", plant_options={})[0]  # the lab model: damper in storey 1
+scenario = held_out_scenarios("shear_building", plant_options={})[0]  # the lab model: damper in storey 1
 building = {"passive_off": lambda venv: make_controller("passive_off", venv),
             "clipped-optimal, on–off": lambda venv: ClippedOptimal(venv),
             "clipped-optimal + SID": lambda venv: ClippedOptimal(venv, inverse="sid"),

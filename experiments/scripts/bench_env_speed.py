@@ -28,7 +28,7 @@ from mrd_env.stepping.first_use import set_mode
 
 
 def _make(env_id: str, **kwargs):
-    from mrd_env.envs import register_envs
+    from mrd_env.plants.registry import register_envs
 
     register_envs()
     return gym.make(env_id, **kwargs)

@@ -27,7 +27,7 @@ from mrd_env.inverse import INVERSES, nrmse
 from mrd_env.report import write_table
 from mrd_env.stepping.first_use import set_mode
 
-from ..common.plants import BUILDING
+from mrd_env.plants.shear_building.profile import PROFILE as BUILDING
 
 SCENARIO = {"ground_motion": "el_centro", "ground_motion_params": {"time_scale": 0.2}}
 

@@ -8,7 +8,7 @@ Both rows advance the same system — quarter car set A with the automotive Spen
 over one record of ``--seconds`` at dt = 1 ms, one compiled call for the whole record (no per-call overhead):
 
 * **accurate**: the project's stepping routine (:mod:`mrd_env.stepping`: SDIRK2, Newton on the damper's unknowns,
-  error control, exact command lag), through :class:`~mrd_env.plants.base.CoupledPlant`;
+  error control, exact command lag), through :class:`~mrd_env.mechanics.plant.CoupledPlant`;
 * **explicit (limit)**: one forward-Euler step per millisecond of the same equations (the same matrices and the
   damper model's own compiled functions, command lag included) — what a step cannot cost less than. It is *not*
   a usable integrator here: the Bouc–Wen state's stiffness (≈ 10⁴ s⁻¹) makes it unstable at 1 ms; only its cost
@@ -35,7 +35,7 @@ def quarter_car_case(seconds: float, dt: float = 1e-3, seed: int = 0):
     """(coupled plant, commands V (1, n, 1), plant inputs w (1, n + 1, 2)) of the benchmark's record."""
     from mrd_env.dampers import make_damper
     from mrd_env.disturbances.road import iso8608_road
-    from mrd_env.plants.base import CoupledPlant
+    from mrd_env.mechanics.plant import CoupledPlant
     from mrd_env.plants.quarter_car import quarter_car
 
     damper = make_damper("spencer_dyke", "automotive")

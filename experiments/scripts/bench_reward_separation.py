@@ -47,13 +47,13 @@ def separation(plant: str, seeds: int = 5, control_dt: float = 0.01) -> list[dic
 def main(argv=None) -> int:
     set_mode("wait")  # time the compiled kernel, never the interpreted one of a first use
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--plant", choices=["quarter_car", "building", "both"], default="both")
+    p.add_argument("--plant", choices=["quarter_car", "shear_building", "both"], default="both")
     p.add_argument("--seeds", type=int, default=5)
     p.add_argument("--out", type=Path, default=Path("results/reward_separation"))
     args = p.parse_args(argv)
     import mrd_env  # noqa: F401
 
-    for plant in (["quarter_car", "building"] if args.plant == "both" else [args.plant]):
+    for plant in (["quarter_car", "shear_building"] if args.plant == "both" else [args.plant]):
         rows = separation(plant, args.seeds)
         md, _ = write_table(rows, args.out / f"{plant}_separation", floatfmt=".4g",
                             title=f"{plant}: returns at 10 ms (ranked) and the paired gap to the next (95 % intervals)")

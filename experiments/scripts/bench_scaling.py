@@ -24,7 +24,7 @@ def _benchmark(backend, jobs):
     from ..commands.benchmark import run_benchmark
 
     eps = []
-    for plant in ("building", "quarter_car"):
+    for plant in ("shear_building", "quarter_car"):
         eps += run_benchmark(plant, backend=backend, jobs=jobs, progress=False)
     return [(e.controller, e.scenario, tuple(sorted(e.metrics.items()))) for e in eps]
 

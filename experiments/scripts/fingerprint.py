@@ -43,7 +43,9 @@ def rollouts(seconds: float = 2.0) -> dict[str, str]:
     import gymnasium as gym
 
     import mrd_env  # noqa: F401
-    from mrd_env.envs import RENAMED
+    from mrd_env.plants.registry import renamed
+
+    RENAMED = renamed()
 
     out = {}
     for env_id in sorted(i for i in gym.registry if i.startswith("mrd_env/") and i not in RENAMED):

@@ -21,7 +21,7 @@ from gymnasium.vector import VectorEnv
 
 from ..dampers import DamperModel
 from ..disturbances import Record
-from ..plants import CoupledPlant, LinearPlant
+from ..mechanics import CoupledPlant, LinearPlant
 from ..resources import FLOAT, check as check_memory, episode_parts, format_bytes
 from ..stepping import HIST_FULL, HIST_NONE, HIST_PERIOD, Driver, Processing, noise_keys
 from .disturbance import Disturbance
@@ -88,6 +88,9 @@ class Assembly:
     preview_times: tuple[float, ...] = ()              # s ahead of the disturbance a preview sensor reads
     episode_floats: int = 0                            # floats per record sample an episode's extras keep
     reset_floats: int = 0                              # floats per record sample new_episode computes and drops
+    #: {reward signal: mean square} on the plant's nominal disturbance, what weights="reward" of the model-based
+    #: laws divides by (None: the plant declares none)
+    nominal_reference: Callable[[], dict] | None = None
 
     @property
     def n_sub(self) -> int:

@@ -1,5 +1,5 @@
-"""``gym.make``'s entry points for the scalar environments (``mrd_env.envs.entry:QuarterCarEnv``, ...): each class,
-wrapped in a TimeLimit at its own episode length (issue 37).
+"""The scalar environments' entry points: each class, wrapped in a TimeLimit at its own episode length (issue 37);
+:mod:`mrd_env.plants.registry` registers one per plant (``mrd_env.plants.registry:QuarterCarEnv``, ...).
 
 Why: the episode length depends on the options (``episode_seconds``, ``control_dt``, the disturbance), so no
 ``max_episode_steps`` can be registered, yet Gymnasium reads the length from ``env.spec.max_episode_steps``
@@ -63,7 +63,7 @@ class TimeLimitedEntryPoint:
 
 
 class FormerIdEntryPoint(TimeLimitedEntryPoint):
-    """The entry point of a former id (:data:`mrd_env.envs.RENAMED`): the same environment, after a
+    """The entry point of a former id (a plant's ``former_ids``): the same environment, after a
     ``DeprecationWarning`` that names the id to use now."""
 
     def __init__(self, module: str, name: str, former: str, now: str):
@@ -76,18 +76,3 @@ class FormerIdEntryPoint(TimeLimitedEntryPoint):
         warnings.warn(f"{self.former} is the former name of {self.now} (the same physics-level set-up): use "
                       f"{self.now}", DeprecationWarning, stacklevel=2)
         return super().__call__(**options)
-
-
-def __getattr__(name: str) -> TimeLimitedEntryPoint:
-    """``mrd_env.envs.entry:QuarterCarEnv`` (the registered entry point): the entry point of every scalar class in
-    :data:`mrd_env.envs.ENVS`, so that a plant added there needs nothing here; ``QuarterCar_v0``: a former id's."""
-    from . import ENVS, RENAMED, former_id_entry
-
-    for module, scalar, _ in ENVS.values():
-        if scalar == name:
-            return TimeLimitedEntryPoint(module, scalar)
-    for former, now in RENAMED.items():
-        if former_id_entry(former) == name:
-            module, scalar, _ = ENVS[now]
-            return FormerIdEntryPoint(module, scalar, former, now)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

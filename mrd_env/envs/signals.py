@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..plants import CoupledPlant
+from ..mechanics import CoupledPlant
 
 
 @dataclass(frozen=True)

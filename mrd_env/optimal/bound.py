@@ -80,7 +80,7 @@ def passive_on_force_peak(problem: EpisodeProblem) -> float:
 
 def first_order_hold(A: np.ndarray, B: np.ndarray, dt: float):
     """(Φ, Γ_a, Γ_b) with x_{r+1} = Φ x_r + Γ_a u_r + Γ_b (u_{r+1} − u_r), exact for u linear between samples
-    (as :func:`mrd_env.plants.response.foh_response`)."""
+    (as :func:`mrd_env.mechanics.response.foh_response`)."""
     n, m = B.shape
     M = np.zeros((n + 2 * m, n + 2 * m))
     M[:n, :n], M[:n, n:n + m], M[n:n + m, n + m:] = A, B, np.eye(m)

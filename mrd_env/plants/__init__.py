@@ -1,9 +1,79 @@
-"""Plants coupled to MR dampers: quarter car, half car and N-storey shear building."""
-from .base import CoupledPlant, LinearPlant
-from .half_car import HALF_CAR_PRESETS, HalfCarParams, half_car
-from .quarter_car import QUARTER_CAR_PRESETS, QuarterCarParams, quarter_car
-from .shear_building import BUILDING_PRESETS, THREE_STOREY, ShearBuildingParams, shear_building
+"""The plants, one folder each (``mrd_env/plants/<name>/``): the physics with its parameter sets, the environment
+assembly, the renderer, the metrics, the nominal references the model-based laws design on, and the experiments'
+profile (scenarios, laws, tables). Each folder declares its :class:`~.spec.PlantSpec` once (``SPEC`` in its
+``__init__``); the registry below is one line per plant, and the Gymnasium ids, entry points, lazy imports and
+the CLI's choices are generated from it (:mod:`.registry`).
 
-__all__ = ["CoupledPlant", "LinearPlant", "QUARTER_CAR_PRESETS", "QuarterCarParams", "quarter_car",
-           "HALF_CAR_PRESETS", "HalfCarParams", "half_car",
-           "BUILDING_PRESETS", "THREE_STOREY", "ShearBuildingParams", "shear_building"]
+>>> from mrd_env.plants import plant
+>>> plant("quarter_car").rl_id
+'mrd_env/QuarterCar-v1'
+"""
+from __future__ import annotations
+
+import importlib
+import warnings
+
+from ..mechanics import CoupledPlant, LinearPlant
+from .spec import PlantSpec
+
+#: The registry: one line per plant, its folder's name.
+PLANT_FOLDERS = (
+    "shear_building",
+    "quarter_car",
+    "half_car",
+)
+
+_SPECS: dict[str, PlantSpec] = {}
+
+
+def plants() -> dict[str, PlantSpec]:
+    """Every plant's spec by name, in registry order (each folder's ``SPEC``)."""
+    if not _SPECS:
+        for folder in PLANT_FOLDERS:
+            spec = importlib.import_module(f"{__name__}.{folder}").SPEC
+            if spec.name != folder:
+                raise ValueError(f"the spec of mrd_env/plants/{folder}/ is named {spec.name!r}: a plant's name is "
+                                 f"its folder's")
+            _SPECS[spec.name] = spec
+    return dict(_SPECS)
+
+
+def plant(name: str | PlantSpec) -> PlantSpec:
+    """The spec of plant ``name`` (a spec is returned as it is); a former spelling works after a
+    ``DeprecationWarning``; ``ValueError`` naming the plants otherwise."""
+    if isinstance(name, PlantSpec):
+        return name
+    every = plants()
+    if isinstance(name, str) and name in every:
+        return every[name]
+    for spec in every.values():
+        if name in spec.former_names:
+            warnings.warn(f"plant {name!r} is now called {spec.name!r}", DeprecationWarning, stacklevel=2)
+            return spec
+    raise ValueError(f"plant must be one of {list(every)}, got {name!r}")
+
+
+def plant_of_env(env) -> PlantSpec:
+    """The spec of an environment's plant (scalar or vector, wrapped or not)."""
+    return plant(getattr(env, "unwrapped", env).plant_kind)
+
+
+def plant_of_id(env_id: str) -> PlantSpec | None:
+    """The spec whose id (current or former) is ``env_id`` (None if none is)."""
+    return next((s for s in plants().values() if env_id in (*s.ids, *s.former_ids)), None)
+
+
+def __getattr__(name: str):
+    """The plants' public names, imported on first use: the environment classes (``QuarterCarEnv``,
+    ``QuarterCarVectorEnv``, ...), the parameter classes and presets (``QuarterCarParams``, ...)."""
+    for spec in plants().values():
+        if name in (spec.env_class, spec.vector_env_class):
+            return getattr(spec.module("env"), name)
+        folder = spec.module()
+        if name in getattr(folder, "__all__", ()) and name != spec.name:
+            return getattr(folder, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+__all__ = ["PLANT_FOLDERS", "PlantSpec", "plants", "plant", "plant_of_env", "plant_of_id", "CoupledPlant",
+           "LinearPlant"]

@@ -9,7 +9,7 @@ from scipy.linalg import solve_continuous_are
 from controllers import (CONTROLLERS, ClippedOptimal, Groundhook, Hybrid, KalmanEstimator, LinearDesign, Lyapunov,
                          MaximumEnergyDissipation, ModulatedHomogeneousFriction, PassiveOff, PassiveOn,
                          SkyhookContinuous, SkyhookOnOff, make_controller)
-from mrd_env.envs import QuarterCarEnv, ShearBuildingEnv
+from mrd_env.plants import QuarterCarEnv, ShearBuildingEnv
 
 QC_SENSORS = ("sprung_acc", "travel", "travel_rate", "sprung_vel", "unsprung_vel", "damper_force")
 B_SENSORS = ("abs_acc", "damper_force", "ground_acc", "damper_stroke", "damper_velocity", "floor_vel")

@@ -194,7 +194,7 @@ PREVIEW = tuple(round(0.01 * k, 2) for k in range(1, 11))
 
 
 def _preview_env(**options):
-    from mrd_env.envs.quarter_car import DEFAULT_SENSORS
+    from mrd_env.plants.quarter_car.env import DEFAULT_SENSORS
 
     return _env(CAR, sensors=(*DEFAULT_SENSORS, "road_preview"), preview=PREVIEW, **options)
 
@@ -273,9 +273,9 @@ def test_continuous_filter_is_the_analog_prototype_of_the_rewards_wk_filter():
 def test_reward_cost_outputs_are_the_rewards_signals(frame):
     """The design's weighted outputs, driven by the passive car (the set's dashpot as the force) on a road, have
     the reward's mean squares: Wk-weighted sprung acceleration, travel and tyre load as
-    :func:`~mrd_env.envs.quarter_car.passive_reference` computes them (exact simulation and scipy's digital Wk)."""
-    from mrd_env.envs.quarter_car import passive_reference
-    from mrd_env.plants.response import foh_response
+    :func:`~mrd_env.plants.quarter_car.env.passive_reference` computes them (exact simulation and scipy's digital Wk)."""
+    from mrd_env.plants.quarter_car.env import passive_reference
+    from mrd_env.mechanics.response import foh_response
 
     env = _env(CAR)
     co = ClippedOptimal(env, weights={"sprung_acc_wk": 1.0, "travel": 1.0, "_tyre_load": 1.0}, frame=frame)
@@ -301,8 +301,9 @@ def test_reward_weights_are_the_reward_over_the_nominal_passive_car():
     """weights="reward" on the car: the reward's weights over the passive car's mean squares on the nominal class-C
     road at 20 m/s (100 s), so that the passive car costs 1 per second there; on the building over the
     uncontrolled building's; the reward's own weights (reward_weights) are followed."""
-    from controllers.model_based import NOMINAL_ROAD, nominal_reference, reward_weights
-    from mrd_env.envs.quarter_car import passive_reference
+    from controllers.model_based import nominal_reference, reward_weights
+    from mrd_env.plants.quarter_car.env import NOMINAL_ROAD
+    from mrd_env.plants.quarter_car.env import passive_reference
 
     env = _env(CAR)
     rec = _car_road(NOMINAL_ROAD["duration"], seed=NOMINAL_ROAD["seed"])
@@ -426,7 +427,7 @@ def test_reward_weights_beat_the_objective_on_validation_episodes():
     old = _returns(env, MPC(env), seeds)
     new = _returns(env, MPC(env, weights="reward", force_ref=200.0, f_max=1e5), seeds)
     assert new.sum() > old.sum() + 0.5 and np.all(new > old)
-    bld = validation("building")[0]
+    bld = validation("shear_building")[0]
     env = gym.make(bld.env_id, **bld.options, control_dt=0.01).unwrapped
     seeds = bld.seeds[:4]
     old = _returns(env, MPC(env), seeds)

@@ -167,9 +167,9 @@ def test_off_policy_residual_agents_start_at_their_law(algo):
     (["--residual-hold", "10"], "--residual-hold needs a residual"),
     (["--residual", "none", "--residual-hold", "10"], "--residual-hold applies to a residual"),
     (["--residual", "skyhook_continuous", "--residual-hold", "0"], "hold must be an int >= 1"),
-    (["--plant", "building", "--residual", "groundhook"], "does not apply"),
+    (["--plant", "shear_building", "--residual", "groundhook"], "does not apply"),
     (["--algo", "cmaes", "--residual", "skyhook_continuous"], "not to cmaes"),
-    (["--plant", "building", "--preview"], "road preview is a sensor of the quarter car"),
+    (["--plant", "shear_building", "--preview"], "road preview is a sensor of the quarter car"),
 ])
 def test_bad_residual_options_are_one_line_before_training(args, message, capsys, tmp_path):
     assert main(["train", *args, "--out", str(tmp_path), "--no-progress"]) == 2

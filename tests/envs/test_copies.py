@@ -15,8 +15,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import mrd_env  # noqa: F401  (registers the environments)
-from mrd_env.envs import ENVS
-from mrd_env.envs.quarter_car import DEFAULT_SENSORS
+from mrd_env.plants.registry import envs as _envs
+
+ENVS = _envs()
+from mrd_env.plants.quarter_car.env import DEFAULT_SENSORS
 
 IDS = tuple(ENVS)
 SHORT = dict(episode_seconds=0.1, control_dt=0.01)

@@ -7,7 +7,9 @@ import numpy as np
 import pytest
 
 import mrd_env  # noqa: F401
-from mrd_env.envs import RENAMED, V1
+from mrd_env.plants.registry import renamed, v1
+
+RENAMED, V1 = renamed(), v1()
 
 SHORT = {"episode_seconds": 0.5}
 
@@ -35,7 +37,7 @@ def test_v1_building_has_the_benchmarks_damper_storey_and_v0_the_labs():
 
     v1 = gym.make("mrd_env/ShearBuilding-v1", **SHORT).unwrapped
     v0 = gym.make("mrd_env/ShearBuildingPhysical-v0", **SHORT).unwrapped
-    assert tuple(v1.assembly.options["damper_floors"]) == tuple(PLANT["building"]["damper_floors"]) == (2,)
+    assert tuple(v1.assembly.options["damper_floors"]) == tuple(PLANT["shear_building"]["damper_floors"]) == (2,)
     assert np.array_equal(v0.linear_plant.S, [[1.0, 0.0, 0.0]])     # storey 1: the ground floor's drift
     assert np.array_equal(v1.linear_plant.S, [[-1.0, 1.0, 0.0]])    # storey 2: floor 2 relative to floor 1
     assert v0.control_dt == 0.001 and v0.action_mode == "physical"

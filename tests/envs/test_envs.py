@@ -13,7 +13,8 @@ from gymnasium.utils.env_checker import check_env as gym_check_env
 import mrd_env  # noqa: F401  (registers the environments)
 from mrd_env.dampers import available_dampers, make_damper
 from mrd_env.disturbances import Record, sine_sweep
-from mrd_env.envs import QuarterCarEnv, ShearBuildingEnv, register_envs
+from mrd_env.plants import QuarterCarEnv, ShearBuildingEnv
+from mrd_env.plants.registry import register_envs
 from mrd_env.stepping import DIVERGED
 from mrd_env.metrics import weighting_sos
 from mrd_env.plants import ShearBuildingParams

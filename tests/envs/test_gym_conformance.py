@@ -23,7 +23,9 @@ from gymnasium.utils.passive_env_checker import env_render_passive_checker
 from gymnasium.vector import AutoresetMode
 
 import mrd_env  # noqa: F401  (registers the environments)
-from mrd_env.envs import ENVS
+from mrd_env.plants.registry import envs as _envs
+
+ENVS = _envs()
 from mrd_env.envs.vector import env_info
 
 IDS = tuple(ENVS)
@@ -654,7 +656,7 @@ def test_spec_of_a_mixture_bounds_its_episodes():
     """Episodes of different lengths (a mixture of roads): the spec states the longest."""
     from mrd_env.disturbances import bump, sine_sweep
     from mrd_env.envs.disturbance import FixedRecord, Mixture
-    from mrd_env.envs.quarter_car import ROAD_CHANNELS, ROAD_UNITS
+    from mrd_env.plants.quarter_car.env import ROAD_CHANNELS, ROAD_UNITS
 
     roads = [FixedRecord(r, ROAD_CHANNELS, ROAD_UNITS, 1e-3) for r in
              (bump(0.02, 1.0, 10.0, t_start=0.1, duration=0.3, dt=1e-3),

@@ -8,6 +8,8 @@ import pytest
 
 import mrd_env  # noqa: F401  (registers the environments)
 from mrd_env import metrics as M
+from mrd_env.plants.quarter_car import metrics as QM
+from mrd_env.plants.shear_building import metrics as BM
 
 RTOL = 1e-12  # the two differ only in summation order
 
@@ -36,7 +38,7 @@ def test_quarter_car_metrics_online_equal_offline(env_id):
     acc, travel = env.signal("sprung_acc")[:, 0], env.signal("travel")[:, 0]
     assert acc[0] == 0.0  # the car starts at rest: the online filter's start (row 1) and sosfilt's (row 0) agree
     force = env.signal("damper_force")[:, 0]
-    offline = M.quarter_car_metrics(env.dt, acc, travel, dynamic_tyre_load=env.signal("_tyre_load")[:, 0],
+    offline = QM.quarter_car_metrics(env.dt, acc, travel, dynamic_tyre_load=env.signal("_tyre_load")[:, 0],
                                     static_tyre_load=env.plant_params.static_tyre_load)
     offline.update(damper_force_rms=float(M.rms(force)), damper_force_peak=float(np.max(np.abs(force))),
                    duration=(acc.size - 1) * env.dt)
@@ -48,16 +50,16 @@ def test_quarter_car_metrics_online_equal_offline(env_id):
 def test_building_metrics_online_equal_offline(options):
     env, info = _episode("mrd_env/ShearBuilding-v1", 2, **options)
     p, ep = env.plant_params, env.episode
-    controlled = M.building_metrics(env.dt, env.signal("drift"), ep.extras["heights"], env.signal("abs_acc"),
+    controlled = BM.building_metrics(env.dt, env.signal("drift"), ep.extras["heights"], env.signal("abs_acc"),
                                     floor_masses=np.asarray(p.masses), damper_force=env.signal("damper_force"),
                                     damper_stroke=env.signal("damper_stroke"),
                                     displacement=env.signal("floor_disp"))
     rows = env.signal("drift").shape[0]
     # the uncontrolled building on the same record and the same window, computed apart from the env's cache
-    unc = M.building_metrics(env.dt, ep.extras["uncontrolled"]["drift"][:rows], ep.extras["heights"],
+    unc = BM.building_metrics(env.dt, ep.extras["uncontrolled"]["drift"][:rows], ep.extras["heights"],
                              ep.extras["uncontrolled"]["abs_acc"][:rows], floor_masses=np.asarray(p.masses),
                              displacement=ep.extras["uncontrolled"]["disp"][:rows])
-    offline = {**controlled, **M.benchmark_criteria(controlled, unc, building_weight=p.weight),
+    offline = {**controlled, **BM.benchmark_criteria(controlled, unc, building_weight=p.weight),
                "duration": (rows - 1) * env.dt}
     assert {"J1", "J2", "J3", "J4", "J5", "J6", "force_over_weight", "stroke_over_disp"} <= set(offline)
     _assert_same(info["episode_metrics"], offline)

@@ -8,7 +8,7 @@ import pytest
 
 import mrd_env  # noqa: F401  (registers the environments)
 from mrd_env.disturbances import Record, bump
-from mrd_env.envs.quarter_car import DEFAULT_SENSORS
+from mrd_env.plants.quarter_car.env import DEFAULT_SENSORS
 
 QC = "mrd_env/QuarterCarPhysical-v0"
 WITH_PREVIEW = (*DEFAULT_SENSORS, "road_preview")

@@ -9,7 +9,7 @@ import pytest
 from gymnasium.vector import AutoresetMode
 
 import mrd_env  # noqa: F401  (registers the environments)
-from mrd_env.envs import QuarterCarVectorEnv, ShearBuildingVectorEnv
+from mrd_env.plants import QuarterCarVectorEnv, ShearBuildingVectorEnv
 from mrd_env.envs.vector import env_info
 
 QC, SB = "mrd_env/QuarterCarPhysical-v0", "mrd_env/ShearBuildingPhysical-v0"

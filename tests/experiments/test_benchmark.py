@@ -29,23 +29,23 @@ def test_controller_on_env_without_needed_sensors_raises():
 
 def test_benchmark_reports_are_well_formed_and_reproducible(tmp_path):
     ctrls = ["passive_off", "passive_on", "clipped_optimal"]
-    a = run_benchmark("building", ctrls, short_building(), out=tmp_path / "a", progress=False)
-    b = run_benchmark("building", ctrls, short_building(), out=tmp_path / "b", progress=False)
+    a = run_benchmark("shear_building", ctrls, short_building(), out=tmp_path / "a", progress=False)
+    b = run_benchmark("shear_building", ctrls, short_building(), out=tmp_path / "b", progress=False)
     assert [e.controller for e in a] == ctrls
     for ea, eb in zip(a, b):
         assert np.array_equal(ea.response, eb.response) and ea.metrics == eb.metrics
-    assert (tmp_path / "a" / "building_benchmark.csv").read_text() == (tmp_path / "b" / "building_benchmark.csv").read_text()
-    with (tmp_path / "a" / "building_benchmark.csv").open() as fh:
+    assert (tmp_path / "a" / "shear_building_benchmark.csv").read_text() == (tmp_path / "b" / "shear_building_benchmark.csv").read_text()
+    with (tmp_path / "a" / "shear_building_benchmark.csv").open() as fh:
         rows = list(csv.DictReader(fh))
     assert len(rows) == 3 + 3  # per scenario, then the worst case per controller
     for r in rows:
         for k in ("J1", "J2", "J4"):
             assert 0.0 < float(r[k]) < 2.0
-    md = (tmp_path / "a" / "building_benchmark.md").read_text().splitlines()
+    md = (tmp_path / "a" / "shear_building_benchmark.md").read_text().splitlines()
     header = [ln for ln in md if ln.startswith("| scenario")][0]
     assert all(ln.count("|") == header.count("|") for ln in md if ln.startswith("|"))
     pngs = sorted(p.name for p in (tmp_path / "a").glob("*.png"))
-    assert "building_bars.png" in pngs and any(p.startswith("building_history") for p in pngs)
+    assert "shear_building_bars.png" in pngs and any(p.startswith("shear_building_history") for p in pngs)
     # a damper in the loop cuts the peak drift relative to the uncontrolled building
     assert all(float(r["J1"]) < 1.0 for r in rows)
 
@@ -105,8 +105,8 @@ def test_history_shows_one_line_per_law():
 def test_building_history_follows_the_damper_storey():
     from experiments.common.evaluation import response_of
 
-    assert response_of({"damper_floors": (2,)}, "building") == "drift[1]"
-    assert response_of({}, "building") == "drift[0]"
+    assert response_of({"damper_floors": (2,)}, "shear_building") == "drift[1]"
+    assert response_of({}, "shear_building") == "drift[0]"
     assert response_of({}, "quarter_car") == "sprung_acc"
 
 
@@ -124,9 +124,9 @@ def test_agent_and_classical_controllers_share_the_loop():
 
 
 def test_cli_benchmark_quick(tmp_path):
-    assert main(["benchmark", "--plant", "building", "--quick", "--controllers", "passive_off", "passive_on",
+    assert main(["benchmark", "--plant", "shear_building", "--quick", "--controllers", "passive_off", "passive_on",
                  "--out", str(tmp_path), "--no-progress"]) == 0
-    assert (tmp_path / "building_benchmark_worst.md").exists()
+    assert (tmp_path / "shear_building_benchmark_worst.md").exists()
 
 
 def test_model_based_estimate_stays_at_rest_despite_the_damper_preload():
@@ -170,15 +170,15 @@ def test_the_default_controller_set_runs_on_a_fitted_damper_leaving_out_the_rows
     fitted.params = fitted.params.replace(c0a=1.1 * fitted.params.c0a)
     preset = save_preset(fitted, tmp_path / "fitted.json", source="test: a refitted damper")
     out = tmp_path / "out"
-    assert main(["benchmark", "--plant", "building", "--quick", "--damper", str(preset), "--out", str(out),
+    assert main(["benchmark", "--plant", "shear_building", "--quick", "--damper", str(preset), "--out", str(out),
                  "--no-progress", "--yardstick", "off"]) == 0
     err = capsys.readouterr().err
     assert "note: clipped_optimal+neural left out of the building benchmark: no neural inverse ships" in err
-    table = (out / "building_benchmark.md").read_text()
+    table = (out / "shear_building_benchmark.md").read_text()
     from experiments.common.plants import profile
-    for law in profile("building").benchmark_laws:
+    for law in profile("shear_building").benchmark_laws:
         assert (law in table) == (law != "clipped_optimal+neural"), law
-    assert main(["benchmark", "--plant", "building", "--quick", "--damper", str(preset), "--controllers",
+    assert main(["benchmark", "--plant", "shear_building", "--quick", "--damper", str(preset), "--controllers",
                  "clipped_optimal+neural", "--out", str(out), "--no-progress"]) == 2
     assert "--controllers: clipped_optimal+neural does not apply to the building" in capsys.readouterr().err
 
@@ -186,6 +186,6 @@ def test_the_default_controller_set_runs_on_a_fitted_damper_leaving_out_the_rows
 def test_an_unwritable_out_folder_is_refused_before_the_run(tmp_path, capsys):
     blocker = tmp_path / "file"
     blocker.write_text("")
-    assert main(["benchmark", "--plant", "building", "--quick", "--out", str(blocker / "sub"), "--no-progress"]) == 2
+    assert main(["benchmark", "--plant", "shear_building", "--quick", "--out", str(blocker / "sub"), "--no-progress"]) == 2
     err = capsys.readouterr().err
     assert "--out" in err and err.count("\n") == 1

@@ -120,12 +120,12 @@ CASES = {
     ],
     "benchmark": [
         ["--nope"], ["--plant", "nope"], ["--seeds", "0"], ["--seeds", "x"], ["--controllers", "nope"],
-        ["--plant", "building", "--controllers", "passive_off", "nope"], ["--damper", "nope"],
+        ["--plant", "shear_building", "--controllers", "passive_off", "nope"], ["--damper", "nope"],
         ["--agent", "{missing}"], ["--agent", "{folder}"], ["--agent", "{agent_no_meta}"],
         ["--agent", "{agent_bad_json}"], ["--agent", "{agent_foreign}"], ["--agent", "{agent_no_keys}"],
-        ["--agent", "{agent_env}"], ["--agent", "{agent_no_model}"], ["--plant", "building", "--agent", "{agent_qc}"],
+        ["--agent", "{agent_env}"], ["--agent", "{agent_no_model}"], ["--plant", "shear_building", "--agent", "{agent_qc}"],
         ["--backend", "gpu"], ["--jobs", "0"], ["--address", "ray://x:1"],
-        ["--plant", "building", "--controllers", "passive_on", "groundhook"],   # a law the plant cannot run
+        ["--plant", "shear_building", "--controllers", "passive_on", "groundhook"],   # a law the plant cannot run
     ],
     "train": [
         ["--backend", "gpu"], ["--jobs", "0"], ["--jobs", "-2"], ["--address", "ray://x:1"],
@@ -135,7 +135,7 @@ CASES = {
         ["--disturbance", '{{"kind": "nope"}}'], ["--disturbance", '{{"kind": "iso8608", "road_class": "Z"}}'],
         ["--set", "n_envs"], ["--set", "n_envs=0"], ["--set", "nope=1"], ["--hyperparams", "{missing}"],
         ["--hyperparams", "{binary}"], ["--algo", "sac", "--hyperparams", "{empty}"], ["--eval-freq", "-1"],
-        ["--eval-episodes", "0"], ["--checkpoint-freq", "-1"], ["--plant", "building", "--set", "n_envs=2.5"],
+        ["--eval-episodes", "0"], ["--checkpoint-freq", "-1"], ["--plant", "shear_building", "--set", "n_envs=2.5"],
         ["--hyperparams", "{scalar_yml}"], ["--set", "env_kwargs=3"], ["--set", "normalize=3"],
     ],
     "tune": [
@@ -147,9 +147,9 @@ CASES = {
     ],
     "evaluate": [
         ["--nope"], ["--plant", "nope"], ["--agents", "{missing}"], ["--agents", "{agent_bad_json}"],
-        ["--agents", "{agent_foreign}"], ["--plant", "building", "--agents", "{agent_qc}"], ["--laws", "nope"],
+        ["--agents", "{agent_foreign}"], ["--plant", "shear_building", "--agents", "{agent_qc}"], ["--laws", "nope"],
         ["--seeds", "0"], ["--seeds", "x"], ["--control-dt", "0"], ["--control-dt", "0.0015"],
-        ["--control-dt", "nan"], ["--out", "{out_file}"], ["--plant", "building", "--laws", "groundhook"],
+        ["--control-dt", "nan"], ["--out", "{out_file}"], ["--plant", "shear_building", "--laws", "groundhook"],
     ],
     "identify": DATA_ERRORS + [
         ["--data", "{good}", "--model", "nope"], ["--data", "{good}", "--preset", "nope"],
@@ -251,9 +251,9 @@ MESSAGES = [  # (argv, what the one line says): the option by its name, values a
     (["identify", "--data", "{good}", "--force-offset", "2", "--align"], "--align estimates the force offset and"),
     (["identify", "--data", "{clipped}", "--fit-fraction", "0.99"],
      "fit_fraction = 0.99 leaves 0 sample(s) of 'clipped' to validate on once its faults are excluded"),
-    (["benchmark", "--plant", "building", "--controllers", "groundhook"],
+    (["benchmark", "--plant", "shear_building", "--controllers", "groundhook"],
      "--controllers: groundhook does not apply to the building"),
-    (["evaluate", "--plant", "building", "--laws", "groundhook"], "--laws: groundhook does not apply to the building"),
+    (["evaluate", "--plant", "shear_building", "--laws", "groundhook"], "--laws: groundhook does not apply to the building"),
     (["train", "--hyperparams", "{scalar_yml}"], "the entry for mrd_env/QuarterCarPhysical-v0 must be a mapping"),
     (["train", "--set", "normalize=3"], "hyperparameter normalize must be true, false or a mapping"),
     (["compare-models", "--data", "{good}", "--models", "bingham", "bingham"],

@@ -150,11 +150,11 @@ def test_the_warm_start_begins_where_the_law_is(es_runs):
 def test_benchmark_building_has_its_damper_where_the_command_matters():
     """Every experiment's building has its damper in storey 2; there the best law at 1 ms beats passive-on by more
     than 10 % on El Centro N-S, while in storey 1 (the lab model's own place) it is within 1 %."""
-    assert TRAINING["building"]["damper_floors"] == PLANT["building"]["damper_floors"] == (2,)
-    assert all(sc.options["damper_floors"] == (2,) for sc in held_out_scenarios("building"))
+    assert TRAINING["shear_building"]["damper_floors"] == PLANT["shear_building"]["damper_floors"] == (2,)
+    assert all(sc.options["damper_floors"] == (2,) for sc in held_out_scenarios("shear_building"))
     returns = {}
     for where, options in (("storey 2", None), ("storey 1", {})):
-        sc = held_out_scenarios("building", plant_options=options)[0]
+        sc = held_out_scenarios("shear_building", plant_options=options)[0]
         for law in ("passive_on", "clipped_optimal"):
             returns[where, law] = evaluate_batch(lambda v, n=law: make_controller(n, v), sc, "",
                                                  control_dt=0.001)[0].episode_return

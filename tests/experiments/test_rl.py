@@ -22,7 +22,7 @@ TINY = ["--timesteps", "256", "--eval-freq", "128", "--eval-episodes", "1", "--n
 @pytest.fixture(scope="module")
 def trained(tmp_path_factory):
     out = tmp_path_factory.mktemp("agents")
-    assert main(["train", "--plant", "building", "--seeds", "0", "1", "--out", str(out), *TINY]) == 0
+    assert main(["train", "--plant", "shear_building", "--seeds", "0", "1", "--out", str(out), *TINY]) == 0
     return out
 
 
@@ -38,9 +38,9 @@ def test_train_writes_agents_curves_and_the_best_validation_agent(trained):
         assert meta["model"].startswith("policy-") and meta["model"].endswith(".safetensors")
         assert sorted(meta["files"]) == sorted([meta["model"], meta["normalization"]]) and meta["resume"] == "model.zip"
         assert sorted(f.name for f in run.glob("policy-*")) == [meta["model"]]
-        assert meta["format"] == "mrd-env-agent" and meta["plant"] == "building" and meta["seed"] == seed
+        assert meta["format"] == "mrd-env-agent" and meta["plant"] == "shear_building" and meta["seed"] == seed
         assert meta["env_kwargs"]["control_dt"] == 0.01 and meta["hyperparameters"]["n_envs"] == 2
-        assert meta["command"].startswith(f"mrd-env train --plant building --seeds 0 1 --out {trained}")
+        assert meta["command"].startswith(f"mrd-env train --plant shear_building --seeds 0 1 --out {trained}")
         with (run / "validation.csv").open() as fh:
             rows = list(csv.DictReader(fh))
         assert [int(r["timesteps"]) for r in rows][:3] == [0, 128, 256]  # from the untrained policy on
@@ -52,7 +52,7 @@ def test_the_best_agent_reproduces_its_validation_return(trained):
     validation episodes what it scored during training."""
     run = trained / "building_ppo_s0"
     best = load_agent(run / "best")
-    sc = validation("building", 1)[0]
+    sc = validation("shear_building", 1)[0]
     eps = evaluate_batch(lambda v: best.bind(v), sc, "", **best.observation_kwargs)
     assert eps[0].episode_return == pytest.approx(best.meta["validation_return"], rel=1e-4)
 
@@ -79,9 +79,9 @@ def test_same_seed_same_agent(tmp_path):
 
 def test_evaluate_puts_agents_and_laws_side_by_side(trained, tmp_path):
     agents = [str(trained / f"building_ppo_s{s}") for s in (0, 1)]
-    assert main(["evaluate", "--plant", "building", "--agents", *agents, "--laws", "passive_off", "clipped_optimal",
+    assert main(["evaluate", "--plant", "shear_building", "--agents", *agents, "--laws", "passive_off", "clipped_optimal",
                  "--quick", "--seeds", "1", "--no-mpc", "--out", str(tmp_path), "--no-progress"]) == 0
-    with (tmp_path / "building_evaluation.csv").open() as fh:
+    with (tmp_path / "shear_building_evaluation.csv").open() as fh:
         rows = list(csv.DictReader(fh))
     ctrls = {r["controller"] for r in rows}
     assert ctrls == {"agent PPO", "passive_off @ 10 ms", "clipped_optimal @ 10 ms", "passive_off @ 1 ms",
@@ -94,9 +94,9 @@ def test_evaluate_puts_agents_and_laws_side_by_side(trained, tmp_path):
         else:  # one episode: no interval (issue 22)
             assert np.isnan(float(r["return_lo95"])) and np.isnan(float(r["return_hi95"]))
         assert 0 < float(r["J1"]) < 2
-    assert (tmp_path / "building_evaluation.png").stat().st_size > 10_000
+    assert (tmp_path / "shear_building_evaluation.png").stat().st_size > 10_000
     # the benchmark takes the same agent folders
-    assert main(["benchmark", "--plant", "building", "--quick", "--seeds", "1", "--controllers", "passive_off",
+    assert main(["benchmark", "--plant", "shear_building", "--quick", "--seeds", "1", "--controllers", "passive_off",
                  "--agent", agents[0], "--out", str(tmp_path / "b"), "--no-progress"]) == 0
 
 
@@ -143,7 +143,7 @@ def _returns(plant: str, scenario, control_dt: float = 0.01) -> dict[str, list]:
     return out
 
 
-@pytest.mark.parametrize("plant", ["quarter_car", "building"])
+@pytest.mark.parametrize("plant", ["quarter_car", "shear_building"])
 def test_termination_never_pays(plant):
     """On every benchmark scenario: an episode ended by the stroke limit scores below every controller that
     finishes — the penalty (10 per planned second) exceeds any finisher's cost, rough roads included."""
@@ -176,7 +176,7 @@ def test_rewards_separate_random_passive_and_the_best_law():
 
 
 def test_training_distributions_draw_new_episodes():
-    for plant, env_id in (("quarter_car", "mrd_env/QuarterCarPhysical-v0"), ("building", "mrd_env/ShearBuildingPhysical-v0")):
+    for plant, env_id in (("quarter_car", "mrd_env/QuarterCarPhysical-v0"), ("shear_building", "mrd_env/ShearBuildingPhysical-v0")):
         env = gym.make(env_id, **TRAINING[plant], control_dt=0.01)
         recs = []
         for seed in (0, 1, 2):

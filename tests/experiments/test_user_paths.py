@@ -40,17 +40,17 @@ def test_identify_then_rig_environments_benchmark_train_and_evaluate_on_the_pres
     with pytest.raises(ValueError, match="preset file"):
         gym.make("mrd_env/QuarterCarPhysical-v0", damper=str(preset), damper_preset="spencer1997")
     # the benchmark
-    assert main(["benchmark", "--plant", "building", "--quick", "--controllers", "passive_off", "clipped_optimal",
+    assert main(["benchmark", "--plant", "shear_building", "--quick", "--controllers", "passive_off", "clipped_optimal",
                  "--damper", str(preset), "--yardstick", "off", "--out", str(d / "bench"), "--no-progress"]) == 0
-    assert (d / "bench" / "building_benchmark.md").exists()
+    assert (d / "bench" / "shear_building_benchmark.md").exists()
     # a short training on it, and its evaluation on the same damper (taken from the agent's record)
-    assert main(["train", "--plant", "building", "--algo", "ppo", "--damper", str(preset), "--timesteps", "64",
+    assert main(["train", "--plant", "shear_building", "--algo", "ppo", "--damper", str(preset), "--timesteps", "64",
                  "--set", "n_steps=32", "batch_size=32", "n_envs=1", "--eval-freq", "0", "--no-progress",
                  "--out", str(d / "agents")]) == 0
     agent = d / "agents" / "building_ppo_s0"
     meta = json.loads((agent / "agent.json").read_text())
     assert meta["env_kwargs"]["damper"] == str(preset.resolve())
-    assert main(["evaluate", "--plant", "building", "--agents", str(agent), "--laws", "passive_off", "--quick",
+    assert main(["evaluate", "--plant", "shear_building", "--agents", str(agent), "--laws", "passive_off", "--quick",
                  "--seeds", "1", "--no-mpc", "--no-1ms", "--yardstick", "off", "--out", str(d / "eval"),
                  "--no-progress"]) == 0
 
@@ -61,7 +61,7 @@ def test_a_bad_preset_file_is_one_line(tmp_path, capsys):
     assert main(["rig", "--preset", str(bad), "--out", str(tmp_path)]) == 2
     err = capsys.readouterr().err
     assert "not a JSON preset" in err and err.count("\n") == 1
-    assert main(["benchmark", "--plant", "building", "--damper", str(tmp_path / "missing.json"), "--quick",
+    assert main(["benchmark", "--plant", "shear_building", "--damper", str(tmp_path / "missing.json"), "--quick",
                  "--out", str(tmp_path)]) == 2
     assert "missing.json" in capsys.readouterr().err
 

@@ -114,7 +114,7 @@ def test_cached_yardsticks_are_keyed_by_the_agents_content_not_their_folder_name
     from controllers import shipped_agents
     from controllers.agents import agent_digest
 
-    car, building = shipped_agents("quarter_car")[0], shipped_agents("building")[0]
+    car, building = shipped_agents("quarter_car")[0], shipped_agents("shear_building")[0]
     a, b, c = (shutil.copytree(src, tmp_path / n / "best") for n, src in (("a", car), ("b", building), ("c", car)))
     assert agent_digest(a) == agent_digest(c) == agent_digest(car)
     assert agent_digest(a) != agent_digest(b)
@@ -167,7 +167,7 @@ def test_the_yardstick_key_changes_with_what_the_result_depends_on(monkeypatch):
     old problem is not served for the new one."""
     from experiments.common.scenarios import held_out_scenarios
     from experiments.common.yardstick import YARDSTICK_DT, yardstick_key
-    from mrd_env.envs import quarter_car
+    from mrd_env.plants.quarter_car import env as quarter_car
     from mrd_env.optimal import episode_problem
 
     sc = held_out_scenarios("quarter_car", quick=True)[0]

@@ -12,9 +12,9 @@ from controllers import make_controller
 from mrd_env.metrics import weighting_sos
 from mrd_env.optimal import active_bound, episode_problem
 from mrd_env.optimal.bound import sos_state_space
-from mrd_env.plants.response import foh_response
+from mrd_env.mechanics.response import foh_response
 
-CASES = {"car": ("mrd_env/QuarterCarPhysical-v0", {}), "building": ("mrd_env/ShearBuildingPhysical-v0", {"damper_floors": (2,)})}
+CASES = {"car": ("mrd_env/QuarterCarPhysical-v0", {}), "shear_building": ("mrd_env/ShearBuildingPhysical-v0", {"damper_floors": (2,)})}
 
 
 @pytest.fixture(scope="module", params=sorted(CASES))

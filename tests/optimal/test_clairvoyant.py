@@ -49,7 +49,7 @@ def test_building_optimum_is_at_least_every_warm_start():
     from experiments.common.yardstick import warm_starts
 
     p = episode_problem("mrd_env/ShearBuildingPhysical-v0", seed=SEED, control_dt=0.01, **BUILDING)
-    r = cv.clairvoyant(p, warm_starts=warm_starts(p, "building"), cache=False, progress=False)
+    r = cv.clairvoyant(p, warm_starts=warm_starts(p, "shear_building"), cache=False, progress=False)
     assert r.ret >= max(r.warm_returns.values())
     assert r.source == "optimiser" and r.ret > max(r.warm_returns.values())
     assert p.replay(r.commands).ret == r.ret

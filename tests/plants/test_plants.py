@@ -7,7 +7,9 @@ from scipy.integrate import solve_ivp
 
 from mrd_env import make_damper
 from mrd_env.disturbances import el_centro, iso8608_road
-from mrd_env.plants import CoupledPlant, quarter_car, shear_building
+from mrd_env.plants import CoupledPlant
+from mrd_env.plants.quarter_car import quarter_car
+from mrd_env.plants.shear_building import shear_building
 
 from tests.reference_models import bouc_wen_zdot, nrmse
 

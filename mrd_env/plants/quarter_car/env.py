@@ -6,21 +6,23 @@ import functools
 
 import numpy as np
 
-from ..disturbances import Record, bump, iso8608_road, road_from_csv, sine_sweep
-from ..metrics import weighting_sos
-from ..plants import CoupledPlant, LinearPlant, QuarterCarParams, quarter_car
-from ..plants.response import foh_response
-from ..resources import FLOAT, Budget
-from . import options as opt
-from . import randomize
-from .base import MRDamperEnv
-from .build import as_options, build
-from .core import Assembly, Episode, EpisodeStats
-from .disturbance import Disturbance, FixedRecord, Generated, with_preview
-from .reward import QuadraticReward
-from .signals import SignalMap
-from .termination import Limits
-from .vector import MRDamperVectorEnv
+from ...disturbances import Record, bump, iso8608_road, road_from_csv, sine_sweep
+from ...metrics import weighting_sos
+from ...mechanics import CoupledPlant, LinearPlant
+from . import SPEC
+from .physics import QuarterCarParams, quarter_car
+from ...mechanics import foh_response
+from ...resources import FLOAT, Budget
+from ...envs import options as opt
+from ...envs import randomize
+from ...envs.base import MRDamperEnv
+from ...envs.build import as_options, build
+from ...envs.core import Assembly, Episode, EpisodeStats
+from ...envs.disturbance import Disturbance, FixedRecord, Generated, with_preview
+from ...envs.reward import QuadraticReward
+from ...envs.signals import SignalMap
+from ...envs.termination import Limits
+from ...envs.vector import MRDamperVectorEnv
 
 #: Reference scales of the quarter-car reward (SI).
 A_REF = 1.0     # m/s², Wk-weighted sprung acceleration
@@ -206,8 +208,27 @@ def _absolute_reference(p: QuarterCarParams) -> dict:
     return {"comfort": A_REF ** 2, "travel": X_REF ** 2, "tyre": p.static_tyre_load ** 2}
 
 
+#: The nominal road of weights="reward"'s fixed reference scales (:func:`nominal_reference`).
+NOMINAL_ROAD = {"road_class": "C", "speed": 20.0, "duration": 100.0, "seed": 0}
+
+
+def nominal_reference(p: QuarterCarParams, dt: float) -> dict:
+    """{reward signal: mean square} of the reward's normaliser on a nominal road: the conventional passive car
+    (:func:`passive_reference`) on an ISO 8608 class-C road at 20 m/s, 100 s (``method="fft"``, seed 0; the
+    long-run values: 10 s episodes scatter around them by ±10–50 %, travel the most); the fixed reference scales
+    for a car without a passive damper."""
+    if p.passive_c > 0:
+        nom = NOMINAL_ROAD
+        rec = iso8608_road(nom["road_class"], nom["speed"], nom["duration"], dt, rng=nom["seed"], method="fft")
+        z0, zd0 = rec.data[0]
+        ref = passive_reference(p, rec, np.array([z0, z0, zd0, zd0]), rec.n_samples, dt)
+    else:
+        ref = _absolute_reference(p)
+    return {REWARD_SIGNALS[k]: v for k, v in ref.items()}
+
+
 def metrics(stats: EpisodeStats, episode: Episode, static_tyre_load: float) -> dict[str, float]:
-    """ISO 2631 comfort, travel and tyre load of an episode (as :func:`~mrd_env.metrics.quarter_car_metrics`)."""
+    """ISO 2631 comfort, travel and tyre load of an episode (as :func:`~mrd_env.plants.quarter_car.metrics.quarter_car_metrics`)."""
     r, pk = stats.rms, stats.peak
     out = {"acc_weighted_rms": float(r["sprung_acc_wk"][0]), "acc_rms": float(r["sprung_acc"][0]),
            "acc_vdv": float((stats.dose4 * stats.dt) ** 0.25), "acc_mtvv": stats.max_running_rms,
@@ -271,7 +292,7 @@ def assembly(*, plant_preset: str = "set_a", plant_params=None, road="iso8608", 
     from .render import QuarterCarRenderer
 
     return Assembly(
-        kind="quarter_car", damper=d, plant_params=p, linear_plant=lp, coupled=coupled, signals=sm,
+        kind=SPEC.name, damper=d, plant_params=p, linear_plant=lp, coupled=coupled, signals=sm,
         sensor_names=tuple(SENSOR_UNITS),
         sensors=sensor_part, disturbance=source, reward=reward,
         limits=Limits({"travel": limit}, penalty=0.0, penalty_rate=w["termination"]),
@@ -285,7 +306,7 @@ def assembly(*, plant_preset: str = "set_a", plant_params=None, road="iso8608", 
         filters=[("sprung_acc", "sprung_acc_wk", weighting_sos("Wk", dt))],
         stat_signals=("sprung_acc_wk", "sprung_acc", "travel", "_tyre_load", "damper_force"),
         dose_signal="sprung_acc_wk", dose_window=1.0, renderer=QuarterCarRenderer, options=given,
-        preview_times=ahead, reset_floats=EPISODE_FLOATS)
+        preview_times=ahead, reset_floats=EPISODE_FLOATS, nominal_reference=functools.partial(nominal_reference, p, dt))
 
 
 class QuarterCarEnv(MRDamperEnv):
@@ -405,7 +426,7 @@ class QuarterCarEnv(MRDamperEnv):
     * v0: the physics-level defaults — a command in V or A at every 1 ms step.
     """
 
-    env_id = "mrd_env/QuarterCarPhysical-v0"
+    env_id = SPEC.physics_id
     build = staticmethod(assembly)
 
 
@@ -413,5 +434,5 @@ class QuarterCarVectorEnv(MRDamperVectorEnv):
     """``num_envs`` quarter cars in one compiled call (``gymnasium.make_vec("mrd_env/QuarterCarPhysical-v0", num_envs=N,
     vectorization_mode="vector_entry_point", **options)``; options as :class:`QuarterCarEnv`)."""
 
-    env_id = "mrd_env/QuarterCarPhysical-v0"
+    env_id = SPEC.physics_id
     build = staticmethod(assembly)

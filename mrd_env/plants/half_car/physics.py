@@ -16,9 +16,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..constants import GRAVITY
-from ..validation import check_scalar
-from .base import LinearPlant, preset_with_overrides
+from ...constants import GRAVITY
+from ...validation import check_scalar
+from ...mechanics import LinearPlant, preset_with_overrides
 
 
 @dataclass(frozen=True)

@@ -1,25 +1,25 @@
-"""Half car with MR dampers at the front and the rear (``mrd_env/HalfCarPhysical-v0``): the example of a plant added
-to the library — this module, the plant's module and one line in :data:`mrd_env.envs.ENVS`."""
+"""Half car with MR dampers at the front and the rear (``mrd_env/HalfCarPhysical-v0``): its environment."""
 from __future__ import annotations
 
 import functools
 
 import numpy as np
 
-from ..disturbances import Record, iso8608_road
-from ..metrics import weighting_sos
-from ..plants import CoupledPlant
-from ..plants.half_car import HalfCarParams, half_car
-from ..resources import FLOAT, Budget
-from . import options as opt
-from . import randomize
-from .base import MRDamperEnv
-from .core import Assembly, Episode, EpisodeStats
-from .disturbance import Disturbance, Generated
-from .reward import QuadraticReward
-from .signals import SignalMap
-from .termination import Limits
-from .vector import MRDamperVectorEnv
+from ...disturbances import Record, iso8608_road
+from ...metrics import weighting_sos
+from ...mechanics import CoupledPlant
+from . import SPEC
+from .physics import HalfCarParams, half_car
+from ...resources import FLOAT, Budget
+from ...envs import options as opt
+from ...envs import randomize
+from ...envs.base import MRDamperEnv
+from ...envs.core import Assembly, Episode, EpisodeStats
+from ...envs.disturbance import Disturbance, Generated
+from ...envs.reward import QuadraticReward
+from ...envs.signals import SignalMap
+from ...envs.termination import Limits
+from ...envs.vector import MRDamperVectorEnv
 
 CHANNELS = ("z_rf", "zdot_rf", "z_rr", "zdot_rr")
 UNITS = ("m", "m/s", "m", "m/s")
@@ -68,7 +68,7 @@ def road_source(road, road_params, dt: float, episode_seconds: float, wheelbase:
     """The road part, by the quarter car's rule (:func:`.quarter_car.road_source`): a kind name (with
     ``road_params``), a dict {"kind": ..., options}, a Record with channels z_rf, zdot_rf, z_rr, zdot_rr (m, m/s),
     or a :class:`~.disturbance.Disturbance`."""
-    from .quarter_car import road_source as car_road
+    from ..quarter_car.env import road_source as car_road
 
     return car_road(road, road_params, dt, episode_seconds, kinds=ROADS, channels=CHANNELS, units=UNITS,
                     wheelbase=wheelbase, budget=budget)
@@ -130,7 +130,7 @@ def assembly(*, plant_preset="sedan", plant_params=None, road="iso8608", road_pa
     from .render import HalfCarRenderer
 
     return Assembly(
-        kind="half_car", damper=d, plant_params=p, linear_plant=lp, coupled=coupled, signals=sm,
+        kind=SPEC.name, damper=d, plant_params=p, linear_plant=lp, coupled=coupled, signals=sm,
         sensor_names=SENSORS, sensors=opt.sensors(sensors, sensor_noise, sensor_delay, history, DEFAULT_SENSORS),
         disturbance=road_source(road, road_params, dt, episode_seconds, p.wheelbase,
                                 budget=Budget(FLOAT * coupled.system.nw)), reward=reward,
@@ -208,7 +208,7 @@ class HalfCarEnv(MRDamperEnv):
 
     ## Arguments
 
-    As :class:`~mrd_env.envs.quarter_car.QuarterCarEnv` where they apply, except:
+    As :class:`~mrd_env.plants.quarter_car.env.QuarterCarEnv` where they apply, except:
 
     * ``road``: "iso8608" (default; a new road each episode under both axles, the rear meeting the front's
       profile wheelbase/speed later; ``road_params``: ``road_class`` "C" (or a list to draw from), ``speed``
@@ -225,12 +225,12 @@ class HalfCarEnv(MRDamperEnv):
     * v0: the physics-level defaults — commands in V or A at every 1 ms step.
     """
 
-    env_id = "mrd_env/HalfCarPhysical-v0"
+    env_id = SPEC.physics_id
     build = staticmethod(assembly)
 
 
 class HalfCarVectorEnv(MRDamperVectorEnv):
     """``num_envs`` half cars in one compiled call (options as :class:`HalfCarEnv`)."""
 
-    env_id = "mrd_env/HalfCarPhysical-v0"
+    env_id = SPEC.physics_id
     build = staticmethod(assembly)

@@ -6,24 +6,26 @@ import functools
 
 import numpy as np
 
-from ..constants import GRAVITY
-from ..disturbances import (Record, el_centro, kanai_tajimi, peer_record, read_at2,
+from ...constants import GRAVITY
+from ...disturbances import (Record, el_centro, kanai_tajimi, peer_record, read_at2,
                             read_two_column, scale_record)
-from ..metrics import benchmark_criteria, building_metrics
-from ..plants import CoupledPlant, ShearBuildingParams, shear_building
-from ..plants.response import foh_response
-from ..resources import FLOAT, Budget
-from ..validation import check_scalar
-from . import options as opt
-from . import randomize
-from .base import MRDamperEnv
-from .build import as_options, build
-from .core import Assembly, Episode, EpisodeStats
-from .disturbance import Disturbance, FixedRecord, Generated, Mixture
-from .reward import QuadraticReward
-from .signals import SignalMap
-from .termination import Limits
-from .vector import MRDamperVectorEnv
+from .metrics import benchmark_criteria, building_metrics
+from ...mechanics import CoupledPlant
+from . import SPEC
+from .physics import ShearBuildingParams, shear_building
+from ...mechanics import foh_response
+from ...resources import FLOAT, Budget
+from ...validation import check_scalar
+from ...envs import options as opt
+from ...envs import randomize
+from ...envs.base import MRDamperEnv
+from ...envs.build import as_options, build
+from ...envs.core import Assembly, Episode, EpisodeStats
+from ...envs.disturbance import Disturbance, FixedRecord, Generated, Mixture
+from ...envs.reward import QuadraticReward
+from ...envs.signals import SignalMap
+from ...envs.termination import Limits
+from ...envs.vector import MRDamperVectorEnv
 
 DEFAULT_STOREY_HEIGHT = 3.0  # m, used for drift ratios when the building gives no storey heights
 CHANNELS, UNITS = ("xg_ddot",), ("m/s^2",)
@@ -264,7 +266,7 @@ def signals(coupled: CoupledPlant, p: ShearBuildingParams, heights: np.ndarray, 
 
 
 def uncontrolled(lp, p: ShearBuildingParams, heights: np.ndarray, record: Record) -> dict:
-    """The building without dampers on ``record``: responses and :func:`~mrd_env.metrics.building_metrics`."""
+    """The building without dampers on ``record``: responses and :func:`~mrd_env.plants.shear_building.metrics.building_metrics`."""
     n = lp.n_dof
     A, _, Bw = lp.state_space()
     w = np.asarray(record.data)
@@ -319,8 +321,27 @@ def _per_uncontrolled(episode_seconds: float | None, dt: float, n: int, ep: Epis
     return np.concatenate([np.full(n, 1.0 / d_ms), np.full(n, 1.0 / a_ms)])
 
 
+#: The nominal ground motion of weights="reward"'s fixed reference scales (:func:`nominal_reference`).
+NOMINAL_GROUND_MOTION = {"kind": "kanai_tajimi", "episode_seconds": 10.0, "seeds": (0, 1, 2, 3)}
+
+
+def nominal_reference(lp, p: ShearBuildingParams, heights: np.ndarray, dt: float) -> dict:
+    """{reward signal: mean square} of the reward's normaliser on nominal records: the uncontrolled building's
+    mean squares of drift and absolute acceleration, summed over the floors, on four 10 s Kanai–Tajimi records
+    with the nominal parameters (ω_g 15.6 rad/s, ζ_g 0.6, PGA 0.3 g; seeds 0–3), replayed at the building's time
+    scale."""
+    nom = NOMINAL_GROUND_MOTION
+    src = ground_motion_source(nom["kind"], None, dt, nom["episode_seconds"], p.record_time_scale)
+    d_ms = a_ms = 0.0
+    for seed in nom["seeds"]:
+        u = uncontrolled(lp, p, heights, src.sample(np.random.default_rng(seed), dt))
+        d_ms += float(np.sum(np.mean(u["drift"] ** 2, axis=0)))
+        a_ms += float(np.sum(np.mean(u["abs_acc"] ** 2, axis=0)))
+    return {"drift": d_ms / len(nom["seeds"]), "abs_acc": a_ms / len(nom["seeds"])}
+
+
 def metrics(stats: EpisodeStats, episode: Episode, p: ShearBuildingParams) -> dict[str, float]:
-    """:func:`~mrd_env.metrics.building_metrics` of the controlled building and the benchmark criteria J1–J6
+    """:func:`~mrd_env.plants.shear_building.metrics.building_metrics` of the controlled building and the benchmark criteria J1–J6
     against the uncontrolled building on the same record and time window."""
     r, pk = stats.rms, stats.peak
     out = {"drift_peak": float(pk["drift"].max()), "drift_rms": float(r["drift"].max()),
@@ -370,7 +391,7 @@ def assembly(*, plant_preset: str = "three_storey", plant_params=None, damper_fl
     from .render import BuildingRenderer
 
     return Assembly(
-        kind="shear_building", damper=d, plant_params=p, linear_plant=lp, coupled=coupled, signals=sm,
+        kind=SPEC.name, damper=d, plant_params=p, linear_plant=lp, coupled=coupled, signals=sm,
         sensor_names=tuple(SENSOR_UNITS),
         sensors=opt.sensors(sensors, sensor_noise, sensor_delay, history, DEFAULT_SENSORS),
         disturbance=source, reward=reward,
@@ -386,7 +407,8 @@ def assembly(*, plant_preset: str = "three_storey", plant_params=None, damper_fl
         **opt.actuation(action_mode, inverse, force_range),
         stat_signals=("drift", "_drift_ratio", "abs_acc", "_base_shear", "damper_force", "damper_stroke",
                       "floor_disp"),
-        renderer=BuildingRenderer, options=given, episode_floats=EPISODE_FLOATS_PER_FLOOR * n)
+        renderer=BuildingRenderer, options=given, episode_floats=EPISODE_FLOATS_PER_FLOOR * n,
+        nominal_reference=functools.partial(nominal_reference, lp, p, heights, dt))
 
 
 class ShearBuildingEnv(MRDamperEnv):
@@ -455,8 +477,8 @@ class ShearBuildingEnv(MRDamperEnv):
     ``episode_seconds`` (El Centro replayed 5× faster: 10.742 s, ``env.spec.max_episode_steps`` 10 742 steps in
     ``Physical-v0``, 1 074 in ``-v1``).
 
-    ``info["episode_metrics"]``: :func:`~mrd_env.metrics.building_metrics` of the controlled building (drift,
-    drift ratio, acceleration, base shear, damper force/stroke peaks) and :func:`~mrd_env.metrics.benchmark_criteria`
+    ``info["episode_metrics"]``: :func:`~mrd_env.plants.shear_building.metrics.building_metrics` of the controlled building (drift,
+    drift ratio, acceleration, base shear, damper force/stroke peaks) and :func:`~mrd_env.plants.shear_building.metrics.benchmark_criteria`
     against the uncontrolled building on the same record and time window (J1–J6, force_over_weight,
     stroke_peak, stroke_over_disp). The uncontrolled response is computed exactly (matrix exponential with the
     input linear between samples), once per deterministic record.
@@ -488,23 +510,23 @@ class ShearBuildingEnv(MRDamperEnv):
       ground–floor-1 damper by under 2 mm).
     * ``dt``, ``control_dt``, ``sensors``, ``sensor_noise``, ``sensor_delay``, ``history``, ``action_mode``
       (with ``inverse`` and ``force_range`` for "force"),
-      ``reward_weights`` or ``reward``, ``render_mode``: as :class:`~mrd_env.envs.quarter_car.QuarterCarEnv`.
+      ``reward_weights`` or ``reward``, ``render_mode``: as :class:`~mrd_env.plants.quarter_car.env.QuarterCarEnv`.
 
     ## Version History
 
     * v1: the defaults an RL user expects and the benchmark's building — ``control_dt`` = 0.01 s (100 Hz),
       ``action_mode="normalized"`` and the damper in storey 2 (``damper_floors=[2]``, between floors 1 and 2,
-      where the control laws can be told apart; see :data:`mrd_env.envs.V1`).
+      where the control laws can be told apart; see :func:`mrd_env.plants.registry.v1`).
     * v0: the physics-level defaults — a command in V or A at every 1 ms step, the damper in storey 1 as Dyke et
       al. (1996) built the lab model.
     """
 
-    env_id = "mrd_env/ShearBuildingPhysical-v0"
+    env_id = SPEC.physics_id
     build = staticmethod(assembly)
 
 
 class ShearBuildingVectorEnv(MRDamperVectorEnv):
     """``num_envs`` buildings in one compiled call (options as :class:`ShearBuildingEnv`)."""
 
-    env_id = "mrd_env/ShearBuildingPhysical-v0"
+    env_id = SPEC.physics_id
     build = staticmethod(assembly)

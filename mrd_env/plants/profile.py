@@ -1,0 +1,82 @@
+"""What the experiments know about a plant (:class:`PlantProfile`): its environment options, what agents train on,
+the held-out test scenarios, the laws that apply, the metrics and the figures' layout. Each plant declares its
+profile in its folder (``mrd_env/plants/<plant>/profile.py``: ``PROFILE``); the commands (``train``,
+``evaluate``, ``benchmark``, ``tune``, ``yardstick``, the labs) read it and never branch on a plant's name.
+
+A profile is data: the library holds it without importing the experiments.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+from .spec import PlantSpec
+
+#: A test case of a plant: (name, environment options, seeded) — seeded cases run once per test seed, the others
+#: (a recorded earthquake, a bump) once.
+TestCase = tuple[str, dict, bool]
+
+
+@dataclass(frozen=True)
+class PlantProfile:
+    """One plant as the experiments see it (see the module docstring)."""
+
+    spec: PlantSpec                #: the plant (its name, ids and title)
+    #: environment options every experiment gives the plant (training, validation, test, benchmark)
+    options: dict
+    #: the training distribution as environment options (a new disturbance per episode)
+    training: dict
+    #: the environment option holding the disturbance ("road", "ground_motion")
+    disturbance_key: str
+    #: ``tests(plant_options, quick) -> [TestCase]``: the held-out test scenarios on ``plant_options``
+    tests: Callable[[dict, bool], list]
+    #: the classical laws ``mrd-env evaluate`` compares (by default)
+    laws: tuple
+    #: the controllers ``mrd-env benchmark`` runs (by default)
+    benchmark_laws: tuple
+    #: the laws drawn next to the agents' validation curves: the best law at the agents' 10 ms and a passive one
+    reference_laws: tuple
+    #: the metric columns of ``mrd-env evaluate``
+    evaluation_metrics: tuple
+    #: the metric columns of ``mrd-env benchmark``
+    benchmark_metrics: tuple
+    #: ``response(scenario_options)``: the key response of the histories (a sensor, ``name[i]`` for channel i)
+    response: Callable[[dict], str]
+    #: the histories' y label of a response and the factor from SI to the label's unit
+    response_axis: Callable[[str], tuple[str, float]]
+    #: benchmark metrics also divided by passive-off's on the same episode (``<metric>/off`` columns)
+    normalise_by_passive_off: bool = False
+    #: the bar chart's ratios (benchmark: worst case over the scenarios) and its y label
+    bar_metrics: tuple = ()
+    bar_ylabel: str = "ratio to passive-off (dimensionless)"
+    bar_legend_columns: int = 4
+    #: model predictive control rows of ``mrd-env evaluate``: (label, control step (None: the comparison's),
+    #: controller options, road preview)
+    mpc: tuple = ()
+    #: the benchmark adds the conventional passive car (the MR damper replaced by the preset's dashpot)
+    passive_reference: bool = False
+    #: the road-preview sensor exists (``--preview``; the MPC preview rows)
+    preview: bool = False
+    #: laws whose commands warm-start the clairvoyant of ``mrd-env yardstick`` (empty: no yardstick)
+    warm_laws: tuple = ()
+    #: why there is no yardstick (when ``warm_laws`` is empty)
+    no_yardstick: str = ""
+    #: the environment id whose hyperparameter entry is used where the YAML file has none for ``env_id``
+    hyperparams_fallback: str | None = None
+    #: one of the plants of the published benchmark, evaluation and yardstick (``--plant both``)
+    published: bool = False
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def name(self) -> str:
+        """The plant's name (``--plant``)."""
+        return self.spec.name
+
+    @property
+    def env_id(self) -> str:
+        """The physics-level environment id (laws at 1 ms, commands in V or A)."""
+        return self.spec.physics_id
+
+    @property
+    def title(self) -> str:
+        return self.spec.title

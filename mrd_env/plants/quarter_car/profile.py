@@ -1,0 +1,60 @@
+"""What the experiments run on the quarter car (:class:`~mrd_env.plants.profile.PlantProfile`).
+
+Quarter car — training: a new ISO 8608 road per episode, class B, C or D at a speed drawn in [10, 30] m/s;
+validation: the same distribution with seeds training never draws; test: class C and D at 20 m/s (unseen
+seeds), class A at 30 m/s (a class never trained on) and a 5 cm bump (a road shape never trained on).
+"""
+from __future__ import annotations
+
+from ..profile import PlantProfile, TestCase
+from . import SPEC
+
+
+def road_tests(plant: dict, quick: bool, bump: bool = True) -> list[TestCase]:
+    """ISO 8608 class C and D at 20 m/s (unseen seeds), class A at 30 m/s (an unseen class) and, with ``bump``, a
+    5 cm bump (an unseen shape): the test roads of a car."""
+    dur = 3.0 if quick else 10.0
+    out = [(f"ISO-{c} 20 m/s", dict(**plant, road="iso8608", road_params={"road_class": c, "speed": 20.0},
+                                    episode_seconds=dur), True) for c in ("C", "D")]
+    if not quick:
+        out.append(("ISO-A 30 m/s", dict(**plant, road="iso8608", road_params={"road_class": "A", "speed": 30.0},
+                                         episode_seconds=dur), True))
+        if bump:
+            out.append(("bump 5 cm", dict(**plant, road="bump",
+                                          road_params={"height": 0.05, "length": 0.5, "speed": 10.0},
+                                          episode_seconds=3.0), False))
+    return out
+
+
+def _quarter_car_tests(plant: dict, quick: bool) -> list[TestCase]:
+    return road_tests(plant, quick)
+
+
+_REWARD_MPC = {"weights": "reward", "f_max": 1e5}
+CAR_LAWS = ("passive_off", "passive_on", "skyhook_on_off", "skyhook_continuous", "groundhook", "hybrid",
+             "clipped_optimal")
+
+PROFILE = PlantProfile(
+    spec=SPEC,
+    options={},
+    training={"road": {"kind": "iso8608", "road_class": ["B", "C", "D"], "speed": (10.0, 30.0)},
+              "episode_seconds": 10.0},
+    disturbance_key="road", tests=_quarter_car_tests,
+    laws=("random", *CAR_LAWS),
+    benchmark_laws=CAR_LAWS,
+    reference_laws=("skyhook_continuous", "passive_off"),
+    evaluation_metrics=("acc_weighted_rms", "travel_peak", "tyre_load_ratio"),
+    benchmark_metrics=("acc_weighted_rms", "travel_rms", "travel_peak", "tyre_load_rms"),
+    response=lambda options: "sprung_acc",
+    response_axis=lambda response: ("sprung acceleration (m/s²)", 1.0),
+    normalise_by_passive_off=True,
+    bar_metrics=("acc_weighted_rms/off", "travel_rms/off", "travel_peak/off", "tyre_load_rms/off"),
+    # the objective's MPC at the comparison's step; with the reward's own cost (settings tuned on the validation
+    # roads, see controllers.mpc.MPC) with road preview at the comparison's step and at 1 ms, and without preview
+    # at 1 ms. A preview row measures the road ahead (scenarios.PREVIEW): the only rows with information the
+    # others lack, and never "the best law".
+    mpc=(("mpc", None, {}, False),
+         ("mpc+preview (reward)", None, {**_REWARD_MPC, "force_ref": 200.0, "horizon": 10}, True),
+         ("mpc (reward)", 1e-3, {**_REWARD_MPC, "force_ref": 1000.0, "horizon": 10}, False),
+         ("mpc+preview (reward)", 1e-3, {**_REWARD_MPC, "force_ref": 1000.0, "horizon": 100}, True)),
+    passive_reference=True, preview=True, warm_laws=CAR_LAWS, published=True)
