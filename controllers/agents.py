@@ -328,7 +328,7 @@ def check_env_kwargs(env_id: str, env_kwargs: dict, where) -> None:
     import mrd_env  # noqa: F401
     try:
         with warnings.catch_warnings():
-            warnings.simplefilter("ignore", DeprecationWarning)  # a former id (mrd_env.plants.registry.renamed()) of an old agent
+            warnings.simplefilter("ignore", DeprecationWarning)  # a former id (a plant's former_ids) of an old agent
             gym.make(env_id, **env_kwargs).close()
     except (TypeError, ValueError, MemoryError) as exc:
         raise ValueError(f"agent {where}: agent.json's env_kwargs are refused by {env_id}: {exc}") from None

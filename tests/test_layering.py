@@ -153,3 +153,19 @@ def test_report_figures_leave_pyplot_alone(tmp_path):
     path = plot_loops(sinusoidal_test("bingham", 0.01, 2.0, [0.0, 1.0], cycles=1), tmp_path / "loops.png")
     assert path.stat().st_size > 10_000
     assert matplotlib.get_backend() == backend and len(plt.get_fignums()) == n_open
+
+
+def test_the_generic_machinery_knows_no_plant():
+    """The plants (``mrd_env/plants/<plant>/``, one folder each) sit above the generic machinery — the environment
+    core, the mechanics, the dampers, the disturbances, the metrics, the optimal-control and inverse packages: none
+    of those imports a plant, so a plant is added by its folder and one registry line, never by an edit below it.
+    Only the package's face (``mrd_env/__init__``, which registers the plants) and the warm-up script, which
+    steps a registered id, are above the plants."""
+    above = {"mrd_env", "mrd_env.warmup"}
+    graph = import_graph()
+    assert "mrd_env.plants.quarter_car.env" in graph  # the plants are seen
+    for name, edges in graph.items():
+        if name.startswith("mrd_env.plants") or name in above:
+            continue
+        bad = {e for e in edges if e.startswith("mrd_env.plants")}
+        assert not bad, f"{name} imports {sorted(bad)}: the generic machinery must not know a plant"

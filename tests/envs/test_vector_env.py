@@ -125,7 +125,7 @@ def test_sb3_bridge_follows_sb3_conventions_and_trains():
 
 
 def test_a_plant_added_in_two_files_works_with_every_part_and_the_laws():
-    """The half car (mrd_env/plants/half_car.py, mrd_env/envs/half_car.py and one registry line): two dampers,
+    """The half car (its folder mrd_env/plants/half_car/ and one registry line): two dampers,
     four road inputs, the checker, the vector env, and the classical laws through its declared roles."""
     from gymnasium.utils.env_checker import check_env
 

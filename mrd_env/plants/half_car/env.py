@@ -65,10 +65,10 @@ ROADS = {"iso8608": _iso8608}
 
 def road_source(road, road_params, dt: float, episode_seconds: float, wheelbase: float,
                 budget: Budget | None = None) -> Disturbance:
-    """The road part, by the quarter car's rule (:func:`.quarter_car.road_source`): a kind name (with
+    """The road part, by the quarter car's rule (:func:`mrd_env.envs.roads.road_source`): a kind name (with
     ``road_params``), a dict {"kind": ..., options}, a Record with channels z_rf, zdot_rf, z_rr, zdot_rr (m, m/s),
     or a :class:`~.disturbance.Disturbance`."""
-    from ..quarter_car.env import road_source as car_road
+    from ...envs.roads import road_source as car_road
 
     return car_road(road, road_params, dt, episode_seconds, kinds=ROADS, channels=CHANNELS, units=UNITS,
                     wheelbase=wheelbase, budget=budget)
