@@ -21,6 +21,7 @@ PLANT_FOLDERS = (
     "shear_building",
     "quarter_car",
     "half_car",
+    "isolator",
 )
 
 _SPECS: dict[str, PlantSpec] = {}
