@@ -391,7 +391,7 @@ class TrainedAgent:
     def __init__(self, folder: Path, meta: dict, trust: bool = False, check_env: bool = True):
         self.folder = folder
         self.meta = meta
-        self.plant = meta["plant"]
+        self.plant = recorded_plant(meta)
         self.env_id = meta["env_id"]
         self.env_kwargs = dict(meta["env_kwargs"])
         self.observation_kwargs = {k: v for k, v in self.env_kwargs.items() if k in OBSERVATION_OPTIONS}
@@ -615,11 +615,25 @@ def code_free_agent(path: str | Path, folder: str | Path, trust: bool = False) -
     return dst
 
 
-def shipped_agents(plant: str | None = None) -> list[Path]:
-    """Folders of the agents shipped with the project (for ``plant``, or all)."""
+def recorded_plant(meta: dict) -> str:
+    """The name of the plant an agent was trained on, from its metadata, in today's spelling: an agent saved before
+    its plant was renamed records the former name, which :func:`mrd_env.plants.plant` maps (after a
+    DeprecationWarning); a name no plant has is returned as it is."""
+    from mrd_env.plants import plant
+
+    try:
+        return plant(meta["plant"]).name
+    except ValueError:
+        return meta["plant"]
+
+
+def shipped_agents(plant=None) -> list[Path]:
+    """Folders of the agents shipped with the project: all, or those of ``plant`` (its spec or profile, or its
+    name), whatever spelling of the plant's name their ``agent.json`` records."""
+    name = getattr(plant, "name", plant)
     out = []
     for meta_path in sorted(SHIPPED.glob("*/agent.json")):
         meta = json.loads(meta_path.read_text(encoding="utf-8"), object_hook=_untag)
-        if plant is None or meta.get("plant") == plant:
+        if name is None or recorded_plant(meta) == name:
             out.append(meta_path.parent)
     return out

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from mrd_env.executor import Task, TaskFailed, resolve_backend, run_tasks
+from experiments.common.plants import profile
 
 
 def draw(seed: int, n: int = 5) -> np.ndarray:
@@ -152,12 +153,12 @@ def test_a_resumed_study_draws_new_trials(tmp_path, monkeypatch):
     def params(st):
         return [tuple(sorted(t.params.items())) for t in st.trials]
 
-    first = params(tune("quarter_car", "ppo", trials=3, timesteps=64, eval_freq=64, out=tmp_path / "a",
+    first = params(tune(profile("quarter_car"), "ppo", trials=3, timesteps=64, eval_freq=64, out=tmp_path / "a",
                         backend="serial", progress=False))
-    both = params(tune("quarter_car", "ppo", trials=3, timesteps=64, eval_freq=64, out=tmp_path / "a",
+    both = params(tune(profile("quarter_car"), "ppo", trials=3, timesteps=64, eval_freq=64, out=tmp_path / "a",
                        backend="serial", progress=False))
     assert both[:3] == first and not set(both[3:]) & set(first)
-    again = params(tune("quarter_car", "ppo", trials=3, timesteps=64, eval_freq=64, out=tmp_path / "b",
+    again = params(tune(profile("quarter_car"), "ppo", trials=3, timesteps=64, eval_freq=64, out=tmp_path / "b",
                         backend="serial", progress=False))
     assert again == first
 
@@ -176,7 +177,7 @@ def test_tune_prunes_a_trial_below_the_median_after_the_warm_up(tmp_path, monkey
 
     stopped_at = {}
     monkeypatch.setattr(trainers, "train_one", _fake_train_one(stopped_at, untrained))
-    st = tune("quarter_car", "ppo", trials=4, timesteps=320, eval_freq=64, out=tmp_path, backend="serial",
+    st = tune(profile("quarter_car"), "ppo", trials=4, timesteps=320, eval_freq=64, out=tmp_path, backend="serial",
               progress=False)
     states = [t.state.name for t in st.trials]
     assert states == ["COMPLETE", "COMPLETE", "COMPLETE", "PRUNED"], states

@@ -22,69 +22,66 @@ from mrd_env import storage
 from mrd_env.report import markdown_table, write_table
 
 from ..common import sweep, yardstick
-from ..common.evaluation import Episode, applicable_laws, check_laws, controller_episodes, response_of
-from ..common.plants import PLANTS, chosen_plants, plant_choices, profile
+from ..common.evaluation import Episode, applicable_laws, check_laws, controller_episodes
+from ..common.plants import PlantProfile, chosen_plants, plant_choices, plant_name
 from ..common.scenarios import base_scenario, held_out_scenarios
 
-#: The controllers and metric columns of each plant (:attr:`.plants.PlantProfile.benchmark_laws`,
-#: ``benchmark_metrics``); the two published plants' under their former names.
-QC_CONTROLLERS = PLANTS["quarter_car"].benchmark_laws
-BUILDING_CONTROLLERS = PLANTS["shear_building"].benchmark_laws
-QC_METRICS = PLANTS["quarter_car"].benchmark_metrics
-BUILDING_METRICS = PLANTS["shear_building"].benchmark_metrics
 
-
-def run_benchmark(plant: str, controllers=None, scenarios=None, *, damper: str = "spencer_dyke",
+def run_benchmark(plant: PlantProfile, controllers=None, scenarios=None, *, damper: str = "spencer_dyke",
                   out: Path | None = None, progress: bool = True, quick: bool = False,
                   reference_passive: bool = True, agents=(), backend: str = "serial", jobs: int | None = None,
                   address: str | None = None) -> list[Episode]:
-    """Every controller on every scenario (all seeds of a scenario in one vector environment), one task each on
-    the chosen backend (:mod:`mrd_env.executor`; the episodes are the same on all of them); for the quarter car
-    also the conventional passive car (the MR damper replaced by the preset's reference dashpot, e.g.
-    1500 N·s/m for set A) as a baseline."""
+    """Every controller (by default the plant's, :attr:`~experiments.common.plants.PlantProfile.benchmark_laws`) on
+    every scenario (all seeds of a scenario in one vector environment), one task each on the chosen backend
+    (:mod:`mrd_env.executor`; the episodes are the same on all of them); where the plant has one, also its
+    conventional passive reference as a baseline (:attr:`~experiments.common.plants.PlantProfile.passive_reference`:
+    the car with the MR damper replaced by the preset's reference dashpot, e.g. 1500 N·s/m for set A)."""
     from mrd_env.executor import Task, run_tasks
 
-    controllers = list(controllers or profile(plant).benchmark_laws)
-    controllers += [Path(a) for a in agents]
-    if profile(plant).passive_reference and reference_passive:
-        controllers.append("passive_ref")
+    controllers = [*(controllers or plant.benchmark_laws), *(Path(a) for a in agents)]
     scenarios = scenarios or held_out_scenarios(plant, quick=quick)
-    tasks = [Task(controller_episodes, (c, sc, response_of(sc.options, plant)), {"damper": damper},
-                  label=f"{sc.name} / {c}") for sc in scenarios for c in controllers]
+    reference = plant.passive_reference if reference_passive else None
+
+    def rows(sc) -> list[tuple]:
+        """(controller, its task's keywords, label) of every row of scenario ``sc``."""
+        out = [(c, {"damper": damper}, str(c)) for c in controllers]
+        if reference is not None:  # the passive-off command on the reference damper, under the reference's name
+            name, options = reference(sc.options)
+            out.append((("passive_off", {}), {"damper": damper, **options, "name": name}, name))
+        return out
+
+    per_scenario = [rows(sc) for sc in scenarios]
+    tasks = [Task(controller_episodes, (c, sc, plant.response(sc.options)), kw, label=f"{sc.name} / {label}")
+             for sc, mine in zip(scenarios, per_scenario) for c, kw, label in mine]
     results = iter(run_tasks(tasks, backend=backend, jobs=jobs, address=address, progress=progress,
-                             desc=f"benchmark {plant}"))
+                             desc=f"benchmark {plant.name}"))
     by_scenario: dict[str, list[Episode]] = {}
-    for sc in scenarios:
-        eps = [next(results) for _ in controllers]
+    for sc, mine in zip(scenarios, per_scenario):
+        eps = [next(results) for _ in mine]
         # rows: per seed, every controller (the table's order)
         for k in range(len(sc.seeds)):
             by_scenario.setdefault(sc.label(sc.seeds[k]), []).extend(e[k] for e in eps)
     episodes = [e for group in by_scenario.values() for e in group]
     if out is not None:
-        write_reports(plant, episodes, Path(out), response_of(scenarios[0].options, plant))
+        write_reports(plant, episodes, Path(out), plant.response(scenarios[0].options))
     return episodes
 
 
-#: Units of the metric columns (the headers carry them); J1–J6 and "/off" columns are ratios.
-UNITS = {"acc_weighted_rms": "m/s²", "travel_rms": "m", "travel_peak": "m", "tyre_load_rms": "N",
-         "drift_peak": "m", "acc_peak": "m/s²", "damper_force_peak": "N", "pitch_acc_rms": "rad/s²"}
+def _header(k: str, units: dict) -> str:
+    """A column's header: its name, with its unit where it has one (:attr:`PlantProfile.metric_units`)."""
+    return f"{k} ({units[k]})" if k in units else k
 
 
-def _header(k: str) -> str:
-    return f"{k} ({UNITS[k]})" if k in UNITS else k
-
-
-def _rows(plant: str, episodes: list[Episode]) -> list[dict]:
+def _rows(plant: PlantProfile, episodes: list[Episode]) -> list[dict]:
     """One row per episode (scenario label, controller): the return and the metrics, the car's also over
     passive-off on the same episode."""
-    prof = profile(plant)
-    keys = prof.benchmark_metrics
+    keys = plant.benchmark_metrics
     rows = []
     for ep in episodes:
         row = {"scenario": ep.scenario, "controller": ep.controller, "return": float(ep.episode_return)}
         for k in keys:
             row[k] = float(ep.metrics.get(k, float("nan")))
-        if prof.normalise_by_passive_off:  # normalise by passive-off on the same episode
+        if plant.normalise_by_passive_off:  # normalise by passive-off on the same episode
             ref = next((e for e in episodes if e.scenario == ep.scenario and e.controller == "passive_off"), None)
             for k in keys:
                 if ref is not None and ref.metrics.get(k):
@@ -124,8 +121,8 @@ def worst_case(rows: list[dict]) -> list[dict]:
     return out
 
 
-def _with_units(rows: list[dict]) -> list[dict]:
-    return [{_header(k): v for k, v in r.items()} for r in rows]
+def _with_units(rows: list[dict], units: dict) -> list[dict]:
+    return [{_header(k, units): v for k, v in r.items()} for r in rows]
 
 
 #: At most this many controllers in a history or loop figure: passive-off, passive-on and the best by return.
@@ -146,24 +143,25 @@ def history_selection(eps: list[Episode]) -> list[Episode]:
     return fixed + chosen
 
 
-def write_reports(plant: str, episodes: list[Episode], out: Path, response: str = "") -> dict:
+def write_reports(plant: PlantProfile, episodes: list[Episode], out: Path, response: str = "") -> dict:
+    """The benchmark's tables (headers with the plant's units), histories, loops and bar chart, in ``out``."""
     from mrd_env.report import figure, save_figure
 
-
+    name, units = plant.name, plant.metric_units
     out.mkdir(parents=True, exist_ok=True)
     rows = _rows(plant, episodes)
     means = scenario_means(rows, base_scenario)
     worst = worst_case(means)
-    md, csv_path = write_table(_with_units(means + worst), out / f"{plant}_benchmark", floatfmt=".4g",
-                               title=f"{plant}: controller × scenario (mean over each scenario's seeds; metrics "
+    md, csv_path = write_table(_with_units(means + worst, units), out / f"{name}_benchmark", floatfmt=".4g",
+                               title=f"{name}: controller × scenario (mean over each scenario's seeds; metrics "
                                      "in SI, /off: over passive-off on the same episode)")
-    write_table(_with_units(rows), out / f"{plant}_benchmark_episodes", floatfmt=".4g",
-                title=f"{plant}: every episode (scenario and seed) and controller")
-    storage.write_text(out / f"{plant}_benchmark_worst.md", markdown_table(_with_units(worst), floatfmt=".4g",
-                                                                    title=f"{plant}: worst case over scenarios"))
+    write_table(_with_units(rows, units), out / f"{name}_benchmark_episodes", floatfmt=".4g",
+                title=f"{name}: every episode (scenario and seed) and controller")
+    storage.write_text(out / f"{name}_benchmark_worst.md",
+                       markdown_table(_with_units(worst, units), floatfmt=".4g",
+                                      title=f"{name}: worst case over scenarios"))
     figs = []
-    prof = profile(plant)
-    ylabel, scale = prof.response_axis(response)
+    ylabel, scale = plant.response_axis(response)
     for sc in dict.fromkeys(e.scenario for e in episodes):
         eps = history_selection([e for e in episodes if e.scenario == sc and e.t.size])  # a scenario's first seed
         if not eps:
@@ -179,7 +177,7 @@ def write_reports(plant: str, episodes: list[Episode], out: Path, response: str 
         a1.set_title(f"{sc}: passive settings and the best controllers by return")
         for a in (a1, a2):
             a.grid(alpha=0.3)
-        figs.append(save_figure(fig, out / f"{plant}_history_{_slug(sc)}.png"))
+        figs.append(save_figure(fig, out / f"{name}_history_{_slug(sc)}.png"))
         fig, ax = figure(figsize=(6, 4.5))
         for e in eps:
             ax.plot(e.velocity, e.force / 1e3, lw=0.6, label=e.controller)
@@ -188,9 +186,9 @@ def write_reports(plant: str, episodes: list[Episode], out: Path, response: str 
         ax.set_title(f"force–velocity: {sc}")
         ax.legend(fontsize=8)
         ax.grid(alpha=0.3)
-        figs.append(save_figure(fig, out / f"{plant}_loops_{_slug(sc)}.png"))
+        figs.append(save_figure(fig, out / f"{name}_loops_{_slug(sc)}.png"))
     # one quantity on the axis: every bar is a ratio (car: over passive-off; building: over the uncontrolled)
-    keys = list(prof.bar_metrics)
+    keys = list(plant.bar_metrics)
     fig, ax = figure(figsize=(10, 4.5))
     ctrls = [r["controller"] for r in worst]
     width = 0.8 / max(len(keys), 1)
@@ -198,10 +196,10 @@ def write_reports(plant: str, episodes: list[Episode], out: Path, response: str 
         ax.bar(np.arange(len(ctrls)) + i * width, [r.get(k, np.nan) for r in worst], width, label=k)
     ax.set_xticks(np.arange(len(ctrls)) + 0.4 - width / 2, ctrls, rotation=20, fontsize=8)
     ax.axhline(1.0, color="k", lw=0.8)
-    ax.set_ylabel(prof.bar_ylabel)
-    ax.set_title(f"{plant}: worst case over the test scenarios (smaller is better)")
-    ax.legend(fontsize=8, ncol=prof.bar_legend_columns)
-    figs.append(save_figure(fig, out / f"{plant}_bars.png"))
+    ax.set_ylabel(plant.bar_ylabel)
+    ax.set_title(f"{name}: worst case over the test scenarios (smaller is better)")
+    ax.legend(fontsize=8, ncol=plant.bar_legend_columns)
+    figs.append(save_figure(fig, out / f"{name}_bars.png"))
     return {"markdown": md, "csv": csv_path, "figures": figs}
 
 
@@ -213,7 +211,7 @@ def _slug(s: str) -> str:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--plant", choices=plant_choices(both=True), default="both",
+    p.add_argument("--plant", type=plant_name, choices=plant_choices(both=True), default="both",
                    help="a plant, both (building and quarter car) or all")
     p.add_argument("--controllers", nargs="+", default=None, help="controller names (default: all that apply)")
     p.add_argument("--damper", default="spencer_dyke", help="damper model name")
@@ -244,11 +242,13 @@ def agent_metadata(path: str | Path) -> dict:
 
 
 def run(args: argparse.Namespace) -> int:
+    from controllers.agents import recorded_plant
+
     plants = chosen_plants(args.plant)
-    agents = {path: agent_metadata(path)["plant"] for path in args.agent}  # ValueError for a bad path
-    for path, plant in agents.items():
-        if plant not in plants:
-            raise ValueError(f"agent {path} was trained on the {plant} plant; add --plant {plant} (or both)")
+    agents = {path: recorded_plant(agent_metadata(path)) for path in args.agent}  # ValueError for a bad path
+    for path, trained_on in agents.items():
+        if trained_on not in [p.name for p in plants]:
+            raise ValueError(f"agent {path} was trained on the {trained_on} plant; add --plant {trained_on} (or both)")
     if args.seeds < 1:
         raise ValueError(f"--seeds must be >= 1, got {args.seeds}")
     if agents:  # an SB3 zip only with --trust-agent, converted here once: the workers never unpickle
@@ -267,17 +267,18 @@ def run(args: argparse.Namespace) -> int:
     for plant in plants:
         laws = args.controllers
         if laws is None:  # the default set: rows the damper cannot serve are left out with a note
-            laws, skipped = applicable_laws(plant, profile(plant).benchmark_laws, damper=args.damper)
-            for name, why in skipped.items():
-                print(f"note: {name} left out of the {plant} benchmark: {why}", file=sys.stderr)
+            laws, skipped = applicable_laws(plant, plant.benchmark_laws, damper=args.damper)
+            for law, why in skipped.items():
+                print(f"note: {law} left out of the {plant.title} benchmark: {why}", file=sys.stderr)
         scen = held_out_scenarios(plant, seeds=args.seeds, quick=args.quick)
         eps = run_benchmark(plant, laws, scen, damper=args.damper, out=args.out,
-                            progress=not args.no_progress, agents=[p for p, pl in agents.items() if pl == plant],
-                            **executor)
-        settings = markdown_table(scenario_rows(scen), title=f"{plant}: scenario settings")
-        storage.write_text(args.out / f"{plant}_scenarios.md", settings)
+                            progress=not args.no_progress,
+                            agents=[p for p, pl in agents.items() if pl == plant.name], **executor)
+        name = plant.name
+        settings = markdown_table(scenario_rows(scen), title=f"{name}: scenario settings")
+        storage.write_text(args.out / f"{name}_scenarios.md", settings)
         print(settings)
-        print((args.out / f"{plant}_benchmark_worst.md").read_text())
+        print((args.out / f"{name}_benchmark_worst.md").read_text())
         by_controller: dict[str, list[Episode]] = {}
         for e in eps:
             by_controller.setdefault(e.controller, []).append(e)
@@ -285,5 +286,5 @@ def run(args: argparse.Namespace) -> int:
                                 progress=not args.no_progress, **executor)
         if text:
             print(text)
-        print(f"wrote {args.out}/{plant}_benchmark.md/.csv, {plant}_scenarios.md and figures ({len(eps)} episodes)")
+        print(f"wrote {args.out}/{name}_benchmark.md/.csv, {name}_scenarios.md and figures ({len(eps)} episodes)")
     return 0

@@ -23,17 +23,15 @@ from mrd_env.report import write_table
 from ..common import sweep, yardstick
 from ..common.comparison import comparison_damper, evaluate
 from ..common.evaluation import Episode, check_laws, episode_means, grouped_bars, mean_ci
-from ..common.plants import PLANTS, chosen_plants, plant_choices, profile
+from ..common.plants import PlantProfile, chosen_plants, plant_choices, plant_name
 from ..common.scenarios import base_scenario, held_out_scenarios
 
-#: Per plant: the metric columns of :mod:`.plants`.
-METRICS = {name: p.evaluation_metrics for name, p in PLANTS.items()}
 
-
-def summarise(plant: str, results: dict[str, list[Episode]]) -> list[dict]:
+def summarise(plant: PlantProfile, results: dict[str, list[Episode]]) -> list[dict]:
     """Rows: per scenario and controller, mean and 95 % interval over the episodes of the return and the mean of
-    the metrics (an agent trained on several seeds with its seeds' mean on each episode); then the mean over the
-    test scenarios (``all test scenarios``)."""
+    the plant's metrics (:attr:`~experiments.common.plants.PlantProfile.evaluation_metrics`; an agent trained on
+    several seeds with its seeds' mean on each episode); then the mean over the test scenarios (``all test
+    scenarios``)."""
     rows = []
     scen = list(dict.fromkeys(base_scenario(e.scenario) for eps in results.values() for e in eps))
     for s in scen + ["all test scenarios"]:
@@ -45,7 +43,7 @@ def summarise(plant: str, results: dict[str, list[Episode]]) -> list[dict]:
             m, lo, hi = mean_ci(returns, upper=0.0)
             row = {"scenario": s, "controller": ctrl, "episodes": len(returns), "return": m, "return_lo95": lo,
                    "return_hi95": hi}
-            for k in METRICS[plant]:
+            for k in plant.evaluation_metrics:
                 row[k] = float(np.mean(list(episode_means(mine, lambda e, k=k: e.metrics.get(k, np.nan)).values())))
             row["terminated"] = sum(1 for e in mine if "terminated" in e.metrics)
             rows.append(row)
@@ -77,15 +75,15 @@ def paired(results: dict[str, list[Episode]]) -> list[dict]:
     return rows
 
 
-def plot(plant: str, rows: list[dict], path: Path) -> Path:
+def plot(plant: PlantProfile, rows: list[dict], path: Path) -> Path:
     """Mean return with its 95 % interval per controller, one group per scenario."""
     return grouped_bars(rows, "return", "return_lo95", "return_hi95", path,
                         xlabel="episode return (dimensionless)",
-                        title=f"{plant}: agents and classical laws on the held-out test scenarios")
+                        title=f"{plant.name}: agents and classical laws on the held-out test scenarios")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--plant", choices=plant_choices(both=True), default="both",
+    p.add_argument("--plant", type=plant_name, choices=plant_choices(both=True), default="both",
                    help="a plant, both (building and quarter car) or all")
     p.add_argument("--agents", type=Path, nargs="*", default=None,
                    help="agent folders (or files in them) written by mrd-env train (default: the shipped agents)")
@@ -111,7 +109,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from controllers import shipped_agents
-    from controllers.agents import agent_files, code_free_agent
+    from controllers.agents import agent_files, code_free_agent, recorded_plant
 
     if args.seeds < 1:
         raise ValueError(f"--seeds must be >= 1, got {args.seeds}")
@@ -127,38 +125,41 @@ def run(args: argparse.Namespace) -> int:
 
         import mrd_env  # noqa: F401
         for p in plants:
-            gym.make(profile(p).env_id, control_dt=args.control_dt).close()
-    chosen = {p: [] for p in plants}
+            gym.make(p.env_id, control_dt=args.control_dt).close()
+    chosen = {p.name: [] for p in plants}
     if args.agents is None:
         for p in plants:
-            chosen[p] = shipped_agents(p)
+            chosen[p.name] = shipped_agents(p)
     else:
         for a in args.agents:
-            meta = agent_files(a)[1]  # ValueError for a bad path
-            if meta["plant"] not in chosen:
-                raise ValueError(f"agent {a} was trained on the {meta['plant']} plant; add --plant {meta['plant']}")
-            chosen[meta["plant"]].append(a)
+            trained_on = recorded_plant(agent_files(a)[1])  # ValueError for a bad path
+            if trained_on not in chosen:
+                raise ValueError(f"agent {a} was trained on the {trained_on} plant; add --plant {trained_on}")
+            chosen[trained_on].append(a)
     # an SB3 zip is loaded only if trusted, once, here: the rows load its code-free copy
-    chosen = {p: [code_free_agent(a, args.out / "converted-agents", trust=args.trust_agent) for a in agents]
-              for p, agents in chosen.items()}
-    for p in plants:
-        res = evaluate(p, chosen[p], args.laws, seeds=args.seeds, control_dt=args.control_dt, damper=args.damper,
+    chosen = {name: [code_free_agent(a, args.out / "converted-agents", trust=args.trust_agent) for a in agents]
+              for name, agents in chosen.items()}
+    for plant in plants:
+        name, agents = plant.name, chosen[plant.name]
+        res = evaluate(plant, agents, args.laws, seeds=args.seeds, control_dt=args.control_dt, damper=args.damper,
                        laws_at_1ms=not args.no_1ms, mpc=not args.no_mpc, progress=not args.no_progress,
                        quick=args.quick, **executor)
-        rows = summarise(p, res)
-        md, csv_path = write_table(rows, args.out / f"{p}_evaluation", floatfmt=".4g",
-                                   title=f"{p}: return and metrics on the held-out test scenarios (mean, 95 % interval)")
-        fig = plot(p, [r for r in rows if r["scenario"] != "all test scenarios"], args.out / f"{p}_evaluation.png")
+        rows = summarise(plant, res)
+        md, csv_path = write_table(rows, args.out / f"{name}_evaluation", floatfmt=".4g",
+                                   title=f"{name}: return and metrics on the held-out test scenarios (mean, 95 % "
+                                         "interval)")
+        fig = plot(plant, [r for r in rows if r["scenario"] != "all test scenarios"],
+                   args.out / f"{name}_evaluation.png")
         print(md.read_text())
         print(f"wrote {md}, {csv_path}, {fig}")
         pairs = paired(res)
         if pairs:
-            md, _ = write_table(pairs, args.out / f"{p}_paired", floatfmt=".4g",
-                                title=f"{p}: agent minus the best law at each control step, on the same episodes "
+            md, _ = write_table(pairs, args.out / f"{name}_paired", floatfmt=".4g",
+                                title=f"{name}: agent minus the best law at each control step, on the same episodes "
                                       "(mean, 95 % interval; positive: the agent is better)")
             print(md.read_text())
-        damper = comparison_damper(args.damper, [agent_files(a)[1].get("env_kwargs") or {} for a in chosen[p]])
-        text = yardstick.report(p, res, held_out_scenarios(p, seeds=args.seeds, quick=args.quick), args.out,
+        damper = comparison_damper(args.damper, [agent_files(a)[1].get("env_kwargs") or {} for a in agents])
+        text = yardstick.report(plant, res, held_out_scenarios(plant, seeds=args.seeds, quick=args.quick), args.out,
                                 args.yardstick, damper=damper, progress=not args.no_progress, **executor)
         if text:
             print(text)

@@ -34,7 +34,7 @@ import numpy as np
 from mrd_env.envs import RL_DEFAULTS
 
 from ..common import sweep
-from ..common.plants import PLANTS, plant_choices, profile
+from ..common.plants import PlantProfile, default_plant, plant_choices, plant_name, profile
 from ..common.sb3_trainer import check_laws, check_with_sb3
 from ..common.trainers import (ALGOS, available_algos, env_options, hyperparameters, residual_spec, run_name,
                                steps_label, train_one, validation_split)
@@ -117,7 +117,8 @@ def plot_seed_curves(run_dirs, path: Path, references: dict[str, float] | None =
 
 
 def _common_name(names: list[str]) -> str:
-    """The agents' common name without the seed suffix (``building_ppo-residual_s0`` → ``building_ppo-residual``)."""
+    """The agents' common name without the seed suffix (``shear_building_ppo-residual_s0`` →
+    ``shear_building_ppo-residual``)."""
     import os
     import re
 
@@ -125,20 +126,21 @@ def _common_name(names: list[str]) -> str:
     return common or names[0]
 
 
-def train(plant: str, algo: str, seeds, *, backend: str = "serial", jobs: int | None = None,
+def train(plant: PlantProfile, algo: str, seeds, *, backend: str = "serial", jobs: int | None = None,
           address: str | None = None, **kw) -> list[Path]:
-    """One agent per seed, one task each (:mod:`mrd_env.executor`: serially, on a process pool or on Ray; each
-    seed's agent is the same on all of them); their folders, and with several seeds a figure of their
-    validation curves (``<out>/<plant>_<algo>_learning_curves.png``)."""
+    """One agent per seed on ``plant``, one task each (:mod:`mrd_env.executor`: serially, on a process pool or on
+    Ray, whose workers get the profile by its plant's name; each seed's agent is the same on all of them); their
+    folders, and with several seeds a figure of their validation curves
+    (``<out>/<plant>_<algo>_learning_curves.png``)."""
     from mrd_env.executor import Task, resolve_backend, run_tasks
 
     seeds = [int(s) for s in seeds]
     parallel = resolve_backend(backend, len(seeds), jobs) != "serial"
     # in parallel, one progress bar over the seeds instead of one per run
     tasks = [Task(train_one, (plant, algo, s), {**kw, "progress": kw.get("progress", False) and not parallel},
-                  label=f"{plant} {algo} seed {s}") for s in seeds]
+                  label=f"{plant.name} {algo} seed {s}") for s in seeds]
     folders = run_tasks(tasks, backend=backend, jobs=jobs, address=address,
-                        progress=kw.get("progress", False) and parallel, desc=f"train {plant} {algo}")
+                        progress=kw.get("progress", False) and parallel, desc=f"train {plant.name} {algo}")
     if len(folders) > 1:
         hyper = kw.get("hyper") or {}
         env_kwargs = {**(kw.get("env_kwargs") or env_options(plant)), **(hyper.get("env_kwargs") or {})}
@@ -148,14 +150,11 @@ def train(plant: str, algo: str, seeds, *, backend: str = "serial", jobs: int | 
     return folders
 
 
-#: The laws drawn next to the agents' validation curves (:attr:`.plants.PlantProfile.reference_laws`).
-REFERENCE_LAWS = {name: p.reference_laws for name, p in PLANTS.items()}
-
-
-def law_references(plant: str, env_kwargs: dict | None = None, eval_episodes: int = 8,
+def law_references(plant: PlantProfile, env_kwargs: dict | None = None, eval_episodes: int = 8,
                    extra_laws=()) -> dict[str, float]:
-    """The validation return of each of ``REFERENCE_LAWS[plant]`` (and of ``extra_laws``, e.g. a residual agent's
-    own law) on the agents' validation episodes, sensors and control step."""
+    """The validation return of each of the plant's reference laws (those drawn next to the agents' validation
+    curves, :attr:`~experiments.common.plants.PlantProfile.reference_laws`) and of ``extra_laws`` (e.g. a residual
+    agent's own law) on the agents' validation episodes, sensors and control step."""
     from controllers import make_controller
 
     from ..common.evaluation import evaluate_batch
@@ -163,7 +162,7 @@ def law_references(plant: str, env_kwargs: dict | None = None, eval_episodes: in
     env_kwargs = dict(env_kwargs if env_kwargs is not None else env_options(plant))
     sc, obs_kwargs = validation_split(plant, env_kwargs, eval_episodes)
     out = {}
-    for law in dict.fromkeys((*REFERENCE_LAWS[plant], *extra_laws)):
+    for law in dict.fromkeys((*plant.reference_laws, *extra_laws)):
         eps = evaluate_batch(lambda v, n=law: make_controller(n, v), sc, "", **obs_kwargs)
         out[f"{law} @ {1000 * float(env_kwargs.get('control_dt', 1e-3)):g} ms"] = \
             float(np.mean([e.episode_return for e in eps]))
@@ -173,7 +172,7 @@ def law_references(plant: str, env_kwargs: dict | None = None, eval_episodes: in
 # --- CLI ----------------------------------------------------------------------------------------------------------
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--plant", choices=plant_choices(), default="quarter_car")
+    p.add_argument("--plant", type=plant_name, choices=plant_choices(), default=default_plant())
     p.add_argument("--algo", default="ppo", help=f"one of {', '.join(available_algos())} (shipped hyperparameters); "
                                                  f"{', '.join(sorted(set(ALGOS) - set(available_algos())))} with "
                                                  "--hyperparams")
@@ -257,7 +256,8 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError("--warm-start applies to --algo cmaes")
         if args.warm_start not in available_controllers():
             raise ValueError(f"--warm-start must be a law of {available_controllers()}, got {args.warm_start!r}")
-    env_kwargs = env_options(args.plant, args.control_dt, args.sensors, args.history, disturbance)
+    plant = profile(args.plant)
+    env_kwargs = env_options(plant, args.control_dt, args.sensors, args.history, disturbance)
     if args.damper is not None:
         from mrd_env.dampers import damper_class, is_preset_file
 
@@ -266,8 +266,8 @@ def run(args: argparse.Namespace) -> int:
         env_kwargs["damper"] = str(Path(args.damper).resolve()) if is_preset_file(args.damper) else args.damper
     if args.preview:
         from ..common.scenarios import preview_options
-        env_kwargs = preview_options(args.plant, env_kwargs)
-    env_id = profile(args.plant).env_id
+        env_kwargs = preview_options(plant, env_kwargs)
+    env_id = plant.env_id
     overrides = _parse_overrides(args.set)
     # --residual-scale and --residual-hold: options of --residual LAW's residual, or of the YAML's
     options = {k: v for k, v in (("scale", args.residual_scale), ("hold", args.residual_hold)) if v is not None}
@@ -299,10 +299,10 @@ def run(args: argparse.Namespace) -> int:
     import mrd_env  # noqa: F401
     gym.make(env_id, **env_kwargs).close()
     command = "mrd-env " + " ".join(shlex.quote(a) for a in getattr(args, "_argv", sys.argv[1:]))
-    folders = train(args.plant, args.algo, args.seeds, out=args.out, timesteps=args.timesteps, hyper=hyper,
+    folders = train(plant, args.algo, args.seeds, out=args.out, timesteps=args.timesteps, hyper=hyper,
                     env_kwargs=env_kwargs, eval_freq=args.eval_freq, eval_episodes=args.eval_episodes,
                     checkpoint_freq=args.checkpoint_freq, tensorboard=args.tensorboard,
                     progress=not args.no_progress, command=command, warm_start=args.warm_start, **executor)
     for f in folders:
-        print(f"saved {f} (evaluate with: mrd-env evaluate --plant {args.plant} --agents {f})")
+        print(f"saved {f} (evaluate with: mrd-env evaluate --plant {plant.name} --agents {f})")
     return 0

@@ -23,7 +23,7 @@ import numpy as np
 from mrd_env import storage
 
 from ..common import sweep
-from ..common.plants import plant_choices, profile
+from ..common.plants import PlantProfile, default_plant, plant_choices, plant_name, profile
 from ..common.trainers import ALGOS, env_options, hyperparameters
 
 
@@ -180,7 +180,7 @@ def sampler_seed(seed: int, worker_index: int, earlier_trials: int) -> int:
     return int(np.random.SeedSequence([seed, worker_index, earlier_trials]).generate_state(1)[0])
 
 
-def worker(plant: str, algo: str, study: str, out: Path, n_trials: int, timesteps: int, eval_freq: int,
+def worker(plant: PlantProfile, algo: str, study: str, out: Path, n_trials: int, timesteps: int, eval_freq: int,
            eval_episodes: int, seed: int, hyperparams: Path | None = None, space: str = "zoo",
            tpe_seed: int | None = None) -> int:
     """Add ``n_trials`` trials to the study (one worker; several run side by side on one journal); the trials train
@@ -189,8 +189,7 @@ def worker(plant: str, algo: str, study: str, out: Path, n_trials: int, timestep
 
     from ..common.trainers import train_one
 
-    env_id = profile(plant).env_id
-    base = hyperparameters(algo, env_id, hyperparams)
+    base = hyperparameters(algo, plant.env_id, hyperparams)
     st = optuna.load_study(study_name=study, storage=_storage(out / f"{study}.log"),
                            sampler=optuna.samplers.TPESampler(seed=seed if tpe_seed is None else tpe_seed),
                            pruner=pruner(eval_freq))
@@ -216,7 +215,7 @@ def worker(plant: str, algo: str, study: str, out: Path, n_trials: int, timestep
     return n_trials
 
 
-def tune(plant: str, algo: str, *, trials: int, timesteps: int, out: Path, study: str | None = None,
+def tune(plant: PlantProfile, algo: str, *, trials: int, timesteps: int, out: Path, study: str | None = None,
          eval_freq: int = 50_000, eval_episodes: int = 4, seed: int = 0, hyperparams: Path | None = None,
          backend: str = "serial", jobs: int | None = None, address: str | None = None, progress: bool = True,
          space: str = "zoo"):
@@ -226,14 +225,14 @@ def tune(plant: str, algo: str, *, trials: int, timesteps: int, out: Path, study
 
     from mrd_env.executor import Task, default_jobs, resolve_backend, run_tasks
 
-    study = study or f"{plant}_{algo}"
+    study = study or f"{plant.name}_{algo}"
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     st = optuna.create_study(study_name=study, storage=_storage(out / f"{study}.log"), direction="maximize",
                              pruner=pruner(eval_freq), load_if_exists=True)
     earlier = len(st.trials)
     if space == "residual" and not earlier:
-        st.enqueue_trial(base_params(hyperparameters(algo, profile(plant).env_id, hyperparams), algo))
+        st.enqueue_trial(base_params(hyperparameters(algo, plant.env_id, hyperparams), algo))
     workers = 1 if resolve_backend(backend, trials, jobs) == "serial" else min(trials, jobs or default_jobs())
     split = [trials // workers + (1 if i < trials % workers else 0) for i in range(workers)]
     tasks = [Task(worker, (plant, algo, study, out, n, timesteps, eval_freq, eval_episodes, seed + i, hyperparams,
@@ -263,7 +262,7 @@ def report_study(st, algo: str, env_id: str, out: Path, hyperparams: Path | None
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--plant", choices=plant_choices(), default="quarter_car")
+    p.add_argument("--plant", type=plant_name, choices=plant_choices(), default=default_plant())
     p.add_argument("--algo", choices=sorted(ALGOS), default="ppo")
     p.add_argument("--trials", type=int, default=20,
                    help="trials to run, over all workers, added to the study's earlier ones (default 20)")
@@ -298,7 +297,8 @@ def run(args: argparse.Namespace) -> int:
         import optuna  # noqa: F401
     except ImportError:
         raise ImportError("mrd-env tune needs Optuna (pip install 'mrd-env[tune]')") from None
-    env_id = profile(args.plant).env_id
+    plant = profile(args.plant)
+    env_id = plant.env_id
     base = hyperparameters(args.algo, env_id, args.hyperparams)  # the base entry exists and is valid
     if args.space == "residual":
         if args.algo not in RESIDUAL_SPACES:
@@ -307,11 +307,11 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError("--space residual needs a hyperparameter file whose entry has a residual "
                              "(e.g. experiments/hyperparams/ppo-residual.yml)")
         base_params(base, args.algo)  # the entry holds every searched parameter, as the first trial
-    st = tune(args.plant, args.algo, trials=args.trials, timesteps=args.timesteps, out=args.out, study=args.study,
+    st = tune(plant, args.algo, trials=args.trials, timesteps=args.timesteps, out=args.out, study=args.study,
               eval_freq=args.eval_freq, eval_episodes=args.eval_episodes, seed=args.seed,
               hyperparams=args.hyperparams, progress=not args.no_progress, space=args.space, **executor)
     md, best = report_study(st, args.algo, env_id, args.out, args.hyperparams)
     print(md.read_text())
     print(f"best trial {st.best_trial.number}: validation return {st.best_value:.4g}; hyperparameters in {best} "
-          f"(train with: mrd-env train --plant {args.plant} --algo {args.algo} --hyperparams {best})")
+          f"(train with: mrd-env train --plant {plant.name} --algo {args.algo} --hyperparams {best})")
     return 0

@@ -7,14 +7,14 @@ import argparse
 import time
 from pathlib import Path
 
-from ..common.plants import chosen_plants, plant_choices, profile
+from ..common.plants import chosen_plants, plant_choices, plant_name
 from ..common.scenarios import held_out_scenarios
 from ..common.yardstick import check_plant, write_report, yardsticks
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     from ..common import sweep
 
-    p.add_argument("--plant", choices=plant_choices(both=True), default="both",
+    p.add_argument("--plant", type=plant_name, choices=plant_choices(both=True), default="both",
                    help="a plant with a yardstick, or both (building and quarter car)")
     p.add_argument("--seeds", type=int, default=3, help="episodes per random test scenario (default 3)")
     p.add_argument("--quick", action="store_true", help="short scenarios (a smoke run)")
@@ -33,7 +33,7 @@ def run(args: argparse.Namespace) -> int:
 
     if args.seeds < 1:
         raise ValueError(f"--seeds must be >= 1, got {args.seeds}")
-    plants = [p for p in chosen_plants(args.plant) if args.plant != "all" or profile(p).warm_laws]
+    plants = [p for p in chosen_plants(args.plant) if args.plant != "all" or p.warm_laws]
     for plant in plants:
         check_plant(plant)
     executor = sweep.options(args)
@@ -44,10 +44,10 @@ def run(args: argparse.Namespace) -> int:
         t0 = time.perf_counter()
         ys = yardsticks(plant, scen, agents=agents, bound=not args.no_bound, cache=not args.no_cache,
                         progress=not args.no_progress, **executor)
-        print(f"{plant}: {len(ys)} yardsticks in {time.perf_counter() - t0:.0f} s")
+        print(f"{plant.name}: {len(ys)} yardsticks in {time.perf_counter() - t0:.0f} s")
         # every controller on the same episodes: the laws at the agents' step and at 1 ms, MPC, the agents
         res = evaluate(plant, agents, seeds=args.seeds, progress=not args.no_progress, quick=args.quick,
                        **executor)
         print(write_report(plant, res, ys, args.out, len(ys)))
-        print(f"wrote {args.out}/{plant}_yardstick.md/.csv, {plant}_shares.md/.csv/.png")
+        print(f"wrote {args.out}/{plant.name}_yardstick.md/.csv, {plant.name}_shares.md/.csv/.png")
     return 0

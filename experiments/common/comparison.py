@@ -8,29 +8,25 @@ from collections import defaultdict
 from pathlib import Path
 
 from .evaluation import Episode, controller_episodes
-from .plants import PLANTS, profile
+from .plants import PlantProfile
 from .scenarios import held_out_scenarios, preview_options
 
 
-#: Per plant: the classical laws compared by default and the model predictive control rows — (label, control step
-#: (None: the comparison's), controller options, preview) — of :mod:`.plants`.
-LAWS = {name: p.laws for name, p in PLANTS.items()}
-MPC = {name: [tuple(row) for row in p.mpc] for name, p in PLANTS.items()}
-
-
-def evaluate(plant: str, agents=(), laws=None, *, seeds: int = 3, control_dt: float | None = None,
+def evaluate(plant: PlantProfile, agents=(), laws=None, *, seeds: int = 3, control_dt: float | None = None,
              laws_at_1ms: bool = True, mpc: bool = True, damper: str | None = None, progress: bool = True, quick: bool = False, backend: str = "serial",
              jobs: int | None = None, address: str | None = None) -> dict[str, list[Episode]]:
-    """{controller name: episodes on every test scenario}. Agents with the same name (an algorithm trained on
-    several seeds) are pooled under one row. One task per controller and scenario (:mod:`mrd_env.executor`)."""
+    """{controller name: episodes on every test scenario}: the agents, the laws (by default the plant's,
+    :attr:`~.plants.PlantProfile.laws`) and the plant's model predictive control rows. Agents with the same name (an
+    algorithm trained on several seeds) are pooled under one row. One task per controller and scenario
+    (:mod:`mrd_env.executor`)."""
     from controllers import load_agent
 
     from mrd_env.executor import Task, run_tasks
 
     loaded = [load_agent(a) for a in agents]
     for a in loaded:
-        if a.plant != plant:
-            raise ValueError(f"agent {a.folder} was trained on the {a.plant} plant, not {plant}")
+        if a.plant != plant.name:
+            raise ValueError(f"agent {a.folder} was trained on the {a.plant} plant, not {plant.name}")
     obs_kw = dict(loaded[0].observation_kwargs) if loaded else {}
     if control_dt is not None:
         obs_kw["control_dt"] = float(control_dt)
@@ -43,13 +39,12 @@ def evaluate(plant: str, agents=(), laws=None, *, seeds: int = 3, control_dt: fl
     if law_kw.get("sensors"):
         law_kw["sensors"] = tuple(s for s in law_kw["sensors"] if s != "road_preview")
     rows = [(f"agent {a.name.split(' s')[0]}", Path(a.folder), dict(extra)) for a in loaded]
-    rows += law_rows(plant, LAWS[plant] if laws is None else laws, law_kw, laws_at_1ms=laws_at_1ms, mpc=mpc)
+    rows += law_rows(plant, plant.laws if laws is None else laws, law_kw, laws_at_1ms=laws_at_1ms, mpc=mpc)
     scenarios = held_out_scenarios(plant, seeds=seeds, quick=quick)
-    tasks = [Task(controller_episodes, (ctrl, sc, profile(plant).response(sc.options)), kw,
-                  label=f"{sc.name} / {label}")
+    tasks = [Task(controller_episodes, (ctrl, sc, plant.response(sc.options)), kw, label=f"{sc.name} / {label}")
              for sc in scenarios for label, ctrl, kw in rows]
     results = iter(run_tasks(tasks, backend=backend, jobs=jobs, address=address, progress=progress,
-                             desc=f"evaluate {plant}"))
+                             desc=f"evaluate {plant.name}"))
     out: dict[str, list[Episode]] = defaultdict(list)
     for _sc in scenarios:
         for label, _, _ in rows:
@@ -69,18 +64,19 @@ def comparison_damper(damper: str | None, agents_env_kwargs) -> str | None:
     return damper
 
 
-def law_rows(plant: str, laws, law_kw: dict, *, laws_at_1ms: bool = True, mpc: bool = True) -> list[tuple]:
+def law_rows(plant: PlantProfile, laws, law_kw: dict, *, laws_at_1ms: bool = True, mpc: bool = True) -> list[tuple]:
     """(row label, controller, environment options) of the laws at the comparison's step (``law_kw``'s
-    control_dt) and at 1 ms, and of the plant's MPC rows; ``ValueError`` if two rows would share a label (their
+    control_dt) and at 1 ms, and of the plant's MPC rows (:attr:`~.plants.PlantProfile.mpc`: label, control step
+    (None: the comparison's), controller options, preview); ``ValueError`` if two rows would share a label (their
     episodes would be pooled as one controller's)."""
     dt = law_kw.get("control_dt", 1e-3)
     rows = [(f"{name} @ {dt * 1e3:g} ms", name, law_kw) for name in laws]
     if laws_at_1ms and abs(dt - 1e-3) > 1e-12:
         rows += [(f"{name} @ 1 ms", name, {**law_kw, "control_dt": 1e-3}) for name in laws]
     if mpc:
-        for label, step, options, preview in MPC[plant]:
+        for label, step, options, preview in plant.mpc:
             if step is None and any(other == label and s is not None and abs(s - dt) < 1e-12
-                                    for other, s, _, _ in MPC[plant]):
+                                    for other, s, _, _ in plant.mpc):
                 continue  # the row tuned for this very step stands for it (e.g. MPC+preview at 1 ms)
             kw = {**law_kw, "control_dt": dt if step is None else step}
             rows.append((f"{label} @ {kw['control_dt'] * 1e3:g} ms", ("mpc", options),

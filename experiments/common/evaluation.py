@@ -17,6 +17,7 @@ import numpy as np
 from mrd_env.envs.sensors import newest_layout
 from mrd_env.report import figure, save_figure
 
+from .plants import PlantProfile
 from .scenarios import Scenario
 
 
@@ -25,14 +26,6 @@ def response_channel(layout: dict, response: str) -> tuple[slice | None, int]:
     name, _, rest = response.partition("[")
     k = int(rest.rstrip("]")) if rest else 0
     return layout.get(name), k
-
-
-def response_of(scenario_options: dict, plant: str) -> str:
-    """The key response of a plant's histories (:attr:`.plants.PlantProfile.response`): the car's sprung
-    acceleration; the drift of the storey that holds the (first) damper; the half car's body acceleration."""
-    from .plants import profile
-
-    return profile(plant).response(scenario_options)
 
 
 @dataclass
@@ -133,36 +126,30 @@ def evaluate_batch(make, scenario: Scenario, response: str, name: str | None = N
             for b, seed in enumerate(scenario.seeds)]
 
 
-def controller_episodes(controller, scenario: Scenario, response: str = "", **env_options) -> list[Episode]:
+def controller_episodes(controller, scenario: Scenario, response: str = "", name: str | None = None,
+                        **env_options) -> list[Episode]:
     """One episode per seed of ``scenario`` for ``controller``: a law's name (``controllers.CONTROLLERS``) or a
-    pair (name, options), an agent folder (a ``pathlib.Path``; evaluated with the observation options it was trained
-    with, on the ``damper`` of ``env_options`` where one is given, as every other row), or
-    ``"passive_ref"`` (the conventional passive car: the MR damper replaced by the set's dashpot). A plain
-    function of picklable inputs, so that sweeps run it on any backend (:mod:`mrd_env.executor`)."""
+    pair (name, options), or an agent folder (a ``pathlib.Path``; evaluated with the observation options it was
+    trained with, on the ``damper`` of ``env_options`` where one is given, as every other row); ``name``: the
+    row's name (default: the law's or the agent's). A plain function of picklable inputs, so that sweeps run it on
+    any backend (:mod:`mrd_env.executor`)."""
     import mrd_env  # noqa: F401  (registers the environments, also in a fresh worker)
     from pathlib import Path
 
-    from controllers import PassiveOff, load_agent, make_controller
+    from controllers import load_agent, make_controller
 
     if isinstance(controller, Path):
         agent = load_agent(controller)
         options = {**env_options, **agent.observation_kwargs}
         if "damper" in env_options:  # the comparison's damper for every row (the agent keeps its own sensors)
             options["damper"] = env_options["damper"]
-        return evaluate_batch(lambda v: agent.bind(v), scenario, response, name=agent.name, **options)
-    if controller == "passive_ref":
-        from mrd_env.plants.quarter_car import quarter_car
-
-        c = quarter_car(scenario.options.get("plant_preset", "set_a")).passive_c
-        opts = {**env_options, "damper": "bingham", "damper_params": dict(fc_a=0.0, fc_b=0.0, c0a=c, c0b=0.0,
-                                                                          f0=0.0)}
-        return evaluate_batch(PassiveOff, scenario, response, name=f"passive_ref (c={c:g})", **opts)
-    name, options = controller if isinstance(controller, tuple) else (controller, {})
-    return evaluate_batch(lambda v: make_controller(name, v, **options), scenario, response, name=name,
+        return evaluate_batch(lambda v: agent.bind(v), scenario, response, name=name or agent.name, **options)
+    law, options = controller if isinstance(controller, tuple) else (controller, {})
+    return evaluate_batch(lambda v: make_controller(law, v, **options), scenario, response, name=name or law,
                           **env_options)
 
 
-def check_laws(option: str, names, plants, **env_options) -> None:
+def check_laws(option: str, names, plants: list[PlantProfile], **env_options) -> None:
     """Before any episode runs: every law in ``names`` exists and applies to every plant in ``plants`` (built on
     the plant's experiment environment with ``env_options``, e.g. the comparison's ``damper``, it finds the sensors
     it reads and, for a neural inverse, its network); ``ValueError`` naming ``option``."""
@@ -171,29 +158,23 @@ def check_laws(option: str, names, plants, **env_options) -> None:
     import mrd_env  # noqa: F401
     from controllers import available_controllers, make_controller
 
-    from .plants import profile
-
     unknown = [c for c in names if c not in available_controllers()]
     if unknown:
         raise ValueError(f"{option}: unknown controller(s) {unknown}; available: {available_controllers()}")
     for plant in plants:
-        p = profile(plant)
-        laws_apply(p.env_id, {**p.options, **env_options}, [(option, name) for name in names], f"the {plant}",
-                   lambda env, name: make_controller(name, env), sep=": ")
+        laws_apply(plant.env_id, {**plant.options, **env_options}, [(option, name) for name in names],
+                   f"the {plant.title}", lambda env, name: make_controller(name, env), sep=": ")
 
 
-def applicable_laws(plant: str, names, **env_options) -> tuple[list[str], dict[str, str]]:
+def applicable_laws(plant: PlantProfile, names, **env_options) -> tuple[list[str], dict[str, str]]:
     """(the laws of ``names`` that build on ``plant``'s experiment environment with ``env_options``, {law: why not}
     for the others): a default set of laws meets a damper some of them cannot serve (a fitted damper has no shipped
     neural inverse), and leaves those rows out with a note instead of stopping the run."""
     import mrd_env  # noqa: F401
     from controllers import make_controller
 
-    from .plants import profile
-
-    p = profile(plant)
     kept, skipped = [], {}
-    env = gym.make(p.env_id, **{**p.options, **env_options})
+    env = gym.make(plant.env_id, **{**plant.options, **env_options})
     try:
         for name in names:
             try:

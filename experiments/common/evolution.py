@@ -28,6 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .plants import PlantProfile
+
 #: The hyperparameters of the strategy (``experiments/hyperparams/cmaes.yml``) and their defaults.
 DEFAULTS = {"n_timesteps": 5e7, "popsize": 16, "episodes": 8, "sigma0": 0.05, "hidden": [16, 16],
             "warm_start": None, "obs_clip": 10.0}
@@ -123,10 +125,11 @@ def _clone(policy, law: str, env_id: str, env_kwargs: dict, n_envs: int, seed: i
     return mean, var
 
 
-def train_cmaes(plant: str, algo: str, seed: int, *, out: Path, timesteps: int | None = None, hyper: dict | None = None,
-                env_kwargs: dict | None = None, eval_freq: int = 20_000, eval_episodes: int = 8,
-                progress: bool = False, command: str = "", warm_start: str | None = None) -> Path:
-    """Train one CMA-ES agent (see the module docstring; ``algo`` is "cmaes"); return its folder."""
+def train_cmaes(plant: PlantProfile, algo: str, seed: int, *, out: Path, timesteps: int | None = None,
+                hyper: dict | None = None, env_kwargs: dict | None = None, eval_freq: int = 20_000,
+                eval_episodes: int = 8, progress: bool = False, command: str = "",
+                warm_start: str | None = None) -> Path:
+    """Train one CMA-ES agent on ``plant`` (see the module docstring; ``algo`` is "cmaes"); return its folder."""
     import cma
     import gymnasium as gym
 
@@ -135,14 +138,13 @@ def train_cmaes(plant: str, algo: str, seed: int, *, out: Path, timesteps: int |
     from controllers.mlp_policy import MLPPolicy
 
     from .evaluation import evaluate_batch
-    from .plants import profile
     from .scenarios import HELD_OUT_SEED
     from .trainers import (agent_name, env_options, plot_learning_curve, run_name, say_validation, validation_split,
                            write_csv)
 
     import mrd_env  # noqa: F401
     h = check(dict(hyper or {}))
-    env_id = profile(plant).env_id
+    env_id = plant.env_id
     env_kwargs = dict(env_kwargs if env_kwargs is not None else env_options(plant))
     env_kwargs.update(h.get("env_kwargs") or {})
     law = warm_start if warm_start is not None else h["warm_start"]
@@ -164,7 +166,7 @@ def train_cmaes(plant: str, algo: str, seed: int, *, out: Path, timesteps: int |
     val, obs_kwargs = validation_split(plant, env_kwargs, eval_episodes)
 
     def save(folder: Path, theta: np.ndarray, extra: dict, in_place: bool = False) -> None:
-        meta = {"name": agent_name("CMA-ES", seed, h, env_kwargs), "plant": plant, "env_id": env_id,
+        meta = {"name": agent_name("CMA-ES", seed, h, env_kwargs), "plant": plant.name, "env_id": env_id,
                 "algo": "CMA-ES", "recurrent": False, "seed": seed, "timesteps": timesteps, "env_kwargs": env_kwargs,
                 "hyperparameters": {**h, "warm_start": law}, "command": command,
                 "wall_time_s": time.perf_counter() - t_start, **extra}

@@ -6,10 +6,13 @@ folder and its line in :data:`mrd_env.plants.PLANT_FOLDERS`.
 """
 from __future__ import annotations
 
+import warnings
+
 from mrd_env.plants import plant, plant_of_id, plants
 from mrd_env.plants.profile import PlantProfile, TestCase
 
-__all__ = ["PlantProfile", "TestCase", "PLANTS", "profile", "by_env_id", "plant_choices", "chosen_plants"]
+__all__ = ["PlantProfile", "TestCase", "PLANTS", "profile", "by_env_id", "plant_choices", "plant_name",
+           "default_plant", "chosen_plants"]
 
 
 def _profiles() -> dict[str, PlantProfile]:
@@ -70,15 +73,37 @@ def by_env_id(env_id: str) -> PlantProfile | None:
 
 
 def plant_choices(both: bool = False) -> list[str]:
-    """The values of a ``--plant`` option: every plant, and with ``both`` also "both" and "all"."""
+    """The values of a ``--plant`` option: every plant, and with ``both`` also "both" and "all" (a former name is
+    taken too, :func:`plant_name`, but not offered)."""
     return sorted(plants()) + (["both", "all"] if both else [])
 
 
-def chosen_plants(value: str) -> list[str]:
-    """The plants of a ``--plant`` value: "both" (the published benchmark's plants), "all" or one plant."""
-    published = [n for n, p in PLANTS.items() if p.published]
+def plant_name(value: str) -> str:
+    """A ``--plant`` value in today's spelling (argparse's ``type``, checked against :func:`plant_choices` after it):
+    a former name, after its DeprecationWarning on stderr; anything else as it is."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", DeprecationWarning)  # Python hides it outside __main__: a command shows it
+        try:
+            return plant(value).name
+        except ValueError:
+            return value  # "both", "all", or a typo that argparse's choices name
+
+
+def default_plant() -> str:
+    """The ``--plant`` of the commands that take one plant (train, tune) when none is given: the plant whose profile
+    says so (:attr:`PlantProfile.train_default`)."""
+    chosen = [name for name, p in PLANTS.items() if p.train_default]
+    if len(chosen) != 1:
+        raise ValueError(f"exactly one plant profile must set train_default, got {chosen}")
+    return chosen[0]
+
+
+def chosen_plants(value: str) -> list[PlantProfile]:
+    """The plants of a ``--plant`` value: "both" (the published benchmark's plants), "all" or one plant (a former
+    name after a DeprecationWarning)."""
+    published = [p for p in PLANTS.values() if p.published]
     if value == "both":
         return published
     if value == "all":
-        return [*published, *sorted(set(PLANTS) - set(published))]
-    return [profile(value).name]
+        return [*published, *(PLANTS[n] for n in sorted(PLANTS) if not PLANTS[n].published)]
+    return [profile(value)]

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from .actor_warmup import actor_options, with_actor_warmup
+from .plants import PlantProfile
 from .scenarios import Scenario
 from .trainers import (TRAINERS, agent_name, plot_learning_curve, residual_spec, run_name, say_validation,
                        validation_split, write_csv)
@@ -243,12 +244,12 @@ def _callbacks(run_dir: Path, model_saver, vecnorm, scenarios: list[Scenario], o
 
 
 
-def train_sb3(plant: str, algo: str, seed: int, *, out: Path, timesteps: int | None = None,
+def train_sb3(plant: PlantProfile, algo: str, seed: int, *, out: Path, timesteps: int | None = None,
               hyper: dict | None = None, env_kwargs: dict | None = None, eval_freq: int = 20_000,
               eval_episodes: int = 8, checkpoint_freq: int = 0, tensorboard: bool = False, progress: bool = False,
               command: str = "", report=None) -> Path:
-    """Train one agent of an SB3 algorithm (see the module docstring); return its folder. ``report``: see
-    :func:`_callbacks`."""
+    """Train one agent of an SB3 algorithm on ``plant`` (see the module docstring); return its folder. ``report``:
+    see :func:`_callbacks`."""
     import torch
     from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
 
@@ -258,10 +259,9 @@ def train_sb3(plant: str, algo: str, seed: int, *, out: Path, timesteps: int | N
 
     from mrd_env.envs.sb3 import make_sb3_vec_env
 
-    from .plants import profile
     from .trainers import env_options, hyperparameters
 
-    env_id = profile(plant).env_id
+    env_id = plant.env_id
     label = TRAINERS[algo].label
     hyper = dict(hyper if hyper is not None else hyperparameters(algo, env_id))
     env_kwargs = dict(env_kwargs if env_kwargs is not None else env_options(plant))
@@ -299,7 +299,7 @@ def train_sb3(plant: str, algo: str, seed: int, *, out: Path, timesteps: int | N
     def save(folder: Path, extra: dict, in_place: bool = False) -> None:
         """The agent now, code-free (controllers.agents.save_agent), with SB3's model.zip to resume training:
         swapped in whole (best/, checkpoints) or, in the run folder, ``in_place`` (atomic either way)."""
-        meta = {"name": agent_name(label, seed, hyper, env_kwargs), "plant": plant, "env_id": env_id,
+        meta = {"name": agent_name(label, seed, hyper, env_kwargs), "plant": plant.name, "env_id": env_id,
                 "algo": label, "recurrent": algo == "recurrentppo", "seed": seed, "timesteps": timesteps,
                 "env_kwargs": env_kwargs, "hyperparameters": hyper, "residual": residual,
                 "command": command, "wall_time_s": time.perf_counter() - t_start, **extra}

@@ -1,34 +1,29 @@
-"""The scenarios of every experiment, built from the plant profiles (:mod:`.plants`, where each plant's
-training distribution and test scenarios are written): what agents train on (``TRAINING``), what selects the best
-agent during training (:func:`validation`: the training distribution on seeds training never draws), and what
-everything is scored on (:func:`held_out_scenarios`: the held-out test scenarios, never trained on).
+"""The scenarios of every experiment, built from a plant's profile (:class:`.plants.PlantProfile`, where each
+plant's environment options, training distribution and test scenarios are written): what agents train on
+(``profile.training``), what selects the best agent during training (:func:`validation`: the training distribution
+on seeds training never draws), and what everything is scored on (:func:`held_out_scenarios`: the held-out test
+scenarios, never trained on).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from .plants import PLANTS, profile
+from .plants import PLANTS, PlantProfile
 
-#: {plant: environment id} of every plant (:data:`.plants.PLANTS`).
-ENV_IDS = {name: p.env_id for name, p in PLANTS.items()}
 #: Seeds of validation and test episodes start here; training draws from SB3's seeds (the run's seed + env index),
 #: far below.
 HELD_OUT_SEED = 1_000_000
-#: The plant of every experiment (training, validation, test scenarios, benchmark), as environment options
-#: (:attr:`.plants.PlantProfile.options`; e.g. the building's damper in storey 2).
-PLANT = {name: p.options for name, p in PLANTS.items()}
 #: The car's road-preview sensor where a comparison grants it (MPC with preview): the road height 10, 20, ..., 100 ms
 #: ahead of the wheel (0.2–2 m at 20 m/s, what a camera or lidar preview suspension measures).
 PREVIEW = tuple(round(0.01 * k, 2) for k in range(1, 11))
 
 
-def preview_options(plant: str, options: dict) -> dict:
-    """``options`` with the road-preview sensor added to its sensors (the car only)."""
-    if not profile(plant).preview:
-        raise ValueError(f"road preview is a sensor of the quarter car, not of the {plant}")
-    from mrd_env.plants.quarter_car.env import DEFAULT_SENSORS
-
-    sensors = tuple(options.get("sensors") or DEFAULT_SENSORS)
+def preview_options(plant: PlantProfile, options: dict) -> dict:
+    """``options`` with the road-preview sensor added to its sensors (a plant whose profile has ``preview``)."""
+    if not plant.preview:
+        having = " and the ".join(p.title for p in PLANTS.values() if p.preview)
+        raise ValueError(f"road preview is a sensor of the {having}, not of the {plant.title}")
+    sensors = tuple(options.get("sensors") or plant.spec.module("env").DEFAULT_SENSORS)
     return {**options, "sensors": (*sensors, "road_preview"), "preview": PREVIEW}
 
 
@@ -45,29 +40,22 @@ class Scenario:
         return f"{self.name} s{seed}" if len(self.seeds) > 1 else self.name
 
 
-#: {plant: the training distribution as environment options} (:attr:`.plants.PlantProfile.training`).
-TRAINING = {name: p.training for name, p in PLANTS.items()}
-
-
-def validation(plant: str, episodes: int = 8) -> list[Scenario]:
+def validation(plant: PlantProfile, episodes: int = 8) -> list[Scenario]:
     """The training distribution on seeds training never draws (selects the best agent during training)."""
-    p = profile(plant)
-    return [Scenario("validation", p.env_id, dict(p.training),
+    return [Scenario("validation", plant.env_id, dict(plant.training),
                      tuple(HELD_OUT_SEED + 500_000 + i for i in range(episodes)))]
 
 
-def held_out_scenarios(plant: str, seeds: int = 3, quick: bool = False,
+def held_out_scenarios(plant: PlantProfile, seeds: int = 3, quick: bool = False,
                        plant_options: dict | None = None) -> list[Scenario]:
     """The held-out scenarios every controller and agent is scored on (:attr:`.plants.PlantProfile.tests`), on the
-    plant ``PLANT[plant]`` (or the environment options ``plant_options``: ``{}`` is the environment's default
-    plant, e.g. the lab building with its damper in storey 1 as Dyke et al. built it)."""
-    if plant not in PLANTS:
-        raise ValueError(f"plant must be one of {sorted(PLANTS)}, got {plant!r}")
-    p = profile(plant)
-    env_plant = dict(p.options if plant_options is None else plant_options)
+    plant of every experiment (``plant.options``; e.g. the building's damper in storey 2) or on the environment
+    options ``plant_options`` (``{}`` is the environment's default plant, e.g. the lab building with its damper in
+    storey 1 as Dyke et al. built it)."""
+    env_plant = dict(plant.options if plant_options is None else plant_options)
     s = tuple(HELD_OUT_SEED + i for i in range(1 if quick else seeds))
-    return [Scenario(name, p.env_id, options, s) if seeded else Scenario(name, p.env_id, options)
-            for name, options, seeded in p.tests(env_plant, quick)]
+    return [Scenario(name, plant.env_id, options, s) if seeded else Scenario(name, plant.env_id, options)
+            for name, options, seeded in plant.tests(env_plant, quick)]
 
 
 def base_scenario(label: str) -> str:

@@ -9,9 +9,9 @@ A trainer is named by its entry points (``"module:function"``, as Gymnasium regi
 imports no trainer and every trainer imports this one — no import circle:
 
 * ``train(plant, algo, seed, *, out, timesteps, hyper, env_kwargs, eval_freq, eval_episodes, progress, command,
-  **options) -> Path`` trains one agent and returns its folder (``options``: those the trainer lists in
-  :attr:`Trainer.options`, e.g. ``checkpoint_freq``, ``tensorboard``, ``report`` — a hyperparameter search's
-  pruning — or ``warm_start``);
+  **options) -> Path`` trains one agent on ``plant`` (a :class:`~.plants.PlantProfile`) and returns its folder
+  (``options``: those the trainer lists in :attr:`Trainer.options`, e.g. ``checkpoint_freq``, ``tensorboard``,
+  ``report`` — a hyperparameter search's pruning — or ``warm_start``);
 * ``check(algo, hyper) -> dict`` checks a hyperparameter entry (``ValueError`` naming a bad key or value) before
   any training starts.
 
@@ -29,8 +29,8 @@ import numpy as np
 
 from mrd_env.envs import RL_DEFAULTS
 
-from .plants import by_env_id, profile
-from .scenarios import TRAINING, Scenario, validation
+from .plants import PlantProfile, by_env_id
+from .scenarios import Scenario, validation
 
 #: What each optional keyword of ``train`` is, for the message when a trainer lacks it.
 OPTION_NAMES = {"report": "pruning", "checkpoint_freq": "checkpoints", "tensorboard": "TensorBoard logs",
@@ -55,7 +55,7 @@ class Trainer:
         """``hyper`` checked (and completed) by the trainer; ``ValueError`` naming what is wrong."""
         return self._load(self.checker)(self.algo, hyper)
 
-    def train(self, plant: str, seed: int, **kw) -> Path:
+    def train(self, plant: PlantProfile, seed: int, **kw) -> Path:
         """Train one agent; its folder. An option the trainer lacks, given a value, is a ``ValueError``."""
         unsupported = [k for k in OPTION_NAMES if k not in self.options and kw.get(k)]
         if "warm_start" in unsupported:
@@ -89,14 +89,13 @@ def trainer(algo: str) -> Trainer:
 ALGOS = {algo: t.label for algo, t in TRAINERS.items()}
 
 
-def train_one(plant: str, algo: str, seed: int, *, out: Path, timesteps: int | None = None,
+def train_one(plant: PlantProfile, algo: str, seed: int, *, out: Path, timesteps: int | None = None,
               hyper: dict | None = None, env_kwargs: dict | None = None, eval_freq: int = 20_000,
               eval_episodes: int = 8, checkpoint_freq: int = 0, tensorboard: bool = False, progress: bool = False,
               command: str = "", report=None, warm_start: str | None = None) -> Path:
-    """Train one agent with the trainer of ``algo`` (:data:`TRAINERS`); return its folder. ``report``
+    """Train one agent on ``plant`` with the trainer of ``algo`` (:data:`TRAINERS`); return its folder. ``report``
     (SB3): told every validation, stops the training when it returns False (a hyperparameter search's pruning);
     ``warm_start`` (CMA-ES): a law's name, which the policy imitates before training (:mod:`.warm_start`)."""
-    profile(plant)  # ValueError naming the plants
     return trainer(algo).train(plant, seed, out=out, timesteps=timesteps, hyper=hyper, env_kwargs=env_kwargs,
                                eval_freq=eval_freq, eval_episodes=eval_episodes, checkpoint_freq=checkpoint_freq,
                                tensorboard=tensorboard, progress=progress, command=command, report=report,
@@ -181,14 +180,14 @@ def _residual_tags(hyper: dict) -> list[str]:
     return [] if not spec else ["residual"] + ([f"hold{spec['hold']}"] if spec.get("hold", 1) > 1 else [])
 
 
-def run_name(plant: str, algo: str, hyper: dict, env_kwargs: dict) -> str:
+def run_name(plant: PlantProfile, algo: str, hyper: dict, env_kwargs: dict) -> str:
     """``<plant>_<algo>`` with the variant's tags: ``-residual``, ``-hold<k>``, ``-paired``, ``-h<k>`` (history),
     ``-preview``."""
     tags = _residual_tags(hyper) + \
         (["paired"] if hyper.get("paired_baseline") else []) + \
         ([f"h{int(env_kwargs['history'])}"] if int(env_kwargs.get("history", 1)) > 1 else []) + \
         (["preview"] if env_kwargs.get("preview") else [])
-    return "_".join((plant, "-".join([algo, *tags])))
+    return "_".join((plant.name, "-".join([algo, *tags])))
 
 
 def agent_name(label: str, seed: int, hyper: dict, env_kwargs: dict) -> str:
@@ -200,30 +199,29 @@ def agent_name(label: str, seed: int, hyper: dict, env_kwargs: dict) -> str:
 
 
 # --- what every trainer shares ------------------------------------------------------------------------------------
-def env_options(plant: str, control_dt: float = RL_DEFAULTS["control_dt"], sensors=None, history: int = 1,
+def env_options(plant: PlantProfile, control_dt: float = RL_DEFAULTS["control_dt"], sensors=None, history: int = 1,
                 disturbance=None, **extra) -> dict:
-    """The training environment's options: the plant's training distribution (or ``disturbance``), normalised
-    actions, the control step, and the observation options."""
-    kw = {**TRAINING[plant], "action_mode": RL_DEFAULTS["action_mode"], "control_dt": float(control_dt),
+    """The training environment's options: the plant's training distribution (or ``disturbance`` in the plant's
+    disturbance option), normalised actions, the control step, and the observation options."""
+    kw = {**plant.training, "action_mode": RL_DEFAULTS["action_mode"], "control_dt": float(control_dt),
           "history": int(history)}
     if sensors:
         kw["sensors"] = list(sensors)
     if disturbance is not None:
-        kw.pop("road", None)
-        kw.pop("ground_motion", None)
-        kw[profile(plant).disturbance_key] = disturbance
+        kw.pop(plant.disturbance_key, None)
+        kw[plant.disturbance_key] = disturbance
     kw.update(extra)
     return kw
 
 
-def validation_split(plant: str, env_kwargs: dict, episodes: int) -> tuple[Scenario, dict]:
+def validation_split(plant: PlantProfile, env_kwargs: dict, episodes: int) -> tuple[Scenario, dict]:
     """The validation scenario of a training environment (its disturbance options on seeds training never
     draws) and the options that define what the agent sees and does (kept when the scenario changes)."""
     from controllers.agents import OBSERVATION_OPTIONS
 
     obs_kwargs = {k: v for k, v in env_kwargs.items() if k in OBSERVATION_OPTIONS}
     disturbance = {k: v for k, v in env_kwargs.items() if k not in OBSERVATION_OPTIONS}
-    return Scenario("validation", profile(plant).env_id, disturbance, validation(plant, episodes)[0].seeds), obs_kwargs
+    return Scenario("validation", plant.env_id, disturbance, validation(plant, episodes)[0].seeds), obs_kwargs
 
 
 def say_validation(run: str, steps: int, value: float, best: float, progress: bool) -> None:

@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from .evaluation import Episode, episode_means, grouped_bars, mean_ci
-from .plants import PLANTS, profile
+from .plants import PlantProfile
 from .scenarios import Scenario, base_scenario
 
 #: The clairvoyant's control step: every controller's rate (1 ms, 10 ms) is a multiple of it, so its command
@@ -42,16 +42,13 @@ VERSION = 3
 RETRY_STARTS = 3
 #: Constant commands tried for the best passive setting (fractions of the command range).
 PASSIVE_GRID = np.linspace(0.0, 1.0, 9)
-#: The laws whose commands warm-start the clairvoyant (their own 1 ms rate), per plant that has a yardstick
-#: (:attr:`.plants.PlantProfile.warm_laws`).
-WARM_LAWS = {name: p.warm_laws for name, p in PLANTS.items() if p.warm_laws}
 
 
-def check_plant(plant: str) -> None:
-    """``ValueError`` (one line) if ``plant`` has no yardstick."""
-    p = profile(plant)
-    if not p.warm_laws:
-        raise ValueError(f"the yardstick does not support the {p.title}: {p.no_yardstick}")
+def check_plant(plant: PlantProfile) -> None:
+    """``ValueError`` (one line) if ``plant`` has no yardstick (no laws to warm-start the clairvoyant from,
+    :attr:`~.plants.PlantProfile.warm_laws`)."""
+    if not plant.warm_laws:
+        raise ValueError(f"the yardstick does not support the {plant.title}: {plant.no_yardstick}")
 
 
 @dataclass
@@ -87,14 +84,14 @@ class EpisodeYardstick:
         return (self.bound - self.clairvoyant) / span if span > 0 else math.nan
 
 
-def warm_starts(problem, plant: str, agents=()) -> dict[str, np.ndarray]:
-    """{name: commands (n_steps, nd) at the problem's step}: every law of ``WARM_LAWS[plant]`` at 1 ms and every
-    agent at its own control step, observation and action options, on the problem's episode."""
+def warm_starts(problem, warm_laws, agents=()) -> dict[str, np.ndarray]:
+    """{name: commands (n_steps, nd) at the problem's step}: every law of ``warm_laws`` (the plant's
+    :attr:`~.plants.PlantProfile.warm_laws`) at 1 ms and every agent at its own control step, observation and
+    action options, on the problem's episode."""
     from controllers import load_agent, make_controller
 
     out = {}
-    check_plant(plant)
-    for name in WARM_LAWS[plant]:
+    for name in warm_laws:
         out[name] = problem.commands_of(lambda env, n=name: make_controller(n, env))
     for path in agents:
         agent = load_agent(path)
@@ -120,7 +117,7 @@ def best_passive(problem) -> tuple[float, float]:
     return best
 
 
-def yardstick_key(problem, label: str, plant: str, agents=()) -> dict:
+def yardstick_key(problem, label: str, warm_laws, agents=()) -> dict:
     """What an episode's yardstick is cached under: the episode and its options, the problem's digest (the plant,
     the reward, the disturbance: what a changed default changes while the options stay the same), the warm starts
     (laws and agents) and the solver's settings — so that a stale yardstick is never served."""
@@ -128,20 +125,21 @@ def yardstick_key(problem, label: str, plant: str, agents=()) -> dict:
     from mrd_env.optimal.full_knowledge import problem_digest
 
     return {**problem.key(), "problem_digest": problem_digest(problem), "scenario": label,
-            "agents": [agent_digest(a) for a in agents], "warm_laws": list(WARM_LAWS[plant]),
+            "agents": [agent_digest(a) for a in agents], "warm_laws": list(warm_laws),
             "retry_starts": RETRY_STARTS, "passive_grid": PASSIVE_GRID.tolist(), "version": VERSION}
 
 
-def episode_yardstick(scenario: Scenario, seed: int, plant: str, *, agents=(), bound: bool = True,
+def episode_yardstick(scenario: Scenario, seed: int, warm_laws, *, agents=(), bound: bool = True,
                       cache: bool = True, solve: bool = True, progress: bool = False) -> EpisodeYardstick | None:
-    """The yardstick of ``scenario`` with ``seed`` (a plain function of picklable inputs: sweeps run it anywhere).
+    """The yardstick of ``scenario`` with ``seed``, warm-started from the laws ``warm_laws`` (the plant's) and the
+    ``agents`` (a plain function of picklable inputs: sweeps run it anywhere).
 
-    Cached per episode, plant, damper, options and warm-start agents (:mod:`mrd_env.optimal.cache`); with
+    Cached per episode, plant, damper, options and warm starts (:mod:`mrd_env.optimal.cache`); with
     ``solve=False`` only a cached yardstick is returned (None if there is none)."""
     from mrd_env.optimal import cache as store, episode_problem
 
     problem = episode_problem(scenario.env_id, seed=int(seed), control_dt=YARDSTICK_DT, **scenario.options)
-    key = yardstick_key(problem, scenario.label(seed), plant, agents)
+    key = yardstick_key(problem, scenario.label(seed), warm_laws, agents)
     hit = store.load("yardstick", key) if cache else None
     if hit is not None and (hit.get("bound") is not None or not bound):
         return EpisodeYardstick(**{k: (math.nan if v is None else v) for k, v in hit.items()})
@@ -150,7 +148,7 @@ def episode_yardstick(scenario: Scenario, seed: int, plant: str, *, agents=(), b
     from mrd_env.optimal import clairvoyant
 
     rp, vp = best_passive(problem)
-    starts = warm_starts(problem, plant, agents)
+    starts = warm_starts(problem, warm_laws, agents)
     starts["best constant"] = np.full((problem.n_steps, problem.nd), vp)  # so that the optimum is never below it
     cv = clairvoyant(problem, warm_starts=starts, cache=cache, progress=progress)  # its own cache: commands too
     if cv.failed:  # the optimiser stopped at its start (a line search that found no descent): from the next ones
@@ -173,18 +171,19 @@ def episode_yardstick(scenario: Scenario, seed: int, plant: str, *, agents=(), b
     return y
 
 
-def yardsticks(plant: str, scenarios: list[Scenario], *, agents=(), bound: bool = True, cache: bool = True,
-               solve: bool = True, progress: bool = True, backend: str = "serial", jobs: int | None = None,
-               address: str | None = None) -> list[EpisodeYardstick]:
-    """The yardstick of every episode of ``scenarios`` (one task each, on the chosen backend); with
-    ``solve=False`` the cached ones only."""
+def yardsticks(plant: PlantProfile, scenarios: list[Scenario], *, agents=(), bound: bool = True,
+               cache: bool = True, solve: bool = True, progress: bool = True, backend: str = "serial",
+               jobs: int | None = None, address: str | None = None) -> list[EpisodeYardstick]:
+    """The yardstick of every episode of ``scenarios`` (one task each, on the chosen backend; the workers get the
+    plant's warm-start laws); with ``solve=False`` the cached ones only."""
     from mrd_env.executor import Task, run_tasks
 
-    tasks = [Task(episode_yardstick, (sc, seed, plant), {"agents": tuple(agents), "bound": bound, "cache": cache,
-                                                         "solve": solve}, label=f"{sc.label(seed)}")
+    check_plant(plant)
+    options = {"agents": tuple(agents), "bound": bound, "cache": cache, "solve": solve}
+    tasks = [Task(episode_yardstick, (sc, seed, plant.warm_laws), options, label=f"{sc.label(seed)}")
              for sc in scenarios for seed in sc.seeds]
     out = run_tasks(tasks, backend=backend, jobs=jobs, address=address, progress=progress and solve,
-                    desc=f"yardstick {plant}")
+                    desc=f"yardstick {plant.name}")
     return [y for y in out if y is not None]
 
 
@@ -217,17 +216,18 @@ def share_rows(results: dict[str, list[Episode]], ys: list[EpisodeYardstick], sc
     return rows
 
 
-def plot_shares(plant: str, rows: list[dict], path: Path) -> Path:
+def plot_shares(plant: PlantProfile, rows: list[dict], path: Path) -> Path:
     """Bars of the share of the achievable gain per controller, one group per scenario (intervals where there
     are repeats); 0: the best passive setting, dashed 1: the clairvoyant optimum."""
 
     return grouped_bars(rows, "share of achievable gain", "share lo95", "share hi95", path,
                         xlabel="share of the achievable gain (dimensionless)", refs=(0.0, 1.0), xlim=(-1.0, 1.05),
-                        title=f"{plant}: share of the achievable gain, (R − R_best passive) / (R_clairvoyant − "
-                              "R_best passive); 0: best constant command, dashed 1: clairvoyant optimum")
+                        title=f"{plant.name}: share of the achievable gain, (R − R_best passive) / "
+                              "(R_clairvoyant − R_best passive); 0: best constant command, dashed 1: clairvoyant "
+                              "optimum")
 
 
-def on_damper(plant: str, scenarios: list[Scenario], damper: str | None) -> list[Scenario]:
+def on_damper(plant: PlantProfile, scenarios: list[Scenario], damper: str | None) -> list[Scenario]:
     """``scenarios`` on ``damper`` (a model's name or a preset file), so that their yardsticks are of the plant the
     controllers were scored on; unchanged where it is the plant's own damper (whose cached yardsticks keep their
     keys)."""
@@ -237,14 +237,14 @@ def on_damper(plant: str, scenarios: list[Scenario], damper: str | None) -> list
 
     import mrd_env  # noqa: F401
 
-    p = profile(plant)
-    own, asked = (gym.make(p.env_id, **p.options, **kw).unwrapped.damper for kw in ({}, {"damper": damper}))
+    own, asked = (gym.make(plant.env_id, **plant.options, **kw).unwrapped.damper
+                  for kw in ({}, {"damper": damper}))
     if type(own) is type(asked) and vars(own.params) == vars(asked.params) and vars(own.command) == vars(asked.command):
         return scenarios
     return [replace(sc, options={**sc.options, "damper": damper}) for sc in scenarios]
 
 
-def report(plant: str, results: dict[str, list[Episode]], scenarios: list[Scenario], out: Path, mode: str,
+def report(plant: PlantProfile, results: dict[str, list[Episode]], scenarios: list[Scenario], out: Path, mode: str,
            *, damper: str | None = None, progress: bool = True, **executor) -> str:
     """Score ``results`` ({controller: episodes}, run on ``damper``: None for the plant's own) against the
     yardstick of their episodes on the same damper and write ``<plant>_yardstick.md/.csv`` (the references per
@@ -254,31 +254,32 @@ def report(plant: str, results: dict[str, list[Episode]], scenarios: list[Scenar
 
     if mode == "off":
         return ""
-    if not profile(plant).warm_laws:
-        return f"{plant}: no yardstick ({profile(plant).no_yardstick})"
+    if not plant.warm_laws:
+        return f"{plant.name}: no yardstick ({plant.no_yardstick})"
     scenarios = on_damper(plant, scenarios, damper)
     ys = yardsticks(plant, scenarios, agents=shipped_agents(plant), solve=mode == "solve", progress=progress,
                     **executor)
     n_eps = sum(len(sc.seeds) for sc in scenarios)
     if not ys:
-        return (f"{plant}: no yardstick cached for these {n_eps} test episodes: run `mrd-env yardstick --plant "
-                f"{plant}` (or add --yardstick solve) to score every controller against the clairvoyant optimum")
+        return (f"{plant.name}: no yardstick cached for these {n_eps} test episodes: run `mrd-env yardstick "
+                f"--plant {plant.name}` (or add --yardstick solve) to score every controller against the "
+                "clairvoyant optimum")
     return write_report(plant, results, ys, out, n_eps)
 
 
-def write_report(plant: str, results: dict[str, list[Episode]], ys: list[EpisodeYardstick], out: Path,
+def write_report(plant: PlantProfile, results: dict[str, list[Episode]], ys: list[EpisodeYardstick], out: Path,
                  n_eps: int) -> str:
     """Write the yardstick table, the shares table and their figure (see :func:`report`); the text to print."""
     from mrd_env.report import write_table
 
-
-    md, _ = write_table(yardstick_rows(ys), out / f"{plant}_yardstick", floatfmt=".4g",
-                        title=f"{plant}: the yardstick per test episode (returns; solve times in s)")
+    name = plant.name
+    md, _ = write_table(yardstick_rows(ys), out / f"{name}_yardstick", floatfmt=".4g",
+                        title=f"{name}: the yardstick per test episode (returns; solve times in s)")
     rows = share_rows(results, ys, base_scenario)
-    smd, _ = write_table(rows, out / f"{plant}_shares", floatfmt=".3g",
-                         title=f"{plant}: share of the achievable gain, (R − R_best passive) / (R_clairvoyant − "
+    smd, _ = write_table(rows, out / f"{name}_shares", floatfmt=".3g",
+                         title=f"{name}: share of the achievable gain, (R − R_best passive) / (R_clairvoyant − "
                                "R_best passive) (mean; 95 % interval over episodes where there are several)")
-    plot_shares(plant, [r for r in rows if r["scenario"] != "all test scenarios"], out / f"{plant}_shares.png")
+    plot_shares(plant, [r for r in rows if r["scenario"] != "all test scenarios"], out / f"{name}_shares.png")
     missing = f"\n({n_eps - len(ys)} of {n_eps} episodes without a yardstick)\n" if len(ys) < n_eps else ""
     return md.read_text() + "\n" + smd.read_text() + missing
 

@@ -51,10 +51,11 @@ from experiments.common.evaluation import evaluate_batch
 from experiments.common.scenarios import held_out_scenarios
 from experiments.labs.labkit import Lab
 from mrd_env.metrics import weighting_magnitude
+from mrd_env.plants.quarter_car.profile import PROFILE as QUARTER_CAR
 from mrd_env.report import figure
 
 lab = Lab("lab3_quarter_car")
-roads = held_out_scenarios("quarter_car")[:2]  # ISO class C and D at 20 m/s, 10 s, three seeds each
+roads = held_out_scenarios(QUARTER_CAR)[:2]  # ISO class C and D at 20 m/s, 10 s, three seeds each
 env = gym.make(roads[0].env_id, **roads[0].options)
 print("sensors:", [s[0] for s in env.unwrapped.sensor_layout])
 print("command range:", env.unwrapped.command_spec)

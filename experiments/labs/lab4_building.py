@@ -52,10 +52,11 @@ from experiments.common.evaluation import evaluate_batch
 from experiments.common.scenarios import held_out_scenarios
 from experiments.labs.labkit import Lab
 from mrd_env.disturbances import el_centro
+from mrd_env.plants.shear_building.profile import PROFILE as SHEAR_BUILDING
 from mrd_env.report import figure
 
 lab = Lab("lab4_building")
-scenario = held_out_scenarios("shear_building", plant_options={})[0]  # El Centro N-S, ×0.2 time; damper in storey 1
+scenario = held_out_scenarios(SHEAR_BUILDING, plant_options={})[0]  # El Centro N-S, ×0.2 time; damper in storey 1
 env = gym.make(scenario.env_id, **scenario.options).unwrapped
 design = LinearDesign(env)  # the linear model the environment declares
 A, Bf, Bw = design.A, design.Bf, design.Bw

@@ -48,6 +48,7 @@ from experiments.common.evaluation import evaluate_batch
 from experiments.common.scenarios import held_out_scenarios
 from experiments.labs.labkit import Lab
 from mrd_env import make_damper
+from mrd_env.plants.shear_building.profile import PROFILE as SHEAR_BUILDING
 from mrd_env.inverse import achievable_forces, make_inverse, nrmse, track
 from mrd_env.report import figure
 from mrd_env.rig import simulate
@@ -144,7 +145,7 @@ for k in labels:
 # El Centro.
 
 # %%
-scenario = held_out_scenarios("shear_building", plant_options={})[0]  # the lab model: damper in storey 1
+scenario = held_out_scenarios(SHEAR_BUILDING, plant_options={})[0]  # the lab model: damper in storey 1
 building = {"passive_off": lambda venv: make_controller("passive_off", venv),
             "clipped-optimal, on–off": lambda venv: ClippedOptimal(venv),
             "clipped-optimal + SID": lambda venv: ClippedOptimal(venv, inverse="sid"),

@@ -66,17 +66,17 @@ import mrd_env  # noqa: F401  (registers the environments)
 from controllers import shipped_agents
 from experiments.commands.evaluate import summarise
 from experiments.common.comparison import evaluate
-from experiments.common.scenarios import TRAINING
 from experiments.common.trainers import env_options, hyperparameters, train_one
 from experiments.labs.labkit import Lab, full_length
+from mrd_env.plants.quarter_car.profile import PROFILE as QUARTER_CAR
 from mrd_env.report import figure
 
 lab = Lab("lab6_rl")
 TIMESTEPS = 1_000_000 if full_length() else 40_000
 CMAES_TIMESTEPS = 2_000_000 if full_length() else 128_000  # one generation: 16 policies × 8 episodes × 1000 steps
-env_id = "mrd_env/QuarterCarPhysical-v0"
-env_kwargs = env_options("quarter_car", control_dt=0.01)
-print("training distribution:", TRAINING["quarter_car"])
+env_id = QUARTER_CAR.env_id
+env_kwargs = env_options(QUARTER_CAR, control_dt=0.01)
+print("training distribution:", QUARTER_CAR.training)
 print("environment options:", env_kwargs)
 
 # %% [markdown]
@@ -88,7 +88,7 @@ print("environment options:", env_kwargs)
 # %%
 hyper = hyperparameters("ppo", env_id, overrides={"n_envs": 8, "n_steps": 256, "batch_size": 256, "n_epochs": 5})
 print({k: hyper[k] for k in ("n_envs", "n_steps", "batch_size", "n_epochs", "learning_rate", "gamma")})
-run_dir = train_one("quarter_car", "ppo", seed=0, out=lab.out / "agents", timesteps=TIMESTEPS, hyper=hyper,
+run_dir = train_one(QUARTER_CAR, "ppo", seed=0, out=lab.out / "agents", timesteps=TIMESTEPS, hyper=hyper,
                     env_kwargs=env_kwargs, eval_freq=TIMESTEPS // 4, eval_episodes=4)
 lab.add(run_dir / "learning_curve.png")
 validation = np.genfromtxt(run_dir / "validation.csv", delimiter=",", names=True)
@@ -103,7 +103,7 @@ print("validation returns:", ", ".join(f"{int(s)}: {r:.2f}" for s, r in
 # cloned law's: compare it with PPO's first one.
 
 # %%
-warm_dir = train_one("quarter_car", "cmaes", seed=0, out=lab.out / "agents", timesteps=CMAES_TIMESTEPS,
+warm_dir = train_one(QUARTER_CAR, "cmaes", seed=0, out=lab.out / "agents", timesteps=CMAES_TIMESTEPS,
                      env_kwargs=env_kwargs, eval_freq=CMAES_TIMESTEPS // 2, eval_episodes=4,
                      warm_start="skyhook_continuous")
 warm_validation = np.genfromtxt(warm_dir / "validation.csv", delimiter=",", names=True)
@@ -118,13 +118,13 @@ print("validation returns:", ", ".join(f"{int(s)}: {r:.2f}" for s, r in
 
 # %%
 laws = ("random", "passive_off", "passive_on", "skyhook_continuous", "groundhook")
-results = evaluate("quarter_car", agents=[run_dir, warm_dir], laws=laws, seeds=2, laws_at_1ms=False, mpc=False,
+results = evaluate(QUARTER_CAR, agents=[run_dir, warm_dir], laws=laws, seeds=2, laws_at_1ms=False, mpc=False,
                    progress=False)
-for shipped in shipped_agents("quarter_car")[:1]:  # an agent shipped with the project, in a row of its own
-    for name, episodes in evaluate("quarter_car", agents=[shipped], laws=(), seeds=2, mpc=False,
+for shipped in shipped_agents(QUARTER_CAR)[:1]:  # an agent shipped with the project, in a row of its own
+    for name, episodes in evaluate(QUARTER_CAR, agents=[shipped], laws=(), seeds=2, mpc=False,
                                    progress=False).items():
         results[f"shipped {name}"] = episodes
-rows = summarise("quarter_car", results)
+rows = summarise(QUARTER_CAR, results)
 overall = {r["controller"]: r for r in rows if r["scenario"] == "all test scenarios"}
 for name, r in overall.items():
     print(f"{name:30s} return {r['return']:8.2f}  a_w {r['acc_weighted_rms']:.3f} m/s²  "

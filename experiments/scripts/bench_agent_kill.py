@@ -72,9 +72,10 @@ def set_version(model, base: dict, k: int):
 
 def save_version(model, base: dict, k: int, folder: Path, mode: str) -> None:
     from controllers.agents import save_agent
+    from mrd_env.plants.quarter_car import SPEC as QUARTER_CAR
 
     norm = set_version(model, base, k)
-    meta = {"name": f"version {k}", "plant": "quarter_car", "env_id": "mrd_env/QuarterCarPhysical-v0", "algo": "PPO",
+    meta = {"name": f"version {k}", "plant": QUARTER_CAR.name, "env_id": QUARTER_CAR.physics_id, "algo": "PPO",
             "env_kwargs": {}, "version": k}
     if mode == "naive":
         return naive_save(folder, meta, model, norm)

@@ -12,7 +12,7 @@ import gymnasium as gym
 import mrd_env  # noqa: F401  (registers the environments)
 from controllers import available_controllers, make_controller
 
-from ..commands.benchmark import BUILDING_CONTROLLERS, QC_CONTROLLERS
+from ..common.plants import chosen_plants
 from mrd_env.report import markdown_table
 from mrd_env.stepping.first_use import set_mode
 
@@ -42,8 +42,9 @@ def bench(env_id: str, names, n: int = 3000) -> list[dict]:
 
 def main() -> int:
     set_mode("wait")  # time the compiled kernel, never the interpreted one of a first use
-    assert set(QC_CONTROLLERS) | set(BUILDING_CONTROLLERS) <= set(available_controllers())
-    rows = bench("mrd_env/QuarterCarPhysical-v0", QC_CONTROLLERS) + bench("mrd_env/ShearBuildingPhysical-v0", BUILDING_CONTROLLERS)
+    plants = chosen_plants("both")  # the published benchmark's plants, with their benchmark laws
+    assert {law for p in plants for law in p.benchmark_laws} <= set(available_controllers())
+    rows = [row for p in plants for row in bench(p.env_id, p.benchmark_laws)]
     print(markdown_table(rows, title="Controller predict() cost (µs per call)", floatfmt=".3g"))
     return 0
 

@@ -22,20 +22,23 @@ CONFIGS = (("serial", None), ("pool", 1), ("pool", 2), ("ray", 2))
 
 def _benchmark(backend, jobs):
     from ..commands.benchmark import run_benchmark
+    from ..common.plants import chosen_plants
 
     eps = []
-    for plant in ("shear_building", "quarter_car"):
+    for plant in chosen_plants("both"):  # the published benchmark's plants
         eps += run_benchmark(plant, backend=backend, jobs=jobs, progress=False)
     return [(e.controller, e.scenario, tuple(sorted(e.metrics.items()))) for e in eps]
 
 
 def _train(backend, jobs, steps):
+    from mrd_env.plants.quarter_car.profile import PROFILE as QUARTER_CAR
+
     from ..commands.train import train
     from ..common.trainers import env_options, hyperparameters
 
     with tempfile.TemporaryDirectory() as d:
-        folders = train("quarter_car", "ppo", [0, 1], out=Path(d), timesteps=steps, eval_freq=0,
-                        hyper=hyperparameters("ppo", "mrd_env/QuarterCarPhysical-v0"), env_kwargs=env_options("quarter_car"),
+        folders = train(QUARTER_CAR, "ppo", [0, 1], out=Path(d), timesteps=steps, eval_freq=0,
+                        hyper=hyperparameters("ppo", QUARTER_CAR.env_id), env_kwargs=env_options(QUARTER_CAR),
                         backend=backend, jobs=jobs)
         from controllers import load_agent
         return [np.concatenate([v.numpy().ravel() for v in load_agent(f).model.policy.state_dict().values()])

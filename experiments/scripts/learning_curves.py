@@ -3,7 +3,7 @@ step and sensors, and the clairvoyant optimum on the same validation episodes (t
 command sequence, :mod:`experiments.common.yardstick`; cached, so a second call draws at once).
 
     python -m experiments.scripts.learning_curves --plant shear_building \
-        --agents results/agents/building_ppo-residual-paired_s* --out docs/building_ppo_learning_curves.png
+        --agents results/agents/shear_building_ppo-residual-paired_s* --out docs/building_ppo_learning_curves.png
 
 The curves are the ``validation.csv`` of each agent folder (the seeds' own lines and their mean).
 """
@@ -15,8 +15,10 @@ from pathlib import Path
 
 import numpy as np
 
+from ..common.plants import PlantProfile, plant_choices, plant_name, profile
 
-def clairvoyant_reference(plant: str, episodes: int = 8, progress: bool = True) -> float:
+
+def clairvoyant_reference(plant: PlantProfile, episodes: int = 8, progress: bool = True) -> float:
     """The mean clairvoyant return over the validation episodes the agents are selected on."""
     from ..common.scenarios import validation
     from ..common.yardstick import yardsticks
@@ -25,7 +27,7 @@ def clairvoyant_reference(plant: str, episodes: int = 8, progress: bool = True) 
     return float(np.mean([y.clairvoyant for y in ys]))
 
 
-def draw(plant: str, agents: list[Path], out: Path, clairvoyant: bool = True, episodes: int = 8,
+def draw(plant: PlantProfile, agents: list[Path], out: Path, clairvoyant: bool = True, episodes: int = 8,
          title: str | None = None) -> Path | None:
     """The figure ``out`` for the agent folders ``agents`` (one plant, one set-up)."""
     from controllers.agents import OBSERVATION_OPTIONS, agent_files
@@ -47,14 +49,14 @@ def draw(plant: str, agents: list[Path], out: Path, clairvoyant: bool = True, ep
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--plant", required=True)
+    p.add_argument("--plant", type=plant_name, choices=plant_choices(), required=True)
     p.add_argument("--agents", type=Path, nargs="+", required=True, help="agent folders written by mrd-env train")
     p.add_argument("--out", type=Path, required=True, help="the PNG to write")
     p.add_argument("--no-clairvoyant", action="store_true", help="laws only (no optimal-control solves)")
     p.add_argument("--title", help="the figure's title (default: the agents' common name and the seed count)")
     args = p.parse_args(argv)
     try:
-        path = draw(args.plant, args.agents, args.out, clairvoyant=not args.no_clairvoyant, title=args.title)
+        path = draw(profile(args.plant), args.agents, args.out, clairvoyant=not args.no_clairvoyant, title=args.title)
     except ValueError as exc:
         print(f"learning_curves: error: {exc}", file=sys.stderr)
         return 2

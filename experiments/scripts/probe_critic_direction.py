@@ -115,9 +115,10 @@ def direction_rows(agent, eps: list[float], episodes: int, seed: int) -> list[di
     """The law and each correction of :class:`CriticProbe`, paired against the law on the validation episodes."""
     from controllers.agents import agent_controller
     from experiments.common.evaluation import controller_episodes, evaluate_batch, mean_ci
+    from experiments.common.plants import profile
     from experiments.common.trainers import validation_split
 
-    scenario, obs_kwargs = validation_split(agent.plant, agent.env_kwargs, episodes)
+    scenario, obs_kwargs = validation_split(profile(agent.plant), agent.env_kwargs, episodes)
     residual = agent.meta["residual"]
     law = np.array([e.episode_return for e in controller_episodes(residual["law"], scenario, **obs_kwargs)])
     policies = [(f"the law ({residual['law']})", None)]

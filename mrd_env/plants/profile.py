@@ -3,10 +3,12 @@ the held-out test scenarios, the laws that apply, the metrics and the figures' l
 profile in its folder (``mrd_env/plants/<plant>/profile.py``: ``PROFILE``); the commands (``train``,
 ``evaluate``, ``benchmark``, ``tune``, ``yardstick``, the labs) read it and never branch on a plant's name.
 
-A profile is data: the library holds it without importing the experiments.
+A profile is data: the library holds it without importing the experiments. It pickles by reference (its plant's
+name), so that the commands hand it to their workers as it is.
 """
 from __future__ import annotations
 
+import pickle
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -53,8 +55,11 @@ class PlantProfile:
     #: model predictive control rows of ``mrd-env evaluate``: (label, control step (None: the comparison's),
     #: controller options, road preview)
     mpc: tuple = ()
-    #: the benchmark adds the conventional passive car (the MR damper replaced by the preset's dashpot)
-    passive_reference: bool = False
+    #: ``passive_reference(scenario_options) -> (row name, environment options)``: the conventional passive plant the
+    #: benchmark adds as a row (the MR damper replaced by the set-up's passive damper; None: no such row)
+    passive_reference: Callable[[dict], tuple[str, dict]] | None = None
+    #: the SI unit of each metric column that has one (the tables' headers; ratios have none)
+    metric_units: dict = field(default_factory=dict)
     #: the road-preview sensor exists (``--preview``; the MPC preview rows)
     preview: bool = False
     #: laws whose commands warm-start the clairvoyant of ``mrd-env yardstick`` (empty: no yardstick)
@@ -65,6 +70,8 @@ class PlantProfile:
     hyperparams_fallback: str | None = None
     #: one of the plants of the published benchmark, evaluation and yardstick (``--plant both``)
     published: bool = False
+    #: the plant ``mrd-env train`` and ``mrd-env tune`` take without ``--plant`` (one plant says so)
+    train_default: bool = False
     extra: dict = field(default_factory=dict)
 
     @property
@@ -80,3 +87,17 @@ class PlantProfile:
     @property
     def title(self) -> str:
         return self.spec.title
+
+    def __reduce__(self):
+        """A profile travels to a worker process (a process pool's, Ray's) as its plant's name, and the worker takes
+        the same profile from the registry: a profile holds functions, lambdas among them, that do not pickle."""
+        if _registered(self.name) is not self:
+            raise pickle.PicklingError(f"a profile of {self.name} that is not the registered one does not pickle")
+        return _registered, (self.name,)
+
+
+def _registered(name: str) -> PlantProfile:
+    """The registered profile of plant ``name`` (:func:`mrd_env.plants.plant`)."""
+    from . import plant
+
+    return plant(name).profile

@@ -14,6 +14,7 @@ import mrd_env  # noqa: F401
 from controllers.agents import (AgentDigestError, ObservationNormalizer, TrustedCodeWarning, agent_digest,
                                 export_agent, load_agent, same_actions, save_agent, shipped_agents, write_agent)
 from experiments.scripts.bench_agent_kill import stub_env
+from experiments.common.plants import profile
 
 sb3 = pytest.importorskip("stable_baselines3")
 pytest.importorskip("safetensors")
@@ -213,7 +214,7 @@ def test_the_trainers_saves_load_code_free(tmp_path):
     from experiments.common.trainers import train_one
 
     kw = {"episode_seconds": 0.2, "control_dt": 0.01}
-    run = train_one("quarter_car", "ppo", 0, out=tmp_path, timesteps=64, env_kwargs=kw, eval_freq=32,
+    run = train_one(profile("quarter_car"), "ppo", 0, out=tmp_path, timesteps=64, env_kwargs=kw, eval_freq=32,
                     eval_episodes=1, checkpoint_freq=32, hyper={"n_steps": 32, "batch_size": 32, "n_envs": 1})
     for folder in (run, run / "best", *sorted((run / "checkpoints").iterdir())):
         meta = json.loads((folder / "agent.json").read_text())

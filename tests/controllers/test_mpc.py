@@ -18,6 +18,7 @@ import mrd_env  # noqa: F401
 from controllers import MPC, ClippedOptimal, available_controllers, make_controller
 from controllers.model_based import dlqr, sampled_lq, van_loan
 from controllers.mpc import damper_force_limit
+from experiments.common.plants import profile
 
 CAR = "mrd_env/QuarterCarPhysical-v0"
 BUILDING = "mrd_env/ShearBuildingPhysical-v0"
@@ -421,13 +422,13 @@ def test_reward_weights_beat_the_objective_on_validation_episodes():
     cost than with the objective's, in total and on most episodes."""
     from experiments.common.scenarios import validation
 
-    car = validation("quarter_car")[0]
+    car = validation(profile("quarter_car"))[0]
     env = _preview_env(**{**car.options, "episode_seconds": 3.0}, control_dt=0.01)
     seeds = car.seeds[:4]
     old = _returns(env, MPC(env), seeds)
     new = _returns(env, MPC(env, weights="reward", force_ref=200.0, f_max=1e5), seeds)
     assert new.sum() > old.sum() + 0.5 and np.all(new > old)
-    bld = validation("shear_building")[0]
+    bld = validation(profile("shear_building"))[0]
     env = gym.make(bld.env_id, **bld.options, control_dt=0.01).unwrapped
     seeds = bld.seeds[:4]
     old = _returns(env, MPC(env), seeds)

@@ -12,6 +12,7 @@ from controllers.training_wrappers import PairedBaselineVecEnv, ResidualVecEnv
 from experiments.cli import main
 from experiments.common.trainers import env_options, train_one
 from mrd_env.envs.sb3 import make_sb3_vec_env
+from experiments.common.plants import profile
 
 CAR = "mrd_env/QuarterCarPhysical-v0"
 
@@ -28,7 +29,7 @@ class Constant:
 
 
 def _kw(**extra):
-    return {**env_options("quarter_car"), "episode_seconds": 0.5, **extra}
+    return {**env_options(profile("quarter_car")), "episode_seconds": 0.5, **extra}
 
 
 @pytest.mark.parametrize("mode", ["normalized", "physical"])
@@ -121,7 +122,7 @@ def test_paired_rewards_are_the_agent_minus_the_law_on_the_same_road():
 
 def test_a_residual_agent_trains_starts_at_its_law_and_loads(tmp_path):
     kw = _kw()
-    run = train_one("quarter_car", "ppo", 0, out=tmp_path, timesteps=64, env_kwargs=kw, eval_freq=10_000,
+    run = train_one(profile("quarter_car"), "ppo", 0, out=tmp_path, timesteps=64, env_kwargs=kw, eval_freq=10_000,
                     eval_episodes=1, hyper={"n_steps": 32, "batch_size": 32, "n_envs": 2,
                                             "residual": {"law": "skyhook_continuous", "scale": 0.5},
                                             "paired_baseline": "skyhook_continuous"})
@@ -131,7 +132,7 @@ def test_a_residual_agent_trains_starts_at_its_law_and_loads(tmp_path):
 
     from experiments.commands.train import law_references
     first = float(next(csv.DictReader((run / "validation.csv").open()))["validation_return"])
-    assert first == law_references("quarter_car", kw, 1)["skyhook_continuous @ 10 ms"]
+    assert first == law_references(profile("quarter_car"), kw, 1)["skyhook_continuous @ 10 ms"]
     # the saved agent acts as its law plus its correction
     agent = load_agent(run)
     env = gym.make(CAR, **kw)
@@ -183,8 +184,8 @@ def test_a_preview_agent_with_history_keeps_what_it_sees_through_evaluation(tmp_
     from experiments.common.evaluation import evaluate_batch
     from experiments.common.scenarios import held_out_scenarios, preview_options
 
-    kw = {**preview_options("quarter_car", _kw(history=2))}
-    run = train_one("quarter_car", "ppo", 0, out=tmp_path, timesteps=64, env_kwargs=kw, eval_freq=10_000,
+    kw = {**preview_options(profile("quarter_car"), _kw(history=2))}
+    run = train_one(profile("quarter_car"), "ppo", 0, out=tmp_path, timesteps=64, env_kwargs=kw, eval_freq=10_000,
                     eval_episodes=1, hyper={"n_steps": 32, "batch_size": 32, "n_envs": 2,
                                             "residual": "skyhook_continuous"})
     assert run.name == "quarter_car_ppo-residual-h2-preview_s0"
@@ -192,7 +193,7 @@ def test_a_preview_agent_with_history_keeps_what_it_sees_through_evaluation(tmp_
     assert agent.name == "PPO residual preview s0"   # what tables and legends call it
     seen = agent.observation_kwargs
     assert tuple(seen["preview"]) == tuple(kw["preview"]) and "road_preview" in seen["sensors"] and seen["history"] == 2
-    sc = held_out_scenarios("quarter_car", quick=True)[0]
+    sc = held_out_scenarios(profile("quarter_car"), quick=True)[0]
     eps = evaluate_batch(lambda v: agent.bind(v), sc, "", name=agent.name, **seen, episode_seconds=0.3)
     assert len(eps) == 1 and np.isfinite(eps[0].episode_return)
 
@@ -242,14 +243,14 @@ def test_an_agents_environment_options_survive_its_json(tmp_path):
     from controllers import shipped_agents
     from controllers.agents import agent_files, write_agent
 
-    kw = env_options("quarter_car")
+    kw = env_options(profile("quarter_car"))
     assert isinstance(kw["road"]["speed"], tuple) and isinstance(kw["road"]["road_class"], list)
     write_agent(tmp_path, {"plant": "quarter_car", "env_id": CAR, "algo": "PPO", "env_kwargs": kw,
                            "model": "agent.json"})  # any file of the folder stands in for the model here
     assert agent_files(tmp_path)[1]["env_kwargs"] == kw
     for folder in shipped_agents():
         agent = load_agent(folder)
-        assert agent.env_kwargs == {**env_options(agent.plant), **agent.observation_kwargs}
+        assert agent.env_kwargs == {**env_options(profile(agent.plant)), **agent.observation_kwargs}
 
 
 class Counter:
@@ -421,13 +422,13 @@ def test_a_held_residual_agent_trains_starts_at_its_law_at_1ms_and_loads(tmp_pat
     from experiments.commands.train import law_references
 
     kw = _kw(control_dt=0.001)
-    run = train_one("quarter_car", "ppo", 0, out=tmp_path, timesteps=64, env_kwargs=kw, eval_freq=10_000,
+    run = train_one(profile("quarter_car"), "ppo", 0, out=tmp_path, timesteps=64, env_kwargs=kw, eval_freq=10_000,
                     eval_episodes=1, hyper={"n_steps": 32, "batch_size": 32, "n_envs": 2,
                                             "residual": {"law": "skyhook_continuous", "scale": 0.5, "hold": 10},
                                             "paired_baseline": "skyhook_continuous"})
     assert run.name == "quarter_car_ppo-residual-hold10-paired_s0"
     first = float(next(csv.DictReader((run / "validation.csv").open()))["validation_return"])
-    assert first == law_references("quarter_car", kw, 1)["skyhook_continuous @ 1 ms"]
+    assert first == law_references(profile("quarter_car"), kw, 1)["skyhook_continuous @ 1 ms"]
     ctrl = load_agent(run).bind(gym.make(CAR, **kw))
     assert isinstance(ctrl, ResidualController) and ctrl.hold == 10
     with pytest.raises(ValueError, match="trained at 0.001 s"):

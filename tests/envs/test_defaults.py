@@ -33,11 +33,12 @@ def test_v1_is_the_rl_set_up_and_passes_sb3s_checker_without_warnings(env_id):
 
 
 def test_v1_building_has_the_benchmarks_damper_storey_and_v0_the_labs():
-    from experiments.common.scenarios import PLANT
+    from experiments.common.plants import profile
 
     v1 = gym.make("mrd_env/ShearBuilding-v1", **SHORT).unwrapped
     v0 = gym.make("mrd_env/ShearBuildingPhysical-v0", **SHORT).unwrapped
-    assert tuple(v1.assembly.options["damper_floors"]) == tuple(PLANT["shear_building"]["damper_floors"]) == (2,)
+    benchmark_floors = profile("shear_building").options["damper_floors"]
+    assert tuple(v1.assembly.options["damper_floors"]) == tuple(benchmark_floors) == (2,)
     assert np.array_equal(v0.linear_plant.S, [[1.0, 0.0, 0.0]])     # storey 1: the ground floor's drift
     assert np.array_equal(v1.linear_plant.S, [[-1.0, 1.0, 0.0]])    # storey 2: floor 2 relative to floor 1
     assert v0.control_dt == 0.001 and v0.action_mode == "physical"

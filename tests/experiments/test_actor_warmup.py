@@ -17,12 +17,13 @@ from experiments.common.actor_warmup import with_actor_warmup
 from experiments.cli import main
 from experiments.common.trainers import env_options, train_one
 from mrd_env.envs.sb3 import make_sb3_vec_env
+from experiments.common.plants import profile
 
 CAR = "mrd_env/QuarterCarPhysical-v0"
 
 
 def _kw():
-    return {**env_options("quarter_car"), "episode_seconds": 0.5}
+    return {**env_options(profile("quarter_car")), "episode_seconds": 0.5}
 
 
 def _state(module):
@@ -75,7 +76,7 @@ def test_without_the_warm_up_the_actor_moves_at_once():
 def test_the_option_reaches_training_and_the_agent_loads_as_plain_td3(tmp_path):
     from controllers import load_agent
 
-    run = train_one("quarter_car", "td3", 0, out=tmp_path, timesteps=96, env_kwargs=_kw(), eval_freq=0,
+    run = train_one(profile("quarter_car"), "td3", 0, out=tmp_path, timesteps=96, env_kwargs=_kw(), eval_freq=0,
                     hyper={"n_envs": 2, "learning_starts": 32, "batch_size": 16, "train_freq": 1,
                            "policy_kwargs": {"net_arch": [8, 8]}, "actor_warmup_steps": 1000,
                            "residual": {"law": "skyhook_continuous", "scale": 0.5}})

@@ -11,6 +11,7 @@ from experiments.commands.benchmark import run_benchmark
 from experiments.common.evaluation import evaluate
 from experiments.common.scenarios import Scenario
 from experiments.cli import main
+from experiments.common.plants import profile
 
 
 def short_building():
@@ -29,8 +30,8 @@ def test_controller_on_env_without_needed_sensors_raises():
 
 def test_benchmark_reports_are_well_formed_and_reproducible(tmp_path):
     ctrls = ["passive_off", "passive_on", "clipped_optimal"]
-    a = run_benchmark("shear_building", ctrls, short_building(), out=tmp_path / "a", progress=False)
-    b = run_benchmark("shear_building", ctrls, short_building(), out=tmp_path / "b", progress=False)
+    a = run_benchmark(profile("shear_building"), ctrls, short_building(), out=tmp_path / "a", progress=False)
+    b = run_benchmark(profile("shear_building"), ctrls, short_building(), out=tmp_path / "b", progress=False)
     assert [e.controller for e in a] == ctrls
     for ea, eb in zip(a, b):
         assert np.array_equal(ea.response, eb.response) and ea.metrics == eb.metrics
@@ -53,7 +54,7 @@ def test_benchmark_reports_are_well_formed_and_reproducible(tmp_path):
 def test_quarter_car_benchmark_with_seeded_roads(tmp_path):
     sc = [Scenario("ISO-C 1 s", "mrd_env/QuarterCarPhysical-v0",
                    dict(road="iso8608", road_params={"road_class": "C", "speed": 20.0}, episode_seconds=1.0), seeds=(3,))]
-    eps = run_benchmark("quarter_car", ["passive_off", "skyhook_on_off", "groundhook"], sc, out=tmp_path,
+    eps = run_benchmark(profile("quarter_car"), ["passive_off", "skyhook_on_off", "groundhook"], sc, out=tmp_path,
                         progress=False)
     assert eps[-1].controller.startswith("passive_ref")
     with (tmp_path / "quarter_car_benchmark.csv").open() as fh:
@@ -73,7 +74,7 @@ def test_benchmark_tables_hold_means_over_seeds_and_figures_only_ratios(tmp_path
                    dict(road="iso8608", road_params={"road_class": "C", "speed": 20.0}, episode_seconds=0.5),
                    seeds=(3, 4))]
     ctrls = ["passive_off", "passive_on", "skyhook_on_off", "groundhook", "hybrid"]
-    eps = run_benchmark("quarter_car", ctrls, sc, out=tmp_path, progress=False, reference_passive=False)
+    eps = run_benchmark(profile("quarter_car"), ctrls, sc, out=tmp_path, progress=False, reference_passive=False)
     with (tmp_path / "quarter_car_benchmark.csv").open() as fh:
         means = list(csv.DictReader(fh))
     with (tmp_path / "quarter_car_benchmark_episodes.csv").open() as fh:
@@ -103,11 +104,9 @@ def test_history_shows_one_line_per_law():
 
 
 def test_building_history_follows_the_damper_storey():
-    from experiments.common.evaluation import response_of
-
-    assert response_of({"damper_floors": (2,)}, "shear_building") == "drift[1]"
-    assert response_of({}, "shear_building") == "drift[0]"
-    assert response_of({}, "quarter_car") == "sprung_acc"
+    assert profile("shear_building").response({"damper_floors": (2,)}) == "drift[1]"
+    assert profile("shear_building").response({}) == "drift[0]"
+    assert profile("quarter_car").response({}) == "sprung_acc"
 
 
 def test_agent_and_classical_controllers_share_the_loop():
@@ -173,14 +172,13 @@ def test_the_default_controller_set_runs_on_a_fitted_damper_leaving_out_the_rows
     assert main(["benchmark", "--plant", "shear_building", "--quick", "--damper", str(preset), "--out", str(out),
                  "--no-progress", "--yardstick", "off"]) == 0
     err = capsys.readouterr().err
-    assert "note: clipped_optimal+neural left out of the building benchmark: no neural inverse ships" in err
+    assert "note: clipped_optimal+neural left out of the shear building benchmark: no neural inverse ships" in err
     table = (out / "shear_building_benchmark.md").read_text()
-    from experiments.common.plants import profile
     for law in profile("shear_building").benchmark_laws:
         assert (law in table) == (law != "clipped_optimal+neural"), law
     assert main(["benchmark", "--plant", "shear_building", "--quick", "--damper", str(preset), "--controllers",
                  "clipped_optimal+neural", "--out", str(out), "--no-progress"]) == 2
-    assert "--controllers: clipped_optimal+neural does not apply to the building" in capsys.readouterr().err
+    assert "--controllers: clipped_optimal+neural does not apply to the shear building" in capsys.readouterr().err
 
 
 def test_an_unwritable_out_folder_is_refused_before_the_run(tmp_path, capsys):

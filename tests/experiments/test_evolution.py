@@ -16,8 +16,9 @@ from controllers.mlp_policy import MLPPolicy
 from experiments.cli import main
 from experiments.common.evaluation import evaluate_batch
 from experiments.common.evolution import NormalizedPolicy, _returns, check
-from experiments.common.scenarios import HELD_OUT_SEED, PLANT, TRAINING, held_out_scenarios, validation
+from experiments.common.scenarios import HELD_OUT_SEED, held_out_scenarios, validation
 from experiments.common.warm_start import fit_policy
+from experiments.common.plants import profile
 
 TINY = ["--algo", "cmaes", "--timesteps", "1500", "--eval-freq", "500", "--eval-episodes", "2", "--no-progress",
         "--set", "popsize=4", "episodes=2", "hidden=[4]", "env_kwargs={episode_seconds: 0.3}"]
@@ -64,7 +65,7 @@ def test_common_random_numbers_make_the_comparison_paired():
     other returns."""
     P, E = 3, 2
     venv = gym.make_vec("mrd_env/QuarterCarPhysical-v0", num_envs=P * E, vectorization_mode="vector_entry_point",
-                        **{**TRAINING["quarter_car"], "episode_seconds": 0.3}, action_mode="normalized",
+                        **{**profile("quarter_car").training, "episode_seconds": 0.3}, action_mode="normalized",
                         control_dt=0.01)
     pol = MLPPolicy((venv.single_observation_space.shape[0], 4, 1))
     n = venv.single_observation_space.shape[0]
@@ -92,7 +93,7 @@ def test_warm_start_is_for_cmaes_only(capsys):
 
 def _short_validation():
     """The validation episodes of the tiny runs (0.3 s long)."""
-    val = validation("quarter_car", 2)[0]
+    val = validation(profile("quarter_car"), 2)[0]
     return dataclasses.replace(val, options={**val.options, "episode_seconds": 0.3})
 
 
@@ -150,11 +151,12 @@ def test_the_warm_start_begins_where_the_law_is(es_runs):
 def test_benchmark_building_has_its_damper_where_the_command_matters():
     """Every experiment's building has its damper in storey 2; there the best law at 1 ms beats passive-on by more
     than 10 % on El Centro N-S, while in storey 1 (the lab model's own place) it is within 1 %."""
-    assert TRAINING["shear_building"]["damper_floors"] == PLANT["shear_building"]["damper_floors"] == (2,)
-    assert all(sc.options["damper_floors"] == (2,) for sc in held_out_scenarios("shear_building"))
+    building = profile("shear_building")
+    assert building.training["damper_floors"] == building.options["damper_floors"] == (2,)
+    assert all(sc.options["damper_floors"] == (2,) for sc in held_out_scenarios(building))
     returns = {}
     for where, options in (("storey 2", None), ("storey 1", {})):
-        sc = held_out_scenarios("shear_building", plant_options=options)[0]
+        sc = held_out_scenarios(building, plant_options=options)[0]
         for law in ("passive_on", "clipped_optimal"):
             returns[where, law] = evaluate_batch(lambda v, n=law: make_controller(n, v), sc, "",
                                                  control_dt=0.001)[0].episode_return
@@ -200,7 +202,7 @@ def test_an_agents_seeds_count_once_per_episode_in_the_summary_and_the_shares():
 
     base = {"S s1": -10.0, "S s2": -20.0, "S s3": -15.0}
     res = {"agent X": [ep("agent X", k, v + d) for k, v in base.items() for d in (-0.01, 0.0, 0.01)]}
-    row = {r["scenario"]: r for r in summarise("quarter_car", res)}["S"]
+    row = {r["scenario"]: r for r in summarise(profile("quarter_car"), res)}["S"]
     m, lo, hi = mean_ci(list(base.values()), upper=0.0)
     assert row["episodes"] == 3 and (row["return"], row["return_lo95"], row["return_hi95"]) == pytest.approx((m, lo, hi))
     ys = [EpisodeYardstick(k, 0, v - 1.0, 2.0, v + 1.0, "optimiser", 1.0) for k, v in base.items()]
@@ -224,16 +226,17 @@ def test_a_preview_agent_is_named_and_filed_apart_from_the_plain_one(es_runs, tm
 def test_every_evaluation_row_has_its_own_label(dt):
     """At 1 ms the car's MPC+preview row tuned for 1 ms (100-step horizon) stands alone: the one tuned for the
     comparison's step is not added under the same label (their episodes would be pooled as one controller's)."""
-    from experiments.common.comparison import LAWS, law_rows
+    from experiments.common.comparison import law_rows
 
-    rows = law_rows("quarter_car", LAWS["quarter_car"], {"control_dt": dt})
+    car = profile("quarter_car")
+    rows = law_rows(car, car.laws, {"control_dt": dt})
     labels = [label for label, _, _ in rows]
     assert len(labels) == len(set(labels))
     preview_1ms = [ctrl for label, ctrl, _ in rows if label == "mpc+preview (reward) @ 1 ms"]
     assert len(preview_1ms) == 1 and preview_1ms[0][1]["horizon"] == 100
     assert ("mpc+preview (reward) @ 10 ms" in labels) == (dt == 1e-2)
     with pytest.raises(ValueError, match="would each be evaluated twice"):
-        law_rows("quarter_car", ["skyhook_continuous", "skyhook_continuous"], {"control_dt": dt})
+        law_rows(car, ["skyhook_continuous", "skyhook_continuous"], {"control_dt": dt})
 
 
 def test_a_preview_agent_listed_first_hands_the_road_ahead_to_no_law(tmp_path):

@@ -7,12 +7,13 @@ import pytest
 
 from experiments.scripts.probe_critic_direction import main
 from experiments.common.trainers import env_options, train_one
+from experiments.common.plants import profile
 
 
 @pytest.fixture(scope="module")
 def agent(tmp_path_factory):
-    return train_one("quarter_car", "td3", 0, out=tmp_path_factory.mktemp("agents"), timesteps=64, eval_freq=0,
-                     env_kwargs={**env_options("quarter_car"), "episode_seconds": 0.5},
+    return train_one(profile("quarter_car"), "td3", 0, out=tmp_path_factory.mktemp("agents"), timesteps=64, eval_freq=0,
+                     env_kwargs={**env_options(profile("quarter_car")), "episode_seconds": 0.5},
                      hyper={"n_envs": 2, "learning_starts": 32, "batch_size": 16, "train_freq": 1,
                             "policy_kwargs": {"net_arch": [8, 8]}, "actor_warmup_steps": 8,
                             "residual": {"law": "skyhook_continuous", "scale": 0.5}})
@@ -60,8 +61,8 @@ def test_bad_options_are_usage_errors(args, message, capsys, tmp_path):
 
 
 def test_an_agent_without_a_residual_critic_is_refused(tmp_path, capsys):
-    run = train_one("quarter_car", "td3", 0, out=tmp_path, timesteps=32, eval_freq=0,
-                    env_kwargs={**env_options("quarter_car"), "episode_seconds": 0.5},
+    run = train_one(profile("quarter_car"), "td3", 0, out=tmp_path, timesteps=32, eval_freq=0,
+                    env_kwargs={**env_options(profile("quarter_car")), "episode_seconds": 0.5},
                     hyper={"n_envs": 1, "learning_starts": 16, "batch_size": 8, "policy_kwargs": {"net_arch": [8]}})
     with pytest.raises(SystemExit):
         main(["--agent", str(run), "--out", str(tmp_path / "out")])

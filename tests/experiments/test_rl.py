@@ -13,7 +13,8 @@ import mrd_env  # noqa: F401
 from controllers import CONTROLLERS, load_agent, make_controller
 from experiments.cli import main
 from experiments.common.evaluation import evaluate_batch
-from experiments.common.scenarios import HELD_OUT_SEED, TRAINING, held_out_scenarios, validation
+from experiments.common.scenarios import HELD_OUT_SEED, held_out_scenarios, validation
+from experiments.common.plants import profile
 
 TINY = ["--timesteps", "256", "--eval-freq", "128", "--eval-episodes", "1", "--no-progress",
         "--set", "n_envs=2", "n_steps=64", "batch_size=64", "n_epochs=1"]
@@ -28,7 +29,7 @@ def trained(tmp_path_factory):
 
 def test_train_writes_agents_curves_and_the_best_validation_agent(trained):
     for seed in (0, 1):
-        run = trained / f"building_ppo_s{seed}"
+        run = trained / f"shear_building_ppo_s{seed}"
         for f in ("agent.json", "model.zip", "training.monitor.csv", "validation.csv", "learning_curve.png",
                   "best/agent.json", "best/policy.safetensors", "best/normalization.npz", "best/model.zip"):
             assert (run / f).exists(), f
@@ -50,15 +51,15 @@ def test_train_writes_agents_curves_and_the_best_validation_agent(trained):
 def test_the_best_agent_reproduces_its_validation_return(trained):
     """Reloaded from its folder (raw observations, the saved normalisation), the best agent scores on the
     validation episodes what it scored during training."""
-    run = trained / "building_ppo_s0"
+    run = trained / "shear_building_ppo_s0"
     best = load_agent(run / "best")
-    sc = validation("shear_building", 1)[0]
+    sc = validation(profile("shear_building"), 1)[0]
     eps = evaluate_batch(lambda v: best.bind(v), sc, "", **best.observation_kwargs)
     assert eps[0].episode_return == pytest.approx(best.meta["validation_return"], rel=1e-4)
 
 
 def test_loaded_agent_rebuilds_its_environment_and_acts_in_it(trained):
-    agent = load_agent(trained / "building_ppo_s1")
+    agent = load_agent(trained / "shear_building_ppo_s1")
     env = gym.make(agent.env_id, **agent.env_kwargs)
     obs, _ = env.reset(seed=HELD_OUT_SEED)
     action, _ = agent.predict(obs)
@@ -78,7 +79,7 @@ def test_same_seed_same_agent(tmp_path):
 
 
 def test_evaluate_puts_agents_and_laws_side_by_side(trained, tmp_path):
-    agents = [str(trained / f"building_ppo_s{s}") for s in (0, 1)]
+    agents = [str(trained / f"shear_building_ppo_s{s}") for s in (0, 1)]
     assert main(["evaluate", "--plant", "shear_building", "--agents", *agents, "--laws", "passive_off", "clipped_optimal",
                  "--quick", "--seeds", "1", "--no-mpc", "--out", str(tmp_path), "--no-progress"]) == 0
     with (tmp_path / "shear_building_evaluation.csv").open() as fh:
@@ -106,7 +107,7 @@ def test_recurrent_policies_work_with_the_tooling(tmp_path):
                  str(tmp_path), *TINY, "--set", "policy_kwargs={lstm_hidden_size: 8}"]) == 0
     agent = load_agent(tmp_path / "quarter_car_recurrentppo_s0")
     assert agent.meta["recurrent"]
-    sc = held_out_scenarios("quarter_car", quick=True)[0]
+    sc = held_out_scenarios(profile("quarter_car"), quick=True)[0]
     eps = evaluate_batch(lambda v: agent.bind(v), sc, "", **agent.observation_kwargs)
     assert np.isfinite(eps[0].episode_return)
 
@@ -147,7 +148,7 @@ def _returns(plant: str, scenario, control_dt: float = 0.01) -> dict[str, list]:
 def test_termination_never_pays(plant):
     """On every benchmark scenario: an episode ended by the stroke limit scores below every controller that
     finishes — the penalty (10 per planned second) exceeds any finisher's cost, rough roads included."""
-    for sc in held_out_scenarios(plant):
+    for sc in held_out_scenarios(profile(plant)):
         res = _returns(plant, sc)
         env = gym.make(sc.env_id, **sc.options, control_dt=0.01)
         asm = env.unwrapped.assembly
@@ -165,7 +166,7 @@ def test_termination_never_pays(plant):
 def test_rewards_separate_random_passive_and_the_best_law():
     """On a class-C road (paired seeds): best law > passive-off > random > passive-on, each gap well beyond
     the seed-to-seed spread of the differences."""
-    sc = held_out_scenarios("quarter_car", seeds=4)[0]
+    sc = held_out_scenarios(profile("quarter_car"), seeds=4)[0]
     ret = {n: np.array([e.episode_return for e in evaluate_batch(lambda v, n=n: make_controller(n, v), sc, "",
                                                                    control_dt=0.01)])
            for n in ("skyhook_continuous", "passive_off", "random", "passive_on")}
@@ -177,7 +178,7 @@ def test_rewards_separate_random_passive_and_the_best_law():
 
 def test_training_distributions_draw_new_episodes():
     for plant, env_id in (("quarter_car", "mrd_env/QuarterCarPhysical-v0"), ("shear_building", "mrd_env/ShearBuildingPhysical-v0")):
-        env = gym.make(env_id, **TRAINING[plant], control_dt=0.01)
+        env = gym.make(env_id, **profile(plant).training, control_dt=0.01)
         recs = []
         for seed in (0, 1, 2):
             env.reset(seed=seed)

@@ -7,6 +7,7 @@ import pytest
 from experiments.cli import main
 from experiments.common.trainers import available_algos, env_options, train_one
 from experiments.common.trainers import HYPERPARAMS
+from experiments.common.plants import profile
 
 
 def test_only_algorithms_with_hyperparameters_are_offered(capsys):
@@ -31,13 +32,13 @@ def test_a_value_sb3_rejects_is_a_bad_option_named_before_training(capsys, tmp_p
 def test_an_interrupted_run_leaves_an_agent_evaluate_accepts(tmp_path, capsys):
     from controllers import load_agent
 
-    kw = {**env_options("quarter_car"), "episode_seconds": 0.2}
+    kw = {**env_options(profile("quarter_car")), "episode_seconds": 0.2}
 
     def interrupt(steps, value):  # Ctrl-C at the first validation
         raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
-        train_one("quarter_car", "ppo", 0, out=tmp_path, timesteps=64, env_kwargs=kw, eval_episodes=1,
+        train_one(profile("quarter_car"), "ppo", 0, out=tmp_path, timesteps=64, env_kwargs=kw, eval_episodes=1,
                   hyper={"n_steps": 32, "batch_size": 32, "n_envs": 1}, report=interrupt, progress=True)
     run = tmp_path / "quarter_car_ppo_s0"
     meta = json.loads((run / "agent.json").read_text())
@@ -67,7 +68,7 @@ def test_every_shipped_hyperparameter_file_passes_the_checks_made_before_trainin
         plant = by_env_id(env_id)
         assert plant is not None, f"{path.name}: {env_id} is not a plant's environment"
         hyper = hyperparameters(algo, env_id, path)  # the trainer's own check of every key and value
-        check_before_training(algo, hyper, env_id, env_options(plant.name))
+        check_before_training(algo, hyper, env_id, env_options(plant))
 
 
 def test_sigterm_saves_a_loadable_agent_and_exits_143(tmp_path):

@@ -47,7 +47,7 @@ def test_identify_then_rig_environments_benchmark_train_and_evaluate_on_the_pres
     assert main(["train", "--plant", "shear_building", "--algo", "ppo", "--damper", str(preset), "--timesteps", "64",
                  "--set", "n_steps=32", "batch_size=32", "n_envs=1", "--eval-freq", "0", "--no-progress",
                  "--out", str(d / "agents")]) == 0
-    agent = d / "agents" / "building_ppo_s0"
+    agent = d / "agents" / "shear_building_ppo_s0"
     meta = json.loads((agent / "agent.json").read_text())
     assert meta["env_kwargs"]["damper"] == str(preset.resolve())
     assert main(["evaluate", "--plant", "shear_building", "--agents", str(agent), "--laws", "passive_off", "--quick",

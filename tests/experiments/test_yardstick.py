@@ -7,6 +7,7 @@ import pytest
 from experiments.common.evaluation import Episode
 from experiments.common.yardstick import EpisodeYardstick, share_rows
 from mrd_env.optimal import cache
+from experiments.common.plants import profile
 
 
 def _ep(ctrl, label, ret):
@@ -55,10 +56,10 @@ def test_report_without_a_cached_yardstick_says_how_to_get_one(tmp_path, monkeyp
     from experiments.common.yardstick import report
 
     monkeypatch.setattr("mrd_env.optimal.cache.cache_dir", lambda: tmp_path / "optimal")  # kernels stay cached
-    scen = held_out_scenarios("quarter_car", quick=True)[:1]
-    text = report("quarter_car", {}, scen, tmp_path, "auto", progress=False)
+    scen = held_out_scenarios(profile("quarter_car"), quick=True)[:1]
+    text = report(profile("quarter_car"), {}, scen, tmp_path, "auto", progress=False)
     assert "mrd-env yardstick --plant quarter_car" in text
-    assert report("quarter_car", {}, scen, tmp_path, "off") == ""
+    assert report(profile("quarter_car"), {}, scen, tmp_path, "off") == ""
 
 
 def test_intervals_only_where_there_are_repeats_and_never_beyond_the_possible():
@@ -85,19 +86,19 @@ def test_the_yardstick_brackets_every_controller_on_an_episode(tmp_path, monkeyp
                   dict(road="iso8608", road_params={"road_class": "C", "speed": 20.0}, episode_seconds=1.0),
                   seeds=(1_000_000,))
     agents = shipped_agents("quarter_car")
-    y = episode_yardstick(sc, 1_000_000, "quarter_car", agents=agents)
+    y = episode_yardstick(sc, 1_000_000, profile("quarter_car").warm_laws, agents=agents)
     assert y.passive <= y.clairvoyant <= y.bound
     assert set(y.warm_starts) >= {"passive_off", "passive_on", "skyhook_continuous", "clipped_optimal"}
     assert all(r <= y.clairvoyant for r in y.warm_starts.values())   # every law at 1 ms and the shipped agent
     assert y.clairvoyant > max(y.warm_starts.values())               # and strictly better than the best of them
     others = [controller_episodes("mpc", sc, control_dt=0.01)[0],
-              controller_episodes("mpc", sc, **preview_options("quarter_car", {"control_dt": 0.01}))[0],
+              controller_episodes("mpc", sc, **preview_options(profile("quarter_car"), {"control_dt": 0.01}))[0],
               controller_episodes("skyhook_continuous", sc, control_dt=0.01)[0]]
     for e in others:
         assert e.episode_return <= y.clairvoyant, e.controller
         assert y.share(e.episode_return) <= 1.0
     # the cache returns the same yardstick without solving
-    again = episode_yardstick(sc, 1_000_000, "quarter_car", agents=agents, solve=False)
+    again = episode_yardstick(sc, 1_000_000, profile("quarter_car").warm_laws, agents=agents, solve=False)
     assert again is not None and again.clairvoyant == y.clairvoyant and again.bound == y.bound
 
 
@@ -133,7 +134,7 @@ def test_report_writes_the_yardstick_and_shares_tables_and_figure(tmp_path):
                            bound_seconds=0.5) for i in (1, 2)]
     res = {"sky": [_ep("sky", "ISO-C s1", -9.0), _ep("sky", "ISO-C s2", -8.0), _ep("sky", "bump", -1.0)],
            "agent": [_ep("agent", "ISO-C s1", -7.0), _ep("agent", "ISO-C s2", -7.0)]}
-    text = write_report("quarter_car", res, ys, tmp_path, n_eps=3)
+    text = write_report(profile("quarter_car"), res, ys, tmp_path, n_eps=3)
     refs = list(csv.DictReader((tmp_path / "quarter_car_yardstick.csv").open()))
     assert [r["episode"] for r in refs] == ["ISO-C s1", "ISO-C s2"]
     assert float(refs[0]["clairvoyant return"]) == -6.0 and float(refs[0]["active bound"]) == -4.0
@@ -153,9 +154,10 @@ def test_the_yardstick_is_of_the_damper_the_controllers_ran_on():
     from experiments.common.yardstick import on_damper
     from mrd_env.optimal import episode_problem
 
-    scen = held_out_scenarios("quarter_car", quick=True)[:1]
-    assert on_damper("quarter_car", scen, None) is scen and on_damper("quarter_car", scen, "spencer_dyke") is scen
-    other = on_damper("quarter_car", scen, "bingham")
+    car = profile("quarter_car")
+    scen = held_out_scenarios(car, quick=True)[:1]
+    assert on_damper(car, scen, None) is scen and on_damper(car, scen, "spencer_dyke") is scen
+    other = on_damper(car, scen, "bingham")
     assert other[0].options == {**scen[0].options, "damper": "bingham"} and other[0].seeds == scen[0].seeds
     keys = [episode_problem(sc.env_id, seed=sc.seeds[0], **{**sc.options, "episode_seconds": 0.05}).key()
             for sc in (scen[0], other[0])]
@@ -170,12 +172,12 @@ def test_the_yardstick_key_changes_with_what_the_result_depends_on(monkeypatch):
     from mrd_env.plants.quarter_car import env as quarter_car
     from mrd_env.optimal import episode_problem
 
-    sc = held_out_scenarios("quarter_car", quick=True)[0]
+    sc = held_out_scenarios(profile("quarter_car"), quick=True)[0]
 
     def key():
         problem = episode_problem(sc.env_id, seed=sc.seeds[0], control_dt=YARDSTICK_DT,
                                   **{**sc.options, "episode_seconds": 0.05})
-        return yardstick_key(problem, sc.label(sc.seeds[0]), "quarter_car")
+        return yardstick_key(problem, sc.label(sc.seeds[0]), profile("quarter_car").warm_laws)
 
     before = key()
     assert key() == before

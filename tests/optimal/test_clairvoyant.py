@@ -7,6 +7,7 @@ pytest.importorskip("casadi")
 
 from mrd_env.optimal import cache, episode_problem
 from mrd_env.optimal import full_knowledge as cv
+from experiments.common.plants import profile
 
 CAR = dict(road="iso8608", road_params={"road_class": "C", "speed": 20.0}, episode_seconds=1.5)
 BUILDING = dict(damper_floors=(2,), ground_motion="el_centro", ground_motion_params={"time_scale": 0.2},
@@ -19,7 +20,7 @@ def car():
     from experiments.common.yardstick import warm_starts
 
     p = episode_problem("mrd_env/QuarterCarPhysical-v0", seed=SEED, control_dt=0.01, **CAR)
-    return p, warm_starts(p, "quarter_car")
+    return p, warm_starts(p, profile("quarter_car").warm_laws)
 
 
 @pytest.fixture(scope="module")
@@ -49,7 +50,7 @@ def test_building_optimum_is_at_least_every_warm_start():
     from experiments.common.yardstick import warm_starts
 
     p = episode_problem("mrd_env/ShearBuildingPhysical-v0", seed=SEED, control_dt=0.01, **BUILDING)
-    r = cv.clairvoyant(p, warm_starts=warm_starts(p, "shear_building"), cache=False, progress=False)
+    r = cv.clairvoyant(p, warm_starts=warm_starts(p, profile("shear_building").warm_laws), cache=False, progress=False)
     assert r.ret >= max(r.warm_returns.values())
     assert r.source == "optimiser" and r.ret > max(r.warm_returns.values())
     assert p.replay(r.commands).ret == r.ret

@@ -33,6 +33,7 @@ PROFILE = PlantProfile(
     response_axis=lambda response: ("body acceleration (m/s²)", 1.0),
     normalise_by_passive_off=True,
     bar_metrics=("acc_weighted_rms/off", "pitch_acc_rms/off", "travel_peak/off", "tyre_load_ratio/off"),
+    metric_units={"acc_weighted_rms": "m/s²", "pitch_acc_rms": "rad/s²", "travel_peak": "m"},
     mpc=(("mpc", None, {}, False),),
     # mrd_env.optimal builds and replays the half car's episode problem (two dampers), but its clairvoyant solve
     # and active bound have not been checked on it: the yardstick refuses it rather than report unchecked numbers

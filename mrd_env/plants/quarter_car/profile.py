@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from ..profile import PlantProfile, TestCase
 from . import SPEC
+from .physics import quarter_car
 
 
 def road_tests(plant: dict, quick: bool, bump: bool = True) -> list[TestCase]:
@@ -28,6 +29,15 @@ def road_tests(plant: dict, quick: bool, bump: bool = True) -> list[TestCase]:
 
 def _quarter_car_tests(plant: dict, quick: bool) -> list[TestCase]:
     return road_tests(plant, quick)
+
+
+def passive_car(options: dict) -> tuple[str, dict]:
+    """The conventional passive car of a set-up (its environment options), the benchmark's ``passive_ref`` row: its
+    name and the options that replace the MR damper by the preset's passive damper — a Bingham damper of viscous
+    coefficient ``passive_c`` and no friction."""
+    c = quarter_car(options.get("plant_preset", "set_a")).passive_c
+    return f"passive_ref (c={c:g})", {"damper": "bingham",
+                                      "damper_params": dict(fc_a=0.0, fc_b=0.0, c0a=c, c0b=0.0, f0=0.0)}
 
 
 _REWARD_MPC = {"weights": "reward", "f_max": 1e5}
@@ -57,4 +67,9 @@ PROFILE = PlantProfile(
          ("mpc+preview (reward)", None, {**_REWARD_MPC, "force_ref": 200.0, "horizon": 10}, True),
          ("mpc (reward)", 1e-3, {**_REWARD_MPC, "force_ref": 1000.0, "horizon": 10}, False),
          ("mpc+preview (reward)", 1e-3, {**_REWARD_MPC, "force_ref": 1000.0, "horizon": 100}, True)),
-    passive_reference=True, preview=True, warm_laws=CAR_LAWS, published=True)
+    passive_reference=passive_car,
+    metric_units={"acc_weighted_rms": "m/s²", "travel_rms": "m", "travel_peak": "m", "tyre_load_rms": "N"},
+    preview=True, warm_laws=CAR_LAWS, published=True,
+    # the plant of the single-plant commands without --plant: the shipped hyperparameters' reference plant (the
+    # half car trains with its entries, ``hyperparams_fallback``)
+    train_default=True)

@@ -71,5 +71,6 @@ PROFILE = PlantProfile(
     response=_storey_response, response_axis=_storey_axis,
     bar_metrics=("J1", "J2", "J3", "J4", "J5", "J6"), bar_ylabel="ratio to the uncontrolled building (dimensionless)",
     bar_legend_columns=3,
+    metric_units={"drift_peak": "m", "acc_peak": "m/s²", "damper_force_peak": "N"},
     mpc=(("mpc", None, {}, False), ("mpc (reward)", 1e-3, {"weights": "reward"}, False)),
     warm_laws=_BUILDING_LAWS, published=True)
