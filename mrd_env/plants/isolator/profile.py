@@ -47,6 +47,8 @@ PROFILE = PlantProfile(
     bar_metrics=("acc_rms/off", "acc_weighted_rms/off", "stroke_rms/off", "stroke_peak/off"),
     mpc=(("mpc", None, {}, False),
          ("mpc (reward)", None, {"weights": "reward"}, False)),
+    metric_units={"acc_rms": "m/s²", "acc_weighted_rms": "m/s²", "stroke_rms": "m", "stroke_peak": "m",
+                  "transmissibility": "-"},
     warm_laws=ISOLATOR_LAWS,
     hyperparams_fallback=QUARTER_CAR.physics_id,
     published=False)
