@@ -11,52 +11,13 @@ import warnings
 from mrd_env.plants import plant, plant_of_id, plants
 from mrd_env.plants.profile import PlantProfile, TestCase
 
-__all__ = ["PlantProfile", "TestCase", "PLANTS", "profile", "by_env_id", "plant_choices", "plant_name",
+__all__ = ["PlantProfile", "TestCase", "profiles", "profile", "by_env_id", "plant_choices", "plant_name",
            "default_plant", "chosen_plants"]
 
 
-def _profiles() -> dict[str, PlantProfile]:
+def profiles() -> dict[str, PlantProfile]:
+    """Every plant's profile by its name, in registry order (each imports its environment's module on first use)."""
     return {name: spec.profile for name, spec in plants().items()}
-
-
-class _Profiles(dict):
-    """{plant name: profile}, filled on first use (the profiles import their environments' modules)."""
-
-    def _fill(self) -> None:
-        if not dict.__len__(self):
-            self.update(_profiles())
-
-    def __getitem__(self, key):
-        self._fill()
-        return dict.__getitem__(self, key)
-
-    def __iter__(self):
-        self._fill()
-        return dict.__iter__(self)
-
-    def __len__(self):
-        self._fill()
-        return dict.__len__(self)
-
-    def __contains__(self, key):
-        self._fill()
-        return dict.__contains__(self, key)
-
-    def keys(self):
-        self._fill()
-        return dict.keys(self)
-
-    def values(self):
-        self._fill()
-        return dict.values(self)
-
-    def items(self):
-        self._fill()
-        return dict.items(self)
-
-
-#: Every plant's profile by its name.
-PLANTS: dict[str, PlantProfile] = _Profiles()
 
 
 def profile(name: str | PlantProfile) -> PlantProfile:
@@ -92,7 +53,7 @@ def plant_name(value: str) -> str:
 def default_plant() -> str:
     """The ``--plant`` of the commands that take one plant (train, tune) when none is given: the plant whose profile
     says so (:attr:`PlantProfile.train_default`)."""
-    chosen = [name for name, p in PLANTS.items() if p.train_default]
+    chosen = [name for name, p in profiles().items() if p.train_default]
     if len(chosen) != 1:
         raise ValueError(f"exactly one plant profile must set train_default, got {chosen}")
     return chosen[0]
@@ -101,9 +62,10 @@ def default_plant() -> str:
 def chosen_plants(value: str) -> list[PlantProfile]:
     """The plants of a ``--plant`` value: "both" (the published benchmark's plants), "all" or one plant (a former
     name after a DeprecationWarning)."""
-    published = [p for p in PLANTS.values() if p.published]
+    every = profiles()
+    published = [p for p in every.values() if p.published]
     if value == "both":
         return published
     if value == "all":
-        return [*published, *(PLANTS[n] for n in sorted(PLANTS) if not PLANTS[n].published)]
+        return [*published, *(every[n] for n in sorted(every) if not every[n].published)]
     return [profile(value)]

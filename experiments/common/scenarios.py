@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from .plants import PLANTS, PlantProfile
+from .plants import PlantProfile, profiles
 
 #: Seeds of validation and test episodes start here; training draws from SB3's seeds (the run's seed + env index),
 #: far below.
@@ -21,7 +21,7 @@ PREVIEW = tuple(round(0.01 * k, 2) for k in range(1, 11))
 def preview_options(plant: PlantProfile, options: dict) -> dict:
     """``options`` with the road-preview sensor added to its sensors (a plant whose profile has ``preview``)."""
     if not plant.preview:
-        having = " and the ".join(p.title for p in PLANTS.values() if p.preview)
+        having = " and the ".join(p.title for p in profiles().values() if p.preview)
         raise ValueError(f"road preview is a sensor of the {having}, not of the {plant.title}")
     sensors = tuple(options.get("sensors") or plant.spec.module("env").DEFAULT_SENSORS)
     return {**options, "sensors": (*sensors, "road_preview"), "preview": PREVIEW}

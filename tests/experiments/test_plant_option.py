@@ -12,7 +12,7 @@ import pytest
 from controllers import load_agent, shipped_agents
 from controllers.agents import recorded_plant
 from experiments.cli import build_parser
-from experiments.common.plants import PLANTS, chosen_plants, default_plant, plant_choices, profile
+from experiments.common.plants import chosen_plants, default_plant, plant_choices, profile, profiles
 
 #: The commands with a ``--plant`` option.
 COMMANDS = ("benchmark", "evaluate", "yardstick", "train", "tune")
@@ -20,7 +20,7 @@ COMMANDS = ("benchmark", "evaluate", "yardstick", "train", "tune")
 
 def renamed() -> tuple[str, str]:
     """(a former name, the plant's name today)."""
-    return next((former, name) for name, p in PLANTS.items() for former in p.spec.former_names)
+    return next((former, name) for name, p in profiles().items() for former in p.spec.former_names)
 
 
 @pytest.mark.parametrize("command", COMMANDS)
@@ -37,14 +37,14 @@ def test_a_former_plant_name_still_works_but_is_not_offered(command, capsys):
 
 
 def test_the_single_plant_commands_default_to_the_one_training_default():
-    assert [name for name, p in PLANTS.items() if p.train_default] == [default_plant()]
+    assert [name for name, p in profiles().items() if p.train_default] == [default_plant()]
     for command in ("train", "tune"):
         assert build_parser(command).parse_args([command]).plant == default_plant()
 
 
 def test_chosen_plants_are_profiles():
-    assert chosen_plants("both") == [p for p in PLANTS.values() if p.published]
-    assert {p.name for p in chosen_plants("all")} == set(PLANTS)
+    assert chosen_plants("both") == [p for p in profiles().values() if p.published]
+    assert {p.name for p in chosen_plants("all")} == set(profiles())
     former, name = renamed()
     with pytest.warns(DeprecationWarning):
         assert chosen_plants(former) == [profile(name)]
@@ -53,9 +53,9 @@ def test_chosen_plants_are_profiles():
 def test_a_profile_travels_to_a_worker_as_itself():
     """A profile holds lambdas, which do not pickle: it pickles as its plant's name, and a worker takes the same
     profile from the registry. A profile the registry does not hold is refused rather than swapped."""
-    for p in PLANTS.values():
+    for p in profiles().values():
         assert pickle.loads(pickle.dumps(p)) is p
-    edited = dataclasses.replace(next(iter(PLANTS.values())), laws=())
+    edited = dataclasses.replace(next(iter(profiles().values())), laws=())
     with pytest.raises(pickle.PicklingError, match="not the registered one"):
         pickle.dumps(edited)
 
