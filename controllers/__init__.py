@@ -6,6 +6,8 @@ damper model, :mod:`.nmpc`, needs CasADi and a C compiler, not real time). ``CON
 ``VARIANTS`` names laws with options (clipped-optimal control with each inverse model: ``"clipped_optimal+model"``
 is ``ClippedOptimal(env, inverse="model")``; ``"clipped_optimal_reward"`` is ``ClippedOptimal(env, weights="reward",
 design="sampled")``, designed for the environment's reward at its control step).
+``ControllerProtocol`` (:mod:`.protocol`): what any controller, yours too, must be to be scored on a benchmark suite
+(``mrd-env score``).
 """
 from .agents import TrainedAgent, load_agent, shipped_agents
 from .base import AgentController, Controller, PassiveOff, PassiveOn, RandomCommand
@@ -13,12 +15,13 @@ from .friction_laws import MaximumEnergyDissipation, ModulatedHomogeneousFrictio
 from .model_based import ClippedOptimal, KalmanEstimator, LinearDesign, Lyapunov
 from .mpc import MPC
 from .nmpc import NonlinearMPC
+from .protocol import ControllerProtocol, build_controller, import_object
 from .registry import CONTROLLERS, VARIANTS, available_controllers, make_controller
 from .velocity_laws import Groundhook, Hybrid, SkyhookContinuous, SkyhookOnOff, force_gain
 
 
-__all__ = ["NonlinearMPC", "AgentController", "CONTROLLERS", "ClippedOptimal", "Controller", "Groundhook", "Hybrid",
-           "KalmanEstimator", "LinearDesign", "Lyapunov", "MPC", "MaximumEnergyDissipation",
+__all__ = ["NonlinearMPC", "AgentController", "CONTROLLERS", "ClippedOptimal", "Controller", "ControllerProtocol",
+           "Groundhook", "Hybrid", "KalmanEstimator", "LinearDesign", "Lyapunov", "MPC", "MaximumEnergyDissipation",
            "ModulatedHomogeneousFriction", "PassiveOff", "PassiveOn", "RandomCommand", "SkyhookContinuous", "SkyhookOnOff",
-           "TrainedAgent", "VARIANTS", "available_controllers", "force_gain", "load_agent", "make_controller",
-           "shipped_agents"]
+           "TrainedAgent", "VARIANTS", "available_controllers", "build_controller", "force_gain", "import_object",
+           "load_agent", "make_controller", "shipped_agents"]

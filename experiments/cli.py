@@ -38,6 +38,11 @@ COMMANDS = {
                        "fit several damper models to a record and compare them on the held-back part"),
     "inverse": ("experiments.commands.inverse",
                 "inverse models: force-tracking tables and figures (achievable forces, a measured record); train one"),
+    "score": ("experiments.commands.score",
+              "score controllers (laws, agents, your module:attribute) on a benchmark suite: shares of the achievable "
+              "gain and criteria with 95-percent intervals, one result file each"),
+    "leaderboard": ("experiments.commands.leaderboard",
+                    "merge result files of mrd-env score on one suite version into one table and one figure"),
 }
 
 

@@ -180,6 +180,14 @@ CASES = {
         ["train", "--rms", "0", "1", "--out", "{missing}"], ["train", "--seed", "-1", "--out", "{missing}"],
         ["train", "--history", "0", "--out", "{missing}"], ["train", "--dt", "0", "--out", "{missing}"],
     ],
+    "score": [
+        ["--nope"], [], ["--suite", "nope", "--controller", "passive_off"],
+        ["--suite", "{missing}", "--controller", "passive_off"], ["--suite", "{wrong}", "--controller", "passive_off"],
+        ["--suite", "{binary}", "--controller", "passive_off"], ["--suite", "nope", "--controller", "passive_off",
+                                                                 "--episodes", "0"],
+        ["--suite", "nope", "--controller", "passive_off", "--jobs", "0"],
+    ],
+    "leaderboard": [["--nope"], [], ["{missing}"], ["{binary}"], ["{wrong}"], ["{good}"], ["{folder}"]],
 }
 
 

@@ -1,0 +1,80 @@
+"""``mrd-env score``: controllers scored on a frozen benchmark suite (:mod:`mrd_env.suites`) against its stored
+references — the share of the achievable gain (R − R_p) / (R_c − R_p) and the suite's criteria, per scenario, with
+95 % intervals over the episodes (:mod:`experiments.common.scoring`; nothing is solved).
+
+``--controller`` (repeatable) takes a registered law's name, an agent folder, or ``package.module:attribute``: a class
+or factory taking the environment, or an object with ``predict`` (the protocol: :mod:`controllers.protocol`).
+**Naming a module imports it: its code runs**, as with ``python -m`` — only name code you mean to run. Agents load
+without running code from their folders (one that only has SB3's pickled ``model.zip`` needs ``--trust-agent``).
+
+Writes, per controller, ``<out>/<suite id>__<controller>.json`` (the result file: suite name, version and digest, the
+controller's description, every episode's figures) and ``.md``/``.csv`` (its table); ``mrd-env leaderboard`` merges
+result files of the same suite.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from pathlib import Path
+
+from mrd_env import storage
+
+from ..common import sweep
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--suite", required=True,
+                   help="a shipped suite (name-vN, e.g. car-comfort-v1; a name without version: its latest) or a "
+                        "suite file (.json)")
+    p.add_argument("--controller", action="append", required=True, metavar="CONTROLLER",
+                   help="a registered law (e.g. skyhook_continuous), an agent folder, or package.module:attribute "
+                        "(a class or factory taking the environment, or an object with predict; IMPORTING IT RUNS "
+                        "ITS CODE: name only code you mean to run); repeat for several")
+    p.add_argument("--out", type=Path, default=Path("results/score"))
+    p.add_argument("--episodes", type=int, default=None,
+                   help="only the first K episodes of each scenario (a smoke run: the result is marked partial)")
+    p.add_argument("--trust-agent", action="store_true",
+                   help="also load agents that only have SB3's model.zip (pickles: they can run any code; only from a "
+                        "source you trust; converted once into <out>/converted-agents/)")
+    p.add_argument("--no-progress", action="store_true")
+    sweep.add_arguments(p)
+
+
+def run(args: argparse.Namespace) -> int:
+    from controllers.protocol import is_import_spec
+
+    from ..common.scoring import (check_controller, check_references, controller_spec, resolve_suite,
+                                  result_filename, score)
+
+    if args.episodes is not None and args.episodes < 1:
+        raise ValueError(f"--episodes must be >= 1, got {args.episodes}")
+    executor = sweep.options(args)
+    if any(is_import_spec(c) for c in args.controller) and not {"", os.getcwd()} & set(sys.path):
+        # module:attribute looked up in the installed packages, then the current folder (last: it shadows nothing)
+        sys.path.append(os.getcwd())
+    suite = resolve_suite(args.suite)
+    check_references(suite)
+    storage.writable_folder(args.out)
+    # every controller checked before any episode runs: a typo must not cost the first controller's episodes
+    specs = []
+    for c in args.controller:
+        spec = controller_spec(c, trust_agent=args.trust_agent, converted=args.out / "converted-agents")
+        check_controller(spec, suite)
+        if any(s.name == spec.name for s in specs):
+            raise ValueError(f"--controller {c}: {spec.name} is given twice")
+        specs.append(spec)
+    files = [args.out / result_filename(suite.id, s.name) for s in specs]
+    clash = {f for f in files if files.count(f) > 1}
+    if clash:
+        raise ValueError(f"--controller: two controllers would write {sorted(map(str, clash))[0]}; rename one")
+    for spec, path in zip(specs, files):
+        result = score(suite, spec, episodes=args.episodes, progress=not args.no_progress,
+                       command=["mrd-env", *getattr(args, "_argv", [])], **executor)
+        result.write(path)
+        md, csv_path = result.write_tables(path.with_suffix(""))
+        print(result.markdown())
+        print(f"wrote {path}, {md}, {csv_path}")
+    if len(files) > 1:
+        print(f"merge them: mrd-env leaderboard {' '.join(map(str, files))} --out {args.out / 'leaderboard'}")
+    return 0

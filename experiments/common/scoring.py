@@ -1,0 +1,704 @@
+"""Scoring a controller on a benchmark suite (``mrd-env score``) and merging the results (``mrd-env leaderboard``).
+
+:func:`score` runs every episode of a suite (:mod:`mrd_env.suites`: its scenarios and seeds, its environment options,
+its control step) with one controller — a registered law, a saved agent, or any Python object that follows
+:class:`controllers.protocol.ControllerProtocol` — and scores each episode against the suite's **stored** references:
+the share of the achievable gain (R − R_p) / (R_c − R_p), and the suite's criteria (its episode metrics, and the
+constraint cost where the environment reports one). Nothing is solved here: a suite without a reference for one of
+its episodes is refused. Per scenario and over all of them: the mean and its 95 % interval over the episodes
+(:func:`~experiments.common.evaluation.mean_ci`; one episode has no interval).
+
+A :class:`SuiteResult` is written as one plain JSON file per controller (:meth:`SuiteResult.write`, atomically): the
+format, the suite's name, version and digest, the controller's description (its name, its kind — law, agent or
+python — and, for an agent, the digest of its files), every episode's figures and the summary.
+:func:`leaderboard` reads such files — as data only: nothing a result file names is imported or run — refuses one of
+another suite, version or digest than the first file's (their shares are against other references, or other
+episodes), and merges them into one table (controllers × scenarios, the share with its interval) and one figure.
+
+From Python::
+
+    from experiments.common.scoring import leaderboard, score
+
+    score("car-comfort-v1", "skyhook_continuous").write("results/score/skyhook.json")
+    score("car-comfort-v1", MyController).write("results/score/mine.json")   # a class taking the env
+    print(leaderboard(["results/score/skyhook.json", "results/score/mine.json"], out="results/board").markdown())
+"""
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import re
+from dataclasses import dataclass, field
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mrd_env import storage
+
+from .evaluation import evaluate_batch, grouped_bars, mean_ci
+from .scenarios import Scenario
+
+#: The result files' format (bumped when their fields change).
+FORMAT = "mrd-env-score"
+FORMAT_VERSION = 1
+#: What a controller can be: a registered law, a saved agent, Python code (``module:attribute`` or an object).
+KINDS = ("law", "agent", "python")
+#: The row pooling every episode of the suite.
+ALL = "all scenarios"
+#: Options of an agent's environment that belong to the agent itself (how its action becomes the command): the
+#: suite's environment takes the agent's; every other option is the suite's.
+AGENT_ACTION_OPTIONS = ("action_mode", "inverse", "force_range")
+#: The unit of the constraint costs (:mod:`mrd_env.envs.costs`: time in violation).
+COST_UNIT = "s"
+
+
+# ---------------------------------------------------------------------------------------------- the suite
+
+
+def resolve_suite(suite) -> Any:
+    """A :class:`mrd_env.suites.Suite`: ``suite`` itself, a shipped suite's name (``car-comfort-v1``; a name without
+    version: its latest) or a suite file's path; ``ValueError`` otherwise."""
+    from mrd_env import suites
+
+    if isinstance(suite, suites.Suite):
+        return suite
+    if isinstance(suite, Path):
+        return suites.read_suite(suite)
+    if not isinstance(suite, str):
+        raise ValueError(f"a suite is a Suite, its name or its file's path, got a {type(suite).__name__}")
+    if not suite.endswith(".json") and Path(suite).is_file():
+        return suites.read_suite(suite)
+    return suites.suite(suite)  # looked up here, at call time: a shipped suite's name, or a .json file
+
+
+def check_references(suite) -> None:
+    """``ValueError`` naming the episodes of ``suite`` that have no stored reference (scoring solves nothing)."""
+    missing = [sc.label(seed) for sc, seed in suite.episodes() if sc.label(seed) not in suite.references]
+    if missing:
+        raise ValueError(f"suite {suite.id} has no reference for the episode(s) {missing}: a score needs every "
+                         "episode's stored reference values (nothing is solved when scoring)")
+
+
+# ---------------------------------------------------------------------------------------------- the controller
+
+
+@dataclass(frozen=True)
+class ControllerSpec:
+    """A controller to score: ``kind`` (``law``, ``agent``, ``python``), ``ref`` (the law's name, the agent's folder,
+    ``module:attribute``, or the Python object itself), the row's ``name`` and the result file's ``description``."""
+
+    kind: str
+    ref: Any
+    name: str
+    description: dict
+
+    @property
+    def picklable(self) -> bool:
+        """Whether a worker can rebuild it (a name, a folder, an import spec; not an object of the caller's)."""
+        return isinstance(self.ref, (str, Path))
+
+
+def _source_digest(obj) -> str | None:
+    """SHA-256 of the file that defines ``obj`` (its module's), where there is one: which code was scored."""
+    import hashlib
+    import inspect
+
+    try:
+        path = inspect.getsourcefile(obj if inspect.isclass(obj) or inspect.isfunction(obj) else type(obj))
+    except TypeError:
+        return None
+    if not path or not Path(path).is_file():
+        return None
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def controller_spec(controller, *, name: str | None = None, trust_agent: bool = False,
+                    converted: str | Path | None = None) -> ControllerSpec:
+    """What ``controller`` is: a registered law's name (``controllers.available_controllers()``), an agent folder (a
+    path; an agent that only has SB3's pickled ``model.zip`` needs ``trust_agent`` and is converted once into
+    ``converted``), ``package.module:attribute`` (**imported: its code runs**) or a Python object — a class or factory
+    taking the environment, or an object with ``predict`` (:mod:`controllers.protocol`). ``ValueError`` (one line)
+    otherwise."""
+    from controllers import available_controllers
+    from controllers.protocol import import_object, is_import_spec
+
+    if isinstance(controller, str) and controller in available_controllers():
+        return ControllerSpec("law", controller, name or controller, {"name": name or controller, "kind": "law",
+                                                                      "spec": controller})
+    if isinstance(controller, str) and is_import_spec(controller) and not Path(controller).exists():
+        obj = import_object(controller)  # ValueError, one line; runs the user's module (their explicit choice)
+        desc = {"name": name or controller, "kind": "python", "spec": controller}
+        digest = _source_digest(obj)
+        if digest:
+            desc["source_sha256"] = digest
+        return ControllerSpec("python", controller, name or controller, desc)
+    if isinstance(controller, (str, Path)):
+        path = Path(controller)
+        if not path.exists():
+            raise ValueError(f"controller {str(controller)!r} is none of: a registered law "
+                             f"({', '.join(available_controllers())}), an agent folder, package.module:attribute")
+        return _agent_spec(path, name, trust_agent, converted)
+    from controllers.protocol import ControllerProtocol
+
+    if not callable(controller) and not isinstance(controller, ControllerProtocol):
+        raise ValueError(f"a {type(controller).__name__} is not a controller: give a registered law's name, an agent "
+                         "folder, package.module:attribute, a class or factory taking the environment, or an object "
+                         "with predict")
+    label = name or getattr(controller, "name", None)
+    if not isinstance(label, str) or not label:
+        label = getattr(controller, "__qualname__", None) or type(controller).__qualname__
+    desc = {"name": label, "kind": "python", "spec": f"{getattr(controller, '__module__', '?')}:{label}"}
+    digest = _source_digest(controller)
+    if digest:
+        desc["source_sha256"] = digest
+    return ControllerSpec("python", controller, label, desc)
+
+
+def _agent_spec(path: Path, name: str | None, trust: bool, converted) -> ControllerSpec:
+    import tempfile
+
+    from controllers.agents import agent_digest, agent_files, code_free_agent, load_agent
+
+    agent_files(path)  # ValueError for a folder that holds no agent
+    if converted is None and trust:
+        converted = tempfile.mkdtemp(prefix="mrd-env-converted-agents-")
+    folder = code_free_agent(path, converted or ".", trust=trust)  # an SB3 zip: refused, or converted once here
+    agent = load_agent(folder)
+    label = name or f"agent {agent.name}"
+    desc = {"name": label, "kind": "agent", "spec": str(path), "agent_digest": agent_digest(folder),
+            "algo": agent.meta.get("algo"), "env_id": agent.env_id,
+            "action_options": {k: agent.env_kwargs[k] for k in AGENT_ACTION_OPTIONS if k in agent.env_kwargs}}
+    return ControllerSpec("agent", str(folder), label, _plain(desc))
+
+
+def _plain(v):
+    """``v`` with tuples as lists (JSON), recursively."""
+    if isinstance(v, dict):
+        return {k: _plain(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_plain(x) for x in v]
+    return v
+
+
+def env_options(suite, scenario, seed: int, spec: ControllerSpec) -> dict:
+    """The environment options of the episode (``scenario``, ``seed``) for ``spec``: the suite's, the scenario's and,
+    for a robustness twin, the episode's stored draw (``Suite.episode_options``), at the suite's control step; an
+    agent keeps its own action options (:data:`AGENT_ACTION_OPTIONS`: how its action becomes the command), every
+    other option is the suite's."""
+    episode = getattr(suite, "episode_options", None)
+    options = dict(episode(scenario, seed)) if episode is not None else {**suite.options, **scenario.options}
+    options["control_dt"] = suite.control_dt
+    if spec.kind == "agent":
+        options.update(spec.description.get("action_options", {}))
+    return options
+
+
+def _build(spec: ControllerSpec, venv):
+    """The controller of ``spec`` on ``venv`` (a vector environment of the suite)."""
+    from controllers import load_agent, make_controller
+    from controllers.protocol import build_controller, import_object
+
+    if spec.kind == "law":
+        return make_controller(spec.ref, venv)
+    if spec.kind == "agent":
+        return load_agent(spec.ref).bind(venv)
+    obj = import_object(spec.ref) if isinstance(spec.ref, str) else spec.ref
+    return build_controller(obj, venv, what=f"controller {spec.name}")
+
+
+def _check_agent(spec: ControllerSpec, suite, venv) -> None:
+    """An agent scored on a suite sees the suite's sensors at the suite's control step, in the suite's environment:
+    ``ValueError`` where it was trained on another environment, other sensors or another preview."""
+    from controllers import load_agent
+
+    agent = load_agent(spec.ref)
+    if agent.env_id != suite.env_id:
+        raise ValueError(f"agent {spec.name}: trained on {agent.env_id}, the suite {suite.id} runs {suite.env_id}")
+    kw = agent.observation_kwargs
+    base = getattr(venv, "unwrapped", venv)
+    if "sensors" in kw:
+        have = [n for n, *_ in base.sensor_layout]
+        if list(kw["sensors"]) != have:
+            raise ValueError(f"agent {spec.name}: trained on the sensors {list(kw['sensors'])}, the suite {suite.id} "
+                             f"measures {have}")
+    if "preview" in kw and tuple(float(x) for x in kw["preview"]) != tuple(getattr(base, "preview_times", ())):
+        raise ValueError(f"agent {spec.name}: trained with road preview {list(kw['preview'])} s, the suite "
+                         f"{suite.id} gives {list(getattr(base, 'preview_times', ()))}")
+
+
+def check_controller(spec: ControllerSpec, suite) -> None:
+    """Build ``spec`` on a one-episode vector environment of each of the suite's scenarios, before any episode runs:
+    a law that misses a sensor, an agent trained on other observations, a user's factory that raises — each is a
+    one-line ``ValueError`` naming the controller."""
+    import gymnasium as gym
+
+    import mrd_env  # noqa: F401  (registers the environments)
+
+    for sc in suite.scenarios:
+        venv = gym.make_vec(suite.env_id, num_envs=1, vectorization_mode="vector_entry_point",
+                            **env_options(suite, sc, sc.seeds[0], spec))
+        try:
+            if spec.kind == "agent":
+                _check_agent(spec, suite, venv)
+            try:
+                _build(spec, venv)
+            except ValueError as exc:
+                text = str(exc)
+                raise ValueError(text if text.startswith(("controller ", "agent ")) else
+                                 f"controller {spec.name}: {text}") from None
+        finally:
+            venv.close()
+
+
+class _Driven:
+    """A controller as :func:`~experiments.common.evaluation.evaluate_batch` drives it, holding the protocol: the
+    state handed back, ``episode_start`` at the first step, ``reset`` only where the controller has one, and every
+    action checked (shape, finite) with a one-line error naming the controller. ``user``: the controller is the
+    user's code, whose exceptions are reported as theirs (a one-line ``ValueError``), not as the project's bugs."""
+
+    def __init__(self, ctrl, venv, name: str, user: bool = False):
+        self.ctrl, self.name, self.user = ctrl, name, user
+        self.space = venv.single_action_space
+        self.n = int(venv.num_envs)
+        self._state, self._start = None, True
+
+    def _call(self, what: str, fn, *args, **kwargs):
+        if not self.user:
+            return fn(*args, **kwargs)
+        try:
+            return fn(*args, **kwargs)
+        except ValueError as exc:
+            raise ValueError(f"controller {self.name}: {what}: {exc}") from exc
+        except Exception as exc:  # the user's code: its error, on one line
+            raise ValueError(f"controller {self.name}: {what} raised {type(exc).__name__}: {exc}") from exc
+
+    def reset(self, mask=None) -> None:
+        self._state, self._start = None, True
+        reset = getattr(self.ctrl, "reset", None)
+        if callable(reset):
+            self._call("reset()", reset)
+
+    def predict(self, observation, state=None, episode_start=None, deterministic: bool = True):
+        start = np.full(self.n, self._start)
+        self._start = False
+        out = self._call("predict", self.ctrl.predict, observation, state=self._state, episode_start=start,
+                         deterministic=True)
+        if not isinstance(out, tuple) or len(out) != 2:
+            raise ValueError(f"controller {self.name}: predict must return (action, state), got a "
+                             f"{type(out).__name__}")
+        action, self._state = out
+        try:
+            a = np.asarray(action, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise ValueError(f"controller {self.name}: predict returned a {type(action).__name__}, not an array "
+                             "of numbers") from None
+        want = (self.n, *self.space.shape)
+        if a.shape != want and not (a.shape == (self.n,) and self.space.shape == (1,)):
+            raise ValueError(f"controller {self.name}: predict returned an action of shape {a.shape}; the suite's "
+                             f"environment takes {want} (one row per episode, one command per damper)")
+        if not np.all(np.isfinite(a)):
+            raise ValueError(f"controller {self.name}: predict returned a non-finite action")
+        return a.reshape(want).astype(self.space.dtype), self._state
+
+
+def scenario_episodes(suite, index: int, seeds: tuple[int, ...], spec: ControllerSpec) -> list[dict]:
+    """The figures of the episodes ``seeds`` of the suite's scenario ``index`` with ``spec`` (a plain function of
+    picklable inputs, for :mod:`mrd_env.executor`): per episode its label, scenario, seed, return, share of the
+    achievable gain, criteria and termination. Episodes with the same options run in one vector environment (a
+    nominal scenario: all its seeds; a robustness twin's episodes each have their own draw)."""
+    import mrd_env  # noqa: F401  (registers the environments, also in a fresh worker)
+
+    sc = suite.scenarios[index]
+    groups: dict[str, tuple[dict, list[int]]] = {}
+    for seed in seeds:
+        options = env_options(suite, sc, seed, spec)
+        key = json.dumps(options, sort_keys=True, default=repr)
+        groups.setdefault(key, (options, []))[1].append(int(seed))
+    ran = {}
+    for options, group in groups.values():
+        options = dict(options)
+        control_dt = options.pop("control_dt")
+        eps = evaluate_batch(lambda venv: _Driven(_build(spec, venv), venv, spec.name, user=spec.kind == "python"),
+                             Scenario(sc.name, suite.env_id, options, tuple(group)), "", name=spec.name,
+                             control_dt=control_dt)
+        ran.update(zip(group, eps))
+    eps = [ran[int(seed)] for seed in seeds]
+    out = []
+    for e, seed in zip(eps, seeds):
+        label = sc.label(seed)
+        ret = float(e.episode_return)
+        crit = {}
+        for k in suite.criteria:
+            if k not in e.metrics and "terminated" not in e.metrics:
+                raise ValueError(f"suite {suite.id}: its criterion {k!r} is not an episode metric of {suite.env_id} "
+                                 f"({sorted(e.metrics)})")
+            crit[k] = _number(e.metrics.get(k))
+        for k in sorted(e.metrics):  # the constraint costs, where the environment reports them
+            if (k == "cost" or k.startswith("cost_")) and k not in crit:
+                crit[k] = _number(e.metrics[k])
+        out.append({"label": label, "scenario": sc.name, "seed": int(seed), "return": ret,
+                    "share": suite.reference(label).share(ret), "criteria": crit,
+                    "terminated": e.metrics.get("terminated")})
+    return out
+
+
+def _number(v) -> float:
+    try:
+        return float(v)
+    except (TypeError, ValueError):
+        return math.nan
+
+
+# ---------------------------------------------------------------------------------------------- the result
+
+
+def summary_rows(episodes: list[dict], criteria: list[str]) -> list[dict]:
+    """Per scenario (in the order of ``episodes``) and over all of them (``all scenarios``): the episodes, the share of
+    the achievable gain, the return and every criterion, each as its mean and 95 % interval over the episodes (no
+    interval for one episode), and how many episodes ended early (``terminated``)."""
+    scen = list(dict.fromkeys(e["scenario"] for e in episodes))
+    rows = []
+    for s in scen + [ALL]:
+        mine = [e for e in episodes if s == ALL or e["scenario"] == s]
+        row = {"scenario": s, "episodes": len(mine)}
+        for key, values, upper in [("share", [e["share"] for e in mine], math.inf),
+                                   ("return", [e["return"] for e in mine], 0.0),
+                                   *((k, [e["criteria"].get(k) for e in mine], math.inf) for k in criteria)]:
+            m, lo, hi = mean_ci([_number(v) for v in values], upper=upper)
+            row.update({key: m, f"{key} lo95": lo, f"{key} hi95": hi})
+        row["terminated"] = sum(1 for e in mine if e.get("terminated"))
+        rows.append(row)
+    return rows
+
+
+def _units(suite_plant: str) -> dict:
+    from .plants import profile
+
+    try:
+        return dict(profile(suite_plant).metric_units)
+    except ValueError:
+        return {}
+
+
+@dataclass
+class SuiteResult:
+    """One controller's score on one suite (see the module docstring); :meth:`write` saves it, :func:`read_result`
+    reads it back."""
+
+    suite: dict                 #: id, name, version, digest, plant, env_id, control_dt, episodes (the suite's count)
+    controller: dict            #: name, kind (law, agent, python), spec, and an agent's digest
+    episodes: list[dict]        #: per episode: label, scenario, seed, return, share, criteria, terminated
+    criteria: list[str]         #: the criteria's names (the suite's, then the costs the environment reported)
+    units: dict = field(default_factory=dict)   #: criterion → unit
+    created: str = ""
+    mrd_env_version: str = ""
+    command: list | None = None
+
+    @property
+    def name(self) -> str:
+        return self.controller["name"]
+
+    @property
+    def complete(self) -> bool:
+        """Whether every episode of the suite was scored."""
+        return len(self.episodes) == int(self.suite["episodes"])
+
+    def summary(self) -> list[dict]:
+        """:func:`summary_rows` of this result's episodes."""
+        return summary_rows(self.episodes, self.criteria)
+
+    def shares(self) -> dict[str, tuple[float, float, float]]:
+        """{scenario (and ``all scenarios``): (mean share, lower, upper 95 % bound)}."""
+        return {r["scenario"]: (r["share"], r["share lo95"], r["share hi95"]) for r in self.summary()}
+
+    def table_rows(self, text: bool = False) -> list[dict]:
+        """The summary with the criteria's units in the headers; ``text``: each quantity in one cell, its mean and
+        [95 % interval] (the Markdown table), else three numeric columns (the CSV)."""
+        def header(k: str) -> str:
+            base = k.rsplit(" ", 1)[0] if k.endswith(("lo95", "hi95")) else k
+            return f"{k} ({self.units[base]})" if base in self.units else k
+
+        rows = self.summary()
+        if not text:
+            return [{header(k): v for k, v in r.items()} for r in rows]
+        out = []
+        for r in rows:
+            row = {"scenario": r["scenario"], "episodes": r["episodes"]}
+            for k in ("share", "return", *self.criteria):
+                row[header(k)] = _cell(r[k], r[f"{k} lo95"], r[f"{k} hi95"], ".3f" if k == "share" else ".4g")
+            row["terminated"] = r["terminated"]
+            out.append(row)
+        return out
+
+    def title(self) -> str:
+        partial = "" if self.complete else f"; partial: {len(self.episodes)} of {self.suite['episodes']} episodes"
+        return (f"{self.name} on {self.suite['id']}: share of the achievable gain (R − R_p) / (R_c − R_p), return "
+                f"and criteria (mean [95 % interval over episodes]{partial})")
+
+    def markdown(self) -> str:
+        from mrd_env.report import markdown_table
+
+        return markdown_table(self.table_rows(text=True), title=self.title())
+
+    def to_json(self) -> dict:
+        return _nulls({"format": FORMAT, "format_version": FORMAT_VERSION, "suite": self.suite,
+                       "controller": self.controller, "criteria": list(self.criteria), "units": self.units,
+                       "complete": self.complete, "episodes": self.episodes, "summary": self.summary(),
+                       "created": self.created, "mrd_env_version": self.mrd_env_version, "command": self.command})
+
+    def write(self, path: str | Path) -> Path:
+        """Write the result to ``path`` (plain JSON, atomically: the file is the previous one or this one)."""
+        return storage.write_json(path, self.to_json(), indent=1, allow_nan=False)
+
+    def write_tables(self, stem: str | Path) -> tuple[Path, Path]:
+        """The summary as ``<stem>.md`` (mean [interval] per cell) and ``<stem>.csv`` (numbers), together."""
+        stem = Path(stem)
+        md, csv_path = stem.with_suffix(".md"), stem.with_suffix(".csv")
+        storage.write_texts({md: self.markdown(), csv_path: _csv(self.table_rows())})
+        return md, csv_path
+
+
+def _csv(rows: list[dict]) -> str:
+    buf = io.StringIO(newline="")
+    w = csv.DictWriter(buf, fieldnames=list(rows[0]), restval="")
+    w.writeheader()
+    w.writerows(rows)
+    return buf.getvalue()
+
+
+def _nulls(v):
+    """NaN → None, tuples → lists, NumPy scalars → Python numbers (strict JSON)."""
+    if isinstance(v, dict):
+        return {k: _nulls(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_nulls(x) for x in v]
+    if isinstance(v, (np.floating, np.integer)):
+        v = v.item()
+    if isinstance(v, float) and not math.isfinite(v):
+        return None
+    return v
+
+
+def score(suite, controller, *, name: str | None = None, episodes: int | None = None, backend: str = "serial",
+          jobs: int | None = None, address: str | None = None, trust_agent: bool = False,
+          converted: str | Path | None = None, progress: bool = False, command: list | None = None) -> SuiteResult:
+    """Score ``controller`` on ``suite`` (see the module docstring).
+
+    ``suite``: a :class:`~mrd_env.suites.Suite`, a shipped suite's name or a suite file. ``controller``: a registered
+    law's name, an agent folder, ``package.module:attribute`` (imported: its code runs), or a class, factory or object
+    (:mod:`controllers.protocol`). ``name``: the row's name (default: the law's, ``agent <name>``, the import spec or
+    the object's ``name``/class name). ``episodes``: only the first ``episodes`` seeds of each scenario (a smoke run;
+    the result says it is partial). ``backend``/``jobs``/``address``: one task per scenario on
+    :mod:`mrd_env.executor` (a Python object of the caller's runs in this process). ``trust_agent``: also load an
+    agent that only has SB3's pickled ``model.zip`` (converted once into ``converted``)."""
+    import mrd_env
+    from mrd_env.executor import Task, TaskFailed, run_tasks
+
+    suite = resolve_suite(suite)
+    check_references(suite)
+    if episodes is not None and (isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1):
+        raise ValueError(f"episodes must be a whole number >= 1 (per scenario), got {episodes!r}")
+    spec = controller if isinstance(controller, ControllerSpec) else \
+        controller_spec(controller, name=name, trust_agent=trust_agent, converted=converted)
+    check_controller(spec, suite)
+    tasks = [Task(scenario_episodes, (suite, i, sc.seeds[:episodes]), {"spec": spec}, label=f"{spec.name} / {sc.name}")
+             for i, sc in enumerate(suite.scenarios)]
+    if not spec.picklable:
+        backend = "serial"  # the caller's own object stays in the caller's process
+    try:
+        per_scenario = run_tasks(tasks, backend=backend, jobs=jobs, address=address, progress=progress,
+                                 desc=f"score {spec.name}", retry=False)
+    except TaskFailed as exc:
+        if isinstance(exc.error, ValueError):
+            raise ValueError(str(exc.error)) from exc.error
+        raise
+    eps = [e for group in per_scenario for e in group]
+    criteria = list(dict.fromkeys(k for e in eps for k in e["criteria"]))
+    units = {k: u for k, u in _units(suite.plant).items() if k in criteria}
+    units.update({k: COST_UNIT for k in criteria if k == "cost" or k.startswith("cost_")})
+    return SuiteResult(
+        suite={"id": suite.id, "name": suite.name, "version": suite.version, "digest": suite.digest,
+               "plant": suite.plant, "env_id": suite.env_id, "control_dt": suite.control_dt,
+               "episodes": len(suite.episodes())},
+        controller=spec.description, episodes=_nulls(eps), criteria=criteria, units=units,
+        created=datetime.now(timezone.utc).isoformat(timespec="seconds"), mrd_env_version=mrd_env.__version__,
+        command=None if command is None else [str(a) for a in command])
+
+
+# ---------------------------------------------------------------------------------------------- reading results
+
+
+def _refuse_constant(name: str):
+    raise ValueError(f"{name} is not a number in strict JSON")
+
+
+def _is_number(v, optional: bool = True) -> bool:
+    if v is None:
+        return optional
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def read_result(path: str | Path) -> SuiteResult:
+    """The result in the file ``path``, read as plain data (nothing it names is imported or run) and checked field by
+    field; ``ValueError`` (one line, naming the file) for another format or a malformed file."""
+    path = Path(path)
+    where = f"result file {path}"
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"), parse_constant=_refuse_constant)
+    except (UnicodeDecodeError, json.JSONDecodeError, ValueError) as exc:
+        raise ValueError(f"{where}: not a JSON result of mrd-env score ({exc})") from None
+    if not isinstance(data, dict) or data.get("format") != FORMAT:
+        raise ValueError(f"{where}: not a result of mrd-env score (its format must be {FORMAT!r})")
+    if data.get("format_version") != FORMAT_VERSION:
+        raise ValueError(f"{where}: result format version {data.get('format_version')!r}, this mrd-env reads "
+                         f"{FORMAT_VERSION}")
+
+    def bad(what: str):
+        return ValueError(f"{where}: {what}")
+
+    s = data.get("suite")
+    if not isinstance(s, dict) or not isinstance(s.get("name"), str) or not isinstance(s.get("version"), int) \
+            or isinstance(s.get("version"), bool) or not isinstance(s.get("digest"), str) \
+            or not re.fullmatch(r"[0-9a-f]{64}", s["digest"]) or s.get("id") != f"{s['name']}-v{s['version']}" \
+            or not isinstance(s.get("episodes"), int) or s["episodes"] < 1:
+        raise bad("its suite must give name, version, id (name-vN), digest (SHA-256) and episodes")
+    c = data.get("controller")
+    if not isinstance(c, dict) or not isinstance(c.get("name"), str) or not c["name"].strip() \
+            or c.get("kind") not in KINDS:
+        raise bad(f"its controller must give a name and a kind ({', '.join(KINDS)})")
+    criteria = data.get("criteria")
+    if not isinstance(criteria, list) or not all(isinstance(k, str) for k in criteria):
+        raise bad("its criteria must be a list of names")
+    units = data.get("units", {})
+    if not isinstance(units, dict) or not all(isinstance(u, str) for u in units.values()):
+        raise bad("its units must map criteria to unit names")
+    eps = data.get("episodes")
+    if not isinstance(eps, list) or not eps:
+        raise bad("it holds no episodes")
+    for i, e in enumerate(eps):
+        if not isinstance(e, dict) or not isinstance(e.get("label"), str) or not isinstance(e.get("scenario"), str) \
+                or not isinstance(e.get("seed"), int) or not _is_number(e.get("return"), optional=False) \
+                or not _is_number(e.get("share")) or not isinstance(e.get("criteria"), dict) \
+                or not all(_is_number(v) for v in e["criteria"].values()) \
+                or not (e.get("terminated") is None or isinstance(e["terminated"], str)):
+            raise bad(f"episode {i} must give label, scenario, seed, return, share, criteria (numbers or null) and "
+                      "terminated (null or a reason)")
+    labels = [e["label"] for e in eps]
+    if len(set(labels)) != len(labels):
+        raise bad("an episode appears twice")
+    if len(eps) > s["episodes"]:
+        raise bad(f"it holds {len(eps)} episodes, its suite has {s['episodes']}")
+    eps = [{**e, "share": math.nan if e["share"] is None else e["share"],
+            "criteria": {k: math.nan if v is None else v for k, v in e["criteria"].items()}} for e in eps]
+    return SuiteResult(suite=s, controller=c, episodes=eps, criteria=criteria, units=units,
+                       created=str(data.get("created", "")), mrd_env_version=str(data.get("mrd_env_version", "")),
+                       command=data.get("command") if isinstance(data.get("command"), list) else None)
+
+
+def _suite_key(r: SuiteResult) -> tuple:
+    return r.suite["name"], r.suite["version"], r.suite["digest"]
+
+
+def _cell(m: float, lo: float, hi: float, fmt: str = ".3f") -> str:
+    """``mean [lo, hi]``, or the mean alone where there is no interval (one episode); ``n/a`` for no number."""
+    if not math.isfinite(m):
+        return "n/a"
+    if math.isfinite(lo) and math.isfinite(hi):
+        return f"{m:{fmt}} [{lo:{fmt}}, {hi:{fmt}}]"
+    return f"{m:{fmt}}"
+
+
+@dataclass
+class Leaderboard:
+    """Results of one suite merged (:func:`leaderboard`): ``rows`` (per controller and scenario: episodes, share and
+    its interval), ``table`` (one row per controller, best first by the share over all scenarios: one column per
+    scenario, the share and its interval as text)."""
+
+    suite: dict
+    results: list[SuiteResult]
+    rows: list[dict]
+    table: list[dict]
+
+    def title(self) -> str:
+        return (f"{self.suite['id']}: share of the achievable gain (R − R_p) / (R_c − R_p) per controller and "
+                "scenario (mean [95 % interval over episodes]; 0: the best constant command, 1: the clairvoyant "
+                "optimum)")
+
+    def markdown(self) -> str:
+        from mrd_env.report import markdown_table
+
+        rows = [{k: (str(v).replace("|", "\\|") if isinstance(v, str) else v) for k, v in r.items()}
+                for r in self.table]
+        return markdown_table(rows, title=self.title())
+
+    def write(self, out: str | Path) -> dict[str, Path]:
+        """``<out>/leaderboard.md`` and ``.csv`` (the table), ``leaderboard_rows.md``/``.csv`` (the numbers) and
+        ``leaderboard.png`` (one panel per scenario, a bar per controller with its interval)."""
+        from mrd_env.report import write_table
+
+        out = Path(out)
+        out.mkdir(parents=True, exist_ok=True)
+        md, csv_path = out / "leaderboard.md", out / "leaderboard.csv"
+        storage.write_texts({md: self.markdown(), csv_path: _csv(self.table)})
+        rows_md, rows_csv = write_table(self.rows, out / "leaderboard_rows", floatfmt=".4g",
+                                        title=self.title().replace("mean [95 % interval over episodes]",
+                                                                   "mean, 95 % interval over episodes"))
+        png = grouped_bars(self.rows, "share", "share lo95", "share hi95", out / "leaderboard.png",
+                           xlabel="share of the achievable gain (dimensionless)", refs=(0.0, 1.0), xlim=(-1.0, 1.05),
+                           title=f"{self.suite['id']}: share of the achievable gain, (R − R_p) / (R_c − R_p); 0: best "
+                                 "constant command, dashed 1: clairvoyant optimum")
+        return {"markdown": md, "csv": csv_path, "rows_markdown": rows_md, "rows_csv": rows_csv,
+                "figure": png}
+
+
+def leaderboard(paths, out: str | Path | None = None) -> Leaderboard:
+    """Merge the result files ``paths`` (of :meth:`SuiteResult.write`) into one :class:`Leaderboard`, written to
+    ``out`` when given. Every file must be of the first file's suite, version and digest: ``ValueError`` (one line)
+    for one that is not, or that is not a result."""
+    paths = [Path(p) for p in paths]
+    if not paths:
+        raise ValueError("leaderboard needs at least one result file")
+    results = [read_result(p) for p in paths]
+    first = results[0]
+    for p, r in zip(paths[1:], results[1:]):
+        if _suite_key(r) != _suite_key(first):
+            raise ValueError(f"result file {p} was scored on suite {r.suite['id']} (digest {r.suite['digest'][:12]}), "
+                             f"{paths[0]} on {first.suite['id']} (digest {first.suite['digest'][:12]}): results of "
+                             "another suite, version or reference values are not merged")
+    names = [r.name for r in results]
+    labels = [n if names.count(n) == 1 else f"{n} ({p.stem})" for n, p in zip(names, paths)]
+    scen = list(dict.fromkeys(e["scenario"] for r in results for e in r.episodes))
+    summaries = [{x["scenario"]: x for x in summary_rows(r.episodes, [])} for r in results]
+    # best first by the share over all scenarios (ties: in the order given; no number: last)
+    order = sorted(range(len(results)), key=lambda i: -summaries[i][ALL]["share"]
+                   if math.isfinite(summaries[i][ALL]["share"]) else math.inf)
+    rows, table = [], []
+    for i in order:
+        r, summ, label = results[i], summaries[i], labels[i]
+        kind = r.controller["kind"]
+        table.append({"rank": len(table) + 1, "controller": label, "kind": kind,
+                      "episodes": f"{len(r.episodes)}/{r.suite['episodes']}", ALL: _cell(*_share(summ[ALL])),
+                      **{s: _cell(*_share(summ[s])) if s in summ else "" for s in scen}})
+        for s in [*scen, ALL] if len(scen) > 1 else scen:
+            if s in summ:
+                rows.append({"scenario": s, "controller": label, "kind": kind, "episodes": summ[s]["episodes"],
+                             "share": summ[s]["share"], "share lo95": summ[s]["share lo95"],
+                             "share hi95": summ[s]["share hi95"]})
+    board = Leaderboard(first.suite, results, rows, table)
+    if out is not None:
+        board.write(out)
+    return board
+
+
+def _share(row: dict) -> tuple[float, float, float]:
+    return row["share"], row["share lo95"], row["share hi95"]
+
+
+def result_filename(suite_id: str, controller: str) -> str:
+    """``<suite id>__<controller as a file name>.json``."""
+    slug = re.sub(r"[^A-Za-z0-9]+", "_", controller).strip("_").lower() or "controller"
+    return f"{suite_id}__{slug}.json"
