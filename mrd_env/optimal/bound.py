@@ -20,6 +20,9 @@ bound on the optimal cost up to its dual residual (weak duality; tolerances 1e-8
 is an upper bound on the return of every such controller, not an estimate. An infeasible problem (no force history
 within f_max keeps the stroke within its limit) or a failed solve raises ``RuntimeError``.
 
+The ideal actuator may push energy into the plant, which no damper can: :mod:`.dissipative` adds the convex part of
+that restriction (a bound on every passive device, tighter on transients), on this module's :func:`program`.
+
 The solvers are optional dependencies, imported on first use.
 """
 from __future__ import annotations
@@ -47,7 +50,8 @@ class BoundResult:
     optimal force history on the linear plant (−the primal objective, ≤ ``bound`` by the duality gap);
     ``f_max`` (N) and ``f_max_source``; the optimal total forces ``F`` (n_rows, nd, preload
     included) and plant states ``X`` (n_rows, nx); ``limit_active``: a stroke limit binds somewhere; the solver's
-    name, status, iterations and wall times (s)."""
+    name, status, iterations and wall times (s); ``kind``: "active" (this module) or "passive"
+    (:func:`~.dissipative.dissipative_bound`)."""
 
     bound: float
     primal_return: float
@@ -61,6 +65,7 @@ class BoundResult:
     iterations: int
     setup_seconds: float
     solve_seconds: float
+    kind: str = "active"
 
     def covers(self, force, f_static: float) -> bool:
         """True if a force history (total, N) stays within f_max of ``f_static``: the bound holds for it."""
@@ -113,7 +118,7 @@ class _Layout:
         return self._at(r, self.nx + self.nd + self.nxi)
 
 
-class _Rows:
+class Rows:
     """A sparse constraint block built row-block by row-block: M (a × b) at (row0 + i, col0 + j) for every r."""
 
     def __init__(self):
@@ -150,6 +155,30 @@ def active_bound(problem: EpisodeProblem, f_max: float | None = None, solver: st
     episode at its maximum command (:func:`passive_on_force_peak`). ``solver``: "clarabel" (the only one, see
     ``SOLVERS``). ``limits``: impose the episode's stroke limits (a controller that exceeds them is penalised far
     below any bound). ``tol``: the solver's tolerances (gap and feasibility)."""
+    f_max, source = check_arguments(problem, f_max, solver, tol)
+    t0 = time.perf_counter()
+    prog = program(problem, f_max, limits)
+    L, scale = prog.L, prog.scale
+    Dm = sp.diags(scale)
+    A_eq_s, b_eq = normalise_rows((prog.A_eq @ Dm).tocsc(), prog.b_eq)
+    A_in_s, lo, hi = normalise_rows((prog.A_in @ Dm).tocsc(), prog.lo, prog.hi)
+    Pdiag = np.zeros(L.n)
+    Pdiag[prog.iy] = 2.0 * scale[prog.iy] ** 2
+    P = sp.diags(Pdiag).tocsc()
+    q = np.zeros(L.n)
+    t_setup = time.perf_counter() - t0
+    t1 = time.perf_counter()
+    z, primal, dual, status, iters = clarabel_solve(P, q, A_eq_s, b_eq, A_in_s, lo, hi, tol)
+    t_solve = time.perf_counter() - t1
+    X, F, limit_active = prog.solution(z * scale)
+    # weak duality: dual ≤ optimum ≤ primal; the smaller of the two is the safe side if rounding inverts them
+    return BoundResult(bound=float(-min(dual, primal)), primal_return=float(-primal), f_max=f_max,
+                       f_max_source=source, F=F, X=X, limit_active=limit_active, solver=solver, status=status,
+                       iterations=int(iters), setup_seconds=t_setup, solve_seconds=t_solve)
+
+
+def check_arguments(problem, f_max, solver, tol) -> tuple[float, str]:
+    """(f_max, its source) after checking a bound's arguments (``ValueError`` naming the bad one)."""
     if not isinstance(problem, EpisodeProblem):
         raise ValueError(f"problem must be an EpisodeProblem (mrd_env.optimal.episode_problem), got "  # noqa: TRY004
                          f"{type(problem).__name__}")
@@ -158,15 +187,61 @@ def active_bound(problem: EpisodeProblem, f_max: float | None = None, solver: st
     if not (isinstance(tol, (int, float)) and 0 < tol < 1e-2):
         raise ValueError(f"tol must be in (0, 1e-2), got {tol!r}")
     if f_max is None:
-        f_max, source = passive_on_force_peak(problem), "passive-on's peak force in the episode"
-    else:
-        if isinstance(f_max, bool) or not isinstance(f_max, (int, float, np.floating, np.integer)) \
-                or not math.isfinite(f_max) or f_max < 0:
-            # without a limit forces the cost hardly sees (spikes the plant filters out) make the optimum
-            # unbounded in direction: the interior point fails numerically (measured on the car)
-            raise ValueError(f"f_max must be finite and >= 0 N, got {f_max!r}")
-        f_max, source = float(f_max), "given"
-    t0 = time.perf_counter()
+        return passive_on_force_peak(problem), "passive-on's peak force in the episode"
+    if isinstance(f_max, bool) or not isinstance(f_max, (int, float, np.floating, np.integer)) \
+            or not math.isfinite(f_max) or f_max < 0:
+        # without a limit forces the cost hardly sees (spikes the plant filters out) make the optimum
+        # unbounded in direction: the interior point fails numerically (measured on the car)
+        raise ValueError(f"f_max must be finite and >= 0 N, got {f_max!r}")
+    return float(f_max), "given"
+
+
+@dataclass
+class Program:
+    """The active bound's QP in the problem's own units (before scaling): the variable layout ``L``, the cost's
+    channels, the plant over rows (Φ, Γ_a, Γ_b split into force and disturbance columns), the equalities
+    ``A_eq z = b_eq``, the inequalities ``lo ≤ A_in z ≤ hi``, the variables' typical sizes ``scale`` and the
+    indices ``iy`` of the weighted outputs (the cost is Σ z[iy]²). :mod:`.dissipative` adds its own rows to it."""
+
+    p: EpisodeProblem
+    f_max: float
+    limits: bool
+    L: "_Layout"
+    chans: list
+    Phi: np.ndarray
+    GaF: np.ndarray
+    GbF: np.ndarray
+    GaW: np.ndarray
+    GbW: np.ndarray
+    A_eq: sp.csc_matrix
+    b_eq: np.ndarray
+    A_in: sp.csc_matrix
+    lo: np.ndarray
+    hi: np.ndarray
+    scale: np.ndarray
+    iy: np.ndarray
+
+    def solution(self, v: np.ndarray):
+        """(X (n_rows, nx), F (n_rows, nd), a stroke limit binds) of the unscaled solution ``v``."""
+        p, L = self.p, self.L
+        N, nx, nd = L.N, L.nx, L.nd
+        r1 = np.arange(1, N + 1)
+        X = np.empty((N + 1, nx))
+        X[0] = p.x0
+        X[1:] = v[L.x(r1)[:, None] + np.arange(nx)]
+        F = np.empty((N + 1, nd))
+        F[0] = v[:nd]
+        F[1:] = v[L.F(r1)[:, None] + np.arange(nd)]
+        limit_active = False
+        if self.limits and p.limits:
+            for lim in p.limits:
+                s_ = np.hstack([X, F, p.W]) @ np.asarray(lim.G, dtype=float).ravel()
+                limit_active |= bool(np.max(np.abs(s_[1:])) >= lim.bound * (1 - 1e-6))
+        return X, F, limit_active
+
+
+def program(problem: EpisodeProblem, f_max: float, limits: bool = True) -> Program:
+    """The active bound's QP of ``problem`` with the force limit ``f_max`` (see the module docstring)."""
     p = problem
     nx, nd, N, dt = p.nx, p.nd, p.n_rows - 1, p.dt
     W = p.W
@@ -184,7 +259,7 @@ def active_bound(problem: EpisodeProblem, f_max: float | None = None, solver: st
     ny = len(chans)
     nxi = sum(0 if c[3] is None else c[3][0].shape[0] for c in chans)
     L = _Layout(N, nx, nd, nxi, ny)
-    rows, rhs = _Rows(), []  # rhs: (first row, values) of the equality right-hand side
+    rows, rhs = Rows(), []  # rhs: (first row, values) of the equality right-hand side
     r0, r1 = np.arange(N), np.arange(1, N + 1)
     # dynamics, r = 0..N−1: x_{r+1} − Φ x_r − (Γa−Γb)_F F_r − Γb_F F_{r+1} = (Γa−Γb)_W W_r + Γb_W W_{r+1} (+ Φ x0)
     start = rows.new(N * nx)
@@ -236,7 +311,7 @@ def active_bound(problem: EpisodeProblem, f_max: float | None = None, solver: st
         b_eq[first:first + values.size] = values
     A_eq = rows.matrix(L.n)
     # inequalities: the force box (F_0..F_N) and the stroke limits (rows 1..N)
-    ineq = _Rows()
+    ineq = Rows()
     lo, hi = [], []
     if f_max > 0.0:
         s = ineq.new((N + 1) * nd)
@@ -260,34 +335,8 @@ def active_bound(problem: EpisodeProblem, f_max: float | None = None, solver: st
     # variable scaling (the solver sees O(1) unknowns): states and filter states by their size in the free response
     # (no damper force), forces by f_max (or 1 kN), weighted outputs as they are (√cost per row)
     scale = _scales(p, L, chans, Phi, GaF, GbF, GaW, GbW, f_max)
-    Dm = sp.diags(scale)
-    A_eq_s, b_eq = _normalise_rows((A_eq @ Dm).tocsc(), b_eq)
-    A_in_s, lo, hi = _normalise_rows((A_in @ Dm).tocsc(), lo, hi)
     iy = np.concatenate([L.y(r1) + c for c in range(ny)])
-    Pdiag = np.zeros(L.n)
-    Pdiag[iy] = 2.0 * scale[iy] ** 2
-    P = sp.diags(Pdiag).tocsc()
-    q = np.zeros(L.n)
-    t_setup = time.perf_counter() - t0
-    t1 = time.perf_counter()
-    z, primal, dual, status, iters = _clarabel(P, q, A_eq_s, b_eq, A_in_s, lo, hi, tol)
-    t_solve = time.perf_counter() - t1
-    v = z * scale
-    X = np.empty((N + 1, nx))
-    X[0] = p.x0
-    X[1:] = v[L.x(r1)[:, None] + np.arange(nx)]
-    F = np.empty((N + 1, nd))
-    F[0] = v[:nd]
-    F[1:] = v[L.F(r1)[:, None] + np.arange(nd)]
-    limit_active = False
-    if limits and p.limits:
-        for lim in p.limits:
-            s_ = np.hstack([X, F, W]) @ np.asarray(lim.G, dtype=float).ravel()
-            limit_active |= bool(np.max(np.abs(s_[1:])) >= lim.bound * (1 - 1e-6))
-    # weak duality: dual ≤ optimum ≤ primal; the smaller of the two is the safe side if rounding inverts them
-    return BoundResult(bound=float(-min(dual, primal)), primal_return=float(-primal), f_max=f_max,
-                       f_max_source=source, F=F, X=X, limit_active=limit_active, solver=solver, status=status,
-                       iterations=int(iters), setup_seconds=t_setup, solve_seconds=t_solve)
+    return Program(p, f_max, limits, L, chans, Phi, GaF, GbF, GaW, GbW, A_eq, b_eq, A_in, lo, hi, scale, iy)
 
 
 def _scales(p, L, chans, Phi, GaF, GbF, GaW, GbW, f_max):
@@ -329,21 +378,30 @@ def _scales(p, L, chans, Phi, GaF, GbF, GaW, GbW, f_max):
     return s
 
 
-def _normalise_rows(A, *sides):
+def normalise_rows(A, *sides):
     """Every row of A (and its right-hand sides) divided by its largest coefficient."""
     m = np.asarray(abs(A).max(axis=1).todense()).ravel() if A.shape[0] else np.zeros(0)
     d = 1.0 / np.where(m > 0, m, 1.0)
     return (sp.diags(d) @ A).tocsc(), *(side * d for side in sides)
 
 
-def _clarabel(P, q, A_eq, b_eq, A_in, lo, hi, tol):
+def clarabel_solve(P, q, A_eq, b_eq, A_in, lo, hi, tol, soc=None, who="active_bound"):
+    """Solve min ½zᵀPz + qᵀz s.t. A_eq z = b_eq, lo ≤ A_in z ≤ hi and, with ``soc`` = (A_s, b_s, dims), every
+    block of b_s − A_s z (consecutive rows, sizes ``dims``) in a second-order cone. (z, primal, dual objective,
+    status, iterations); ``RuntimeError`` if infeasible or not solved."""
     import clarabel
 
-    A = sp.vstack([A_eq, A_in, -A_in]).tocsc()
-    b = np.concatenate([b_eq, hi, -lo])
+    blocks, rhs = [A_eq, A_in, -A_in], [b_eq, hi, -lo]
     cones = [clarabel.ZeroConeT(A_eq.shape[0])]
     if A_in.shape[0]:
         cones.append(clarabel.NonnegativeConeT(2 * A_in.shape[0]))
+    if soc is not None:
+        A_s, b_s, dims = soc
+        blocks.append(A_s)
+        rhs.append(b_s)
+        cones.extend(clarabel.SecondOrderConeT(int(d)) for d in dims)
+    A = sp.vstack(blocks).tocsc()
+    b = np.concatenate(rhs)
     st = clarabel.DefaultSettings()
     st.verbose = False
     st.tol_gap_abs = st.tol_gap_rel = tol
@@ -352,12 +410,12 @@ def _clarabel(P, q, A_eq, b_eq, A_in, lo, hi, tol):
     res = clarabel.DefaultSolver(P, q, A, b, cones, st).solve()
     status = str(res.status)
     if res.status == clarabel.SolverStatus.PrimalInfeasible or "Infeasible" in status:
-        raise RuntimeError(f"active_bound: the QP is infeasible ({status}): no force history within f_max keeps the "
+        raise RuntimeError(f"{who}: the problem is infeasible ({status}): no force history within f_max keeps the "
                            "episode within its limits")
     gap = abs(res.obj_val - res.obj_val_dual) / max(1.0, abs(res.obj_val))
     # "almost solved": the reduced tolerances (1e-5) hold; the dual objective is still a bound if the gap is small
     near = res.status == clarabel.SolverStatus.AlmostSolved and gap <= 1e-6 and res.r_dual <= 1e-6
     if res.status != clarabel.SolverStatus.Solved and not near:
-        raise RuntimeError(f"active_bound: Clarabel did not solve the QP ({status} after {res.iterations} "
+        raise RuntimeError(f"{who}: Clarabel did not solve the problem ({status} after {res.iterations} "
                            "iterations); no bound is reported")
     return np.asarray(res.x), float(res.obj_val), float(res.obj_val_dual), status, res.iterations
