@@ -33,20 +33,20 @@ import time
 
 import numpy as np
 
-DEFAULT = (("quarter_car", "ISO-C 20 m/s"), ("quarter_car", "bump 5 cm"),
-           ("shear_building", "El Centro NS (×0.2 time)"))
+#: the default episodes: scenarios of the published benchmark's plants, by name
+DEFAULT = ("ISO-C 20 m/s", "bump 5 cm", "El Centro NS (×0.2 time)")
 
 
 def episodes(names, seeds: int, seconds: float | None, only=None):
     """[(plant, env_id, label, seed, options)] of the held-out scenarios named (``("all",)``: every one), their
     first ``seeds`` seeds or those of them in ``only``."""
-    from experiments.common.plants import profile
+    from experiments.common.plants import chosen_plants
     from experiments.common.scenarios import held_out_scenarios
 
     out = []
-    for plant in ("quarter_car", "shear_building"):
-        for sc in held_out_scenarios(profile(plant)):
-            if names != ("all",) and (plant, sc.name) not in names and sc.name not in names:
+    for plant in chosen_plants("both"):
+        for sc in held_out_scenarios(plant):
+            if names != ("all",) and sc.name not in names:
                 continue
             opts = dict(sc.options)
             if seconds is not None:
@@ -154,7 +154,7 @@ def run(plant, env_id, label, seed, options, *, clairvoyant: bool, oracle: bool,
     v = d.X @ p.Cv.T
     power = np.sum((d.F - p.F_static) * v, axis=1)
     tolp = 1e-6 * np.max(np.abs(power))
-    row = {"episode": f"{plant}: {label}", "seconds": p.duration, "R_p": rp, "R_c": rc, "R_c from": source,
+    row = {"episode": f"{plant.name}: {label}", "seconds": p.duration, "R_p": rp, "R_c": rc, "R_c from": source,
            "f_max (N)": f_max, "R_b active": a.bound, "R_d passive": d.bound,
            "bracket active": bracket(a.bound, rc, rp), "bracket passive": bracket(d.bound, rc, rp),
            "least absorbed (J)": least, "all below R_d": bool(best_run <= d.bound and rc <= d.bound),
