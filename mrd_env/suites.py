@@ -47,6 +47,48 @@ class SuiteScenario:
         return f"{self.name} s{seed}" if len(self.seeds) > 1 else self.name
 
 
+#: Environment options that only shape what a controller sees (its sensors), never the plant: the references of an
+#: episode (command sequences replayed open loop) do not depend on them, so they are computed without them.
+SENSOR_OPTIONS = ("sensors", "sensor_noise", "sensor_delay", "history", "preview")
+
+
+@dataclass(frozen=True)
+class SuiteDefinition:
+    """What a plant's profile declares of a suite (:attr:`mrd_env.plants.profile.PlantProfile.suites`): everything
+    but the references, which ``python -m experiments.scripts.suite_references --suite <name>`` computes once and
+    ships in ``mrd_env/plants/<plant>/suites/<name>-v<version>.json``.
+
+    ``options``: the environment options of every episode (damper, damper floors, sensors — ``road_preview``
+    among them says the controller has the road preview); ``scenarios``: each scenario's own options and seeds;
+    ``criteria``: the episode metrics reported beside the share; ``references_of``: the name of the suite whose
+    references this one shares (the same episodes on the same plant, only the sensors differ); ``randomise``: a
+    robustness twin's bands (:func:`draw_episode`: drawn per episode from ``randomise["seed"]``, stored in the
+    suite file)."""
+
+    name: str
+    version: int
+    description: str
+    options: dict
+    control_dt: float
+    scenarios: tuple[SuiteScenario, ...]
+    criteria: tuple[str, ...]
+    references_of: str = ""
+    randomise: dict = field(default_factory=dict)
+
+    @property
+    def id(self) -> str:
+        return f"{self.name}-v{self.version}"
+
+    def suite(self, plant: str, env_id: str, draws: dict | None = None) -> "Suite":
+        """The suite without references (``draws``: a twin's per-episode draws, :func:`draws`)."""
+        randomised = _json_options({"bands": self.randomise, "draws": draws or {}}) if self.randomise else {}
+        return Suite(name=self.name, version=self.version, plant=plant, env_id=env_id, description=self.description,
+                     options=_json_options(self.options), control_dt=float(self.control_dt),
+                     scenarios=tuple(SuiteScenario(sc.name, _json_options(sc.options), tuple(int(x) for x in sc.seeds))
+                                     for sc in self.scenarios),
+                     criteria=tuple(self.criteria), randomised=randomised)
+
+
 @dataclass(frozen=True)
 class Reference:
     """The reference values of one episode (returns as the environment pays them)."""
@@ -87,6 +129,30 @@ class Suite:
 
     def episodes(self) -> list[tuple[SuiteScenario, int]]:
         return [(sc, seed) for sc in self.scenarios for seed in sc.seeds]
+
+    def labels(self) -> list[str]:
+        """Every episode's label, in order (the keys of :attr:`references`)."""
+        return [sc.label(seed) for sc, seed in self.episodes()]
+
+    def episode_options(self, scenario: SuiteScenario, seed: int) -> dict:
+        """The environment options of an episode as a controller is scored on it (the suite's, the scenario's and,
+        for a robustness twin, the episode's stored draw; the control step is :attr:`control_dt`)."""
+        draw = self.randomised.get("draws", {}).get(scenario.label(seed), {}) if self.randomised else {}
+        return _json_options({**self.options, **scenario.options, **draw})
+
+    def reference_options(self, scenario: SuiteScenario, seed: int) -> dict:
+        """The environment options the references of an episode are computed on: :meth:`episode_options` without
+        the sensor options (:data:`SENSOR_OPTIONS`), which do not change an open-loop command sequence's return."""
+        return {k: v for k, v in self.episode_options(scenario, seed).items() if k not in SENSOR_OPTIONS}
+
+    def definition_json(self) -> dict:
+        """The suite's definition (everything but its references, procedure and digest), as JSON: what a new
+        version must change."""
+        return {k: v for k, v in self.to_json().items() if k not in ("references", "procedure", "digest")}
+
+    def complete(self) -> bool:
+        """Every episode has its reference."""
+        return set(self.labels()) <= set(self.references)
 
     def reference(self, label: str) -> Reference:
         try:
@@ -171,3 +237,124 @@ def suite(name: str) -> Suite:
     if versions:
         return versions[-1][1]
     raise ValueError(f"suite must be one of {sorted(every)} (or a suite file), got {name!r}")
+
+
+def _json_options(options: dict) -> dict:
+    """Options as a JSON file gives them back (tuples as lists), so that a definition and its file agree."""
+    return json.loads(json.dumps(options))
+
+
+def definitions() -> dict[str, tuple]:
+    """Every suite definition of the plants' profiles by its id: {id: (plant's name, env id, definition)};
+    ``ValueError`` if two plants declare the same suite name."""
+    from .plants import plants
+
+    out, names = {}, {}
+    for spec in plants().values():
+        for d in spec.profile.suites:
+            if d.name in names and names[d.name] != spec.name:
+                raise ValueError(f"suite {d.name!r} is declared by two plants ({names[d.name]}, {spec.name})")
+            names[d.name] = spec.name
+            if d.id in out:
+                raise ValueError(f"suite {d.id} is declared twice")
+            out[d.id] = (spec.name, spec.physics_id, d)
+    return out
+
+
+def definition(name: str) -> tuple:
+    """(plant's name, env id, :class:`SuiteDefinition`) of the suite ``name`` (``name-vN``, or a name: its latest
+    version); ``ValueError`` naming the suites otherwise."""
+    every = definitions()
+    if name in every:
+        return every[name]
+    versions = sorted((d.version, k) for k, (_, _, d) in every.items() if d.name == name)
+    if versions:
+        return every[versions[-1][1]]
+    raise ValueError(f"suite must be one of {sorted(every)}, got {name!r}")
+
+
+def suite_path(plant: str, suite: "Suite | SuiteDefinition") -> Path:
+    """Where the plant's folder ships the suite: ``mrd_env/plants/<plant>/suites/<name>-v<version>.json``."""
+    from .plants import plant as plant_spec
+
+    return Path(plant_spec(plant).module().__file__).parent / "suites" / f"{suite.id}.json"
+
+
+# --------------------------------------------------------------------------------------------- robustness twins
+
+def nominal_values(env_id: str, options: dict) -> dict:
+    """The preset values the bands of a twin scale: {"damper_params": {name: value}, "command": {name: value},
+    "plant_params": {name: value}} of the environment ``env_id`` with ``options``."""
+    import dataclasses
+
+    import gymnasium as gym
+
+    from . import envs  # noqa: F401  (registers the environments)
+
+    env = gym.make(env_id, **{k: v for k, v in options.items() if k not in SENSOR_OPTIONS})
+    try:
+        u = env.unwrapped
+        p = u.plant_params
+        return {"damper_params": dict(vars(u.damper.params)), "command": dict(vars(u.damper.command)),
+                "plant_params": {f.name: getattr(p, f.name) for f in dataclasses.fields(p)}}
+    finally:
+        env.close()
+
+
+def _factor(rng, band) -> float:
+    lo, hi = band
+    return float(rng.uniform(lo, hi))
+
+
+def draw_episode(bands: dict, nominal: dict, scenario_index: int, seed: int) -> dict:
+    """One episode's draw of a robustness twin (environment options), from the generator seeded by
+    ``(bands["seed"], scenario_index, seed)``, the bands drawn in this order:
+
+    * ``damper_params``: {name: (lo, hi)} — the preset's value × U(lo, hi), each parameter on its own;
+    * ``command``: {"eta": (lo, hi)} — the lag rate η × U(lo, hi); {"delay": (lo, hi)} — a pure delay U(lo, hi) s;
+      given to the damper as ``damper_params["command"]``;
+    * ``plant_params``: {name: (lo, hi)} — a scalar × U(lo, hi); a vector (the masses) × one factor per element;
+      a matrix (stiffness, damping) × one factor for the whole matrix;
+    * ``sensor_noise``: {sensor: (lo, hi)} — a std U(lo, hi) in the sensor's SI unit;
+    * ``sensor_delay``: [k, ...] — one of these delays (control steps), equally likely.
+    """
+    import numpy as np
+
+    rng = np.random.default_rng([int(bands["seed"]), int(scenario_index), int(seed)])
+    out: dict = {}
+    dp = {name: nominal["damper_params"][name] * _factor(rng, b) for name, b in bands.get("damper_params", {}).items()}
+    cmd = {}
+    for name, b in bands.get("command", {}).items():
+        cmd[name] = nominal["command"][name] * _factor(rng, b) if name == "eta" else _factor(rng, b)
+    if cmd:
+        dp["command"] = cmd
+    if dp:
+        out["damper_params"] = dp
+    pp = {}
+    for name, b in bands.get("plant_params", {}).items():
+        v = np.asarray(nominal["plant_params"][name], dtype=float)
+        if v.ndim == 1:
+            pp[name] = [float(x * _factor(rng, b)) for x in v]
+        else:
+            pp[name] = (v * _factor(rng, b)).tolist()
+    if pp:
+        out["plant_params"] = pp
+    noise = {name: _factor(rng, b) for name, b in bands.get("sensor_noise", {}).items()}
+    if noise:
+        out["sensor_noise"] = noise
+    if "sensor_delay" in bands:
+        choices = list(bands["sensor_delay"])
+        out["sensor_delay"] = int(choices[int(rng.integers(len(choices)))])
+    return _json_options(out)
+
+
+def draws(definition: SuiteDefinition, env_id: str) -> dict:
+    """{episode label: draw} of a robustness twin (:func:`draw_episode` for every episode)."""
+    if not definition.randomise:
+        return {}
+    out = {}
+    for i, sc in enumerate(definition.scenarios):
+        nominal = nominal_values(env_id, {**definition.options, **sc.options})
+        for seed in sc.seeds:
+            out[sc.label(seed)] = draw_episode(definition.randomise, nominal, i, seed)
+    return out

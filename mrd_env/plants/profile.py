@@ -73,6 +73,9 @@ class PlantProfile:
     #: the plant ``mrd-env train`` and ``mrd-env tune`` take without ``--plant`` (one plant says so)
     train_default: bool = False
     extra: dict = field(default_factory=dict)
+    #: the plant's frozen benchmark suites (:class:`mrd_env.suites.SuiteDefinition`; their references ship in
+    #: ``suites/`` of the plant's folder)
+    suites: tuple = ()
 
     @property
     def name(self) -> str:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from ..profile import PlantProfile, TestCase
 from . import SPEC
+from .suites import SUITES
 from .physics import quarter_car
 
 
@@ -72,4 +73,4 @@ PROFILE = PlantProfile(
     preview=True, warm_laws=CAR_LAWS, published=True,
     # the plant of the single-plant commands without --plant: the shipped hyperparameters' reference plant (the
     # half car trains with its entries, ``hyperparams_fallback``)
-    train_default=True)
+    train_default=True, suites=SUITES)

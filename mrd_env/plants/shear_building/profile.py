@@ -11,6 +11,7 @@ from __future__ import annotations
 from ...constants import GRAVITY as G
 from ..profile import PlantProfile, TestCase
 from . import BENCHMARK_DAMPER_FLOORS, SPEC
+from .suites import SUITES
 
 
 def _building_tests(plant: dict, quick: bool) -> list[TestCase]:
@@ -73,4 +74,4 @@ PROFILE = PlantProfile(
     bar_legend_columns=3,
     metric_units={"drift_peak": "m", "acc_peak": "m/s²", "damper_force_peak": "N"},
     mpc=(("mpc", None, {}, False), ("mpc (reward)", 1e-3, {"weights": "reward"}, False)),
-    warm_laws=_BUILDING_LAWS, published=True)
+    warm_laws=_BUILDING_LAWS, published=True, suites=SUITES)

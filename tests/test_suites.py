@@ -1,0 +1,160 @@
+"""The frozen benchmark suites (:mod:`mrd_env.suites`, docs/suites.md): the shipped files load and their digests
+verify, an edited copy is refused, every shipped file is its profile's definition (a changed definition is a new
+version), the procedure reproduces its references, and a twin's stored draws come back from its seed."""
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import replace
+
+import pytest
+
+from experiments.scripts import suite_references as sr
+from mrd_env.plants import plants
+from mrd_env.suites import (SENSOR_OPTIONS, Suite, SuiteDefinition, SuiteScenario, content_digest, definition,
+                            definitions, draws, read_suite, suite, suite_path, suites, write_suite)
+
+
+@pytest.fixture(scope="module")
+def shipped() -> dict[str, Suite]:
+    every = suites()
+    assert every, "no suite is shipped"
+    return every
+
+
+def _car():
+    """(plant name, env id, warm laws) of the plant that declares the preview suite (the profile with preview)."""
+    spec = next(s for s in plants().values() if s.profile.preview and s.profile.suites)
+    return spec.name, spec.physics_id, spec.profile.warm_laws
+
+
+def test_shipped_suites_load_complete_and_verify(shipped):
+    for sid, s in shipped.items():
+        assert s.id == sid
+        assert s.digest == content_digest({**s.to_json(), "digest": s.digest})
+        assert s.complete(), f"{sid} lacks references"
+        for label in s.labels():
+            r = s.reference(label)
+            assert math.isfinite(r.passive) and math.isfinite(r.clairvoyant)
+            assert r.clairvoyant >= r.passive - 1e-12, label  # the best constant command is a warm start
+            if math.isfinite(r.bound):
+                assert r.bound >= r.clairvoyant - 1e-9, label
+        assert s.procedure.get("command", "").startswith("python -m experiments.scripts.suite_references --suite ")
+
+
+def test_an_edited_copy_is_refused(shipped, tmp_path):
+    s = next(iter(shipped.values()))
+    data = json.loads(suite_path(s.plant, s).read_text(encoding="utf-8"))
+    label = next(iter(data["references"]))
+    data["references"][label]["clairvoyant"] += 1e-6
+    path = tmp_path / f"{s.id}.json"
+    path.write_text(json.dumps(data), encoding="utf-8")
+    with pytest.raises(ValueError) as err:
+        read_suite(path)
+    msg = str(err.value)
+    assert "\n" not in msg and str(path) in msg and "digest" in msg
+    path.write_text("{not json", encoding="utf-8")
+    with pytest.raises(ValueError, match="cannot be read"):
+        read_suite(path)
+
+
+def test_suite_ids_unique_and_files_are_their_definitions(shipped):
+    every = definitions()  # raises on a suite declared twice
+    names = [d.name for _, _, d in every.values()]
+    assert len(every) == len({(d.name, d.version) for _, _, d in every.values()})
+    assert len(set(names)) == len(names), "one version of each suite is declared"
+    for sid, s in shipped.items():
+        assert sid in every, f"{sid} is shipped but no profile declares it"
+        plant, env_id, d = every[sid]
+        assert (s.plant, s.env_id) == (plant, env_id)
+        # the file's definition is the profile's: a changed definition must be a new version (and a new file)
+        assert s.definition_json() == d.suite(plant, env_id, s.randomised.get("draws")).definition_json(), sid
+        assert suite(sid) is not None and suite(d.name).version >= s.version
+    with pytest.raises(ValueError, match="suite must be one of"):
+        suite("no-such-suite")
+
+
+def test_preview_suite_says_who_has_preview_and_shares_references(shipped):
+    _, _, d = definition("car-preview")
+    assert "road_preview" in d.options["sensors"] and d.options["preview"]
+    _, _, comfort = definition(d.references_of)
+    assert "road_preview" not in comfort.options["sensors"]
+    if d.id in shipped and comfort.id in shipped:
+        p, c = shipped[d.id], shipped[comfort.id]
+        assert p.references == c.references and p.procedure["references_of_digest"] == c.digest
+        assert [p.reference_options(*e) for e in p.episodes()] == [c.reference_options(*e) for e in c.episodes()]
+
+
+def test_reference_options_drop_the_sensors(shipped):
+    s = shipped.get("car-preview-v1") or next(iter(shipped.values()))
+    sc, seed = s.episodes()[0]
+    assert not set(SENSOR_OPTIONS) & set(s.reference_options(sc, seed))
+    assert s.episode_options(sc, seed)["sensors"] == list(s.options["sensors"])
+
+
+def test_a_shipped_best_constant_command_is_reproduced(shipped):
+    s = shipped["car-comfort-v1"] if "car-comfort-v1" in shipped else next(iter(shipped.values()))
+    sc, seed = s.episodes()[-1]
+    rp, vp = sr.best_constant(sr.episode_problem(s.env_id, s.reference_options(sc, seed), seed))
+    ref = s.reference(sc.label(seed))
+    assert abs(rp - ref.passive) <= 1e-9 * max(1.0, abs(ref.passive)) and vp == ref.passive_command
+
+
+def test_the_procedure_is_deterministic_on_a_tiny_suite(tmp_path):
+    plant, env_id, warm = _car()
+    d = SuiteDefinition(name="tiny", version=1, description="one 0.2 s episode", options={}, control_dt=0.01,
+                        scenarios=(SuiteScenario("ISO-C", {"road": "iso8608", "road_params": {"road_class": "C"},
+                                                           "episode_seconds": 0.2}, (7,)),),
+                        criteria=("acc_weighted_rms",))
+    s = d.suite(plant, env_id)
+    sc, seed = s.episodes()[0]
+    a, b = (sr.episode_references(env_id, s.reference_options(sc, seed), sc.label(seed), seed, warm, cache=False)
+            for _ in range(2))
+    assert a["reference"] == b["reference"]
+    r = a["reference"]
+    assert r["passive"] <= r["clairvoyant"] <= r["bound"]
+    from mrd_env.suites import Reference
+
+    path = write_suite(replace(s, references={sc.label(seed): Reference(**r)}, procedure={"command": "test"}),
+                       tmp_path / "tiny-v1.json")
+    back = read_suite(path)
+    assert back.references == {sc.label(seed): Reference(**r)} and back.complete()
+
+
+def test_twin_draws_reproduce_from_the_seed(shipped):
+    for sid, (plant, env_id, d) in definitions().items():
+        if not d.randomise:
+            continue
+        again = draws(d, env_id)
+        assert set(again) == {sc.label(seed) for sc in d.scenarios for seed in sc.seeds}
+        if sid in shipped:
+            assert shipped[sid].randomised["draws"] == again, sid
+        first = next(iter(again.values()))
+        for name, (lo, hi) in d.randomise.get("sensor_noise", {}).items():
+            assert lo <= first["sensor_noise"][name] <= hi
+        assert first["sensor_delay"] in d.randomise["sensor_delay"]
+        # different episodes draw different plants
+        assert len({json.dumps(v["damper_params"], sort_keys=True) for v in again.values()}) == len(again)
+
+
+def test_the_script_refuses_a_changed_definition(tmp_path, shipped):
+    s = next(s for s in shipped.values() if not s.procedure.get("references_of"))
+    path = tmp_path / f"{s.id}.json"
+    write_suite(s, path)
+    changed = replace(s, scenarios=s.scenarios[:-1])
+    with pytest.raises(SystemExit, match="another definition"):
+        sr._shipped_check(path, changed, overwrite=True)
+    with pytest.raises(SystemExit, match="frozen"):
+        sr._shipped_check(path, s, overwrite=False)
+    sr._shipped_check(path, s, overwrite=True)
+
+
+@pytest.mark.slow
+def test_a_shipped_clairvoyant_is_reproduced(shipped):
+    s = shipped["car-comfort-v1"]
+    sc, seed = s.episodes()[-1]  # the bump: one episode of 3 s
+    _, _, warm = _car()
+    r = sr.episode_references(s.env_id, s.reference_options(sc, seed), sc.label(seed), seed, warm, cache=False)
+    ref = s.reference(sc.label(seed))
+    assert r["reference"]["clairvoyant"] == pytest.approx(ref.clairvoyant, rel=1e-6)
+    assert r["reference"]["bound"] == pytest.approx(ref.bound, rel=1e-4)
