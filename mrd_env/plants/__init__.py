@@ -22,6 +22,7 @@ PLANT_FOLDERS = (
     "quarter_car",
     "half_car",
     "isolator",
+    "full_car",
 )
 
 _SPECS: dict[str, PlantSpec] = {}
