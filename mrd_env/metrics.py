@@ -277,3 +277,36 @@ def running_rms(a_w, dt, tau: float = 1.0) -> np.ndarray:
 def mtvv(a_w, dt, tau: float = 1.0):
     """Maximum transient vibration value MTVV = max a_w(t0) of :func:`running_rms` (ISO 2631-1 §6.3.1), m/s²."""
     return np.max(running_rms(a_w, dt, tau), axis=0)
+
+
+# ----------------------------------------------------------------------------------------------
+# constraint exceedance (the environments' constraint costs, on a record)
+# ----------------------------------------------------------------------------------------------
+
+_SIDES = ("both", "above", "below")
+
+
+def exceedance_time(dt, x, limit, side: str = "both") -> float:
+    """Time (s) a record spends beyond a limit: ``dt`` × the number of samples after the first at which any
+    channel of ``x`` (n,) or (n, channels) is beyond ``limit`` (> 0; a scalar or one per channel) — |x| > limit
+    (``side="both"``), x > limit ("above") or x < −limit ("below"). The samples after the first, each standing for
+    the step that ends at it, as the environments count their physics rows (:mod:`mrd_env.envs.costs`: the
+    episode total of a cost term is this time)."""
+    a = as_signal("x", x, columns=True)
+    step = sample_interval(dt, a.shape[0])
+    if side not in _SIDES:
+        raise ValueError(f"side must be one of {list(_SIDES)}, got {side!r}")
+    lim = check_array("limit", limit, lo=0.0)
+    if np.any(lim <= 0) or lim.ndim > 1 or (lim.ndim == 1 and lim.size != a.shape[1]):
+        raise ValueError(f"limit must be > 0, a scalar or one per channel ({a.shape[1]}), got {limit!r}")
+    v = np.abs(a) if side == "both" else (a if side == "above" else -a)
+    return float(np.count_nonzero(np.any(v[1:] > lim, axis=1)) * step)
+
+
+def exceedance_share(dt, x, limit, side: str = "both") -> float:
+    """The share (−) of a record's duration ((n − 1)·dt) spent beyond the limit: :func:`exceedance_time` over the
+    duration (0 for a record of one sample)."""
+    a = as_signal("x", x, columns=True)
+    n = a.shape[0]
+    time = exceedance_time(dt, a, limit, side)
+    return time / ((n - 1) * sample_interval(dt, n)) if n > 1 else 0.0

@@ -83,9 +83,12 @@ class MRDamperEnv(PlantDeclarations, gym.Env):
     the simulation diverges (``"diverged: <message>"``, the last observation returned); ``truncated`` at the end
     of the episode, after ``max_episode_steps`` steps (the environment truncates itself; ``gym.make`` wraps it in
     a TimeLimit at that length, which states it in ``env.spec.max_episode_steps`` and changes no step: see
-    :mod:`mrd_env.envs.entry`). The last step's info holds ``episode_metrics``. Every step's info has ``t`` (s);
-    reset's has ``disturbance`` (the record's name); ``damper_force`` and ``command`` (the last step's, (nd,)) are
-    attributes of the environment.
+    :mod:`mrd_env.envs.entry`). The last step's info holds ``episode_metrics``. Every step's info has ``t`` (s),
+    ``cost`` (s ≥ 0: the time during the step's control period at which a constraint of the plant is violated,
+    counted on the physics rows; :mod:`mrd_env.envs.costs`) and ``cost_terms`` ({constraint: s}); reset's has
+    ``disturbance`` (the record's name) and a zero ``cost`` and ``cost_terms``; ``episode_metrics`` ends with the
+    costs' totals ``cost`` and ``cost_<constraint>`` (s). ``damper_force`` and ``command`` (the last step's, (nd,))
+    are attributes of the environment.
 
     Rendering: ``render_mode="rgb_array"`` (a frame of the plant) or ``"human"`` (a window); ``render_fps`` in
     ``metadata`` is 1/control_dt, so that a video of one frame per step plays in simulated time.
@@ -141,8 +144,13 @@ class MRDamperEnv(PlantDeclarations, gym.Env):
         self._force0 = d.state("F")[0]
         self._cmd0 = d.state("CMD")[0]
         self._k0 = d.int_state("K")
+        # the last step's costs [any, term 1..T] (a memoryview: a float read costs half of numpy's .item)
+        self._cost0 = memoryview(d.state("COST")[0, :self.core.n_cost_terms + 1])
+        self._cost_names = self.core.cost_names
+        self._no_cost = dict.fromkeys(self._cost_names, 0.0)
 
-    _DERIVED = ("_args", "_kstep", "_obs0", "_reward0", "_force0", "_cmd0", "_k0", "_renderer")
+    _DERIVED = ("_args", "_kstep", "_obs0", "_reward0", "_force0", "_cmd0", "_k0", "_cost0", "_cost_names", "_no_cost",
+                "_renderer")
 
     def __getstate__(self) -> dict:
         return {k: v for k, v in self.__dict__.items() if k not in self._DERIVED}
@@ -167,7 +175,7 @@ class MRDamperEnv(PlantDeclarations, gym.Env):
         self._last_frame_t = -math.inf
         if self.render_mode == "human":
             self._render_human()
-        return self._obs0.copy(), {"t": 0.0, "disturbance": self.record.name}
+        return self._obs0.copy(), {"t": 0.0, "disturbance": self.record.name, **core.zero_cost_info()}
 
     def step(self, action):
         if self._done:
@@ -188,16 +196,18 @@ class MRDamperEnv(PlantDeclarations, gym.Env):
         if self.core.python_reward and status != DIVERGED:
             reward += self.assembly.reward(self.core.period(0))
         t = self._k0.item(0) * self._control_dt  # as the vector env's k·control_dt, bit for bit
+        cost = self._cost0[0]  # no constraint violated (the common step): every term's cost is 0 too
+        info = {"t": t, "cost": cost, "cost_terms": self._no_cost.copy() if cost == 0.0 else
+                dict(zip(self._cost_names, self._cost0.tolist()[1:]))}
         if status == RUNNING:
             if self.render_mode == "human" and t - self._last_frame_t >= 1.0 / HUMAN_FPS:
                 self._render_human()
-            return obs, reward, False, False, {"t": t}
-        return self._end(status, obs, reward, t)
+            return obs, reward, False, False, info
+        return self._end(status, obs, reward, info)
 
-    def _end(self, status: int, obs, reward, t: float):
+    def _end(self, status: int, obs, reward, info: dict):
         core = self.core
         self._done = True
-        info = {"t": t}
         if status == DIVERGED:
             asm = self.assembly
             reward = -asm.limits.amount(core._n_steps[0] * asm.control_dt)

@@ -3,9 +3,9 @@ into one compiled :class:`~mrd_env.stepping.Driver` of N systems.
 
 An assembly is what a plant's environment module builds from the user's options (see
 :mod:`.quarter_car`, :mod:`.shear_building`): the damper, the linear plant and their coupling, the named
-signals, the parts — disturbance source, sensors, reward, limits — and the plant's own knowledge: the
-initial state of an episode, the episode metrics, the roles of its signals for the classical control laws
-(``roles``) and the default control objective (``objective``).
+signals, the parts — disturbance source, sensors, reward, limits, constraint costs — and the plant's own
+knowledge: the initial state of an episode, the episode metrics, the roles of its signals for the classical control
+laws (``roles``) and the default control objective (``objective``).
 """
 from __future__ import annotations
 
@@ -24,6 +24,7 @@ from ..disturbances import Record
 from ..mechanics import CoupledPlant, LinearPlant
 from ..resources import FLOAT, check as check_memory, episode_parts, format_bytes
 from ..stepping import HIST_FULL, HIST_NONE, HIST_PERIOD, Driver, Processing, noise_keys
+from .costs import Costs
 from .disturbance import Disturbance
 from .reward import CallableReward, QuadraticReward
 from .sensors import Sensors
@@ -44,7 +45,10 @@ class Episode:
 @dataclass
 class EpisodeStats:
     """What the driver accumulated over an episode: r.m.s. and peak of every statistics signal (per channel),
-    the fourth-power dose and the maximum running r.m.s. of the dose signal, the number of rows and dt."""
+    the fourth-power dose and the maximum running r.m.s. of the dose signal, the number of rows and dt; the
+    constraint costs' totals (``cost``: {"cost": time in violation of any constraint, "cost_<term>": of each
+    term}, s) and the control power (``power_peak``: max over the rows of Σ|F_i·v_i|, W; ``energy``: its sum
+    over the rows after row 0 times dt, J) where the assembly has them."""
 
     rms: dict[str, np.ndarray]
     peak: dict[str, np.ndarray]
@@ -52,6 +56,9 @@ class EpisodeStats:
     max_running_rms: float
     n_rows: int
     dt: float
+    cost: dict[str, float] = field(default_factory=dict)
+    power_peak: float = 0.0
+    energy: float = 0.0
 
 
 @dataclass
@@ -91,6 +98,10 @@ class Assembly:
     #: {reward signal: mean square} on the plant's nominal disturbance, what weights="reward" of the model-based
     #: laws divides by (None: the plant declares none)
     nominal_reference: Callable[[], dict] | None = None
+    #: the constraints whose violation is the per-step cost ``info["cost"]`` (:mod:`.costs`; None: none)
+    costs: Costs | None = None
+    #: (force signal, velocity signal) of the control power Σ_i |F_i·v_i| (channel by channel; None: none)
+    power_signals: tuple[str, str] | None = None
 
     @property
     def n_sub(self) -> int:
@@ -276,6 +287,15 @@ class EnvCore:
             # the cost over the period, so that returns do not depend on the control rate
             self.rweights = w * asm.control_dt
         lcols, limits = asm.limits.bind(sig)
+        costs = asm.costs if asm.costs is not None else Costs()
+        self.cost_names = costs.names
+        ccols, climits, csides, cterms = costs.bind(sig)
+        pcols = ()
+        if asm.power_signals is not None:
+            f_sig, v_sig = (sig[s] for s in asm.power_signals)
+            if f_sig.width != v_sig.width:
+                raise ValueError(f"power_signals {asm.power_signals} must have as many channels each")
+            pcols = tuple((int(f), int(v)) for f, v in zip(f_sig.columns, v_sig.columns))
         filters = [(int(sig[i].columns[0]), int(sig[o].columns[0]), sos) for i, o, sos in asm.filters]
         stat_cols = np.concatenate([sig[s].columns for s in asm.stat_signals]).astype(np.int64) \
             if asm.stat_signals else np.zeros(0, np.int64)
@@ -291,7 +311,8 @@ class EnvCore:
                         dose_col=int(sig[asm.dose_signal].columns[0]) if asm.dose_signal else -1,
                         dose_window=max(1, int(round(asm.dose_window / asm.dt))), meas_cols=tuple(self.meas_cols),
                         noise_std=tuple(noise), delay=asm.sensors.delay, history=asm.sensors.history,
-                        history_mode=history, normalized=asm.action_mode == "normalized")
+                        history_mode=history, normalized=asm.action_mode == "normalized", cost_cols=ccols,
+                        cost_limits=climits, cost_sides=csides, cost_terms=cterms, power_cols=pcols)
         cmd = asm.damper.command
         self.driver = Driver(asm.damper, asm.coupled.system, N, pr, dt=asm.dt, n_sub=asm.n_sub,
                              v_range=(cmd.v_min, cmd.v_max), threads=threads)
@@ -307,9 +328,10 @@ class EnvCore:
         self._reward = d.state("REWARD")[:, 0]
         self._rscale = d.state("RSCALE")
         self._n_steps = d.int_state("NSTEPS")
+        self._cost = d.state("COST")
 
     # --- copies (pickle, deepcopy, cloudpickle) ---------------------------------------------------------------
-    _VIEWS = ("_status", "_k", "_reward", "_rscale", "_n_steps")
+    _VIEWS = ("_status", "_k", "_reward", "_rscale", "_n_steps", "_cost")
     _CODE = ("kernel",)  # the driver's compiled module: loaded again from the damper's class
 
     def __getstate__(self) -> dict:
@@ -402,9 +424,10 @@ class EnvCore:
         nw, nd = asm.coupled.system.nw, asm.coupled.system.nd
         n_meas = len(self.meas_cols)
         depth = asm.sensors.delay + asm.sensors.history
-        # per environment: the dose ring buffer, the sensor FIFO, the observation, one row, the damper's state
+        # per environment: the dose ring buffer, the sensor FIFO, the observation, one row, the damper's state, the
+        # costs and the power
         state = FLOAT * (max(1, int(round(asm.dose_window / asm.dt))) + depth * n_meas + asm.sensors.history * n_meas
-                         + 2 * sig.width + 64 * nd + 4 * sig.G.shape[1])
+                         + 2 * sig.width + 64 * nd + 4 * sig.G.shape[1] + 2 * len(self.cost_names) + 4)
         parts = {f"the state of {N} environments ({format_bytes(state)} each)": N * state}
         if steps is not None:
             rows = steps * asm.n_sub + 1
@@ -463,10 +486,30 @@ class EnvCore:
         dose = d.state("DOSE")[b]
         rms = {name: np.sqrt(st[2 * sl.start:2 * sl.stop:2] / n_rows) for name, sl in self._stat_slices.items()}
         peak = {name: st[2 * sl.start + 1:2 * sl.stop:2].copy() for name, sl in self._stat_slices.items()}
-        return EpisodeStats(rms, peak, float(dose[0]), float(dose[2]), n_rows, self.asm.dt)
+        power = d.state("POWER")[b]
+        return EpisodeStats(rms, peak, float(dose[0]), float(dose[2]), n_rows, self.asm.dt,
+                            cost=self.episode_cost(b), power_peak=float(power[0]),
+                            energy=float(power[1]) * self.asm.dt)
 
     def episode_metrics(self, b: int) -> dict[str, float]:
-        return self.asm.metrics(self.stats(b), self.episodes[b])
+        """The plant's episode metrics, then the costs' totals (``cost``, ``cost_<term>``, s)."""
+        st = self.stats(b)
+        return {**self.asm.metrics(st, self.episodes[b]), **st.cost}
+
+    # --- constraint costs --------------------------------------------------------------------------------------
+    @property
+    def n_cost_terms(self) -> int:
+        return len(self.cost_names)
+
+    def episode_cost(self, b: int) -> dict[str, float]:
+        """Env b's costs summed over its episode so far: {"cost": s, "cost_<term>": s}."""
+        n = self.n_cost_terms + 1
+        c = self._cost[b, n:2 * n].tolist()
+        return {"cost": c[0], **{f"cost_{name}": v for name, v in zip(self.cost_names, c[1:])}}
+
+    def zero_cost_info(self) -> dict:
+        """The cost entries of a reset's info: no step yet, no cost."""
+        return {"cost": 0.0, "cost_terms": dict.fromkeys(self.cost_names, 0.0)}
 
     def failure_message(self, b: int) -> str:
         from ..stepping import diverged_error

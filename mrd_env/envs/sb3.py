@@ -4,7 +4,8 @@ environment: SB3 issues #1568, #1608, #1745).
 SB3's conventions, as ``DummyVecEnv`` over the scalar environments gives them (a test checks it step by step):
 ``reset()`` returns the observations only (seeds from ``seed()``, applied at the next reset; the reset infos in
 ``reset_infos``); ``step_wait()`` returns (obs, rewards, dones, infos) with dones = terminated | truncated, every
-``infos[i]`` the environment's step info with ``TimeLimit.truncated``, and the environment already reset in the same
+``infos[i]`` the environment's step info (``t``, the constraint ``cost`` and ``cost_terms``) with
+``TimeLimit.truncated``, and the environment already reset in the same
 step where an episode ended — then ``infos[i]`` is its last step's info (``episode_metrics``, a
 ``termination_reason``) with its last observation in ``terminal_observation``, ``TimeLimit.truncated`` true when
 the episode was cut by time rather than ended by the plant, and ``episode`` (return, length, time: what SB3's
@@ -73,8 +74,12 @@ class SB3VecEnv(VecEnv):
         dones = terminated | truncated
         # as DummyVecEnv gives them: each environment's step info with TimeLimit.truncated; where an episode ended,
         # its last step's info with the last observation, and the new episode's reset info in reset_infos
-        t = info["t"]
-        infos: list[dict[str, Any]] = [{"t": float(t[i]), "TimeLimit.truncated": False} for i in range(self.num_envs)]
+        t, cost, terms = info["t"].tolist(), info["cost"].tolist(), info["cost_terms"]
+        names = [k for k in terms if not k.startswith("_")]
+        per_term = [terms[k].tolist() for k in names]
+        infos: list[dict[str, Any]] = [{"t": t[i], "cost": cost[i],
+                                        "cost_terms": {k: v[i] for k, v in zip(names, per_term)},
+                                        "TimeLimit.truncated": False} for i in range(self.num_envs)]
         for i in np.flatnonzero(dones):
             d = infos[i] = env_info(info["final_info"], i)
             d["terminal_observation"] = info["final_obs"][i]

@@ -10,9 +10,11 @@ Per system b and per step of the period: the command (the held action, or a colu
 pushed into the queue of past commands that the command delay reads, the physics (``macro_step``), the named
 outputs h = G·[Y, F, W] into one row, the command columns, the online filters (second-order sections,
 transposed direct form II as ``scipy.signal.sosfilt``), the quadratic reward terms, the limits (termination),
-the running statistics of chosen columns (sum of squares, peak, fourth power and 1 s running r.m.s. of one
-column); after the period: the measurement (with Gaussian noise from a counter-based generator keyed per
-system and episode), the sensor delay and history FIFO, the observation.
+the constraint costs (rows at which a soft limit is exceeded, per term and any), the running statistics of
+chosen columns (sum of squares, peak, fourth power and 1 s running r.m.s. of one column) and the control power
+(Σ |force·velocity| over chosen pairs: peak and sum); after the period: the costs in seconds, the measurement
+(with Gaussian noise from a counter-based generator keyed per system and episode), the sensor delay and history
+FIFO, the observation.
 """
 import math
 
@@ -22,12 +24,13 @@ from mrd_env.stepping._kernel_template import delayed_commands, end_forces, macr
 from mrd_env.stepping.injected import ns  # injected
 from mrd_env.stepping.layout import (
     BAD_ACTION, D_DIMS, DIM_CMD_INPUT, DIM_DELAY, DIM_DOSE_COL, DIM_HIST_MODE, DIM_HISTORY, DIM_MAX_LEVEL, DIM_N,
-    DIM_NH, DIM_NORMALIZED, DIM_NPAR, DIM_NSUB, DIM_SCRATCH, DIVERGED, F_AINV, F_BBAR, F_C, F_D, F_G, F_LIMITS,
-    F_MQ, F_NOISE, F_PP, F_SCAL, F_SOS, HIST_FULL, HIST_PERIOD, I_FILTERS, I_LCOLS, I_MEAS, I_RCOLS, I_STAT_COLS,
-    RUNNING, S_CMD, S_CMDQ, S_DOSE, S_F, S_FIFO, S_LAG, S_P, S_RING, S_ROW, S_RSCALE, S_REWARD, S_STATS, S_U, S_Y,
-    S_ZI, SC_ATOL, SC_DT, SC_PEN_CONST, SC_PEN_STEP, SC_RTOL, SC_VMAX, SC_VMIN, T_CMDQ_POS, T_COUNTER, T_FAIL_STEP,
-    T_FIFO_POS, T_K, T_KEY, T_NSTEPS, T_NSUB, T_REASON, T_RING_POS, T_ROWS, T_STATUS, T_SUBSTEPS, TERMINATED,
-    TRUNCATED, CoreArrays, DamperArrays, OutputArrays, PlantArrays, StepControl, SystemState)
+    DIM_NH, DIM_NORMALIZED, DIM_NPAR, DIM_NSUB, DIM_SCRATCH, DIVERGED, F_AINV, F_BBAR, F_C, F_CLIMITS, F_D, F_G,
+    F_LIMITS, F_MQ, F_NOISE, F_PP, F_SCAL, F_SOS, HIST_FULL, HIST_PERIOD, I_CCOLS, I_CSIDES, I_CTERMS, I_FILTERS,
+    I_LCOLS, I_MEAS, I_PCOLS, I_RCOLS, I_STAT_COLS, RUNNING, S_CMD, S_CMDQ, S_COST, S_DOSE, S_F, S_FIFO, S_LAG, S_P,
+    S_POWER, S_RING, S_ROW, S_RSCALE, S_REWARD, S_STATS, S_U, S_Y, S_ZI, SC_ATOL, SC_DT, SC_PEN_CONST, SC_PEN_STEP,
+    SC_RTOL, SC_VMAX, SC_VMIN, T_CMDQ_POS, T_COUNTER, T_FAIL_STEP, T_FIFO_POS, T_K, T_KEY, T_NSTEPS, T_NSUB,
+    T_REASON, T_RING_POS, T_ROWS, T_STATUS, T_SUBSTEPS, TERMINATED, TRUNCATED, CoreArrays, DamperArrays,
+    OutputArrays, PlantArrays, StepControl, SystemState)
 from mrd_env.stepping.scheme import OK
 
 
@@ -111,6 +114,46 @@ def _row(G, Y, Fz, w, cmd, h, nsig, nd):
 
 
 @nb.njit(inline='always')
+def _count_costs(h, ccols, csides, climits, cterms, cost):
+    """Count one row in the cost field: cost[1 + t] += 1 if a constraint of term t is violated at it (|h| > limit,
+    h > limit or h < −limit by its side), cost[0] += 1 if any is."""
+    any_violated = False
+    for t in range(cterms.shape[0] - 1):
+        violated = False
+        for i in range(cterms[t], cterms[t + 1]):
+            x = h[ccols[i]]
+            if csides[i] == 0:
+                x = abs(x)
+            elif csides[i] < 0:
+                x = -x
+            if x > climits[i]:
+                violated = True
+        if violated:
+            cost[1 + t] += 1.0
+            any_violated = True
+    if any_violated:
+        cost[0] += 1.0
+
+
+@nb.njit(inline='always')
+def _close_costs(cost, n_terms, dt):
+    """The period's row counts [any, term 1..T] into seconds, added to the episode's totals behind them."""
+    for i in range(n_terms + 1):
+        c = cost[i] * dt
+        cost[i] = c
+        cost[n_terms + 1 + i] += c
+
+
+@nb.njit(inline='always')
+def _power(h, pcols):
+    """Σ_i |h[f_i]·h[v_i]| over the (force, velocity) column pairs: the control power of the row (W)."""
+    p = 0.0
+    for i in range(pcols.shape[0]):
+        p += abs(h[pcols[i, 0]] * h[pcols[i, 1]])
+    return p
+
+
+@nb.njit(inline='always')
 def _measure_and_observe(ic, fs, is_, b, h, noise, obs_out):
     """Measure h (with noise), push it into the delay/history FIFO and write the observation of system b."""
     meas = _i1(ic, I_MEAS)
@@ -186,6 +229,12 @@ def core_reset(fc, ic, fs, is_, W, H, obs, mask):
         dose[0] = 0.0
         dose[1] = 0.0
         dose[2] = 0.0
+        cost = _state(fs, ic, b, S_COST)
+        for i in range(cost.shape[0]):
+            cost[i] = 0.0
+        power = _state(fs, ic, b, S_POWER)
+        power[0] = _power(h, _i2(ic, I_PCOLS))  # the peak from row 0, as the statistics; the sum from row 1
+        power[1] = 0.0
         for i in range(ic[S_RING + 1]):
             fs[b, ic[S_RING] + i] = 0.0
         is_[b, T_RING_POS] = 0
@@ -232,6 +281,12 @@ def _advance_one(b, core, plant, outputs, wf, wi):
     rcols = _i1(ic, I_RCOLS)
     lcols = _i1(ic, I_LCOLS)
     stat_cols = _i1(ic, I_STAT_COLS)
+    ccols = _i1(ic, I_CCOLS)
+    csides = _i1(ic, I_CSIDES)
+    cterms = _i1(ic, I_CTERMS)
+    n_terms = cterms.shape[0] - 1
+    climits = _f1(fc, ic, F_CLIMITS)
+    pcols = _i2(ic, I_PCOLS)
     Y = _state(fs, ic, b, S_Y)
     U = _state(fs, ic, b, S_U)
     Fz = _state(fs, ic, b, S_F)
@@ -247,6 +302,8 @@ def _advance_one(b, core, plant, outputs, wf, wi):
     dose = _state(fs, ic, b, S_DOSE)
     ring = _state(fs, ic, b, S_RING)
     h = _state(fs, ic, b, S_ROW)
+    cost = _state(fs, ic, b, S_COST)
+    power = _state(fs, ic, b, S_POWER)
     damper = DamperArrays(P, lag)
     state = SystemState(Y, U, Fz)
     control = StepControl(dt, max_level, scal[SC_ATOL], scal[SC_RTOL])
@@ -264,6 +321,8 @@ def _advance_one(b, core, plant, outputs, wf, wi):
             cmd[j] = min(max(a, v_min), v_max)
     k0 = is_[b, T_K] * n_sub
     nsub = is_[b, T_NSUB]
+    for i in range(n_terms + 1):  # the period's rows in violation, counted below (seconds at its end)
+        cost[i] = 0.0
     total = 0.0
     status = RUNNING
     window = ring.shape[0]
@@ -281,6 +340,7 @@ def _advance_one(b, core, plant, outputs, wf, wi):
         if stat != OK:
             is_[b, T_REASON] = stat
             is_[b, T_FAIL_STEP] = r
+            _close_costs(cost, n_terms, dt)  # the rows before the failure count
             return DIVERGED
         is_[b, T_SUBSTEPS] += used
         _row(G, Y, Fz, W[b, r + 1], cmd, h, nsig, nd)
@@ -298,6 +358,13 @@ def _advance_one(b, core, plant, outputs, wf, wi):
         for i in range(lcols.shape[0]):
             if abs(h[lcols[i]]) > limits[i]:
                 status = TERMINATED
+        if n_terms > 0:
+            _count_costs(h, ccols, csides, climits, cterms, cost)
+        if pcols.shape[0] > 0:
+            pw = _power(h, pcols)
+            power[1] += pw
+            if pw > power[0]:
+                power[0] = pw
         for i in range(stat_cols.shape[0]):
             x = h[stat_cols[i]]
             st[2 * i] += x * x
@@ -320,6 +387,7 @@ def _advance_one(b, core, plant, outputs, wf, wi):
         elif hist_mode == HIST_PERIOD:
             for i in range(nH):
                 H[b, k, i] = h[i]
+    _close_costs(cost, n_terms, dt)
     is_[b, T_NSUB] = nsub
     is_[b, T_K] += 1
     is_[b, T_ROWS] += n_sub

@@ -2,17 +2,19 @@
 does per step (see ``_driver_template.py``), and the same call for the rig and identification.
 
 A :class:`Driver` packs a coupled system (:class:`~mrd_env.stepping.matrices.SystemMatrices` and a damper model)
-and a :class:`Processing` — the named outputs h = G·[Y, F, W], online filters, reward terms, limits, statistics
-and measurements — into four arrays (float and int constants, float and int per-system state), so that one
-``env.step`` is one compiled call with eight arguments (numba's dispatch costs about 30 ns per argument). Where
-each thing lives in those arrays is defined once, in :mod:`mrd_env.stepping.layout`, which the kernel imports.
+and a :class:`Processing` — the named outputs h = G·[Y, F, W], online filters, reward terms, limits, constraint
+costs, statistics and measurements — into four arrays (float and int constants, float and int per-system state),
+so that one ``env.step`` is one compiled call with eight arguments (numba's dispatch costs about 30 ns per
+argument). Where each thing lives in those arrays is defined once, in :mod:`mrd_env.stepping.layout`, which the
+kernel imports.
 
 Per-system state (one row of ``fs`` and ``is_`` per system, plus one scratch row for the kernel): the coupled
 state Y, the effective commands U, the forces F, the damper parameters P and command dynamics (η_rise, η_fall,
 delay τ; so every system may have its own damper), the queue of past commands the delay reads, the applied
 command, the filter states, the reward scales, the statistics, the ring of the running r.m.s., the
-delay/history FIFO, the last output row and the last reward; the step counters, the status, the noise
-generator's key and counter, the position in the command queue.
+delay/history FIFO, the last output row and the last reward, the constraint costs (the last period's and the
+episode's) and the control power; the step counters, the status, the noise generator's key and counter, the
+position in the command queue.
 """
 from __future__ import annotations
 
@@ -42,6 +44,12 @@ class Processing:
       Σ_i scale_i·h[col_i]²; ``penalty`` (a constant, and an amount per period of the episode's planned length)
       is subtracted when a limit is hit.
     * ``limit_cols``/``limits``: |h[col]| > limit terminates the episode.
+    * ``cost_cols`` with ``cost_limits`` and ``cost_sides`` (0: |h| > limit, +1: h > limit, −1: h < −limit),
+      grouped into terms by ``cost_terms`` (the first column of each term, then the column count): per step,
+      the time (s) of the period's rows at which a constraint of each term is violated, and of those at which
+      any is (field COST: [any, term 1..T] of the last period, then their episode totals).
+    * ``power_cols``: (force column, velocity column) pairs: the peak over the rows of Σ |h[f]·h[v]| and its
+      sum over the episode's rows (field POWER; × dt the energy).
     * ``stat_cols``: running sum of squares and peak of |h|; ``dose_col``: running Σ h⁴ and the maximum of the
       running r.m.s. over ``dose_window`` steps (the ISO 2631 VDV and MTVV of a weighted acceleration).
     * ``meas_cols`` with ``noise_std``: the measured columns; ``delay`` (periods) and ``history`` (periods
@@ -67,6 +75,11 @@ class Processing:
     history_mode: int = HIST_NONE
     command_input: int = -1
     normalized: bool = False
+    cost_cols: tuple = ()
+    cost_limits: tuple = ()
+    cost_sides: tuple = ()
+    cost_terms: tuple = (0,)
+    power_cols: tuple = ()
 
 
 class Driver:
@@ -115,9 +128,13 @@ class Driver:
         floats = {"C": system.C, "D": system.D, **dict(zip(("AINV", "BBAR", "MQ", "PP"),
                                                              system.levels(self.dt, max_level))),
                   "G": G, "SOS": sos, "SCAL": np.array([scal[s] for s in LAYOUT["scalars"]]), "NOISE": noise,
-                  "LIMITS": np.asarray(pr.limits, dtype=np.float64)}
+                  "LIMITS": np.asarray(pr.limits, dtype=np.float64),
+                  "CLIMITS": np.asarray(pr.cost_limits, dtype=np.float64)}
         ints = {"MEAS": pr.meas_cols, "RCOLS": pr.reward_cols, "LCOLS": pr.limit_cols, "STAT_COLS": pr.stat_cols,
-                "FILTERS": np.asarray(filt, dtype=np.int64).reshape(-1, 4)}
+                "FILTERS": np.asarray(filt, dtype=np.int64).reshape(-1, 4), "CCOLS": pr.cost_cols,
+                "CSIDES": pr.cost_sides, "CTERMS": pr.cost_terms,
+                "PCOLS": np.asarray(pr.power_cols, dtype=np.int64).reshape(-1, 2)}
+        self.n_cost_terms = n_terms = _check_costs(pr, nsig + nd + pr.n_extra)
         npar = damper.params.as_array().size
         self.threads = self._threads(threads)
         dims = {"N": n, "NH": nH, "NPAR": npar, "NSUB": self.n_sub, "MAX_LEVEL": max_level,
@@ -131,7 +148,8 @@ class Driver:
         sizes = {"Y": n, "U": nd, "F": nd, "P": nd * npar, "LAG": 3 * nd, "CMDQ": self.queue_length * nd, "CMD": nd,
                  "ZI": 2 * len(sos),
                  "RSCALE": len(pr.reward_cols), "STATS": 2 * len(pr.stat_cols), "DOSE": 3,
-                 "RING": max(int(pr.dose_window), 1), "FIFO": depth * n_meas, "ROW": nH, "REWARD": 1}
+                 "RING": max(int(pr.dose_window), 1), "FIFO": depth * n_meas, "ROW": nH, "REWARD": 1,
+                 "COST": 2 * (n_terms + 1), "POWER": 2}
         self.fc, self.ic, self._fields = pack(floats, ints, dims, sizes)
         wf, wi = self.kernel.workspace_len(nq, nd, n, nw)
         width = max(sum(sizes.values()), int(wf))
@@ -200,6 +218,24 @@ class Driver:
     def failure(self, b: int) -> tuple[int, float]:
         """(status code of the integrator, time in s) of system b's divergence."""
         return int(self.is_[b, T_REASON]), (int(self.is_[b, T_FAIL_STEP]) + 1) * self.dt
+
+
+def _check_costs(pr: Processing, width: int) -> int:
+    """The number of cost terms of ``pr``, after a ``ValueError`` for an inconsistent description."""
+    n = len(pr.cost_cols)
+    terms = [int(k) for k in pr.cost_terms]
+    if len(pr.cost_limits) != n or len(pr.cost_sides) != n:
+        raise ValueError(f"cost_limits and cost_sides must have one entry per cost column ({n}), got "
+                         f"{len(pr.cost_limits)} and {len(pr.cost_sides)}")
+    if not terms or terms[0] != 0 or terms[-1] != n or any(b < a for a, b in zip(terms, terms[1:])):
+        raise ValueError(f"cost_terms must rise from 0 to the number of cost columns ({n}), got {pr.cost_terms}")
+    if any(s not in (-1, 0, 1) for s in pr.cost_sides):
+        raise ValueError(f"cost_sides must be -1, 0 or 1, got {pr.cost_sides}")
+    cols = [int(c) for c in pr.cost_cols] + [int(c) for pair in pr.power_cols for c in pair]
+    if any(not 0 <= c < width for c in cols) or any(len(pair) != 2 for pair in pr.power_cols):
+        raise ValueError(f"cost and power columns must be columns of the output row (0..{width - 1}), and power "
+                         f"columns (force, velocity) pairs")
+    return len(terms) - 1
 
 
 def noise_keys(rngs) -> np.ndarray:

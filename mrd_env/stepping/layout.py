@@ -16,13 +16,13 @@ from collections import namedtuple
 import numpy as np
 
 LAYOUT = {
-    "float_constants": ("C", "D", "AINV", "BBAR", "MQ", "PP", "G", "SOS", "SCAL", "NOISE", "LIMITS"),
-    "int_constants": ("MEAS", "RCOLS", "LCOLS", "STAT_COLS", "FILTERS"),
+    "float_constants": ("C", "D", "AINV", "BBAR", "MQ", "PP", "G", "SOS", "SCAL", "NOISE", "LIMITS", "CLIMITS"),
+    "int_constants": ("MEAS", "RCOLS", "LCOLS", "STAT_COLS", "FILTERS", "CCOLS", "CSIDES", "CTERMS", "PCOLS"),
     "dims": ("N", "NH", "NPAR", "NSUB", "MAX_LEVEL", "HIST_MODE", "CMD_INPUT", "DOSE_COL", "NORMALIZED",
              "DELAY", "HISTORY", "SCRATCH"),
     "scalars": ("DT", "VMIN", "VMAX", "RTOL", "ATOL", "PEN_CONST", "PEN_STEP"),
     "state": ("Y", "U", "F", "P", "LAG", "CMDQ", "CMD", "ZI", "RSCALE", "STATS", "DOSE", "RING", "FIFO", "ROW",
-              "REWARD"),
+              "REWARD", "COST", "POWER"),
     "int_state": ("K", "NSTEPS", "STATUS", "KEY", "COUNTER", "NSUB", "FIFO_POS", "RING_POS", "ROWS", "REASON",
                   "FAIL_STEP", "SUBSTEPS", "CMDQ_POS"),
     "status": ("RUNNING", "TERMINATED", "TRUNCATED", "DIVERGED", "BAD_ACTION"),
@@ -35,9 +35,11 @@ _NI = len(LAYOUT["int_constants"])
 # The slot numbers, spelled out so that a reader, an IDE or ruff resolves them in the template; the unpacking
 # fails if a list above grows, and _check() below if an order differs.
 # ic[F_<name>]: header of the float constant <name> (offset into fc, dimensions)
-F_C, F_D, F_AINV, F_BBAR, F_MQ, F_PP, F_G, F_SOS, F_SCAL, F_NOISE, F_LIMITS = range(0, HEADER_SLOT * _NF, HEADER_SLOT)
+(F_C, F_D, F_AINV, F_BBAR, F_MQ, F_PP, F_G, F_SOS, F_SCAL, F_NOISE, F_LIMITS,
+ F_CLIMITS) = range(0, HEADER_SLOT * _NF, HEADER_SLOT)
 # ic[I_<name>]: header of the int constant <name> (offset into ic, dimensions)
-I_MEAS, I_RCOLS, I_LCOLS, I_STAT_COLS, I_FILTERS = range(HEADER_SLOT * _NF, HEADER_SLOT * (_NF + _NI), HEADER_SLOT)
+(I_MEAS, I_RCOLS, I_LCOLS, I_STAT_COLS, I_FILTERS, I_CCOLS, I_CSIDES, I_CTERMS,
+ I_PCOLS) = range(HEADER_SLOT * _NF, HEADER_SLOT * (_NF + _NI), HEADER_SLOT)
 D_DIMS = HEADER_SLOT * (_NF + _NI)  # ic[D_DIMS + DIM_<name>]: the dimension <name>
 (DIM_N, DIM_NH, DIM_NPAR, DIM_NSUB, DIM_MAX_LEVEL, DIM_HIST_MODE, DIM_CMD_INPUT, DIM_DOSE_COL, DIM_NORMALIZED,
  DIM_DELAY, DIM_HISTORY, DIM_SCRATCH) = range(len(LAYOUT["dims"]))
@@ -46,7 +48,7 @@ SC_DT, SC_VMIN, SC_VMAX, SC_RTOL, SC_ATOL, SC_PEN_CONST, SC_PEN_STEP = range(len
 _S0 = D_DIMS + len(LAYOUT["dims"])
 # ic[S_<name>], ic[S_<name> + 1]: offset and length of the per-system float field <name> in a row of fs
 (S_Y, S_U, S_F, S_P, S_LAG, S_CMDQ, S_CMD, S_ZI, S_RSCALE, S_STATS, S_DOSE, S_RING, S_FIFO, S_ROW,
- S_REWARD) = range(_S0, _S0 + 2 * len(LAYOUT["state"]), 2)
+ S_REWARD, S_COST, S_POWER) = range(_S0, _S0 + 2 * len(LAYOUT["state"]), 2)
 HEADER_LEN = _S0 + 2 * len(LAYOUT["state"])
 # is_[b, T_<name>]: the per-system int field <name>
 (T_K, T_NSTEPS, T_STATUS, T_KEY, T_COUNTER, T_NSUB, T_FIFO_POS, T_RING_POS, T_ROWS, T_REASON, T_FAIL_STEP,

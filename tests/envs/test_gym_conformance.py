@@ -216,7 +216,7 @@ def test_vector_env_pays_a_callable_reward_as_sync_vector_env(mode):
 def test_reset_info_names_the_disturbance(env_id):
     venv = gym.make_vec(env_id, num_envs=2, **SHORT)
     _, info = venv.reset(seed=0)
-    assert set(info) == {"t", "_t", "disturbance", "_disturbance"}
+    assert set(info) == {"t", "_t", "disturbance", "_disturbance", "cost", "_cost", "cost_terms", "_cost_terms"}
     assert info["_disturbance"].all() and all(isinstance(n, str) and n for n in info["disturbance"])
 
 

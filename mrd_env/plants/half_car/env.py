@@ -15,6 +15,7 @@ from ...envs import options as opt
 from ...envs import randomize
 from ...envs.base import MRDamperEnv
 from ...envs.core import Assembly, Episode, EpisodeStats
+from ...envs.costs import SOFT_STROKE_FRACTION, car_costs, exceedance_share, soft_limit
 from ...envs.disturbance import Disturbance, Generated
 from ...envs.reward import QuadraticReward
 from ...envs.signals import SignalMap
@@ -76,9 +77,15 @@ def road_source(road, road_params, dt: float, episode_seconds: float, wheelbase:
 
 # --- the assembly ------------------------------------------------------------------------------------------------
 def _metrics(st: EpisodeStats, ep: Episode, static: np.ndarray) -> dict:
+    """Comfort (ISO 2631-1 Wk r.m.s., VDV, MTVV of the body's heave), pitch, travel, road holding per axle and the
+    share of the time a travel is beyond the soft stroke limit (see :class:`HalfCarEnv`, Episode End)."""
+    ratio = st.rms["_tyre_load"] / static
     return {"acc_weighted_rms": float(st.rms["body_acc_wk"][0]), "pitch_acc_rms": float(st.rms["pitch_acc"][0]),
             "travel_peak": float(st.peak["travel"].max()),
-            "tyre_load_ratio": float(np.max(st.rms["_tyre_load"] / static)), "duration": (st.n_rows - 1) * st.dt}
+            "tyre_load_ratio": float(np.max(ratio)), "duration": (st.n_rows - 1) * st.dt,
+            "acc_vdv": float((st.dose4 * st.dt) ** 0.25), "acc_mtvv": st.max_running_rms,
+            "tyre_load_ratio_front": float(ratio[0]), "tyre_load_ratio_rear": float(ratio[1]),
+            "stroke_exceedance_share": exceedance_share(st)}
 
 
 def _new_episode(p: HalfCarParams, rec: Record) -> Episode:
@@ -95,7 +102,7 @@ def _new_episode(p: HalfCarParams, rec: Record) -> Episode:
 def assembly(*, plant_preset="sedan", plant_params=None, road="iso8608", road_params=None, damper="spencer_dyke",
              damper_preset=None, damper_params=None, dt=1e-3, control_dt=1e-3, episode_seconds=10.0, sensors=None,
              sensor_noise=None, sensor_delay=0, history=1, action_mode="physical", inverse=None, force_range=None,
-             reward=None, reward_weights=None, stroke_limit=0.1) -> Assembly:
+             reward=None, reward_weights=None, stroke_limit=0.1, soft_stroke_limit=None) -> Assembly:
     """The half-car environment's parts from its options (see :class:`HalfCarEnv`)."""
     given = {k: v for k, v in locals().items()}
     dt, control_dt, episode_seconds = opt.time_steps(dt, control_dt, episode_seconds)
@@ -123,6 +130,8 @@ def assembly(*, plant_preset="sedan", plant_params=None, road="iso8608", road_pa
     sm.add_commands(d.command.unit)
     sm.add_output("body_acc_wk", "m/s^2")
     w = opt.weights(reward_weights, DEFAULT_REWARD_WEIGHTS)
+    limit = opt.check_scalar("stroke_limit", stroke_limit, 0.0, lo_open=True, unit="m")
+    soft = soft_limit("soft_stroke_limit", soft_stroke_limit, limit, SOFT_STROKE_FRACTION)
     reward = opt.reward(reward, lambda: QuadraticReward({"body_acc_wk": w["comfort"],
                                                          "travel": np.full(2, w["travel"] / X_REF ** 2),
                                                          "_tyre_load": w["tyre"] / static ** 2}))
@@ -134,8 +143,7 @@ def assembly(*, plant_preset="sedan", plant_params=None, road="iso8608", road_pa
         sensor_names=SENSORS, sensors=opt.sensors(sensors, sensor_noise, sensor_delay, history, DEFAULT_SENSORS),
         disturbance=road_source(road, road_params, dt, episode_seconds, p.wheelbase,
                                 budget=Budget(FLOAT * coupled.system.nw)), reward=reward,
-        limits=Limits({"travel": opt.check_scalar("stroke_limit", stroke_limit, 0.0, lo_open=True, unit="m")},
-                      penalty_rate=w["termination"]),
+        limits=Limits({"travel": limit}, penalty_rate=w["termination"]),
         new_episode=functools.partial(_new_episode, p), metrics=functools.partial(_metrics, static=static),
         roles={"body_velocity": "body_vel_at_axles", "wheel_velocity": "wheel_vel", "damper_velocity": "travel_rate",
                "damper_stroke": "travel", "damper_force": "damper_force"},
@@ -143,7 +151,8 @@ def assembly(*, plant_preset="sedan", plant_params=None, road="iso8608", road_pa
         dt=dt, control_dt=control_dt, episode_seconds=episode_seconds,
         **opt.actuation(action_mode, inverse, force_range),
         filters=[("body_acc", "body_acc_wk", weighting_sos("Wk", dt))],
-        stat_signals=("body_acc_wk", "pitch_acc", "travel", "_tyre_load"), renderer=HalfCarRenderer, options=given)
+        stat_signals=("body_acc_wk", "pitch_acc", "travel", "_tyre_load"), renderer=HalfCarRenderer, options=given,
+        dose_signal="body_acc_wk", dose_window=1.0, costs=car_costs(soft, static))
 
 
 class HalfCarEnv(MRDamperEnv):
@@ -202,9 +211,16 @@ class HalfCarEnv(MRDamperEnv):
     "stroke_limit"``) or the simulation diverges; ``truncated`` after ``episode_seconds`` (10 s:
     ``env.spec.max_episode_steps`` 10 000 steps in ``Physical-v0``, 1 000 in ``-v1``).
 
-    ``info["episode_metrics"]`` at the end of an episode: acc_weighted_rms (Wk, m/s²), pitch_acc_rms (rad/s²),
-    travel_peak (m, both axles), tyre_load_ratio (the larger axle's r.m.s. dynamic tyre load over its static
-    load), duration (s).
+    Constraint costs, as the quarter car's (:mod:`mrd_env.envs.costs`): ``info["cost"]`` the time (s) during the
+    control period at which a travel is beyond ``soft_stroke_limit`` (default 0.8 × ``stroke_limit``) or a tyre
+    lifts off (its dynamic load below −its static load), front or rear; ``info["cost_terms"]`` = {"stroke": s,
+    "tyre_lift_off": s}.
+
+    ``info["episode_metrics"]`` at the end of an episode: acc_weighted_rms (Wk, m/s²), acc_vdv (m/s^1.75),
+    acc_mtvv (m/s², over 1 s) of the body's heave, pitch_acc_rms (rad/s²), travel_peak (m, both axles),
+    tyre_load_ratio (the larger axle's r.m.s. dynamic tyre load over its static load), tyre_load_ratio_front,
+    tyre_load_ratio_rear, stroke_exceedance_share (the share of the time a travel is beyond the soft stroke
+    limit), duration (s), cost, cost_stroke, cost_tyre_lift_off (s).
 
     ## Arguments
 
@@ -214,6 +230,8 @@ class HalfCarEnv(MRDamperEnv):
       profile wheelbase/speed later; ``road_params``: ``road_class`` "C" (or a list to draw from), ``speed``
       20 m/s (or a range (lo, hi))), a Record with channels z_rf, zdot_rf, z_rr, zdot_rr, or a Disturbance.
     * ``episode_seconds`` default 10 s; ``plant_preset`` "sedan" (:data:`mrd_env.plants.half_car.HALF_CAR_PRESETS`).
+    * ``stroke_limit`` 0.1 m (each axle; the episode ends), ``soft_stroke_limit`` (default 0.8 × ``stroke_limit``:
+      a cost).
     * ``reward_weights``: comfort 1.0 (on the Wk-weighted body acceleration², m²/s⁴), travel 0.5 (per
       (0.05 m)² on each axle), tyre 0.5 (per static tyre load²), termination 10 per second; or ``reward``.
     * no ``preview``.

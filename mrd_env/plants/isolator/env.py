@@ -13,6 +13,7 @@ from ...envs import randomize
 from ...envs.base import MRDamperEnv
 from ...envs.build import as_options, build
 from ...envs.core import Assembly, Episode, EpisodeStats
+from ...envs.costs import SOFT_STROKE_FRACTION, Constraint, Costs, exceedance_share, soft_limit
 from ...envs.disturbance import Disturbance, FixedRecord, Generated
 from ...envs.reward import QuadraticReward
 from ...envs.signals import SignalMap
@@ -227,8 +228,8 @@ def _per_reference(ep: Episode) -> np.ndarray:
 
 def metrics(stats: EpisodeStats, episode: Episode) -> dict[str, float]:
     """The isolation of an episode: the payload's acceleration (r.m.s., peak, ISO 2631-1 Wk-weighted r.m.s., VDV,
-    MTVV over 1 s), its r.m.s. over the base's (a transmissibility of the episode), the stroke and the damper
-    force (the measured force, preload included)."""
+    MTVV over 1 s), its r.m.s. over the base's (a transmissibility of the episode), the stroke, the damper
+    force (the measured force, preload included) and the share of the time the stroke is beyond its soft limit."""
     r, pk = stats.rms, stats.peak
     acc, base = float(r["payload_acc"][0]), float(r["base_acc"][0])
     return {"acc_rms": acc, "acc_peak": float(pk["payload_acc"][0]),
@@ -236,7 +237,7 @@ def metrics(stats: EpisodeStats, episode: Episode) -> dict[str, float]:
             "acc_mtvv": stats.max_running_rms, "transmissibility": acc / base if base > 0 else math.nan,
             "stroke_rms": float(r["stroke"][0]), "stroke_peak": float(pk["stroke"][0]),
             "damper_force_rms": float(r["damper_force"][0]), "damper_force_peak": float(pk["damper_force"][0]),
-            "duration": (stats.n_rows - 1) * stats.dt}
+            "duration": (stats.n_rows - 1) * stats.dt, "stroke_exceedance_share": exceedance_share(stats)}
 
 
 def _new_episode(rec: Record) -> Episode:
@@ -250,7 +251,7 @@ def assembly(*, plant_preset: str = "seat", plant_params=None, base_motion="rand
              control_dt: float = 1e-3, episode_seconds: float | None = DEFAULT_SECONDS, sensors=None,
              sensor_noise=None, sensor_delay: int = 0, history: int = 1, action_mode: str = "physical",
              inverse=None, force_range: float | None = None, reward=None, reward_weights=None,
-             stroke_limit: float = 0.05) -> Assembly:
+             stroke_limit: float = 0.05, soft_stroke_limit: float | None = None) -> Assembly:
     """The isolator environment's parts from its options (see :class:`IsolatorEnv`)."""
     given = {k: v for k, v in locals().items()}
     dt, control_dt, episode_seconds = opt.time_steps(dt, control_dt, episode_seconds)
@@ -263,6 +264,7 @@ def assembly(*, plant_preset: str = "seat", plant_params=None, base_motion="rand
     reward = opt.reward(reward, lambda: QuadraticReward({REWARD_SIGNALS[k]: w[k] for k in REWARD_SIGNALS},
                                                         episode_scale=_per_reference))
     limit = opt.check_scalar("stroke_limit", stroke_limit, 0.0, lo_open=True, unit="m")
+    soft = soft_limit("soft_stroke_limit", soft_stroke_limit, limit, SOFT_STROKE_FRACTION)
     if opt.action_mode(action_mode) == "force" and force_range is None:
         force_range = FORCE_RANGE
     source = base_motion_source(base_motion, base_motion_params, dt, episode_seconds,
@@ -286,7 +288,7 @@ def assembly(*, plant_preset: str = "seat", plant_params=None, base_motion="rand
         filters=[("payload_acc", "payload_acc_wk", weighting_sos("Wk", dt))],
         stat_signals=("payload_acc", "payload_acc_wk", "base_acc", "stroke", "damper_force"),
         dose_signal="payload_acc_wk", dose_window=1.0, renderer=IsolatorRenderer, options=given,
-        nominal_reference=nominal_reference)
+        nominal_reference=nominal_reference, costs=Costs({"stroke": Constraint("stroke", soft)}))
 
 
 class IsolatorEnv(MRDamperEnv):
@@ -350,10 +352,15 @@ class IsolatorEnv(MRDamperEnv):
     "stroke_limit"``) or the simulation diverges; ``truncated`` after ``episode_seconds`` (10 s:
     ``env.spec.max_episode_steps`` 10 000 steps in ``Physical-v0``, 1 000 in ``-v1``).
 
+    Constraint cost (:mod:`mrd_env.envs.costs`): ``info["cost"]`` the time (s) during the control period at which
+    |stroke| is beyond ``soft_stroke_limit`` (default 0.8 × ``stroke_limit`` = 0.04 m: the end stops' travel;
+    illustrative), counted on the physics rows; ``info["cost_terms"]`` = {"stroke": s}.
+
     ``info["episode_metrics"]`` at the end of an episode: acc_rms, acc_peak (m/s², the payload's absolute
-    acceleration), acc_weighted_rms, acc_vdv, acc_mtvv (ISO 2631-1 Wk; MTVV over 1 s), transmissibility (acc_rms
-    over the base acceleration's r.m.s. over the episode), stroke_rms, stroke_peak (m), damper_force_rms,
-    damper_force_peak (N), duration (s).
+    acceleration), acc_weighted_rms, acc_vdv (m/s^1.75), acc_mtvv (ISO 2631-1 Wk; MTVV over 1 s),
+    transmissibility (acc_rms over the base acceleration's r.m.s. over the episode), stroke_rms, stroke_peak (m),
+    damper_force_rms, damper_force_peak (N), duration (s), stroke_exceedance_share (the share of the time
+    |stroke| is beyond the soft limit), cost, cost_stroke (s).
 
     ## Arguments
 
@@ -379,7 +386,8 @@ class IsolatorEnv(MRDamperEnv):
     * ``action_mode``: "physical", "normalized" or "force" (with ``inverse`` and ``force_range``, default 1000 N).
     * ``reward_weights`` (acc 1.0, stroke 0.5, termination 10 per second) or ``reward`` (a
       :class:`~mrd_env.envs.reward.QuadraticReward` or any callable of the period's signals).
-    * ``stroke_limit`` (default 0.05 m on |x − z_b|), ``render_mode`` ("rgb_array", "human").
+    * ``stroke_limit`` (default 0.05 m on |x − z_b|: the episode ends), ``soft_stroke_limit`` (m, in (0,
+      ``stroke_limit``]; default 0.8 × ``stroke_limit``: a cost), ``render_mode`` ("rgb_array", "human").
 
     ## Version History
 

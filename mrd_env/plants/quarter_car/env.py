@@ -17,6 +17,7 @@ from ...envs import options as opt
 from ...envs.base import MRDamperEnv
 from ...envs.roads import ROAD_CHANNELS, ROAD_UNITS, road_source  # noqa: F401  (the car's road rule)
 from ...envs.core import Assembly, Episode, EpisodeStats
+from ...envs.costs import SOFT_STROKE_FRACTION, car_costs, exceedance_share, soft_limit
 from ...envs.disturbance import Generated, with_preview
 from ...envs.reward import QuadraticReward
 from ...envs.signals import SignalMap
@@ -133,14 +134,15 @@ def nominal_reference(p: QuarterCarParams, dt: float) -> dict:
 
 
 def metrics(stats: EpisodeStats, episode: Episode, static_tyre_load: float) -> dict[str, float]:
-    """ISO 2631 comfort, travel and tyre load of an episode (as :func:`~mrd_env.plants.quarter_car.metrics.quarter_car_metrics`)."""
+    """ISO 2631 comfort, travel and tyre load of an episode (as :func:`~mrd_env.plants.quarter_car.metrics.quarter_car_metrics`),
+    and the share of its time the travel is beyond the soft stroke limit."""
     r, pk = stats.rms, stats.peak
     out = {"acc_weighted_rms": float(r["sprung_acc_wk"][0]), "acc_rms": float(r["sprung_acc"][0]),
            "acc_vdv": float((stats.dose4 * stats.dt) ** 0.25), "acc_mtvv": stats.max_running_rms,
            "travel_rms": float(r["travel"][0]), "travel_peak": float(pk["travel"][0]),
            "tyre_load_rms": float(r["_tyre_load"][0]), "tyre_load_ratio": float(r["_tyre_load"][0]) / static_tyre_load,
            "damper_force_rms": float(r["damper_force"][0]), "damper_force_peak": float(pk["damper_force"][0]),
-           "duration": (stats.n_rows - 1) * stats.dt}
+           "duration": (stats.n_rows - 1) * stats.dt, "stroke_exceedance_share": exceedance_share(stats)}
     return out
 
 
@@ -167,7 +169,7 @@ def assembly(*, plant_preset: str = "set_a", plant_params=None, road="iso8608", 
              control_dt: float = 1e-3, episode_seconds: float | None = None, sensors=None, sensor_noise=None,
              sensor_delay: int = 0, history: int = 1, action_mode: str = "physical", inverse=None,
              force_range: float | None = None, reward=None, reward_weights=None,
-             stroke_limit: float | None = None, preview=None) -> Assembly:
+             stroke_limit: float | None = None, soft_stroke_limit: float | None = None, preview=None) -> Assembly:
     """The quarter-car environment's parts from its options (see :class:`QuarterCarEnv`)."""
     given = {k: v for k, v in locals().items()}
     dt, control_dt, episode_seconds = opt.time_steps(dt, control_dt, episode_seconds)
@@ -187,6 +189,7 @@ def assembly(*, plant_preset: str = "set_a", plant_params=None, road="iso8608", 
                                                         episode_scale=_per_reference))
     limit = opt.check_scalar("stroke_limit", 0.1 if stroke_limit is None else stroke_limit, 0.0, lo_open=True,
                              unit="m")
+    soft = soft_limit("soft_stroke_limit", soft_stroke_limit, limit, SOFT_STROKE_FRACTION)
     # per record sample of one environment's episode: its input buffer and the passive car's reference response
     # (computed at reset: the state, the acceleration and its weighting, travel and tyre load)
     source = road_source(road, road_params, dt, episode_seconds,
@@ -211,7 +214,8 @@ def assembly(*, plant_preset: str = "set_a", plant_params=None, road="iso8608", 
         filters=[("sprung_acc", "sprung_acc_wk", weighting_sos("Wk", dt))],
         stat_signals=("sprung_acc_wk", "sprung_acc", "travel", "_tyre_load", "damper_force"),
         dose_signal="sprung_acc_wk", dose_window=1.0, renderer=QuarterCarRenderer, options=given,
-        preview_times=ahead, reset_floats=EPISODE_FLOATS, nominal_reference=functools.partial(nominal_reference, p, dt))
+        preview_times=ahead, reset_floats=EPISODE_FLOATS, nominal_reference=functools.partial(nominal_reference, p, dt),
+        costs=car_costs(soft, static))
 
 
 class QuarterCarEnv(MRDamperEnv):
@@ -285,9 +289,19 @@ class QuarterCarEnv(MRDamperEnv):
     "stroke_limit"``) or the simulation diverges; ``truncated`` after ``episode_seconds`` (10 s for generated
     roads: ``env.spec.max_episode_steps`` steps, 10 000 in ``Physical-v0``, 1 000 in ``-v1``).
 
-    ``info["episode_metrics"]`` at the end of an episode: acc_weighted_rms, acc_rms, acc_vdv, acc_mtvv (ISO 2631-1
-    Wk; MTVV over 1 s), travel_rms, travel_peak, tyre_load_rms, tyre_load_ratio, damper_force_rms,
-    damper_force_peak (N), duration (s) — accumulated by the compiled step, no history needed.
+    Constraint costs (the CMDP signal of safe RL; no part of the reward): every step's ``info["cost"]`` is the time
+    (s) during the control period at which the car violates a constraint — |travel| beyond ``soft_stroke_limit``
+    (default 0.8 × ``stroke_limit`` = 0.08 m: the last 20 % of the travel, where bump and rebound stops engage;
+    illustrative) or tyre lift-off (the dynamic tyre load below −the static load: the tyre would pull, the wheel
+    leaves the road) — counted on the 1 ms physics rows, so 0 ≤ cost ≤ ``control_dt``;
+    ``info["cost_terms"]`` = {"stroke": s, "tyre_lift_off": s} (:mod:`mrd_env.envs.costs`).
+
+    ``info["episode_metrics"]`` at the end of an episode: acc_weighted_rms, acc_rms (m/s²), acc_vdv (m/s^1.75),
+    acc_mtvv (m/s²; ISO 2631-1 Wk, MTVV over 1 s), travel_rms, travel_peak (m), tyre_load_rms (N),
+    tyre_load_ratio (its r.m.s. over the static load), damper_force_rms, damper_force_peak (N), duration (s),
+    stroke_exceedance_share (the share of the time |travel| is beyond the soft stroke limit), cost,
+    cost_stroke, cost_tyre_lift_off (s: the step costs summed) — accumulated by the compiled step, no history
+    needed.
 
     ## Arguments
 
@@ -319,7 +333,8 @@ class QuarterCarEnv(MRDamperEnv):
     * ``reward_weights`` (comfort 0.5, travel 0.25, tyre 0.25; termination 10 per second) or
       ``reward``: a :class:`~mrd_env.envs.reward.QuadraticReward`, or any callable of the period's signals
       (``{name: (n_sub, width)}`` → float; one Python call per step).
-    * ``stroke_limit`` (default 0.1 m on |z_s − z_u|), ``render_mode`` ("rgb_array", "human").
+    * ``stroke_limit`` (default 0.1 m on |z_s − z_u|: the episode ends), ``soft_stroke_limit`` (m, in (0,
+      ``stroke_limit``]; default 0.8 × ``stroke_limit``: a cost), ``render_mode`` ("rgb_array", "human").
     * ``preview``: None (default: no preview), or the times ahead τ (s; one or an increasing sequence, each a
       multiple of ``dt`` in [dt, 10 s]) at which the ``road_preview`` sensor reads the road;
       ``env.unwrapped.preview_times`` gives them (a tuple in s, empty without preview).

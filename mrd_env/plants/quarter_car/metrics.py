@@ -3,14 +3,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...metrics import as_series, mtvv, rms, sample_interval, vdv, weighted_acceleration
+from ...metrics import as_series, exceedance_share, mtvv, rms, sample_interval, vdv, weighted_acceleration
 from ...validation import check_scalar
 
 
 def quarter_car_metrics(dt, sprung_acc, suspension_travel, dynamic_tyre_load=None, *,
                         tyre_deflection=None, tyre_stiffness: float | None = None,
                         static_tyre_load: float | None = None, kind: str = "Wk",
-                        method: str = "iir", tau: float = 1.0) -> dict[str, float]:
+                        method: str = "iir", tau: float = 1.0,
+                        soft_stroke_limit: float | None = None) -> dict[str, float]:
     """Ride comfort, suspension working space and road holding of one quarter-car record.
 
     ``sprung_acc`` (m/s²), ``suspension_travel`` (m, from static equilibrium) and either
@@ -22,7 +23,9 @@ def quarter_car_metrics(dt, sprung_acc, suspension_travel, dynamic_tyre_load=Non
     ``acc_mtvv`` — weighted MTVV over ``tau``, m/s²; ``travel_rms``, ``travel_peak`` — m;
     ``tyre_load_rms`` — N (if a tyre input is given); ``tyre_load_ratio`` — tyre_load_rms over
     ``static_tyre_load`` (N, > 0; if given), the road-holding index (below 1/3, a Gaussian dynamic load
-    exceeds the static load — the tyre lifts off — less than 0.14 % of the time).
+    exceeds the static load — the tyre lifts off — less than 0.14 % of the time);
+    ``stroke_exceedance_share`` — the share of the record's time |travel| is beyond ``soft_stroke_limit`` (m,
+    > 0; if given: :func:`~mrd_env.metrics.exceedance_share`, what the environments report).
     """
     acc = as_series("sprung_acc", sprung_acc)
     n = acc.shape[0]
@@ -37,6 +40,9 @@ def quarter_car_metrics(dt, sprung_acc, suspension_travel, dynamic_tyre_load=Non
         "travel_rms": float(rms(travel)),
         "travel_peak": float(np.max(np.abs(travel))),
     }
+    if soft_stroke_limit is not None:
+        soft = check_scalar("soft_stroke_limit", soft_stroke_limit, 0.0, lo_open=True, unit="m")
+        out["stroke_exceedance_share"] = exceedance_share(step, travel, soft)
 
     if dynamic_tyre_load is not None and tyre_deflection is not None:
         raise ValueError("give either dynamic_tyre_load or tyre_deflection, not both")

@@ -99,7 +99,8 @@ def benchmark_criteria(controlled: Mapping[str, float], uncontrolled: Mapping[st
     both dicts have base shear). Control effort, where the inputs exist: ``force_over_weight`` — peak
     device force over ``building_weight`` (N, e.g. ``G * total_mass``); ``stroke_peak`` — peak device
     stroke, m; ``stroke_over_disp`` — that stroke over the uncontrolled peak floor displacement (the
-    normalisation is part of the same unverified recollection).
+    normalisation is part of the same unverified recollection). The peak and total control power are
+    :func:`control_power`'s.
     Take the maximum over several records with :func:`max_over_records`.
     """
     out = {}
@@ -122,6 +123,27 @@ def benchmark_criteria(controlled: Mapping[str, float], uncontrolled: Mapping[st
             out["stroke_over_disp"] = stroke / _positive(uncontrolled, "uncontrolled", "disp_peak",
                                                         "stroke_over_disp")
     return out
+
+
+def control_power(dt, damper_force, damper_velocity) -> dict[str, float]:
+    """The control power of a building's dampers on one record: the structural benchmarks' peak and total control
+    power with the power of device i taken as the mechanical power it exchanges with the structure, |F_i·ẋ_i|
+    (``damper_force`` (n, n_dampers) N, as measured; ``damper_velocity`` (n, n_dampers) m/s, its stroke rate):
+
+    ``control_power_peak`` = max over the samples of Σ_i |F_i·ẋ_i| (W);
+    ``control_power_total`` = Σ over the samples after the first of Σ_i |F_i·ẋ_i| × dt (J; each sample stands
+    for the step ending at it, as the environments accumulate it).
+
+    Unnormalised: the benchmark divides them by a velocity or displacement of the uncontrolled building and its
+    weight, a normalisation this project could not check (the reference page recalls the criteria, not their
+    definitions)."""
+    f = as_signal("damper_force", damper_force, columns=True)
+    v = as_signal("damper_velocity", damper_velocity, n=f.shape[0], columns=True)
+    if v.shape != f.shape:
+        raise ValueError(f"damper_velocity must have the shape of damper_force {f.shape}, got {v.shape}")
+    step = sample_interval(dt, f.shape[0])
+    p = np.sum(np.abs(f * v), axis=1)
+    return {"control_power_peak": float(np.max(p)), "control_power_total": float(np.sum(p[1:]) * step)}
 
 
 def max_over_records(records: Iterable[Mapping[str, float]]) -> dict[str, float]:
