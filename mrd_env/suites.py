@@ -208,19 +208,20 @@ def read_suite(path: str | Path) -> Suite:
     return from_json(data, where=f"suite file {path}")
 
 
+#: The plants' folders, where each ships its suites (``<plant>/suites/*.json``): found by path, so that this
+#: module, which the plants' suite definitions import, imports no plant.
+PLANTS_FOLDER = Path(__file__).resolve().parent / "plants"
+
+
 def suites() -> dict[str, Suite]:
     """Every shipped suite by its id (``name-vN``): the JSON files of each plant folder's ``suites/``."""
-    from .plants import plants
-
     out = {}
-    for spec in plants().values():
-        folder = Path(spec.module().__file__).parent / "suites"
-        if not folder.is_dir():
-            continue
+    for folder in sorted(PLANTS_FOLDER.glob("*/suites")):
         for path in sorted(folder.glob("*.json")):
             s = read_suite(inside(folder, path.name, what="suite file"))
-            if s.plant != spec.name:
-                raise ValueError(f"suite file {path}: its plant is {s.plant!r}, not the folder's {spec.name!r}")
+            if s.plant != folder.parent.name:
+                raise ValueError(f"suite file {path}: its plant is {s.plant!r}, not the folder's "
+                                 f"{folder.parent.name!r}")
             out[s.id] = s
     return out
 
@@ -244,40 +245,9 @@ def _json_options(options: dict) -> dict:
     return json.loads(json.dumps(options))
 
 
-def definitions() -> dict[str, tuple]:
-    """Every suite definition of the plants' profiles by its id: {id: (plant's name, env id, definition)};
-    ``ValueError`` if two plants declare the same suite name."""
-    from .plants import plants
-
-    out, names = {}, {}
-    for spec in plants().values():
-        for d in spec.profile.suites:
-            if d.name in names and names[d.name] != spec.name:
-                raise ValueError(f"suite {d.name!r} is declared by two plants ({names[d.name]}, {spec.name})")
-            names[d.name] = spec.name
-            if d.id in out:
-                raise ValueError(f"suite {d.id} is declared twice")
-            out[d.id] = (spec.name, spec.physics_id, d)
-    return out
-
-
-def definition(name: str) -> tuple:
-    """(plant's name, env id, :class:`SuiteDefinition`) of the suite ``name`` (``name-vN``, or a name: its latest
-    version); ``ValueError`` naming the suites otherwise."""
-    every = definitions()
-    if name in every:
-        return every[name]
-    versions = sorted((d.version, k) for k, (_, _, d) in every.items() if d.name == name)
-    if versions:
-        return every[versions[-1][1]]
-    raise ValueError(f"suite must be one of {sorted(every)}, got {name!r}")
-
-
 def suite_path(plant: str, suite: "Suite | SuiteDefinition") -> Path:
     """Where the plant's folder ships the suite: ``mrd_env/plants/<plant>/suites/<name>-v<version>.json``."""
-    from .plants import plant as plant_spec
-
-    return Path(plant_spec(plant).module().__file__).parent / "suites" / f"{suite.id}.json"
+    return PLANTS_FOLDER / plant / "suites" / f"{suite.id}.json"
 
 
 # --------------------------------------------------------------------------------------------- robustness twins

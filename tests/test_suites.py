@@ -11,8 +11,9 @@ import pytest
 
 from experiments.scripts import suite_references as sr
 from mrd_env.plants import plants
-from mrd_env.suites import (SENSOR_OPTIONS, Suite, SuiteDefinition, SuiteScenario, content_digest, definition,
-                            definitions, draws, read_suite, suite, suite_path, suites, write_suite)
+from mrd_env.plants import suite_definition, suite_definitions
+from mrd_env.suites import (SENSOR_OPTIONS, Suite, SuiteDefinition, SuiteScenario, content_digest, draws, read_suite,
+                            suite, suite_path, suites, write_suite)
 
 
 @pytest.fixture(scope="module")
@@ -59,7 +60,7 @@ def test_an_edited_copy_is_refused(shipped, tmp_path):
 
 
 def test_suite_ids_unique_and_files_are_their_definitions(shipped):
-    every = definitions()  # raises on a suite declared twice
+    every = suite_definitions()  # raises on a suite declared twice
     names = [d.name for _, _, d in every.values()]
     assert len(every) == len({(d.name, d.version) for _, _, d in every.values()})
     assert len(set(names)) == len(names), "one version of each suite is declared"
@@ -75,9 +76,9 @@ def test_suite_ids_unique_and_files_are_their_definitions(shipped):
 
 
 def test_preview_suite_says_who_has_preview_and_shares_references(shipped):
-    _, _, d = definition("car-preview")
+    _, _, d = suite_definition("car-preview")
     assert "road_preview" in d.options["sensors"] and d.options["preview"]
-    _, _, comfort = definition(d.references_of)
+    _, _, comfort = suite_definition(d.references_of)
     assert "road_preview" not in comfort.options["sensors"]
     if d.id in shipped and comfort.id in shipped:
         p, c = shipped[d.id], shipped[comfort.id]
@@ -122,7 +123,7 @@ def test_the_procedure_is_deterministic_on_a_tiny_suite(tmp_path):
 
 
 def test_twin_draws_reproduce_from_the_seed(shipped):
-    for sid, (plant, env_id, d) in definitions().items():
+    for sid, (plant, env_id, d) in suite_definitions().items():
         if not d.randomise:
             continue
         again = draws(d, env_id)

@@ -212,9 +212,10 @@ def main(argv=None) -> int:
 
     from mrd_env.executor import Task, run_tasks
     from mrd_env.plants import plant as plant_spec
-    from mrd_env.suites import Reference, definition, draws, suite_path, write_suite
+    from mrd_env.plants import suite_definition
+    from mrd_env.suites import Reference, draws, suite_path, write_suite
 
-    plant, env_id, d = definition(args.suite)
+    plant, env_id, d = suite_definition(args.suite)
     command = f"python -m experiments.scripts.suite_references --suite {d.id}"
     path = args.out or suite_path(plant, d)
     if args.episodes is not None and args.out is None:

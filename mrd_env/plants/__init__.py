@@ -65,6 +65,33 @@ def plant_of_id(env_id: str) -> PlantSpec | None:
     return next((s for s in plants().values() if env_id in (*s.ids, *s.former_ids)), None)
 
 
+def suite_definitions() -> dict[str, tuple]:
+    """Every suite definition of the plants' profiles by its id: {id: (plant's name, env id, definition)};
+    ``ValueError`` if two plants declare the same suite name."""
+    out, names = {}, {}
+    for spec in plants().values():
+        for d in spec.profile.suites:
+            if d.name in names and names[d.name] != spec.name:
+                raise ValueError(f"suite {d.name!r} is declared by two plants ({names[d.name]}, {spec.name})")
+            names[d.name] = spec.name
+            if d.id in out:
+                raise ValueError(f"suite {d.id} is declared twice")
+            out[d.id] = (spec.name, spec.physics_id, d)
+    return out
+
+
+def suite_definition(name: str) -> tuple:
+    """(plant's name, env id, :class:`~mrd_env.suites.SuiteDefinition`) of the suite ``name`` (``name-vN``, or a name: its latest
+    version); ``ValueError`` naming the suites otherwise."""
+    every = suite_definitions()
+    if name in every:
+        return every[name]
+    versions = sorted((d.version, k) for k, (_, _, d) in every.items() if d.name == name)
+    if versions:
+        return every[versions[-1][1]]
+    raise ValueError(f"suite must be one of {sorted(every)}, got {name!r}")
+
+
 def __getattr__(name: str):
     """The plants' public names, imported on first use: the environment classes (``QuarterCarEnv``,
     ``QuarterCarVectorEnv``, ...), the parameter classes and presets (``QuarterCarParams``, ...)."""
@@ -77,5 +104,6 @@ def __getattr__(name: str):
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-__all__ = ["PLANT_FOLDERS", "PlantSpec", "plants", "plant", "plant_of_env", "plant_of_id", "CoupledPlant",
+__all__ = ["PLANT_FOLDERS", "PlantSpec", "plants", "plant", "plant_of_env", "plant_of_id", "suite_definitions",
+           "suite_definition", "CoupledPlant",
            "LinearPlant"]
