@@ -4,9 +4,7 @@ bars, its linear limit against python-control's frequency response, the dampers'
 equilibrium at reset, the two-track roads (coherence against the isotropic model, the rear wheels' exact delay,
 the wheelbase preview), the Gymnasium contract of both ids, option errors, the episode metrics against the offline
 ones, and every command reaching it through ``--plant full_car``."""
-import json
 import math
-import warnings
 
 import control
 import gymnasium as gym
@@ -14,7 +12,6 @@ import numpy as np
 import pytest
 import scipy.signal
 import scipy.special
-from gymnasium.utils.env_checker import check_env
 from scipy.integrate import solve_ivp
 from scipy.interpolate import CubicSpline
 
@@ -27,6 +24,8 @@ from mrd_env.plants.full_car import full_car
 from mrd_env.plants.full_car.metrics import full_car_metrics, we_magnitude, we_sos
 from mrd_env.plants.full_car.roads import Geometry, two_track_iso8608
 
+from tests.plants.contract import (check_reset_reproduces_an_episode, check_train_then_evaluate,
+                                   check_vector_steps_as_scalar_ones)
 from tests.reference_models import nrmse
 
 V0 = "mrd_env/FullCarPhysical-v0"
@@ -367,45 +366,12 @@ def test_bumps_and_potholes_hit_one_side_front_then_rear(kind, side):
 # --- (f) the Gymnasium contract ------------------------------------------------------------------------------------
 @pytest.mark.parametrize("env_id", [V0, V1])
 def test_both_ids_pass_the_checker_and_reset_reproduces_an_episode(env_id):
-    env = gym.make(env_id, **SHORT)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # the physical id's Box is in V, not symmetric, by design
-        check_env(env.unwrapped)
-    runs = []
-    for _ in range(2):
-        obs, info = env.reset(seed=11)
-        first = env.unwrapped.record.data
-        env.action_space.seed(3)
-        out = [obs]
-        while True:
-            obs, r, term, trunc, info = env.step(env.action_space.sample())
-            out.append(np.append(obs, r))
-            if term or trunc:
-                break
-        runs.append((np.concatenate(out), info["episode_metrics"]))
-    assert np.array_equal(runs[0][0], runs[1][0]) and runs[0][1] == runs[1][1]
-    assert trunc and not term
-    assert env.spec.max_episode_steps == (500 if env_id == V0 else 50)
+    env = check_reset_reproduces_an_episode(env_id, SHORT, 500 if env_id == V0 else 50)
     assert env.action_space.shape == (4,) and env.observation_space.shape == (27,)
-    env.reset(seed=12)
-    assert not np.array_equal(env.unwrapped.record.data, first)   # another seed, another road
 
 
 def test_the_vector_environment_steps_as_the_scalar_ones():
-    n = 3
-    venv = gym.make_vec(V0, num_envs=n, vectorization_mode="vector_entry_point", **SHORT)
-    envs = [gym.make(V0, **SHORT) for _ in range(n)]
-    seeds = [4, 5, 6]
-    obs, _ = venv.reset(seed=seeds)
-    for e, s, o in zip(envs, seeds, obs):
-        assert np.array_equal(e.reset(seed=s)[0], o)
-    rng = np.random.default_rng(0)
-    for _ in range(100):
-        a = rng.uniform(0.0, 2.0, (n, 4)).astype(np.float32)
-        vo, vr, vt, vtr, _ = venv.step(a)
-        for i, e in enumerate(envs):
-            o, r, t, tr, _ = e.step(a[i])
-            assert np.array_equal(o, vo[i]) and r == vr[i] and (t, tr) == (vt[i], vtr[i])
+    check_vector_steps_as_scalar_ones(V0, SHORT, n_dampers=4)
 
 
 def test_roles_per_corner_and_the_classical_laws_run_per_damper():
@@ -531,15 +497,7 @@ def test_evaluate_runs_on_the_full_car_with_its_laws_and_mpc(tmp_path):
 
 
 def test_train_then_evaluate_an_agent_on_the_full_car(tmp_path):
-    assert main(["train", "--plant", "full_car", "--algo", "ppo", "--timesteps", "64", "--set", "n_steps=32",
-                 "batch_size=32", "n_envs=1", "n_epochs=1", "--eval-freq", "0", "--no-progress",
-                 "--out", str(tmp_path / "agents")]) == 0
-    agent = tmp_path / "agents" / "full_car_ppo_s0"
-    meta = json.loads((agent / "agent.json").read_text())
-    assert meta["env_id"] == V0
-    assert main(["evaluate", "--plant", "full_car", "--agents", str(agent), "--laws", "passive_off", "--quick",
-                 "--seeds", "1", "--no-mpc", "--no-1ms", "--yardstick", "off", "--backend", "serial",
-                 "--out", str(tmp_path / "eval"), "--no-progress"]) == 0
+    check_train_then_evaluate("full_car", V0, tmp_path)
 
 
 def test_the_yardstick_refuses_the_full_car_with_its_reason(tmp_path):
