@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from ..profile import PlantProfile, TestCase
 from ..quarter_car import SPEC as QUARTER_CAR
-from ..quarter_car.profile import CAR_LAWS
+from ..quarter_car.profile import CAR_LAWS, PROFILE as QUARTER_CAR_PROFILE
 from . import SPEC
 from .physics import full_car
 
@@ -53,8 +53,7 @@ def passive_car(options: dict) -> tuple[str, dict]:
 PROFILE = PlantProfile(
     spec=SPEC,
     options={},
-    training={"road": {"kind": "iso8608", "road_class": ["B", "C", "D"], "speed": (10.0, 30.0)},
-              "episode_seconds": 10.0},
+    training=QUARTER_CAR_PROFILE.training,  # the quarter car's roads, on two tracks
     disturbance_key="road", tests=_full_car_tests,
     laws=("random", *CAR_LAWS),
     benchmark_laws=CAR_LAWS,
