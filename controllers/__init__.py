@@ -11,7 +11,7 @@ design="sampled")``, designed for the environment's reward at its control step).
 """
 from .agents import TrainedAgent, load_agent, shipped_agents
 from .base import AgentController, Controller, PassiveOff, PassiveOn, RandomCommand
-from .friction_laws import MaximumEnergyDissipation, ModulatedHomogeneousFriction
+from .friction_laws import DecentralizedBangBang, MaximumEnergyDissipation, ModulatedHomogeneousFriction
 from .model_based import ClippedOptimal, KalmanEstimator, LinearDesign, Lyapunov
 from .mpc import MPC
 from .nmpc import NonlinearMPC
@@ -21,7 +21,7 @@ from .velocity_laws import Groundhook, Hybrid, SkyhookContinuous, SkyhookOnOff, 
 
 
 __all__ = ["NonlinearMPC", "AgentController", "CONTROLLERS", "ClippedOptimal", "Controller", "ControllerProtocol",
-           "Groundhook", "Hybrid", "KalmanEstimator", "LinearDesign", "Lyapunov", "MPC", "MaximumEnergyDissipation",
+           "DecentralizedBangBang", "Groundhook", "Hybrid", "KalmanEstimator", "LinearDesign", "Lyapunov", "MPC", "MaximumEnergyDissipation",
            "ModulatedHomogeneousFriction", "PassiveOff", "PassiveOn", "RandomCommand", "SkyhookContinuous", "SkyhookOnOff",
            "TrainedAgent", "VARIANTS", "available_controllers", "build_controller", "force_gain", "import_object",
            "load_agent", "make_controller", "shipped_agents"]

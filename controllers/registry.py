@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from .base import Controller, PassiveOff, PassiveOn, RandomCommand
-from .friction_laws import MaximumEnergyDissipation, ModulatedHomogeneousFriction
+from .friction_laws import DecentralizedBangBang, MaximumEnergyDissipation, ModulatedHomogeneousFriction
 from .model_based import ClippedOptimal, Lyapunov
 from .mpc import MPC
 from .nmpc import NonlinearMPC
@@ -11,7 +11,7 @@ from .velocity_laws import Groundhook, Hybrid, SkyhookContinuous, SkyhookOnOff
 
 CONTROLLERS = {c.name: c for c in (RandomCommand, PassiveOff, PassiveOn, SkyhookOnOff, SkyhookContinuous, Groundhook, Hybrid,
                                    ClippedOptimal, MPC, NonlinearMPC, Lyapunov, MaximumEnergyDissipation,
-                                   ModulatedHomogeneousFriction)}
+                                   ModulatedHomogeneousFriction, DecentralizedBangBang)}
 
 
 #: name → (controller, options): clipped-optimal control with an inverse model turning f_c into the command; and
