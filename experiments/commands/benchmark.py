@@ -23,7 +23,7 @@ from mrd_env.report import markdown_table, write_table
 
 from ..common import sweep, yardstick
 from ..common.evaluation import Episode, applicable_laws, check_laws, controller_episodes
-from ..common.plants import PlantProfile, chosen_plants, plant_choices, plant_name
+from ..common.plants import PlantProfile, add_plant_options, chosen_plants, plant_choices, plant_name, with_plant_options
 from ..common.scenarios import base_scenario, held_out_scenarios
 
 
@@ -226,6 +226,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-progress", action="store_true")
     yardstick.add_mode_argument(p)
     sweep.add_arguments(p)
+    add_plant_options(p)
 
 
 def scenario_rows(scenarios) -> list[dict]:
@@ -244,7 +245,7 @@ def agent_metadata(path: str | Path) -> dict:
 def run(args: argparse.Namespace) -> int:
     from controllers.agents import recorded_plant
 
-    plants = chosen_plants(args.plant)
+    plants = with_plant_options(chosen_plants(args.plant), args)
     agents = {path: recorded_plant(agent_metadata(path)) for path in args.agent}  # ValueError for a bad path
     for path, trained_on in agents.items():
         if trained_on not in [p.name for p in plants]:

@@ -23,7 +23,7 @@ from mrd_env.report import write_table
 from ..common import sweep, yardstick
 from ..common.comparison import comparison_damper, evaluate
 from ..common.evaluation import Episode, check_laws, episode_means, grouped_bars, mean_ci
-from ..common.plants import PlantProfile, chosen_plants, plant_choices, plant_name
+from ..common.plants import PlantProfile, add_plant_options, chosen_plants, plant_choices, plant_name, with_plant_options
 from ..common.scenarios import base_scenario, held_out_scenarios
 
 
@@ -105,6 +105,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-progress", action="store_true")
     yardstick.add_mode_argument(p)
     sweep.add_arguments(p)
+    add_plant_options(p)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -113,7 +114,7 @@ def run(args: argparse.Namespace) -> int:
 
     if args.seeds < 1:
         raise ValueError(f"--seeds must be >= 1, got {args.seeds}")
-    plants = chosen_plants(args.plant)
+    plants = with_plant_options(chosen_plants(args.plant), args)
     check_laws("--laws", args.laws, plants)
     executor = sweep.options(args)
     if args.damper is not None:

@@ -10,6 +10,9 @@ without running code from their folders (one that only has SB3's pickled ``model
 Writes, per controller, ``<out>/<suite id>__<controller>.json`` (the result file: suite name, version and digest, the
 controller's description, every episode's figures) and ``.md``/``.csv`` (its table); ``mrd-env leaderboard`` merges
 result files of the same suite.
+
+A suite fixes its plant: the plant options (``--storeys``, ``--damper-storeys``, ``--damper``) may only name the
+suite's own plant; options that would change it are refused with the suites whose plant they describe.
 """
 from __future__ import annotations
 
@@ -21,6 +24,7 @@ from pathlib import Path
 from mrd_env import storage
 
 from ..common import sweep
+from ..common.plants import add_plant_options, check_suite_plant
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -39,6 +43,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "source you trust; converted once into <out>/converted-agents/)")
     p.add_argument("--no-progress", action="store_true")
     sweep.add_arguments(p)
+    add_plant_options(p)  # a suite fixes its plant: they may only name it (check_suite_plant)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -54,6 +59,7 @@ def run(args: argparse.Namespace) -> int:
         # module:attribute looked up in the installed packages, then the current folder (last: it shadows nothing)
         sys.path.append(os.getcwd())
     suite = resolve_suite(args.suite)
+    check_suite_plant(suite, args)
     check_references(suite)
     storage.writable_folder(args.out)
     # every controller checked before any episode runs: a typo must not cost the first controller's episodes

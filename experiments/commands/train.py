@@ -34,7 +34,8 @@ import numpy as np
 from mrd_env.envs import RL_DEFAULTS
 
 from ..common import sweep
-from ..common.plants import PlantProfile, default_plant, plant_choices, plant_name, profile
+from ..common.plants import (PlantProfile, add_plant_options, default_plant, plant_choices, plant_name, profile,
+                             with_plant_options)
 from ..common.sb3_trainer import check_laws, check_with_sb3
 from ..common.trainers import (ALGOS, available_algos, env_options, hyperparameters, residual_spec, run_name,
                                steps_label, train_one, validation_split)
@@ -212,6 +213,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", type=Path, default=Path("results/agents"))
     p.add_argument("--no-progress", action="store_true")
     sweep.add_arguments(p)
+    add_plant_options(p)
 
 
 def check_before_training(algo: str, hyper: dict, env_id: str, env_kwargs: dict) -> None:
@@ -256,7 +258,7 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError("--warm-start applies to --algo cmaes")
         if args.warm_start not in available_controllers():
             raise ValueError(f"--warm-start must be a law of {available_controllers()}, got {args.warm_start!r}")
-    plant = profile(args.plant)
+    plant = with_plant_options([profile(args.plant)], args)[0]
     env_kwargs = env_options(plant, args.control_dt, args.sensors, args.history, disturbance)
     if args.damper is not None:
         from mrd_env.dampers import damper_class, is_preset_file

@@ -7,7 +7,7 @@ import argparse
 import time
 from pathlib import Path
 
-from ..common.plants import chosen_plants, plant_choices, plant_name
+from ..common.plants import add_plant_options, chosen_plants, plant_choices, plant_name, with_plant_options
 from ..common.scenarios import held_out_scenarios
 from ..common.yardstick import check_plant, write_report, yardsticks
 
@@ -23,6 +23,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", type=Path, default=Path("results/yardstick"))
     p.add_argument("--no-progress", action="store_true")
     sweep.add_arguments(p)
+    add_plant_options(p)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -33,7 +34,7 @@ def run(args: argparse.Namespace) -> int:
 
     if args.seeds < 1:
         raise ValueError(f"--seeds must be >= 1, got {args.seeds}")
-    plants = [p for p in chosen_plants(args.plant) if args.plant != "all" or p.warm_laws]
+    plants = with_plant_options([p for p in chosen_plants(args.plant) if args.plant != "all" or p.warm_laws], args)
     for plant in plants:
         check_plant(plant)
     executor = sweep.options(args)

@@ -6,13 +6,15 @@ folder and its line in :data:`mrd_env.plants.PLANT_FOLDERS`.
 """
 from __future__ import annotations
 
+import argparse
 import warnings
 
 from mrd_env.plants import plant, plant_of_id, plants
 from mrd_env.plants.profile import PlantProfile, TestCase
 
 __all__ = ["PlantProfile", "TestCase", "profiles", "profile", "by_env_id", "plant_choices", "plant_name",
-           "default_plant", "chosen_plants"]
+           "default_plant", "chosen_plants", "add_plant_options", "with_plant_options",
+           "check_suite_plant"]
 
 
 def profiles() -> dict[str, PlantProfile]:
@@ -69,3 +71,60 @@ def chosen_plants(value: str) -> list[PlantProfile]:
     if value == "all":
         return [*published, *(every[n] for n in sorted(every) if not every[n].published)]
     return [profile(value)]
+
+
+def _dest(name: str) -> str:
+    return "plant_option_" + name.replace("-", "_")
+
+
+def add_plant_options(parser: argparse.ArgumentParser) -> None:
+    """Every plant's options (:attr:`PlantProfile.offered_options`: the building's ``--storeys``, ...; ``--damper``
+    of every plant where the command has no ``--damper`` of its own), each once; :func:`with_plant_options` applies
+    them to the chosen plants."""
+    group = parser.add_argument_group("plant options (they change the chosen plant; a plant without one refuses it)")
+    seen = set(parser._option_string_actions)
+    for p in profiles().values():
+        for o in p.offered_options:
+            if f"--{o.name}" in seen:
+                continue
+            seen.add(f"--{o.name}")
+            group.add_argument(f"--{o.name}", dest=_dest(o.name), metavar=o.metavar, default=None, help=o.help)
+
+
+def plant_option_values(args: argparse.Namespace) -> dict[str, str]:
+    """{option name: text} of the plant options given on the command line (:func:`add_plant_options`'s)."""
+    names = {o.name for p in profiles().values() for o in p.offered_options}
+    return {n: getattr(args, _dest(n)) for n in sorted(names) if getattr(args, _dest(n), None) is not None}
+
+
+def with_plant_options(plants: list[PlantProfile], args: argparse.Namespace) -> list[PlantProfile]:
+    """The chosen ``plants`` with the plant options of the command line applied
+    (:meth:`PlantProfile.with_plant_options`; ``ValueError`` for a plant that lacks one, or a bad value)."""
+    given = plant_option_values(args)
+    return [p.with_plant_options(given) for p in plants]
+
+
+def _plain(value):
+    """``value`` with tuples as lists (suite options and environment options compare by value)."""
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    return value
+
+
+def check_suite_plant(suite, args: argparse.Namespace) -> None:
+    """A suite fixes its plant: plant options that would change it are refused (``ValueError`` naming the suites of
+    that plant whose plant they describe); options that describe the suite's own plant pass."""
+    given = plant_option_values(args)
+    if not given:
+        return
+    plant = profile(suite.plant)
+    if _plain(plant.plant_environment(suite.options, given)) == _plain(suite.options):
+        return
+    flags = " ".join(f"--{k} {v}" for k, v in given.items())
+    fits = [f"{d.name}-v{d.version}" for d in plant.suites
+            if _plain(plant.plant_environment(d.options, given)) == _plain(d.options)]
+    raise ValueError(f"{flags} would change the plant of suite {suite.name}-v{suite.version}, and a suite fixes its "
+                     f"plant; " + (f"score {' or '.join(fits)}, whose plant that is" if fits
+                                   else "no shipped suite has that plant (use mrd-env benchmark)"))

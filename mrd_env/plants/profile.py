@@ -8,15 +8,30 @@ name), so that the commands hand it to their workers as it is.
 """
 from __future__ import annotations
 
+import dataclasses
 import pickle
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Callable, Mapping
 
 from .spec import PlantSpec
 
 #: A test case of a plant: (name, environment options, seeded) — seeded cases run once per test seed, the others
 #: (a recorded earthquake, a bump) once.
 TestCase = tuple[str, dict, bool]
+
+
+@dataclass(frozen=True)
+class PlantOption:
+    """An option of a plant that the commands offer (``--<name> VALUE``, e.g. the building's ``--storeys 6``)."""
+
+    name: str            #: the option without its dashes
+    help: str
+    metavar: str = "VALUE"
+
+
+#: The plant option every plant offers: the damper model of every damper (its environment option ``damper``).
+DAMPER_OPTION = PlantOption("damper", "damper model name (e.g. spencer_dyke) or preset file (.json) of every damper",
+                            "MODEL")
 
 
 @dataclass(frozen=True)
@@ -76,6 +91,14 @@ class PlantProfile:
     #: the plant's frozen benchmark suites (:class:`mrd_env.suites.SuiteDefinition`; their references ship in
     #: ``suites/`` of the plant's folder)
     suites: tuple = ()
+    #: the plant's options the commands offer (:class:`PlantOption`; ``experiments.common.plants`` adds them)
+    plant_options: tuple = ()
+    #: ``apply_plant_options(environment options, {option name: text}) -> environment options``: the values of
+    #: ``plant_options`` applied to a set of environment options (``ValueError`` naming the option and its valid
+    #: values); it leaves the other options (the disturbance, the sensors) as they are
+    apply_plant_options: Callable[[dict, dict], dict] | None = None
+    #: the plant options this profile was derived with (:meth:`with_plant_options`): sorted (name, text) pairs
+    applied: tuple = ()
 
     @property
     def name(self) -> str:
@@ -91,9 +114,52 @@ class PlantProfile:
     def title(self) -> str:
         return self.spec.title
 
+    @property
+    def offered_options(self) -> tuple:
+        """The plant options the commands offer for this plant: its own and :data:`DAMPER_OPTION`."""
+        return (*self.plant_options, DAMPER_OPTION)
+
+    def with_plant_options(self, given: Mapping[str, str]) -> "PlantProfile":
+        """This profile with plant options applied (``given``: {option name: text}; None values are not given) to
+        its environment options and its training distribution; itself if none is given. ``ValueError`` for an
+        option the plant does not offer or a bad value."""
+        given = {k: v for k, v in given.items() if v is not None}
+        if not given:
+            return self
+        offered = [o.name for o in self.offered_options]
+        unknown = [k for k in given if k not in offered]
+        if unknown:
+            raise ValueError(f"--{unknown[0]} is not an option of the {self.title} (its plant options: "
+                             f"{', '.join('--' + o for o in offered)})")
+        base = _registered(self.name)
+        values = {**dict(self.applied), **given}
+        return dataclasses.replace(base, options=self.plant_environment(base.options, values),
+                                   training=self.plant_environment(base.training, values),
+                                   applied=tuple(sorted(values.items())))
+
+    def plant_environment(self, options: Mapping, values: Mapping[str, str]) -> dict:
+        """Environment ``options`` with the plant options ``values`` ({option name: text}) applied."""
+        out = dict(options)
+        own = {k: v for k, v in values.items() if k != DAMPER_OPTION.name}
+        if own:
+            out = self.apply_plant_options(out, own)
+        if DAMPER_OPTION.name in values:
+            from ..dampers import damper_class
+
+            damper = values[DAMPER_OPTION.name]
+            try:
+                damper_class(damper)
+            except ValueError as exc:
+                raise ValueError(f"--damper {damper}: {exc}") from None
+            out["damper"] = damper
+        return out
+
     def __reduce__(self):
-        """A profile travels to a worker process (a process pool's, Ray's) as its plant's name, and the worker takes
-        the same profile from the registry: a profile holds functions, lambdas among them, that do not pickle."""
+        """A profile travels to a worker process (a process pool's, Ray's) as its plant's name (and the plant options
+        it was derived with), and the worker takes the same profile from the registry: a profile holds functions,
+        lambdas among them, that do not pickle."""
+        if self.applied:
+            return _derived, (self.name, dict(self.applied))
         if _registered(self.name) is not self:
             raise pickle.PicklingError(f"a profile of {self.name} that is not the registered one does not pickle")
         return _registered, (self.name,)
@@ -104,3 +170,8 @@ def _registered(name: str) -> PlantProfile:
     from . import plant
 
     return plant(name).profile
+
+
+def _derived(name: str, applied: dict) -> PlantProfile:
+    """The registered profile of plant ``name`` with the plant options ``applied``."""
+    return _registered(name).with_plant_options(applied)

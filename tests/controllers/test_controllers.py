@@ -218,7 +218,7 @@ def test_random_baseline_is_seeded_and_in_range():
 def test_a_batch_gives_each_row_what_it_alone_would_get(name):
     """predict on a batch (N, n_obs) equals predict row by row with separate controllers, memory included;
     episode_start clears the memory of the rows that start again."""
-    building = name in ("lyapunov", "max_energy_dissipation", "modulated_friction")
+    building = name in ("lyapunov", "max_energy_dissipation", "modulated_friction", "decentralized_bang_bang")
     sensors = B_SENSORS if building else QC_SENSORS + ("unsprung_vel",) if "unsprung_vel" not in QC_SENSORS \
         else QC_SENSORS
     env = make_env(sensors, building=building)

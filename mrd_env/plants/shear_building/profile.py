@@ -8,9 +8,12 @@ on) and Kanai–Tajimi with the nominal parameters (unseen seeds).
 """
 from __future__ import annotations
 
+import dataclasses
+
 from ...constants import GRAVITY as G
-from ..profile import PlantProfile, TestCase
+from ..profile import PlantOption, PlantProfile, TestCase
 from . import BENCHMARK_DAMPER_FLOORS, SPEC
+from .physics import BUILDING_PRESETS, shear_building
 from .suites import SUITES
 
 
@@ -26,10 +29,52 @@ def _building_tests(plant: dict, quick: bool) -> list[TestCase]:
     return out
 
 
+def _damper_floors(options: dict) -> tuple:
+    """The damper storeys of environment ``options`` (given, else the preset's)."""
+    floors = options.get("damper_floors")
+    if floors is None:
+        floors = shear_building(options.get("plant_preset", "three_storey")).damper_floors
+    return (floors,) if isinstance(floors, int) else tuple(floors)
+
+
 def _storey_response(options: dict) -> str:
     """The drift of the storey that holds the (first) damper."""
-    floors = options.get("damper_floors") or (1,)
-    return f"drift[{int(floors[0]) - 1}]"
+    return f"drift[{int(_damper_floors(options)[0]) - 1}]"
+
+
+#: The presets by their number of storeys (``--storeys``).
+_BY_STOREYS = {p.n_floors: name for name, p in BUILDING_PRESETS.items()}
+_PLANT_OPTIONS = (
+    PlantOption("storeys", "number of storeys of the building: "
+                + ", ".join(f"{n} (preset {name})" for n, name in sorted(_BY_STOREYS.items()))
+                + "; its dampers sit where the preset puts them unless --damper-storeys says otherwise", "N"),
+    PlantOption("damper-storeys", "the storey of each damper, comma-separated, a storey named as often as it holds "
+                "dampers (storey i lies between floors i-1 and i; e.g. 1,1,2,2: two dampers in storey 1, two in "
+                "storey 2)", "S1,S2,..."))
+
+
+def _apply_plant_options(options: dict, values: dict) -> dict:
+    """Environment ``options`` with ``--storeys`` (a preset by its storeys; its own damper storeys unless given) and
+    ``--damper-storeys`` applied; ``ValueError`` naming the option and its valid values."""
+    out = dict(options)
+    if "storeys" in values:
+        text = str(values["storeys"]).strip()
+        if not text.isdigit() or int(text) not in _BY_STOREYS:
+            raise ValueError(f"--storeys must be one of {sorted(_BY_STOREYS)}, got {values['storeys']!r}")
+        preset = _BY_STOREYS[int(text)]
+        if preset != out.get("plant_preset", "three_storey"):
+            out["plant_preset"] = preset
+            out["damper_floors"] = list(BUILDING_PRESETS[preset].damper_floors)
+    params = shear_building(out.get("plant_preset", "three_storey"))
+    if "damper-storeys" in values:
+        text = str(values["damper-storeys"])
+        parts = [t.strip() for t in text.split(",")]
+        if not all(t.isdigit() and 1 <= int(t) <= params.n_floors for t in parts):
+            raise ValueError(f"--damper-storeys must be storey numbers in 1..{params.n_floors} separated by commas "
+                             f"(e.g. 1,1,2,2), got {text!r}")
+        out["damper_floors"] = [int(t) for t in parts]
+    dataclasses.replace(params, damper_floors=tuple(_damper_floors(out)))  # every storey exists in the building
+    return out
 
 
 def _storey_axis(response: str) -> tuple[str, float]:
@@ -59,13 +104,15 @@ PROFILE = PlantProfile(
                                            "northridge05_1994_sylmar_090", "northridge05_1994_sylmar_360"],
          "pga": (0.15 * G, 0.45 * G)}]}},
     disturbance_key="ground_motion", tests=_building_tests,
-    laws=("random", *_BUILDING_LAWS),
+    # decentralized_bang_bang: not a warm start of the yardstick (with the damper in storey 2 it is
+    # max_energy_dissipation's rule exactly)
+    laws=("random", *_BUILDING_LAWS, "decentralized_bang_bang"),
     # (skyhook and hybrid are left out for the building: its floor velocities are relative to the ground, so it
     # declares no body_velocity role; docs/controllers.md)
     # clipped-optimal also with each inverse model turning its desired force into the command (mrd_env.inverse)
     benchmark_laws=("passive_off", "passive_on", "clipped_optimal", "clipped_optimal+sid", "clipped_optimal+model",
                     "clipped_optimal+neural", "clipped_optimal_reward", "lyapunov", "max_energy_dissipation",
-                    "modulated_friction"),
+                    "modulated_friction", "decentralized_bang_bang"),
     reference_laws=("clipped_optimal_reward", "clipped_optimal", "passive_on"),
     evaluation_metrics=("J1", "J2", "J3", "J4", "J5", "J6"),
     benchmark_metrics=("J1", "J2", "J3", "J4", "J5", "J6", "drift_peak", "acc_peak", "damper_force_peak"),
@@ -74,4 +121,5 @@ PROFILE = PlantProfile(
     bar_legend_columns=3,
     metric_units={"drift_peak": "m", "acc_peak": "m/s²", "damper_force_peak": "N"},
     mpc=(("mpc", None, {}, False), ("mpc (reward)", 1e-3, {"weights": "reward"}, False)),
-    warm_laws=_BUILDING_LAWS, published=True, suites=SUITES)
+    warm_laws=_BUILDING_LAWS, published=True, suites=SUITES,
+    plant_options=_PLANT_OPTIONS, apply_plant_options=_apply_plant_options)
