@@ -4,6 +4,9 @@ references — the share of the achievable gain (R − R_p) / (R_c − R_p) and 
 
 ``--controller`` (repeatable) takes a registered law's name, an agent folder, or ``package.module:attribute``: a class
 or factory taking the environment, or an object with ``predict`` (the protocol: :mod:`controllers.protocol`).
+``--law-options JSON`` gives a single registered law its options (an MPC's settings: the plants' MPC rows, e.g.
+``--controller mpc --law-options '{"weights": "reward", "f_max": 1e5, "force_ref": 200, "horizon": 10}' --name
+"mpc+preview (reward)"`` on ``car-preview-v1``); ``--name`` names a single controller's row and result file.
 **Naming a module imports it: its code runs**, as with ``python -m`` — only name code you mean to run. Agents load
 without running code from their folders (one that only has SB3's pickled ``model.zip`` needs ``--trust-agent``).
 
@@ -17,6 +20,7 @@ suite's own plant; options that would change it are refused with the suites whos
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import sys
 from pathlib import Path
@@ -35,6 +39,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="a registered law (e.g. skyhook_continuous), an agent folder, or package.module:attribute "
                         "(a class or factory taking the environment, or an object with predict; IMPORTING IT RUNS "
                         "ITS CODE: name only code you mean to run); repeat for several")
+    p.add_argument("--law-options", default=None, metavar="JSON",
+                   help="the options of the registered law given as the one --controller, as a JSON object (e.g. an "
+                        "MPC's: '{\"weights\": \"reward\", \"horizon\": 10}'); recorded in the result file")
+    p.add_argument("--name", default=None,
+                   help="the row's and result file's name of the one --controller (default: the law's name, with its "
+                        "options; agent <name>; the import spec)")
     p.add_argument("--out", type=Path, default=Path("results/score"))
     p.add_argument("--episodes", type=int, default=None,
                    help="only the first K episodes of each scenario (a smoke run: the result is marked partial)")
@@ -54,6 +64,18 @@ def run(args: argparse.Namespace) -> int:
 
     if args.episodes is not None and args.episodes < 1:
         raise ValueError(f"--episodes must be >= 1, got {args.episodes}")
+    options = None
+    if args.law_options is not None:
+        try:
+            options = json.loads(args.law_options)
+        except json.JSONDecodeError as exc:
+            raise ValueError(f"--law-options must be a JSON object, got {args.law_options!r} ({exc})") from None
+        if not isinstance(options, dict):
+            raise ValueError(f"--law-options must be a JSON object ({{...}}), got {args.law_options!r}")
+    for flag, given in (("--law-options", args.law_options), ("--name", args.name)):
+        if given is not None and len(args.controller) != 1:
+            raise ValueError(f"{flag} applies to one --controller; {len(args.controller)} were given (score them one "
+                             "command each)")
     executor = sweep.options(args)
     if any(is_import_spec(c) for c in args.controller) and not {"", os.getcwd()} & set(sys.path):
         # module:attribute looked up in the installed packages, then the current folder (last: it shadows nothing)
@@ -65,7 +87,8 @@ def run(args: argparse.Namespace) -> int:
     # every controller checked before any episode runs: a typo must not cost the first controller's episodes
     specs = []
     for c in args.controller:
-        spec = controller_spec(c, trust_agent=args.trust_agent, converted=args.out / "converted-agents")
+        spec = controller_spec(c, name=args.name, options=options, trust_agent=args.trust_agent,
+                               converted=args.out / "converted-agents")
         check_controller(spec, suite)
         if any(s.name == spec.name for s in specs):
             raise ValueError(f"--controller {c}: {spec.name} is given twice")

@@ -1,6 +1,7 @@
 """``mrd-env yardstick``: solve (or load from the cache) the yardstick of every held-out test episode, evaluate every
 controller on the same episodes and write the shares of the achievable gain (:mod:`experiments.common.yardstick`
-computes them)."""
+computes them). The yardstick table gives per episode R_p, R_c, the active bound R_b and the passivity-aware bound
+R_d, each with its bracket."""
 from __future__ import annotations
 
 import argparse
@@ -18,7 +19,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="a plant with a yardstick, or both (building and quarter car)")
     p.add_argument("--seeds", type=int, default=3, help="episodes per random test scenario (default 3)")
     p.add_argument("--quick", action="store_true", help="short scenarios (a smoke run)")
-    p.add_argument("--no-bound", action="store_true", help="skip the active-actuator bound")
+    p.add_argument("--no-bound", action="store_true",
+                   help="skip the bounds (the active-actuator bound and the passivity-aware bound beside it)")
     p.add_argument("--no-cache", action="store_true", help="solve again even where a cached result exists")
     p.add_argument("--out", type=Path, default=Path("results/yardstick"))
     p.add_argument("--no-progress", action="store_true")

@@ -21,6 +21,8 @@ From Python::
 
     score("car-comfort-v1", "skyhook_continuous").write("results/score/skyhook.json")
     score("car-comfort-v1", MyController).write("results/score/mine.json")   # a class taking the env
+    score("car-preview-v1", "mpc", options={"weights": "reward", "f_max": 1e5, "force_ref": 200.0, "horizon": 10},
+          name="mpc+preview (reward)")                                       # a law with its options
     print(leaderboard(["results/score/skyhook.json", "results/score/mine.json"], out="results/board").markdown())
 """
 from __future__ import annotations
@@ -116,19 +118,26 @@ def _source_digest(obj) -> str | None:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
-def controller_spec(controller, *, name: str | None = None, trust_agent: bool = False,
+def controller_spec(controller, *, name: str | None = None, options: dict | None = None, trust_agent: bool = False,
                     converted: str | Path | None = None) -> ControllerSpec:
-    """What ``controller`` is: a registered law's name (``controllers.available_controllers()``), an agent folder (a
-    path; an agent that only has SB3's pickled ``model.zip`` needs ``trust_agent`` and is converted once into
-    ``converted``), ``package.module:attribute`` (**imported: its code runs**) or a Python object — a class or factory
-    taking the environment, or an object with ``predict`` (:mod:`controllers.protocol`). ``ValueError`` (one line)
-    otherwise."""
+    """What ``controller`` is: a registered law's name (``controllers.available_controllers()``; ``options``: its
+    options, plain JSON, e.g. an MPC's ``{"weights": "reward", "horizon": 10}``, recorded in the result), an agent
+    folder (a path; an agent that only has SB3's pickled ``model.zip`` needs ``trust_agent`` and is converted once
+    into ``converted``), ``package.module:attribute`` (**imported: its code runs**) or a Python object — a class or
+    factory taking the environment, or an object with ``predict`` (:mod:`controllers.protocol`). ``ValueError`` (one
+    line) otherwise."""
     from controllers import available_controllers
     from controllers.protocol import import_object, is_import_spec
 
     if isinstance(controller, str) and controller in available_controllers():
-        return ControllerSpec("law", controller, name or controller, {"name": name or controller, "kind": "law",
-                                                                      "spec": controller})
+        desc = {"name": name or controller, "kind": "law", "spec": controller}
+        if options:
+            desc["options"] = law_options(options, controller)
+            desc["name"] = name or f"{controller} {json.dumps(desc['options'], sort_keys=True)}"
+        return ControllerSpec("law", controller, desc["name"], desc)
+    if options:
+        raise ValueError(f"options are a registered law's ({', '.join(available_controllers())}); {controller!r} is "
+                         "not one (an agent or Python controller carries its own settings)")
     if isinstance(controller, str) and is_import_spec(controller) and not Path(controller).exists():
         obj = import_object(controller)  # ValueError, one line; runs the user's module (their explicit choice)
         desc = {"name": name or controller, "kind": "python", "spec": controller}
@@ -156,6 +165,17 @@ def controller_spec(controller, *, name: str | None = None, trust_agent: bool = 
     if digest:
         desc["source_sha256"] = digest
     return ControllerSpec("python", controller, label, desc)
+
+
+def law_options(options, law: str = "the law") -> dict:
+    """``options`` as plain JSON (a dict with string keys of numbers, strings, booleans, null, lists and dicts), as the
+    result file records them; ``ValueError`` naming ``law`` otherwise."""
+    if not isinstance(options, dict) or not all(isinstance(k, str) for k in options):
+        raise ValueError(f"options of {law} must be a dict with string keys, got {options!r}")
+    try:
+        return json.loads(json.dumps(options, allow_nan=False))
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"options of {law} must be plain JSON (numbers, strings, lists, dicts): {exc}") from None
 
 
 def _agent_spec(path: Path, name: str | None, trust: bool, converted) -> ControllerSpec:
@@ -203,7 +223,7 @@ def _build(spec: ControllerSpec, venv):
     from controllers.protocol import build_controller, import_object
 
     if spec.kind == "law":
-        return make_controller(spec.ref, venv)
+        return make_controller(spec.ref, venv, **spec.description.get("options", {}))
     if spec.kind == "agent":
         return load_agent(spec.ref).bind(venv)
     obj = import_object(spec.ref) if isinstance(spec.ref, str) else spec.ref
@@ -246,6 +266,11 @@ def check_controller(spec: ControllerSpec, suite) -> None:
                 _check_agent(spec, suite, venv)
             try:
                 _build(spec, venv)
+            except TypeError as exc:
+                if spec.kind != "law":
+                    raise
+                raise ValueError(f"controller {spec.name}: options {spec.description.get('options', {})} of "
+                                 f"{spec.ref}: {exc}") from None
             except ValueError as exc:
                 text = str(exc)
                 raise ValueError(text if text.startswith(("controller ", "agent ")) else
@@ -483,16 +508,17 @@ def _nulls(v):
     return v
 
 
-def score(suite, controller, *, name: str | None = None, episodes: int | None = None, backend: str = "serial",
-          jobs: int | None = None, address: str | None = None, trust_agent: bool = False,
+def score(suite, controller, *, name: str | None = None, options: dict | None = None, episodes: int | None = None,
+          backend: str = "serial", jobs: int | None = None, address: str | None = None, trust_agent: bool = False,
           converted: str | Path | None = None, progress: bool = False, command: list | None = None) -> SuiteResult:
     """Score ``controller`` on ``suite`` (see the module docstring).
 
     ``suite``: a :class:`~mrd_env.suites.Suite`, a shipped suite's name or a suite file. ``controller``: a registered
     law's name, an agent folder, ``package.module:attribute`` (imported: its code runs), or a class, factory or object
     (:mod:`controllers.protocol`). ``name``: the row's name (default: the law's, ``agent <name>``, the import spec or
-    the object's ``name``/class name). ``episodes``: only the first ``episodes`` seeds of each scenario (a smoke run;
-    the result says it is partial). ``backend``/``jobs``/``address``: one task per scenario on
+    the object's ``name``/class name). ``options``: a registered law's options (plain JSON: an MPC's settings, say;
+    recorded in the result). ``episodes``: only the first ``episodes`` seeds of each scenario (a smoke run; the result
+    says it is partial). ``backend``/``jobs``/``address``: one task per scenario on
     :mod:`mrd_env.executor` (a Python object of the caller's runs in this process). ``trust_agent``: also load an
     agent that only has SB3's pickled ``model.zip`` (converted once into ``converted``)."""
     import mrd_env
@@ -503,7 +529,7 @@ def score(suite, controller, *, name: str | None = None, episodes: int | None = 
     if episodes is not None and (isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1):
         raise ValueError(f"episodes must be a whole number >= 1 (per scenario), got {episodes!r}")
     spec = controller if isinstance(controller, ControllerSpec) else \
-        controller_spec(controller, name=name, trust_agent=trust_agent, converted=converted)
+        controller_spec(controller, name=name, options=options, trust_agent=trust_agent, converted=converted)
     check_controller(spec, suite)
     tasks = [Task(scenario_episodes, (suite, i, sc.seeds[:episodes]), {"spec": spec}, label=f"{spec.name} / {sc.name}")
              for i, sc in enumerate(suite.scenarios)]

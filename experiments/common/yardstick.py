@@ -12,6 +12,10 @@ Per episode (a scenario and a seed):
   compared controller used on it (passive-on, the laws, the agents, the clairvoyant; :func:`mrd_env.optimal.
   active_bound`, a convex QP): no semi-active controller whose force stays within it scores more, so the true
   optimum lies in [R_c, R_b];
+* **passivity-aware bound** R_d ≤ R_b — the active bound of the same force limit with the actuator never having
+  given the plant more energy than it took (:func:`mrd_env.optimal.dissipative_bound`): it still bounds every
+  semi-active damper, and tells how much of the active bracket is the ideal actuator's energy injection
+  (docs/yardstick.md: a third of it on a bump, next to nothing on rough roads and ground motions);
 * the **share of the achievable gain** a controller captures, (R − R_p) / (R_c − R_p): 0 is the best passive
   setting, 1 the clairvoyant optimum; negative is worse than the best passive setting.
 
@@ -66,6 +70,8 @@ class EpisodeYardstick:
     f_max: float = math.nan
     bound_seconds: float = math.nan
     warm_starts: dict = field(default_factory=dict)
+    dissipative: float = math.nan            #: R_d, the passivity-aware bound with the same f_max
+    dissipative_seconds: float = math.nan
 
     @property
     def label(self) -> str:
@@ -82,6 +88,12 @@ class EpisodeYardstick:
         the best passive setting to the bound (0: the clairvoyant is the optimum)."""
         span = self.bound - self.passive
         return (self.bound - self.clairvoyant) / span if span > 0 else math.nan
+
+    @property
+    def dissipative_bracket(self) -> float:
+        """(R_d − R_c) / (R_d − R_p): the bracket with the passivity-aware bound R_d (≤ :attr:`bracket`)."""
+        span = self.dissipative - self.passive
+        return (self.dissipative - self.clairvoyant) / span if span > 0 else math.nan
 
 
 def warm_starts(problem, warm_laws, agents=()) -> dict[str, np.ndarray]:
@@ -142,7 +154,11 @@ def episode_yardstick(scenario: Scenario, seed: int, warm_laws, *, agents=(), bo
     key = yardstick_key(problem, scenario.label(seed), warm_laws, agents)
     hit = store.load("yardstick", key) if cache else None
     if hit is not None and (hit.get("bound") is not None or not bound):
-        return EpisodeYardstick(**{k: (math.nan if v is None else v) for k, v in hit.items()})
+        y = EpisodeYardstick(**{k: (math.nan if v is None else v) for k, v in hit.items()})
+        if bound and solve and math.isnan(y.dissipative):  # cached before R_d was reported: R_d alone, then stored
+            _dissipative(problem, y)
+            store.store("yardstick", key, _plain(y))
+        return y
     if not solve:
         return None
     from mrd_env.optimal import clairvoyant
@@ -165,10 +181,23 @@ def episode_yardstick(scenario: Scenario, seed: int, warm_laws, *, agents=(), bo
         y.f_max = max(force_peak(problem, U) for U in [on, *starts.values(), cv.commands])
         b = active_bound(problem, f_max=y.f_max)
         y.bound, y.bound_seconds = float(b.bound), time.perf_counter() - t0
+        _dissipative(problem, y)
     if cache:
-        store.store("yardstick", key, {k: (None if isinstance(v, float) and math.isnan(v) else v)
-                                       for k, v in asdict(y).items()})
+        store.store("yardstick", key, _plain(y))
     return y
+
+
+def _dissipative(problem, y: EpisodeYardstick) -> None:
+    """R_d of ``problem`` with ``y``'s force limit, into ``y``."""
+    from mrd_env.optimal import dissipative_bound
+
+    t0 = time.perf_counter()
+    y.dissipative = float(dissipative_bound(problem, f_max=y.f_max).bound)
+    y.dissipative_seconds = time.perf_counter() - t0
+
+
+def _plain(y: EpisodeYardstick) -> dict:
+    return {k: (None if isinstance(v, float) and math.isnan(v) else v) for k, v in asdict(y).items()}
 
 
 def yardsticks(plant: PlantProfile, scenarios: list[Scenario], *, agents=(), bound: bool = True,
@@ -188,12 +217,14 @@ def yardsticks(plant: PlantProfile, scenarios: list[Scenario], *, agents=(), bou
 
 
 def yardstick_rows(ys: list[EpisodeYardstick]) -> list[dict]:
-    """One row per episode: the three reference returns, the bracket and the wall times."""
+    """One row per episode: the reference returns, both bounds and their brackets, and the wall times."""
     return [{"episode": y.label, "best passive return": y.passive,
              "best passive command": y.passive_command, "clairvoyant return": y.clairvoyant,
              "clairvoyant from": y.source, "active bound": y.bound, "bound f_max (N)": y.f_max,
-             "bracket (share of bound − passive)": y.bracket, "clairvoyant solve (s)": y.clairvoyant_seconds,
-             "bound solve (s)": y.bound_seconds} for y in ys]
+             "bracket (share of bound − passive)": y.bracket, "passivity-aware bound": y.dissipative,
+             "bracket with it": y.dissipative_bracket, "clairvoyant solve (s)": y.clairvoyant_seconds,
+             "bound solve (s)": y.bound_seconds, "passivity-aware bound solve (s)": y.dissipative_seconds}
+            for y in ys]
 
 
 def share_rows(results: dict[str, list[Episode]], ys: list[EpisodeYardstick], scenario_of) -> list[dict]:

@@ -309,6 +309,47 @@ def test_the_command_line_scores_and_merges(suite_file, user_laws, tmp_path, cap
     assert "| 1 |" in text and "1/3" not in text and "2/3" in text
 
 
+def test_a_law_takes_its_options_from_python_and_the_command_line(suite_file, tmp_path, capsys):
+    """The options reach the law: MPC of horizon 1 with a bound that never binds is the sampled-data LQR, i.e.
+    clipped-optimal of the sampled design (tests/controllers/test_mpc.py), so the two score the same returns; with a
+    force bound of 10 N, which binds, it does not. The options are recorded in the result file."""
+    h1 = score(suite_file, "mpc", options={"horizon": 1, "f_max": 1e7}, name="mpc h1")
+    co = score(suite_file, "clipped_optimal", options={"design": "sampled"})
+    bound = score(suite_file, "mpc", options={"horizon": 1, "f_max": 10.0})
+    assert [e["return"] for e in h1.episodes] == pytest.approx([e["return"] for e in co.episodes], rel=1e-9)
+    assert [e["return"] for e in h1.episodes] != pytest.approx([e["return"] for e in bound.episodes], rel=1e-6)
+    assert h1.name == "mpc h1" and h1.controller["options"] == {"horizon": 1, "f_max": 1e7}
+    assert co.name == 'clipped_optimal {"design": "sampled"}' and "options" not in score(suite_file, "mpc",
+                                                                                         episodes=1).controller
+    out = tmp_path / "score"
+    code = main(["score", "--suite", str(suite_file), "--controller", "mpc", "--law-options",
+                 '{"horizon": 1, "f_max": 1e7}', "--name", "mpc h1", "--backend", "serial", "--no-progress",
+                 "--out", str(out)])
+    _, err = capsys.readouterr()
+    assert code == 0, err
+    cli = read_result(out / "tiny-car-v1__mpc_h1.json")
+    assert cli.controller["options"] == {"horizon": 1, "f_max": 1e7} and cli.name == "mpc h1"
+    assert [e["return"] for e in cli.episodes] == [e["return"] for e in h1.episodes]
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--controller", "mpc", "--law-options", "{horizon: 1}"], "--law-options must be a JSON object"),
+    (["--controller", "mpc", "--law-options", "[1]"], "--law-options must be a JSON object"),
+    (["--controller", "mpc", "--law-options", '{"horizn": 1}'], "controller mpc {\"horizn\": 1}: options"),
+    (["--controller", "mpc", "--law-options", '{"horizon": 0}'], "horizon"),
+    (["--controller", "mpc", "--controller", "passive_on", "--law-options", "{}"], "applies to one --controller"),
+    (["--controller", "mpc", "--controller", "passive_on", "--name", "x"], "applies to one --controller"),
+    (["--controller", "{laws}:MySkyhook", "--law-options", '{"a": 1}'], "options are a registered law's"),
+])
+def test_bad_law_options_are_one_line_and_exit_2(argv, message, suite_file, user_laws, tmp_path, capsys):
+    code = main(["score", "--suite", str(suite_file), *(a.replace("{laws}", user_laws) for a in argv),
+                 "--backend", "serial", "--no-progress", "--out", str(tmp_path / "out")])
+    _, err = capsys.readouterr()
+    assert code == 2 and err.startswith("mrd-env score: error: ") and err.count("\n") == 1, err
+    assert message in err, err
+    assert not list((tmp_path / "out").glob("*.json"))
+
+
 @pytest.mark.parametrize("controller, message", [
     ("no_such_package_xyz.laws:Law", "no module named 'no_such_package_xyz'"),
     ("{laws}:Nope", "has no attribute 'Nope'"),

@@ -88,6 +88,9 @@ def test_the_yardstick_brackets_every_controller_on_an_episode(tmp_path, monkeyp
     agents = shipped_agents("quarter_car")
     y = episode_yardstick(sc, 1_000_000, profile("quarter_car").warm_laws, agents=agents)
     assert y.passive <= y.clairvoyant <= y.bound
+    # the passivity-aware bound lies between: every semi-active damper (the clairvoyant too) is a passive device
+    assert y.clairvoyant <= y.dissipative <= y.bound + 1e-6 * abs(y.bound)
+    assert 0.0 <= y.dissipative_bracket <= y.bracket + 1e-6
     assert set(y.warm_starts) >= {"passive_off", "passive_on", "skyhook_continuous", "clipped_optimal"}
     assert all(r <= y.clairvoyant for r in y.warm_starts.values())   # every law at 1 ms and the shipped agent
     assert y.clairvoyant > max(y.warm_starts.values())               # and strictly better than the best of them
@@ -100,6 +103,21 @@ def test_the_yardstick_brackets_every_controller_on_an_episode(tmp_path, monkeyp
     # the cache returns the same yardstick without solving
     again = episode_yardstick(sc, 1_000_000, profile("quarter_car").warm_laws, agents=agents, solve=False)
     assert again is not None and again.clairvoyant == y.clairvoyant and again.bound == y.bound
+    assert again.dissipative == y.dissipative
+    # a yardstick cached before R_d was reported gets R_d alone (the clairvoyant is not solved again), then keeps it
+    from mrd_env.optimal import cache, episode_problem
+    from experiments.common.yardstick import YARDSTICK_DT, yardstick_key
+
+    problem = episode_problem(sc.env_id, seed=1_000_000, control_dt=YARDSTICK_DT, **sc.options)
+    key = yardstick_key(problem, sc.label(1_000_000), profile("quarter_car").warm_laws, agents)
+    old = {k: v for k, v in cache.load("yardstick", key).items() if not k.startswith("dissipative")}
+    cache.store("yardstick", key, old)
+    assert math.isnan(episode_yardstick(sc, 1_000_000, profile("quarter_car").warm_laws, agents=agents,
+                                        solve=False).dissipative)                 # a cached-only read solves nothing
+    monkeypatch.setattr("mrd_env.optimal.clairvoyant", None)                      # it must not be called
+    filled = episode_yardstick(sc, 1_000_000, profile("quarter_car").warm_laws, agents=agents)
+    assert filled.dissipative == pytest.approx(y.dissipative, rel=1e-9) and filled.clairvoyant == y.clairvoyant
+    assert cache.load("yardstick", key)["dissipative"] == filled.dissipative
 
 
 def test_the_cache_lives_under_the_projects_cache_directory(tmp_path, monkeypatch):
@@ -131,7 +149,7 @@ def test_report_writes_the_yardstick_and_shares_tables_and_figure(tmp_path):
     from experiments.common.yardstick import write_report
 
     ys = [EpisodeYardstick(f"ISO-C s{i}", i, -10.0, 2.0, -6.0, "optimiser", 1.0, bound=-4.0, f_max=3000.0,
-                           bound_seconds=0.5) for i in (1, 2)]
+                           bound_seconds=0.5, dissipative=-5.0, dissipative_seconds=0.7) for i in (1, 2)]
     res = {"sky": [_ep("sky", "ISO-C s1", -9.0), _ep("sky", "ISO-C s2", -8.0), _ep("sky", "bump", -1.0)],
            "agent": [_ep("agent", "ISO-C s1", -7.0), _ep("agent", "ISO-C s2", -7.0)]}
     text = write_report(profile("quarter_car"), res, ys, tmp_path, n_eps=3)
@@ -139,6 +157,8 @@ def test_report_writes_the_yardstick_and_shares_tables_and_figure(tmp_path):
     assert [r["episode"] for r in refs] == ["ISO-C s1", "ISO-C s2"]
     assert float(refs[0]["clairvoyant return"]) == -6.0 and float(refs[0]["active bound"]) == -4.0
     assert float(refs[0]["bracket (share of bound − passive)"]) == pytest.approx(2.0 / 6.0)
+    assert float(refs[0]["passivity-aware bound"]) == -5.0                          # R_d beside R_b
+    assert float(refs[0]["bracket with it"]) == pytest.approx(1.0 / 5.0)            # (−5 + 6) / (−5 + 10)
     shares = {(r["scenario"], r["controller"]): r for r in csv.DictReader((tmp_path / "quarter_car_shares.csv").open())}
     assert float(shares["ISO-C", "sky"]["share of achievable gain"]) == pytest.approx(0.375)
     assert float(shares["ISO-C", "agent"]["share of achievable gain"]) == pytest.approx(0.75)
