@@ -26,6 +26,15 @@ from scipy.linalg import expm, solve_discrete_are
 from .base import Controller
 
 
+def road_inputs(names) -> tuple[tuple[int, int], ...]:
+    """The road inputs of a plant, one (z_r, ż_r) pair per wheel as indices into its ``input_names``: a channel
+    ``z_r<wheel>`` followed by ``zdot_r<wheel>`` (the quarter car's (z_r, zdot_r); the half car's front and rear;
+    the full car's fl, fr, rl, rr). Empty for a plant without one (a building)."""
+    names = tuple(names)
+    return tuple((i, i + 1) for i in range(len(names) - 1)
+                 if names[i].startswith("z_r") and names[i + 1] == "zdot_r" + names[i][3:])
+
+
 class LinearDesign:
     """The plant's linear model in the form the designs need, from what ``env.unwrapped`` declares.
 
@@ -44,7 +53,8 @@ class LinearDesign:
         self.n_dof = lp.n_dof
         self.nd = lp.n_dampers
         self.frame = frame
-        self.shift = None
+        self.shift = None       # (n, wheels): the static shifts g_i of the road frame
+        self.road_pairs = ()    # the road inputs (z_r, ż_r) of each wheel, as input indices
         if frame == "road":
             self._road_frame()
         self.filtered: dict = {}  # filtered signal → (C, D_F, D_w) over the augmented state
@@ -53,25 +63,31 @@ class LinearDesign:
         self.n = self.A.shape[0]
 
     def _road_frame(self):
-        """Displacements relative to the road under the wheel: q_rel = q − g z_r with g the rigid shift of a unit
-        road height (A [g; 0] = −B_w[:, z_r]: both car masses, g = [1, 1]), velocities absolute. The dynamics do
-        not change, the road enters only through its velocity: B_w → [0, B_w[:, ż_r] − [g; 0]] — a random road of
-        ISO 8608's n⁻² spectrum has a white velocity, what the Kalman filter's process noise models; the road
-        height, a random walk, drops out (in absolute coordinates it is white noise on z_r and the filter takes the
-        body's drift with the road for a deflection of the tyre)."""
-        names = tuple(self.plant.input_names[:2])
-        if names != ("z_r", "zdot_r"):
-            raise ValueError(f"frame='road' needs a road input (z_r, zdot_r) (the quarter car); this plant's inputs "
+        """Displacements relative to the static equilibrium on the roads under the wheels: q_rel = q − Σ_i g_i z_r,i
+        with g_i the static response to a unit height of wheel i's road (A [g_i; 0] = −B_w[:, z_r,i]: K g_i = E z_i;
+        the quarter car's g = [1, 1], a rigid shift; the full car's, the body's and wheels' shift under one raised
+        wheel), velocities absolute. The dynamics do not change, the roads enter only through their velocities:
+        B_w[:, ż_r,i] → B_w[:, ż_r,i] − [g_i; 0], B_w[:, z_r,i] → 0 — a random road of ISO 8608's n⁻² spectrum has a
+        white velocity, what the Kalman filter's process noise models; the road height, a random walk, drops out (in
+        absolute coordinates it is white noise on z_r and the filter takes the body's drift with the road for a
+        deflection of the tyre)."""
+        pairs = road_inputs(self.plant.input_names)
+        if not pairs:
+            raise ValueError(f"frame='road' needs a road input (z_r, zdot_r) per wheel (a car); this plant's inputs "
                              f"are {self.plant.input_names}")
         n = self.n_dof
-        g = np.linalg.lstsq(self.A[n:, :n], -self.Bw[n:, 0], rcond=None)[0]
-        G = np.concatenate([g, np.zeros(n)])
-        if not np.allclose(self.A @ G, -self.Bw[:, 0], rtol=1e-9, atol=1e-9 * np.abs(self.Bw[:, 0]).max()):
-            raise ValueError("frame='road': no rigid shift of the displacements follows the road height")
-        self.shift = G
         self.Bw = self.Bw.copy()
-        self.Bw[:, 1] -= G
-        self.Bw[:, 0] = 0.0
+        G = np.zeros((self.A.shape[0], len(pairs)))
+        for j, (iz, izd) in enumerate(pairs):
+            g = np.linalg.lstsq(self.A[n:, :n], -self.Bw[n:, iz], rcond=None)[0]
+            G[:, j] = np.concatenate([g, np.zeros(n)])
+            if not np.allclose(self.A @ G[:, j], -self.Bw[:, iz], rtol=1e-9,
+                               atol=1e-9 * np.abs(self.Bw[:, iz]).max()):
+                raise ValueError("frame='road': no static shift of the displacements follows the road height")
+            self.Bw[:, izd] -= G[:, j]
+            self.Bw[:, iz] = 0.0
+        self.shift = G
+        self.road_pairs = pairs
 
     def _append_filter(self, name: str):
         filters = {o: (i, sos) for i, o, sos in getattr(getattr(self.env, "assembly", None), "filters", ())}
@@ -98,10 +114,11 @@ class LinearDesign:
             raise ValueError(f"{name!r} is not a linear output of the plant state, forces and inputs")
         m = self.env.signal_matrices(name)
         Dw = np.array(m["D_w"], dtype=float)
-        if self.shift is not None:  # y = C q + D_w w = C q_rel + (C g + D_w[:, z_r]) z_r + ...
-            cancel = np.abs(m["C"]) @ np.abs(self.shift) + np.abs(Dw[:, 0])
-            Dw[:, 0] += m["C"] @ self.shift
-            Dw[np.abs(Dw[:, 0]) <= 1e-12 * cancel, 0] = 0.0  # what cancels exactly, to round-off
+        if self.shift is not None:  # y = C q + D_w w = C q_rel + Σ_i (C g_i + D_w[:, z_r,i]) z_r,i + ...
+            for j, (iz, _) in enumerate(self.road_pairs):
+                cancel = np.abs(m["C"]) @ np.abs(self.shift[:, j]) + np.abs(Dw[:, iz])
+                Dw[:, iz] += m["C"] @ self.shift[:, j]
+                Dw[np.abs(Dw[:, iz]) <= 1e-12 * cancel, iz] = 0.0  # what cancels exactly, to round-off
         C = np.hstack([m["C"], np.zeros((m["C"].shape[0], self.A.shape[0] - m["C"].shape[1]))])
         return C, m["D_F"], Dw
 
@@ -382,7 +399,7 @@ class ClippedOptimal(ObserverLaw):
         if not force_ref > 0:
             raise ValueError(f"force_ref must be > 0 N, got {force_ref}")
         base = getattr(env, "unwrapped", env)
-        road = tuple(base.linear_plant.input_names[:2]) == ("z_r", "zdot_r")
+        road = bool(road_inputs(base.linear_plant.input_names))
         if isinstance(weights, str):
             if weights != "reward":
                 raise ValueError(f"weights must be None (the environment's objective), 'reward' or a dict "

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .model_based import ClippedOptimal, dlqr, van_loan
+from .model_based import ClippedOptimal, dlqr, road_inputs, van_loan
 
 #: The representative stroke velocity amplitude (m/s) of the default force bound (see :func:`damper_force_limit`).
 F_MAX_VELOCITY = 0.1
@@ -57,8 +57,10 @@ class MPC(ClippedOptimal):
 
     Options: ``horizon`` H (control periods, 1..500, default 10); ``f_max`` (N, the bound on |f_j| beyond the
     preload; default :func:`damper_force_limit`, the damper's force at the maximum command at a stroke velocity
-    of 0.1 m/s); ``preview``: use the ``road_preview`` sensor (the road heights at ``env.preview_times`` ahead)
-    for w over the horizon — None (default) when it is measured, True (required), False (w = 0); ``terminal``:
+    of 0.1 m/s); ``preview``: use the sensors of the road ahead for w over the horizon, each wheel's road inputs
+    (z_r, ż_r) of its own readings (:meth:`_road_readings`: ``road_preview``, the road heights at
+    ``env.preview_times`` ahead of every wheel; the full car's ``wheelbase_preview`` of the rear wheels, the front
+    wheels' past) — None (default) when one is measured, True (required), False (w = 0); ``terminal``:
     "riccati" (default, P above) or "zero" (no terminal cost: the finite-horizon LQR, for checks);
     ``osqp``: OSQP settings overriding the defaults. ``weights`` (None: the environment's objective; "reward":
     the reward's own terms, see :class:`~.model_based.ClippedOptimal`), ``force_ref``, ``frame``, ``inverse`` and
@@ -109,7 +111,7 @@ class MPC(ClippedOptimal):
         acts = np.flatnonzero(np.any(d.Bw != 0.0, axis=0) | np.any(Dzw != 0.0, axis=0))
         nw = int(acts[-1]) + 1 if acts.size else 1
         if self.preview:
-            nw = max(nw, 2)  # the road (z_r, ż_r) the preview fills
+            nw = max(nw, 1 + max(max(pair) for pair in self._pairs))  # the roads (z_r, ż_r) the preview fills
         Bw, Dzw = d.Bw[:, :nw], Dzw[:, :nw]
         nv = 2 * nw  # per period: w at its start and its slope ẇ (first-order hold)
         # the augmented continuous system ξ = [x, f, w, ẇ] and its cost, integrated exactly over one period
@@ -191,81 +193,131 @@ class MPC(ClippedOptimal):
 
     # --- preview ----------------------------------------------------------------------------------------------
     def _init_preview(self, preview):
-        measured = "road_preview" in self.layout and len(getattr(self.env, "preview_times", ())) > 0
+        readings = self._road_readings()
+        measured = any(tau > 0.0 for _, _, tau in readings)
         if preview is True and not measured:
-            raise ValueError("preview=True needs the 'road_preview' sensor (the quarter car's road heights ahead); "
-                             f"the environment measures {list(self.layout)}; create it with "
-                             "sensors=(..., 'road_preview') and preview=(times ahead, s)")
+            raise ValueError("preview=True needs a sensor of the road ahead ('road_preview', the road heights at "
+                             "env.preview_times ahead of each wheel; on the full car 'wheelbase_preview' too); the "
+                             f"environment measures {list(self.layout)}; create it with sensors=(..., "
+                             "'road_preview') and preview=(times ahead, s)")
         self.preview = measured if preview is None else bool(preview)
         if not self.preview:
             return
-        names = self.design.plant.input_names
-        if tuple(names[:2]) != ("z_r", "zdot_r"):
-            raise ValueError(f"the road preview drives the inputs (z_r, zdot_r); this plant's inputs are {names}")
-        tau = np.asarray(self.env.preview_times, dtype=float).ravel()
-        if np.any(np.diff(tau) <= 0) or tau[0] < 0:
-            raise ValueError(f"env.preview_times must be increasing and >= 0 s, got {tau}")
-        sl = self.layout["road_preview"]
-        self._src = np.arange(sl.start, sl.stop)[-tau.size:]  # the newest, with a stacked history
-        if "road" in self.layout and tau[0] > 0.0:  # the road under the wheel now: a preview 0 s ahead
-            self._src = np.concatenate([[self.layout["road"].stop - 1], self._src])
-            tau = np.concatenate([[0.0], tau])
-        # the road memory: the sample τ_i read m steps ago is the road τ_i − m·T ahead now; of the samples of one
-        # point ahead the newest is kept
+        # per wheel: the road memory's points ahead. A sample τ_i read m steps ago is the road τ_i − m·T ahead now;
+        # of the samples of one point ahead the newest is kept (and of two channels reading it, the later one)
         T = self.control_dt
-        m_max = int(np.floor(tau[-1] / T + 1e-9))
-        ahead = {}
-        for m in range(m_max, -1, -1):
-            for i, t in enumerate(tau):
-                rel = round(t - m * T, 12)
-                if rel >= 0.0:
-                    ahead[rel] = (m, i)
-        rel = np.array(sorted(ahead))
-        self._ahead = rel                                     # s ahead, increasing
-        self._ahead_m = np.array([ahead[r][0] for r in rel])  # how many steps ago it was read
-        self._ahead_i = np.array([ahead[r][1] for r in rel])  # which channel
-        self._memory = np.zeros((0, m_max + 1, tau.size))     # per row: the last m_max + 1 readings, newest first
-        self._age = np.zeros(0, dtype=np.int64)               # readings since the episode started
-        self._grid = np.arange(self.horizon + 1) * T          # the periods' boundaries ahead
+        self._src = np.array([i for i, _, _ in readings])
+        m_max = int(np.floor(max(tau for _, _, tau in readings) / T + 1e-9))
+        self._ahead = []  # per wheel: (s ahead (increasing), steps ago it was read, which reading)
+        for wheel in range(len(self._pairs)):
+            ahead = {}
+            for m in range(m_max, -1, -1):
+                for i, (_, w, t) in enumerate(readings):
+                    rel = round(t - m * T, 12)
+                    if w == wheel and rel >= 0.0:
+                        ahead[rel] = (m, i)
+            rel = np.array(sorted(ahead))
+            self._ahead.append((rel, np.array([ahead[r][0] for r in rel], dtype=np.int64),
+                                np.array([ahead[r][1] for r in rel], dtype=np.int64)))
+        self._memory = np.zeros((0, m_max + 1, len(readings)))  # per row: the last m_max + 1 readings, newest first
+        self._age = np.zeros(0, dtype=np.int64)                   # readings since the episode started
+        self._grid = np.arange(self.horizon + 1) * T              # the periods' boundaries ahead
+
+    def _road_readings(self) -> list[tuple[int, int, float]]:
+        """(observation index, wheel, s ahead) of every sensor channel that reads a wheel's road height: the road
+        under a wheel (``road``, 0 s ahead, used beside a preview that does not start at 0 s) and the road ahead
+        (``road_preview``; the full car's ``wheelbase_preview`` of the rear wheels), the newest of a stacked
+        history. Found from the signals' maps: a channel that selects one input ``z_r<wheel>`` (now) or
+        ``z_r<wheel>(t+τs...)`` (τ ahead) of the plant's :func:`~.model_based.road_inputs`."""
+        names = tuple(self.design.plant.input_names)
+        self._pairs = road_inputs(names)
+        wheel_of = {names[iz][3:]: j for j, (iz, _) in enumerate(self._pairs)}
+        out, now = [], []
+        for sensor in ("road_preview", "wheelbase_preview", "road"):
+            if sensor not in self.layout or not self._pairs:
+                continue
+            try:
+                Dw = np.asarray(self.env.signal_matrices(sensor)["D_w"], dtype=float)
+            except (AttributeError, ValueError):
+                continue
+            sl = self.layout[sensor]
+            first = sl.stop - Dw.shape[0]  # the newest frame of a stacked history
+            rows = [self._reading(row, names, wheel_of) for row in Dw]
+            if any(r is None for r in rows):
+                continue  # not a road sensor
+            for r, (wheel, tau) in enumerate(rows):
+                (now if tau is None else out).append((first + r, wheel, 0.0 if tau is None else tau))
+        # the road under the wheel: a preview 0 s ahead, for a wheel whose preview does not start at 0 s
+        for i, wheel, _ in now:
+            taus = [t for _, w, t in out if w == wheel]
+            if taus and min(taus) > 0.0:
+                out.insert(0, (i, wheel, 0.0))
+        return sorted(out, key=lambda r: r[1])  # wheel by wheel, each wheel's readings in the sensors' order
+
+    def _reading(self, row, names, wheel_of):
+        """(wheel, s ahead or None for the road under it) of a sensor channel whose map ``row`` selects one road
+        height input, else None. The time ahead is read from the channel's name, on the dt grid (as
+        :func:`mrd_env.envs.options.preview_times` makes it)."""
+        import re
+
+        col = int(np.argmax(np.abs(row)))
+        if row[col] != 1.0 or np.count_nonzero(row) != 1:
+            return None
+        name = names[col]
+        if name[3:] in wheel_of and name.startswith("z_r"):
+            return wheel_of[name[3:]], None
+        found = re.fullmatch(r"z_r(\w*)\(t\+([0-9.eE+-]+)s.*\)", name)
+        if found is None or found.group(1) not in wheel_of:
+            return None
+        dt = self.env.dt
+        return wheel_of[found.group(1)], int(round(float(found.group(2)) / dt)) * dt
 
     def road_ahead(self, obs: np.ndarray) -> np.ndarray:
-        """Read the road preview of ``obs`` (N, n_obs) into the road memory and return w = [z_r, ż_r] at the
-        horizon's period boundaries t + jT, j = 0..H, per row: (N, H + 1, 2). Call once per control step.
+        """Read the road preview of ``obs`` (N, n_obs) into the road memory and return w = [z_r, ż_r] of each wheel
+        at the horizon's period boundaries t + jT, j = 0..H, per row: (N, H + 1, 2 × wheels), the wheels' pairs in
+        the order of the plant's road inputs. Call once per control step.
 
         The points ahead come from this and the earlier readings (a sample τ ahead read m steps ago is τ − m·T
         ahead now: at a 1 ms control step and samples 10 ms apart the memory fills the gaps to 1 ms, and holds the
         road under the wheel). z_r: linearly interpolated between the points, held before the first and beyond the
         last (ż_r = 0 there) — a random road is close to a random walk (ISO 8608: PSD ∝ n⁻²), whose best guess
-        outside its samples is the nearest one. ż_r: finite differences (``numpy.gradient``), interpolated alike."""
+        outside its samples is the nearest one. ż_r: finite differences (``numpy.gradient``), interpolated alike. A
+        wheel no sensor reads (the full car's front wheels under a wheelbase preview alone): zeros, as without
+        preview."""
         n = obs.shape[0]
         self._memory = np.roll(self._memory, 1, axis=1)
         self._memory[:, 0] = obs[:, self._src]
         self._age += 1
         g = self._grid
-        out = np.zeros((n, g.size, 2))
-        for b in range(n):
-            known = self._ahead_m < self._age[b]
-            tau = self._ahead[known]
-            z = self._memory[b, self._ahead_m[known], self._ahead_i[known]]
-            out[b, :, 0] = np.interp(g, tau, z)
-            if tau.size > 1:
-                out[b, :, 1] = np.interp(g, tau, np.gradient(z, tau))
-                out[b, (g < tau[0]) | (g > tau[-1]), 1] = 0.0
+        out = np.zeros((n, g.size, 2 * len(self._pairs)))
+        for wheel, (ahead, ahead_m, ahead_i) in enumerate(self._ahead):
+            if ahead.size == 0:
+                continue
+            for b in range(n):
+                known = ahead_m < self._age[b]
+                tau = ahead[known]
+                z = self._memory[b, ahead_m[known], ahead_i[known]]
+                out[b, :, 2 * wheel] = np.interp(g, tau, z)
+                if tau.size > 1:
+                    out[b, :, 2 * wheel + 1] = np.interp(g, tau, np.gradient(z, tau))
+                    out[b, (g < tau[0]) | (g > tau[-1]), 2 * wheel + 1] = 0.0
         return out
 
     def _known_inputs(self, obs):
         """V (N, H·nv): [w_j, ẇ_j] per period (w first-order hold between boundaries), or None without preview."""
         if not self.preview:
             return None
-        w = self.last_road = self.road_ahead(obs)                 # (N, H+1, 2)
+        w = self.last_road = self.road_ahead(obs)                 # (N, H+1, 2 × wheels)
         full = np.zeros((obs.shape[0], self.horizon + 1, self._nw))
-        full[:, :, :2] = w
+        for j, (iz, izd) in enumerate(self._pairs):
+            full[:, :, iz], full[:, :, izd] = w[:, :, 2 * j], w[:, :, 2 * j + 1]
         slope = np.diff(full, axis=1) / self.control_dt           # (N, H, nw)
         if self.design.frame == "road":
             # the road enters through ż_r alone: the derivative of the held heights, Δz_r/T over each period, so
             # that the prediction moves the road by exactly the previewed heights (not by a finite difference)
-            full[:, :-1, 1] = slope[:, :, 0]
-            slope[:, :, 1] = 0.0
+            for iz, izd in self._pairs:
+                full[:, :-1, izd] = slope[:, :, iz]
+                slope[:, :, izd] = 0.0
         return np.concatenate([full[:, :-1], slope], axis=2).reshape(obs.shape[0], -1)
 
     # --- the law ----------------------------------------------------------------------------------------------

@@ -394,6 +394,78 @@ def test_roles_per_corner_and_the_classical_laws_run_per_damper():
         assert u.shape == (4,) and len(set(np.round(u, 6))) > 1, (law, u)
 
 
+# --- MPC with each wheel's road preview -----------------------------------------------------------------------------
+PREVIEW = tuple(round(0.01 * k, 2) for k in range(1, 11))
+LEFT_BUMP = dict(road="bump", road_params={"height": 0.05, "length": 0.5, "speed": 10.0, "t_start": 0.5,
+                                           "side": "left"}, control_dt=0.01, episode_seconds=2.0)
+
+
+def _mpc_run(env, ctrl):
+    """(return, desired forces (steps, 4), road ahead per step or None) of one episode (seed 0)."""
+    obs, _ = env.reset(seed=0)
+    ctrl.reset()
+    total, forces, roads = 0.0, [], []
+    while True:
+        a, _ = ctrl.predict(obs)
+        forces.append(ctrl.last_desired[0].copy())
+        roads.append(ctrl.last_road[0].copy() if ctrl.preview else None)
+        obs, r, term, trunc, _ = env.step(a)
+        total += r
+        if term or trunc:
+            return total, np.array(forces), roads
+
+
+def test_mpc_previews_each_wheels_road_over_the_horizon():
+    """With ``road_preview`` each wheel's previewed road over the horizon is that wheel's road in the record (the
+    rear wheels' the front wheels' a wheelbase/speed later); the road frame's shifts are the static equilibrium
+    the car starts in on any four heights (K g_i = E z_i)."""
+    from controllers.mpc import MPC
+    from mrd_env.plants.full_car.env import DEFAULT_SENSORS, static_state
+
+    env = gym.make(V0, sensors=(*DEFAULT_SENSORS, "road_preview"), preview=PREVIEW, control_dt=0.01,
+                   episode_seconds=1.0)
+    mpc = MPC(env, horizon=12, weights="reward", force_ref=1000.0)
+    assert mpc.preview and mpc.design.frame == "road"
+    _, _, roads = _mpc_run(env, mpc)
+    data = env.unwrapped.record.data
+    inside = np.arange(13) * 0.01 <= PREVIEW[-1] + 1e-12
+    for k in range(10, 60):
+        rows = (k + np.arange(13)) * 10
+        for wheel in range(4):
+            np.testing.assert_allclose(roads[k][inside, 2 * wheel], data[rows[inside], 2 * wheel], atol=1e-6)
+    heights = np.array([0.02, -0.01, 0.015, 0.03])
+    p = full_car("sedan")
+    np.testing.assert_allclose(mpc.design.shift[:7] @ heights, static_state(p, np.repeat(heights, 2) *
+                                                                           np.tile([1.0, 0.0], 4))[:7], atol=1e-12)
+    np.testing.assert_array_equal(mpc.design.Bw[:, 0:8:2], 0.0)  # the heights drop out, the rates drive it
+    np.testing.assert_array_equal(mpc.steady_state, 0.0)
+
+
+@pytest.mark.parametrize("sensor", ["road_preview", "wheelbase_preview"])
+def test_mpc_with_preview_acts_before_the_bump_and_pays(sensor):
+    """A 5 cm bump under the left wheels at 0.5 s (front) and 0.78 s (rear, 10 m/s): the preview MPC commands
+    exactly as the blind one until the bump enters its window (the road preview: 0.1 s before the front wheel;
+    the wheelbase preview, the rear wheels' road from the front wheels' past: 0.1 s before the rear wheel), acts
+    differently before the wheel meets it, and scores a better return."""
+    from controllers.mpc import MPC
+    from mrd_env.plants.full_car.env import DEFAULT_SENSORS
+
+    option = "preview" if sensor == "road_preview" else "wheelbase_preview"
+    env = gym.make(V0, sensors=(*DEFAULT_SENSORS, sensor), **{option: PREVIEW}, **LEFT_BUMP)
+    seen, blind = MPC(env, weights="reward", force_ref=1000.0), MPC(env, weights="reward", force_ref=1000.0,
+                                                                    preview=False)
+    assert seen.preview and not blind.preview
+    ra, fa, _ = _mpc_run(env, seen)
+    rb, fb, _ = _mpc_run(env, blind)
+    hit = 0.5 + (0.0 if sensor == "road_preview" else (A + B) / 10.0)   # the first wheel the preview sees meets it
+    t = np.arange(len(fa)) * 0.01
+    early = t < hit - 0.1 - 1e-9
+    np.testing.assert_allclose(fa[early], fb[early], rtol=1e-9, atol=1e-9)
+    window = (t >= hit - 0.1 - 1e-9) & (t < hit - 1e-9)
+    assert np.max(np.abs(fa[window] - fb[window])) > 50.0
+    assert ra > rb + 0.02, (ra, rb)
+
+
 def test_episode_metrics_are_the_offline_metrics_of_the_record():
     """The online episode metrics (the filters and statistics of the compiled step) are :func:`full_car_metrics` of
     the episode's record, to 0.01 % (the online weighting filters start after the first row, whose output is 0;
@@ -493,7 +565,7 @@ def test_evaluate_runs_on_the_full_car_with_its_laws_and_mpc(tmp_path):
                  "clipped_optimal", "--no-1ms", "--yardstick", "off", "--backend", "serial", "--out", str(tmp_path),
                  "--no-progress"]) == 0
     text = (tmp_path / "full_car_evaluation.md").read_text()
-    assert "mpc (reward)" in text and "clipped_optimal" in text
+    assert "mpc (reward)" in text and "mpc+preview (reward)" in text and "clipped_optimal" in text
 
 
 def test_train_then_evaluate_an_agent_on_the_full_car(tmp_path):

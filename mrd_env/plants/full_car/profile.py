@@ -68,13 +68,18 @@ PROFILE = PlantProfile(
                  "roll_acc_weighted_rms/off", "travel_peak/off", "tyre_load_ratio/off"),
     metric_units={"comfort_rms": "m/s²", "acc_weighted_rms": "m/s²", "pitch_acc_weighted_rms": "rad/s²",
                   "roll_acc_weighted_rms": "rad/s²", "travel_peak": "m", "tyre_load_ratio": "-"},
-    # the objective's MPC and the reward's, at the comparison's step, over the four dampers. The reward's force_ref
-    # was chosen on 4 validation episodes at 1 ms (mean return −9.19 with 1000 N, −10.30 with the default 3000 N,
-    # −10.78 with 300 N; the passive car −10); without the damper's force limit (f_max = 1e5 N, the quarter car's
-    # setting) the reward's MPC hits the stroke limit on a class-D road. No preview row: MPC's road preview drives
-    # one road (z_r, ż_r), not four wheels (controllers/mpc.py refuses the full car's inputs).
+    # the objective's MPC and the reward's, at the comparison's step, over the four dampers, and the reward's with
+    # each wheel's road preview (controllers/mpc.py). The reward's force_ref was chosen on 4 validation episodes at
+    # 1 ms (mean return −9.19 with 1000 N, −10.30 with the default 3000 N, −10.78 with 300 N; the passive car −10),
+    # and checked at 10 ms on 4 validation episodes of 3 s (passive car −3, skyhook −2.70), in the road frame (the
+    # reward's default on a car, :func:`controllers.model_based.road_inputs`): with the default f_max, 1000 N gives
+    # −3.13 without preview and −2.93 with it; at f_max = 1e5 N (without / with preview) 200 N −3.27/−3.04, 1000 N
+    # −3.13/−2.90 (in the absolute frame −3.13/−2.99), 2000 N −3.18/−3.00, 5000 N −3.27/−3.12, and a horizon of 20
+    # −2.90 with preview (as H = 10). Without the damper's force limit (f_max = 1e5 N, the quarter car's setting) the
+    # reward's MPC hits the stroke limit on a class-D road.
     mpc=(("mpc", None, {}, False),
-         ("mpc (reward)", None, {"weights": "reward", "force_ref": 1000.0}, False)),
+         ("mpc (reward)", None, {"weights": "reward", "force_ref": 1000.0}, False),
+         ("mpc+preview (reward)", None, {"weights": "reward", "force_ref": 1000.0, "horizon": 10}, True)),
     passive_reference=passive_car,
     preview=True,
     # measured: mrd_env.optimal's clairvoyant solves the full car (four command sequences), but one 1 s class-C
