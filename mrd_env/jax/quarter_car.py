@@ -259,3 +259,15 @@ def rollout(params: EnvParams, state: EnvState, actions):
 
     (state, _), out = lax.scan(body, (state, jnp.asarray(False)), actions)
     return (state, *out)
+
+
+def step_autoreset(key, state: EnvState, action, params: EnvParams):
+    """:func:`step`, then a new episode (a road drawn from ``key``) in place of one that ended, in the same call
+    (gymnax's convention): the returned observation and state are the new episode's; ``info["final_observation"]``
+    holds the ended one's last observation."""
+    obs, new, reward, terminated, truncated, info = step(key, state, action, params)
+    done = terminated | truncated
+    obs0, state0 = reset(key, params)
+    new = jax.tree_util.tree_map(lambda a, b: jnp.where(done, a, b), state0, new)
+    info = {**info, "final_observation": obs}
+    return jnp.where(done, obs0, obs), new, reward, terminated, truncated, info
