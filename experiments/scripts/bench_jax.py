@@ -54,7 +54,7 @@ def exact_vs_numba(episodes: int) -> tuple[list[dict], dict]:
 
     from mrd_env.disturbances import iso8608_road
     from mrd_env.envs import options as opt
-    from mrd_env.jax import quarter_car as qc
+    from mrd_env.plants.quarter_car import jax_twin as qc
     from mrd_env.mechanics import CoupledPlant
     from mrd_env.plants.quarter_car.physics import quarter_car
 
@@ -158,7 +158,7 @@ def gradient_check() -> dict:
     import jax
     import jax.numpy as jnp
 
-    from mrd_env.jax import quarter_car as qc
+    from mrd_env.plants.quarter_car import jax_twin as qc
 
     params = qc.make_params(n_roads=1, seed=3000, scheme="differentiable")
     _, s0 = qc.reset(None, params, road=0)
@@ -198,7 +198,7 @@ def throughput(sizes, repeats: int, seconds: float) -> tuple[list[dict], dict]:
     import jax.numpy as jnp
 
     import mrd_env  # noqa: F401
-    from mrd_env.jax import quarter_car as qc
+    from mrd_env.plants.quarter_car import jax_twin as qc
 
     rows, compile_s = [], {}
     for N in sizes:

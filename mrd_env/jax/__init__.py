@@ -3,8 +3,9 @@
 Importing it switches JAX to float64 (``jax_enable_x64``: the schemes need it; set before any array is made) and,
 unless the process chose one already, points JAX's persistent compilation cache at the project's cache folder
 (:func:`mrd_env.caches.cache_folder` ``("jax")``), so that a later process loads what an earlier one compiled.
-See ``docs/jax.md``: the quarter car with the Spencer–Dyke and Bouc–Wen dampers (:mod:`.quarter_car`), the
-stepping scheme (:mod:`.scheme`), the dampers (:mod:`.dampers`).
+See ``docs/jax.md``: the stepping scheme (:mod:`.scheme`), the dampers (:mod:`.dampers`), any system over a
+record (:mod:`.simulate`); a plant's environment functions live in its folder (the quarter car's:
+:mod:`mrd_env.plants.quarter_car.jax_twin`).
 """
 from __future__ import annotations
 
@@ -17,6 +18,6 @@ if not jax.config.jax_compilation_cache_dir:
     jax.config.update("jax_compilation_cache_dir", str(cache_folder("jax")))
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
 
-from . import quarter_car, scheme  # noqa: E402
+from . import dampers, scheme, simulate  # noqa: E402
 
-__all__ = ["quarter_car", "scheme"]
+__all__ = ["dampers", "scheme", "simulate"]

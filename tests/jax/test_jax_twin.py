@@ -13,7 +13,7 @@ import jax.numpy as jnp  # noqa: E402
 import mrd_env.jax  # noqa: E402,F401  (float64)
 from mrd_env.disturbances import iso8608_road  # noqa: E402
 from mrd_env.envs import options as opt  # noqa: E402
-from mrd_env.jax import quarter_car as qc  # noqa: E402
+from mrd_env.plants.quarter_car import jax_twin as qc  # noqa: E402
 from mrd_env.jax.simulate import run as jax_run  # noqa: E402
 from mrd_env.mechanics import CoupledPlant  # noqa: E402
 from mrd_env.plants.quarter_car.physics import quarter_car  # noqa: E402

@@ -1,4 +1,4 @@
-"""The quarter car in JAX: ``make_params``, ``reset``, ``step`` and whole-episode ``rollout`` as pure functions of
+"""The quarter car in JAX (needs the ``[jax]`` extra; importing it imports :mod:`mrd_env.jax`): ``make_params``, ``reset``, ``step`` and whole-episode ``rollout`` as pure functions of
 :class:`EnvParams` and :class:`EnvState` (the gymnax layout), jit- and vmap-able, float64.
 
 The physics and the reward are the native environment's (:mod:`mrd_env.plants.quarter_car`): the same plant
@@ -19,16 +19,16 @@ import jax.numpy as jnp
 import numpy as np
 from jax import lax
 
-from ..disturbances import iso8608_road
-from ..envs import options as opt
-from ..mechanics import CoupledPlant
-from ..metrics import weighting_sos
-from ..plants.quarter_car import env as native
-from ..plants.quarter_car.physics import quarter_car
-from ..stepping.scheme import ATOL, MAX_SUBSTEPS, OK, RTOL, max_level_of
-from ..validation import check_scalar
-from . import scheme as sc
-from .dampers import jax_damper
+from ...disturbances import iso8608_road
+from ...envs import options as opt
+from ...jax import scheme as sc
+from ...jax.dampers import jax_damper
+from ...mechanics import CoupledPlant
+from ...metrics import weighting_sos
+from ...stepping.scheme import ATOL, MAX_SUBSTEPS, OK, RTOL, max_level_of
+from ...validation import check_scalar
+from . import env as native
+from .physics import quarter_car
 
 #: The two schemes (:mod:`mrd_env.jax.scheme`).
 SCHEMES = ("exact", "differentiable")
