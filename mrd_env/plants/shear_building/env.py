@@ -514,10 +514,11 @@ class ShearBuildingEnv(MRDamperEnv):
     Keyword-only (``gym.make("mrd_env/ShearBuilding-v1", **options)``; every bad value raises ``ValueError``
     naming the option):
 
-    * ``plant_preset``: "three_storey" (default); ``plant_params``: a dict of
+    * ``plant_preset``: "three_storey" (default) or "six_storey" (six storeys, four dampers: two in storey 1, two in
+      storey 2; a model of this project); ``plant_params``: a dict of
       :class:`~mrd_env.plants.ShearBuildingParams` overrides, or a ``ShearBuildingParams`` (e.g.
       ``ShearBuildingParams.uniform(8, 3.5e5, 6e8)``); ``damper_floors``: floors whose storey holds a damper
-      (one damper each, all of the same model), overriding the plant's.
+      (a floor named as often as its storey holds dampers, all of the same model), overriding the plant's.
     * ``damper`` (default "spencer_dyke"), ``damper_preset`` (default "spencer1997", or the model's default
       preset if it has none of that name), ``damper_params``.
     * ``ground_motion`` (one rule: a kind name, a dict ``{"kind": ..., **options}``, a
