@@ -2,6 +2,14 @@
 
     python -m experiments.scripts.bench_bound_bracket [--scenario NAME ...] [--seeds N | --seed S ...] [--seconds S] \\
         [--no-clairvoyant] [--oracle] [--storage J] [--out results/bench/bound_bracket]
+    python -m experiments.scripts.bench_bound_bracket --suite ID [ID ...] [--out results/bench/suite_bracket]
+
+``--suite`` (``all``: every shipped suite with its own references; a suite that copies another's, ``car-preview``,
+has that one's brackets): on **every episode of the suite**, the stored references R_p, R_c, R_b and f_max
+(:mod:`mrd_env.suites`: nothing is re-solved but R_d) beside R_d, the passivity-aware bound with the stored f_max on
+the episode's plant (:meth:`~mrd_env.suites.Suite.reference_options`), both brackets, whether R_c ≤ R_d ≤ R_b, and
+how far R_d's optimum is from semi-active (the share of its rows giving energy back: 0 would make it tight); then
+per scenario the brackets' mean, least and largest, and the wall times.
 
 For each episode (default: the first seed of the held-out scenarios "ISO-C 20 m/s" and "bump 5 cm" of the quarter
 car and "El Centro NS (×0.2 time)" of the building; ``--scenario all`` for every held-out scenario of both plants,
@@ -176,6 +184,88 @@ def run(plant, env_id, label, seed, options, *, clairvoyant: bool, oracle: bool,
     return row
 
 
+def suite_rows(suite, storage: float = 0.0) -> list[dict]:
+    """One row per episode of ``suite`` (see the module docstring, ``--suite``)."""
+    from mrd_env.optimal import dissipative_bound, episode_problem
+
+    rows = []
+    for sc, seed in suite.episodes():
+        label = sc.label(seed)
+        ref = suite.reference(label)
+        t0 = time.perf_counter()
+        p = episode_problem(suite.env_id, seed=int(seed), control_dt=1e-3, **suite.reference_options(sc, seed))
+        d, tol = None, None
+        for tol in (1e-8, 1e-6):   # the default tolerance, then a looser one where Clarabel stalls (still a bound:
+            try:                   # R_d is the dual objective, certified by the solver)
+                d = dissipative_bound(p, f_max=ref.f_max, storage=storage, tol=tol)
+                break
+            except RuntimeError as exc:
+                print(f"{suite.id} {label}: tol {tol:g}: {exc}", flush=True)
+        rd, share_back, status = math.nan, math.nan, "failed"
+        if d is not None:
+            v = d.X @ p.Cv.T
+            power = np.sum((d.F - p.F_static) * v, axis=1)
+            tolp = 1e-6 * np.max(np.abs(power))
+            rd, share_back, status = d.bound, float(np.mean(power < -tolp)), f"{d.status} (tol {tol:g})"
+        rows.append({"suite": suite.id, "scenario": sc.name, "episode": label, "R_p": ref.passive,
+                     "R_c": ref.clairvoyant, "R_b active": ref.bound, "R_d passive": rd, "f_max (N)": ref.f_max,
+                     "bracket active": bracket(ref.bound, ref.clairvoyant, ref.passive),
+                     "bracket passive": bracket(rd, ref.clairvoyant, ref.passive),
+                     # R_d ≤ R_b up to the solvers' tolerance (1e-6 of |R_b|)
+                     "R_c <= R_d <= R_b": bool(ref.clairvoyant <= rd <= ref.bound + 1e-6 * abs(ref.bound)),
+                     "R_d rows giving energy": share_back, "R_d status": status,
+                     "passive (s)": time.perf_counter() - t0})
+        r = rows[-1]
+        print(f"{suite.id} {label}: R_p {r['R_p']:.4g}  R_c {r['R_c']:.4g}  R_b {r['R_b active']:.4g} "
+              f"({r['bracket active']:.0%})  R_d {r['R_d passive']:.4g} ({r['bracket passive']:.0%})  "
+              f"rows giving energy {r['R_d rows giving energy']:.0%}  [{r['passive (s)']:.1f} s]", flush=True)
+    return rows
+
+
+def suite_summary(rows: list[dict]) -> list[dict]:
+    """Per suite and scenario: the episodes, each bracket's mean, least and largest, whether every episode has
+    R_c ≤ R_d ≤ R_b, the least share of R_d's rows giving energy back, and R_d's mean wall time."""
+    out = []
+    for key in dict.fromkeys((r["suite"], r["scenario"]) for r in rows):
+        mine = [r for r in rows if (r["suite"], r["scenario"]) == key]
+        ba = np.array([r["bracket active"] for r in mine])
+        solved = [r for r in mine if math.isfinite(r["R_d passive"])]
+        bp = np.array([r["bracket passive"] for r in solved]) if solved else np.array([math.nan])
+        out.append({"suite": key[0], "scenario": key[1], "episodes": len(mine),
+                    "bracket R_b mean (min–max)": f"{ba.mean():.0%} ({ba.min():.0%}–{ba.max():.0%})",
+                    "bracket R_d mean (min–max)": f"{bp.mean():.0%} ({bp.min():.0%}–{bp.max():.0%})",
+                    "R_d solved": f"{len(solved)}/{len(mine)}",
+                    "episodes under 10 %": int(np.sum(bp < 0.10)),
+                    "R_c ≤ R_d ≤ R_b": f"{sum(r['R_c <= R_d <= R_b'] for r in solved)}/{len(solved)}",
+                    "R_d rows giving energy (least)":
+                        f"{min(r['R_d rows giving energy'] for r in solved):.0%}" if solved else "n/a",
+                    "R_d s (mean)": float(np.mean([r["passive (s)"] for r in mine]))})
+    return out
+
+
+def main_suites(args) -> None:
+    from mrd_env.report import markdown_table, write_table
+    from mrd_env.suites import suites
+
+    shipped = suites()
+    ids = [k for k, s in shipped.items() if not s.procedure.get("references_of")] if args.suite == ["all"] \
+        else args.suite
+    unknown = [k for k in ids if k not in shipped]
+    if unknown:
+        raise SystemExit(f"--suite: unknown {unknown}; shipped: {sorted(shipped)}")
+    load0, t0 = os.getloadavg(), time.perf_counter()
+    rows = [r for k in ids for r in suite_rows(shipped[k], args.storage)]
+    load1 = os.getloadavg()
+    title = (f"bound bracket on every suite episode ({', '.join(ids)}): {len(rows)} episodes, "
+             f"{time.perf_counter() - t0:.0f} s, {os.cpu_count()} cores, load average {load0[0]:.1f} → {load1[0]:.1f}")
+    summary = suite_summary(rows)
+    print(markdown_table(summary, title=title))
+    if args.out:
+        for path in [*write_table(rows, args.out, title=title),
+                     *write_table(summary, f"{args.out}_summary", title=title)]:
+            print("wrote", path)
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--scenario", nargs="+", default=None,
@@ -186,10 +276,15 @@ def main(argv=None) -> None:
     ap.add_argument("--no-clairvoyant", action="store_true", help="R_c = the best law's return (no optimiser)")
     ap.add_argument("--oracle", action="store_true", help="add the per-row envelope diagnostic (not a bound)")
     ap.add_argument("--storage", type=float, default=0.0, help="the passive bound's initial store E0 (J)")
+    ap.add_argument("--suite", nargs="+", default=None,
+                    help="every episode of these shipped suites, against their stored references ('all': every one)")
     ap.add_argument("--out", default=None, help="write <out>.md and <out>.csv")
     args = ap.parse_args(argv)
 
     import mrd_env  # noqa: F401
+
+    if args.suite:
+        return main_suites(args)
     from mrd_env.report import markdown_table, write_table
 
     names = DEFAULT if args.scenario is None else tuple(args.scenario)
