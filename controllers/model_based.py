@@ -473,6 +473,7 @@ class Lyapunov(ObserverLaw):
         if Q is None:
             n = d.n_dof
             Q = np.block([[d.plant.K, np.zeros((n, n))], [np.zeros((n, n)), d.plant.M]])
+            Q = 0.5 * (Q + Q.T)  # K = Sᵀ K_s S is symmetric to round-off only (the full car's), lyap wants it exactly
         self.P = control.lyap(d.A.T, Q)
         self._PB = self.P @ self.design.Bf
 

@@ -259,6 +259,29 @@ def test_the_car_starts_in_static_equilibrium_on_a_warped_road():
     np.testing.assert_allclose(lp.S @ q, 0.0, atol=1e-12)
 
 
+@pytest.mark.xfail(strict=True, reason="the dampers' internal states start at the model's rest state of zero stroke "
+                   "(mrd_env.envs.core resets them to damper.initial_state()), and the static equilibrium K q = E z_r "
+                   "leaves out the dampers' stiffness at rest: on this warp a Spencer–Dyke damper pushes 40-46 N at "
+                   "t = 0 (its internal spring k0 (x - y) with y = 0, and the accumulator's k1 x), the wheels "
+                   "accelerate at 1.0-1.3 m/s²; a fix needs the dampers' rest state at a stroke (y = x, z = 0) in the "
+                   "reset and in mrd_env.optimal's episode problem, and k1 in the equilibrium (issue 40)")
+def test_the_dampers_internal_states_start_at_rest_on_a_warped_road():
+    """On four road heights no plane holds the strokes are not zero at the start: the dampers' internal states
+    (Spencer–Dyke's internal displacement y and Bouc–Wen z) must be at rest at those strokes and the equilibrium
+    must hold the dampers' forces at rest, so that nothing accelerates and no damper force beyond the preload acts
+    at t = 0."""
+    heights = np.array([0.02, -0.01, 0.015, 0.03])
+    data = np.zeros((1001, 8))
+    data[:, 0::2] = heights
+    sensors = ("body_acc", "pitch_acc", "roll_acc", "wheel_acc", "damper_force")
+    env = gym.make(V0, road=Record(DT, data, ROAD, ("m", "m/s") * 4), episode_seconds=None, sensors=sensors,
+                   damper_preset="automotive")
+    obs, _ = env.reset(seed=0)
+    assert np.max(np.abs(full_car("sedan").plant().S @ env.unwrapped.plant_state[:7])) > 5e-3   # twisted
+    assert np.max(np.abs(obs[:7])) < 0.01, obs[:7]                               # m/s², rad/s²
+    assert np.max(np.abs(obs[7:] - env.unwrapped.F_static)) < 0.5, obs[7:]       # N
+
+
 # --- (e) two-track roads -------------------------------------------------------------------------------------------
 def test_the_two_tracks_have_the_isotropic_coherence_and_the_iso_spectrum():
     """Welch estimates over a 1 000 s road (10 m/s, 10 ms samples) against the model: each track's PSD is ISO 8608's
@@ -572,8 +595,20 @@ def test_train_then_evaluate_an_agent_on_the_full_car(tmp_path):
     check_train_then_evaluate("full_car", V0, tmp_path)
 
 
-def test_the_yardstick_refuses_the_full_car_with_its_reason(tmp_path):
-    with pytest.raises(ValueError, match="full car"):
-        from experiments.common.yardstick import check_plant
+def test_the_full_cars_suites_grant_the_preview_that_mpc_uses():
+    """car-full and its preview twin are the full car's (the twin shares its references: the same episodes and
+    plant), and the twin's sensors give MPC every wheel's road ahead; the yardstick accepts the plant."""
+    from controllers.mpc import MPC
+    from experiments.common.yardstick import check_plant
+    from mrd_env.plants import suite_definition
 
-        check_plant(plant("full_car").profile)
+    plain, twin = suite_definition("car-full"), suite_definition("car-full-preview")
+    assert plain[:2] == twin[:2] == ("full_car", V0) and twin[2].references_of == "car-full"
+    for (_, _, d), preview in ((plain, False), (twin, True)):
+        sc = d.scenarios[0]
+        env = gym.make(V0, **d.options, **sc.options, control_dt=d.control_dt)
+        mpc = MPC(env, weights="reward", force_ref=1000.0)
+        assert mpc.preview == preview
+        if preview:
+            assert sorted({w for _, w, t in mpc._road_readings() if t > 0}) == [0, 1, 2, 3]
+    check_plant(plant("full_car").profile)
