@@ -332,6 +332,28 @@ def test_a_law_takes_its_options_from_python_and_the_command_line(suite_file, tm
     assert [e["return"] for e in cli.episodes] == [e["return"] for e in h1.episodes]
 
 
+def test_torch_runs_on_one_thread_only_in_the_projects_own_processes(suite_file, tmp_path, monkeypatch):
+    """An agent's episodes in an executor's worker (another process than score's caller) set torch to one thread
+    (its default takes every core: an SB3 policy scored 10x slower on 2 loaded cores); in the caller's own process,
+    or for a law, nothing is changed."""
+    import os
+
+    import torch
+
+    from experiments.common.scoring import controller_spec, scenario_episodes
+
+    calls = []
+    monkeypatch.setattr(torch, "set_num_threads", lambda n: calls.append(n))
+    suite = read_suite(suite_file)
+    agent = controller_spec(stand_in_agent(tmp_path / "agent"))
+    law = controller_spec("passive_on")
+    scenario_episodes(suite, 1, (3,), agent, caller=os.getpid())
+    scenario_episodes(suite, 1, (3,), law, caller=os.getpid() + 1)
+    assert calls == []
+    eps = scenario_episodes(suite, 1, (3,), agent, caller=os.getpid() + 1)     # as in a worker
+    assert calls == [1] and eps[0]["label"] == "ISO-D"
+
+
 @pytest.mark.parametrize("argv, message", [
     (["--controller", "mpc", "--law-options", "{horizon: 1}"], "--law-options must be a JSON object"),
     (["--controller", "mpc", "--law-options", "[1]"], "--law-options must be a JSON object"),
