@@ -23,7 +23,8 @@ from mrd_env.report import markdown_table, write_table
 
 from ..common import sweep, yardstick
 from ..common.evaluation import Episode, applicable_laws, check_laws, controller_episodes
-from ..common.plants import PlantProfile, add_plant_options, chosen_plants, plant_choices, plant_name, with_plant_options
+from ..common.plants import (PlantProfile, add_plant_options, check_agent_plant, chosen_plants, plant_choices,
+                             plant_name, with_plant_options)
 from ..common.scenarios import base_scenario, held_out_scenarios
 
 
@@ -250,6 +251,8 @@ def run(args: argparse.Namespace) -> int:
     for path, trained_on in agents.items():
         if trained_on not in [p.name for p in plants]:
             raise ValueError(f"agent {path} was trained on the {trained_on} plant; add --plant {trained_on} (or both)")
+        check_agent_plant(next(p for p in plants if p.name == trained_on), str(path),
+                          agent_metadata(path).get("env_kwargs") or {})
     if args.seeds < 1:
         raise ValueError(f"--seeds must be >= 1, got {args.seeds}")
     if agents:  # an SB3 zip only with --trust-agent, converted here once: the workers never unpickle

@@ -23,7 +23,8 @@ from mrd_env.report import write_table
 from ..common import sweep, yardstick
 from ..common.comparison import comparison_damper, evaluate
 from ..common.evaluation import Episode, check_laws, episode_means, grouped_bars, mean_ci
-from ..common.plants import PlantProfile, add_plant_options, chosen_plants, plant_choices, plant_name, with_plant_options
+from ..common.plants import (PlantProfile, add_plant_options, check_agent_plant, chosen_plants, plant_choices,
+                             plant_name, with_plant_options)
 from ..common.scenarios import base_scenario, held_out_scenarios
 
 
@@ -142,6 +143,8 @@ def run(args: argparse.Namespace) -> int:
               for name, agents in chosen.items()}
     for plant in plants:
         name, agents = plant.name, chosen[plant.name]
+        for a in agents:
+            check_agent_plant(plant, str(a), agent_files(a)[1].get("env_kwargs") or {})
         res = evaluate(plant, agents, args.laws, seeds=args.seeds, control_dt=args.control_dt, damper=args.damper,
                        laws_at_1ms=not args.no_1ms, mpc=not args.no_mpc, progress=not args.no_progress,
                        quick=args.quick, **executor)

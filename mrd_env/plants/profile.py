@@ -99,6 +99,9 @@ class PlantProfile:
     apply_plant_options: Callable[[dict, dict], dict] | None = None
     #: the plant options this profile was derived with (:meth:`with_plant_options`): sorted (name, text) pairs
     applied: tuple = ()
+    #: the environment options that make the plant (the building's preset and damper storeys): an agent trained on
+    #: other values is refused where the command runs this plant (the damper has its own rule, ``--damper``)
+    plant_keys: tuple = ()
 
     @property
     def name(self) -> str:

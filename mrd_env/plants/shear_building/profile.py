@@ -122,4 +122,5 @@ PROFILE = PlantProfile(
     metric_units={"drift_peak": "m", "acc_peak": "m/s²", "damper_force_peak": "N"},
     mpc=(("mpc", None, {}, False), ("mpc (reward)", 1e-3, {"weights": "reward"}, False)),
     warm_laws=_BUILDING_LAWS, published=True, suites=SUITES,
-    plant_options=_PLANT_OPTIONS, apply_plant_options=_apply_plant_options)
+    plant_options=_PLANT_OPTIONS, apply_plant_options=_apply_plant_options,
+    plant_keys=("plant_preset", "plant_params", "damper_floors"))
