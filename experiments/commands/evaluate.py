@@ -24,7 +24,7 @@ from ..common import sweep, yardstick
 from ..common.comparison import comparison_damper, evaluate
 from ..common.evaluation import Episode, check_laws, episode_means, grouped_bars, mean_ci
 from ..common.plants import (PlantProfile, add_plant_options, check_agent_plant, chosen_plants, plant_choices,
-                             plant_name, with_plant_options)
+                             plant_name, shipped_agents_of, with_plant_options)
 from ..common.scenarios import base_scenario, held_out_scenarios
 
 
@@ -110,7 +110,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from controllers import shipped_agents
     from controllers.agents import agent_files, code_free_agent, recorded_plant
 
     if args.seeds < 1:
@@ -131,7 +130,7 @@ def run(args: argparse.Namespace) -> int:
     chosen = {p.name: [] for p in plants}
     if args.agents is None:
         for p in plants:
-            chosen[p.name] = shipped_agents(p)
+            chosen[p.name] = shipped_agents_of(p)  # those trained on the plant as chosen
     else:
         for a in args.agents:
             trained_on = recorded_plant(agent_files(a)[1])  # ValueError for a bad path

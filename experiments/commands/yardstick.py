@@ -8,7 +8,8 @@ import argparse
 import time
 from pathlib import Path
 
-from ..common.plants import add_plant_options, chosen_plants, plant_choices, plant_name, with_plant_options
+from ..common.plants import (add_plant_options, chosen_plants, plant_choices, plant_name, shipped_agents_of,
+                             with_plant_options)
 from ..common.scenarios import held_out_scenarios
 from ..common.yardstick import check_plant, write_report, yardsticks
 
@@ -29,8 +30,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from controllers import shipped_agents
-
     from ..common import sweep
     from ..common.comparison import evaluate
 
@@ -43,7 +42,7 @@ def run(args: argparse.Namespace) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     for plant in plants:
         scen = held_out_scenarios(plant, seeds=args.seeds, quick=args.quick)
-        agents = shipped_agents(plant)
+        agents = shipped_agents_of(plant)
         t0 = time.perf_counter()
         ys = yardsticks(plant, scen, agents=agents, bound=not args.no_bound, cache=not args.no_cache,
                         progress=not args.no_progress, **executor)
