@@ -34,9 +34,12 @@ def test_the_stored_figures_are_of_the_shipped_suites_and_every_one_is_scored(st
     """Every shipped suite has its figures, of its current digest (a suite whose references changed is a new version:
     its old figures would be stale), and every candidate controller is either scored or listed with the reason."""
     shipped = suites()
-    assert set(stored["suites"]) == set(shipped)
+    redo = "run python -m experiments.scripts.score_suites --suite {} --update-docs (a minute or two)"
+    for sid in shipped:
+        assert sid in stored["suites"], f"suite {sid} has no scores in {SCORES.name}: " + redo.format(sid)
+    assert set(stored["suites"]) <= set(shipped), "scores of a suite no longer shipped: rerun the script"
     for sid, entry in stored["suites"].items():
-        assert entry["digest"] == shipped[sid].digest, sid
+        assert entry["digest"] == shipped[sid].digest, f"{sid}'s references changed: " + redo.format(sid)
         names = {c["name"] for c in entry["controllers"]} | {c["name"] for c in entry["not_applicable"]}
         assert names == {c["name"] for c in score_suites.candidates(shipped[sid])}, sid
         assert entry["controllers"], sid
