@@ -123,7 +123,8 @@ def test_seeds_are_reproducible(env):
         obs, state = reset(keys, params)
         out = [np.asarray(obs)]
         for k in range(params.n_steps + 1):  # past the end: the autoreset draws a new road from the key
-            obs, state, r, *_ = step(jax.random.split(keys[k % N], N), state, jnp.full((N, 1), 0.5), params)
+            action = jnp.full((N, 1), 0.5, jnp.float64)  # a strong dtype, as above: no second compilation
+            obs, state, r, *_ = step(jax.random.split(keys[k % N], N), state, action, params)
             out += [np.asarray(obs), np.asarray(r)]
         return out, np.asarray(state.road)
 

@@ -180,11 +180,11 @@ def reset(key, params: EnvParams, road=None):
     model = jax_damper(params.model)
     zr0, zrd0 = params.roads[road, 0, 0], params.roads[road, 0, 1]
     Y = [zr0, zr0, zrd0, zrd0] + [jnp.asarray(0.0)] * model.ns
-    U = [jnp.asarray(params.v_min)]
+    U = [jnp.asarray(params.v_min, jnp.float64)]  # strongly typed, as step returns it: no second compile
     w = _inputs(params, road, 0)
     F, finite = sc.end_forces(model, params.plant.C, params.plant.D, params.P, Y, U, w)
     state = EnvState(Y=jnp.stack(Y), U=jnp.stack(U), F=jnp.stack(F), cmd=jnp.stack(U),
-                     queue=jnp.full((params.queue, 1), params.v_min), nsub=jnp.asarray(1, jnp.int32),
+                     queue=jnp.full((params.queue, 1), params.v_min, jnp.float64), nsub=jnp.asarray(1, jnp.int32),
                      zi=jnp.zeros((params.sos.shape[0], 2)), road=jnp.asarray(road, jnp.int32),
                      k=jnp.asarray(0, jnp.int32), status=jnp.where(finite, OK, sc.NONFINITE).astype(jnp.int32))
     return _signals(params, Y, F, w, U)[0], state
