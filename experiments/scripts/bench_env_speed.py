@@ -27,14 +27,14 @@ from mrd_env.report import write_table
 from mrd_env.stepping.first_use import set_mode
 
 
-def _make(env_id: str, **kwargs):
+def make_env(env_id: str, **kwargs):
     from mrd_env.plants.registry import register_envs
 
     register_envs()
     return gym.make(env_id, **kwargs)
 
 
-def _time_steps(env, n: int, actions) -> float:
+def time_steps(env, n: int, actions) -> float:
     """µs per env.step over n steps (resetting when an episode ends, reset time excluded)."""
     env.reset(seed=0)
     total = 0.0
@@ -62,19 +62,19 @@ def bench(steps: int = 20000, repeats: int = 9) -> tuple[list[dict], float]:
     rows = []
     envs = []
     for label, env_id, kwargs, n_sub in cases:
-        env = _make(env_id, **kwargs)
+        env = make_env(env_id, **kwargs)
         lo, hi = env.action_space.low.astype(np.float64), env.action_space.high.astype(np.float64)
         envs.append((label, env, (lo, hi), n_sub))
-        _time_steps(env, 200, (lo, hi))  # warm-up: compile / load the kernels
+        time_steps(env, 200, (lo, hi))  # warm-up: compile / load the kernels
     cart = gym.make("CartPole-v1")
-    _time_steps(cart, 2000, (0, 1))
+    time_steps(cart, 2000, (0, 1))
     runs: dict[str, list] = {}
     ratios: dict[str, list] = {}
     for _ in range(repeats):
         for label, env, acts, n_sub in envs:
             n = max(steps // n_sub, 500)
-            us = _time_steps(env, n, acts)
-            cp_us = _time_steps(cart, steps // 4, (0, 1))
+            us = time_steps(env, n, acts)
+            cp_us = time_steps(cart, steps // 4, (0, 1))
             runs.setdefault(label, []).append(us)
             runs.setdefault("cartpole", []).append(cp_us)
             ratios.setdefault(label, []).append(us / cp_us)

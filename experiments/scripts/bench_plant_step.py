@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from experiments.scripts.bench_env_speed import _make, _time_steps
+from experiments.scripts.bench_env_speed import make_env, time_steps
 from mrd_env import storage
 from mrd_env.report import write_table
 from mrd_env.stepping.first_use import set_mode
@@ -36,17 +36,17 @@ def bench(names, steps: int = 5000, repeats: int = 7) -> tuple[list[dict], str]:
         for control_dt in (1e-3, 1e-2):
             kw = {"control_dt": control_dt}
             try:
-                env = _make(spec.physics_id, episode_seconds=60.0, **kw)
+                env = make_env(spec.physics_id, episode_seconds=60.0, **kw)
             except (TypeError, ValueError):
-                env = _make(spec.physics_id, **kw)
+                env = make_env(spec.physics_id, **kw)
             acts = (env.action_space.low.astype(np.float64), env.action_space.high.astype(np.float64))
-            _time_steps(env, 200, acts)  # compile and warm up
+            time_steps(env, 200, acts)  # compile and warm up
             cases.append((spec, control_dt, env, acts))
     runs: dict[tuple, list] = {}
     for _ in range(repeats):
         for spec, control_dt, env, acts in cases:
             n_sub = int(round(control_dt / 1e-3))
-            runs.setdefault((spec.name, control_dt), []).append(_time_steps(env, max(steps // n_sub, 300), acts))
+            runs.setdefault((spec.name, control_dt), []).append(time_steps(env, max(steps // n_sub, 300), acts))
     rows = []
     for spec, control_dt, env, _ in cases:
         us = runs[(spec.name, control_dt)]
