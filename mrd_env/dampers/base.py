@@ -252,6 +252,26 @@ class DamperModel:
         """Internal states at rest (override when rest is not all zeros)."""
         return np.zeros(self.n_states)
 
+    def rest_state(self, x: float) -> np.ndarray:
+        """Internal states at rest at stroke ``x`` (m) with zero stroke rate: ``rhs`` gives ṡ = 0 there at every
+        command. Where the model's rest states form a family (a Bouc–Wen z is at rest at any value when ẋ = 0, and
+        which one a stroke leaves depends on its path), the one with the hysteresis variables at zero, as
+        :meth:`initial_state`. Override when that depends on ``x`` (Spencer–Dyke: y = x)."""
+        check_scalar("x", x, unit="m")
+        return self.initial_state()
+
+    def rest_states(self, strokes) -> np.ndarray:
+        """:meth:`rest_state` of one damper at each stroke (m), concatenated (the layout of a plant's damper
+        states)."""
+        xs = np.atleast_1d(np.asarray(strokes, dtype=float))
+        return np.concatenate([self.rest_state(float(x)) for x in xs]) if xs.size else np.zeros(0)
+
+    def rest_force(self, x: float, u: float) -> float:
+        """The force (N) at rest at stroke ``x`` (m): the internal states at :meth:`rest_state`, zero stroke rate,
+        effective command ``u``; its difference from F at x = 0 is the damper's static stiffness force (e.g. a
+        Spencer–Dyke accumulator's k1·x), which a plant's static equilibrium must hold."""
+        return float(self.force(x, 0.0, u, state=self.rest_state(x)))
+
     def force(self, x, v, u, *, a=0.0, state=None):
         """The damper force (N) at stroke ``x`` (m), velocity ``v`` (m/s) and effective command ``u`` (V or A).
 

@@ -34,11 +34,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numba as nb
+import numpy as np
 
 from .base import DamperModel, FIXED_SMOOTHING, Preset, param, smooth_sign, PROTOTYPE_COMMAND
 from .hysteresis import BoucWenSaturation, bouc_wen_zdot
 from .bouc_wen import BoucWen, BoucWenParams
 from .registry import register
+from ..validation import check_scalar
 
 
 @dataclass(frozen=True)
@@ -85,3 +87,10 @@ class NonsymmetricBoucWen(BoucWenSaturation, DamperModel):
     rhs = _rhs
     force_law = _force
     project = _project
+
+    def rest_state(self, x: float) -> np.ndarray:
+        """At ẋ = 0 the shift ṽ = −μ sgn(x) keeps driving z off centre (the model is not passive near standstill):
+        ż = 0 only at the saturation z = z_s sgn(ṽ), which z reaches and keeps; z = 0 where ṽ = 0 (x = 0)."""
+        p = self.params
+        v = -p.mu * float(smooth_sign(check_scalar("x", x, unit="m"), p.x_s))
+        return np.array([float(np.sign(v)) * self.saturation()])

@@ -15,11 +15,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numba as nb
+import numpy as np
 
 from .base import (DamperModel, DamperParams, FIXED_SCALING, FIXED_SHAPE, Preset, param, PROTOTYPE_COMMAND,
                    AUTOMOTIVE_COMMAND)
 from .hysteresis import BoucWenSaturation, bouc_wen_partials, bouc_wen_zdot, clip_to_saturation
 from .registry import register
+from ..validation import check_scalar
 
 
 @dataclass(frozen=True)
@@ -125,3 +127,7 @@ class SpencerDyke(BoucWenSaturation, DamperModel):
     force_law = _force
     partials = _partials
     project = _project
+
+    def rest_state(self, x: float) -> np.ndarray:
+        """ẏ = 0 and ż = 0 at ẋ = 0: α z + k0 (x − y) = 0; the hysteresis at z = 0 gives y = x."""
+        return np.array([check_scalar("x", x, unit="m"), 0.0])

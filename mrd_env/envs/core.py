@@ -403,7 +403,8 @@ class EnvCore:
             n2 = 2 * asm.linear_plant.n_dof
             if q0 is not None:
                 Y0[b, :n2] = q0
-            Y0[b, n2:] = np.tile(asm.damper.initial_state(), self.nd)
+            # the dampers' internal states at rest at the start's strokes (y = x_d of a Spencer–Dyke damper)
+            Y0[b, n2:] = asm.damper.rest_states(asm.coupled.system.Cx @ Y0[b, :n2])
         hist_rows = {HIST_NONE: 0, HIST_FULL: d.W.shape[1], HIST_PERIOD: n_sub}[self.history_mode]
         if d.H.shape[1] != hist_rows:
             d.H = np.zeros((self.N, hist_rows, d.nH))

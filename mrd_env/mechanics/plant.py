@@ -8,7 +8,9 @@ A plant with n degrees of freedom q, n_d dampers and exogenous inputs w (road or
 ``S`` (n_d × n) maps the coordinates to the damper strokes, so −Sᵀ F is the damper's generalised force
 (virtual work). Coordinates are measured from static equilibrium with the dampers at rest at their
 minimum command: the damper's static force at rest F_static (an accumulator preload such as k1·x0) is
-balanced by a constant term, so a plant at rest stays at rest. A damper's inertance m_d (a force term
+balanced by a constant term, so a plant at rest stays at rest. A plant held at rest off that point (a car's
+four wheels on a warped road) has its dampers' internal states at rest at their strokes and their static
+stiffness (k1·x_d) in its equilibrium (:meth:`LinearPlant.static_deflection`). A damper's inertance m_d (a force term
 m_d·ẍ_d) is added to the mass matrix as m_d Sᵀ S. The coupled first-order system is handed to the shared
 stepping routine (:mod:`mrd_env.stepping`), which advances plant and damper states together.
 """
@@ -73,6 +75,34 @@ class LinearPlant:
         Bw = np.vstack([np.zeros((n, self.E.shape[1])), Minv @ self.E])
         return A, BF, Bw
 
+    def static_deflection(self, load: np.ndarray, damper: DamperModel | None = None, u: float | None = None,
+                          *, tol: float = 1e-12, max_iter: int = 50) -> np.ndarray:
+        """q at rest under the static generalised ``load`` (e.g. E w): K q + Sᵀ (F_r(S q) − F_r(0)) = load, F_r the
+        ``damper``'s force at rest at each stroke (:meth:`~mrd_env.dampers.DamperModel.rest_force`, effective
+        command ``u``, default its minimum: e.g. a Spencer–Dyke accumulator's k1·x_d), Newton's method from the
+        linear solution; without a damper K q = load."""
+        q = np.linalg.solve(self.K, load)
+        if damper is None or not np.any(q):
+            return q
+        u = damper.command.v_min if u is None else u
+        f0 = damper.rest_force(0.0, u)
+
+        def f(x):
+            return np.array([damper.rest_force(float(v), u) - f0 for v in x])
+
+        scale = max(float(np.max(np.abs(load))), 1e-300)
+        for _ in range(max_iter):
+            x = self.S @ q
+            r = self.K @ q + self.S.T @ f(x) - load
+            if np.max(np.abs(r)) <= tol * scale:
+                return q
+            h = 1e-7 * np.maximum(np.abs(x), 1e-3)
+            k = (f(x + h) - f(x - h)) / (2 * h)
+            q = q - np.linalg.solve(self.K + self.S.T @ np.diag(k) @ self.S, r)
+        raise ValueError(f"no static equilibrium with the {damper.name!r} damper's rest forces after {max_iter} "
+                         f"Newton steps (residual {np.max(np.abs(r)):.3g} of a load {scale:.3g}): its force at rest "
+                         "jumps near the strokes of this load")
+
 
 class CoupledPlant:
     """A :class:`LinearPlant` with one damper model at every damper location, stepped in batches.
@@ -117,13 +147,14 @@ class CoupledPlant:
         return self._stepping[0]
 
     def reset(self, q0: np.ndarray | None = None) -> None:
-        """All copies at rest (or at plant state ``q0`` = [q, q̇]), effective command at its minimum."""
+        """All copies at rest (or at plant state ``q0`` = [q, q̇], the dampers' internal states at rest at its
+        strokes), effective command at its minimum."""
         st = self.stepper
         st.Y[:] = 0.0
         n2 = 2 * self.plant.n_dof
         if q0 is not None:
             st.Y[:, :n2] = q0
-        st.Y[:, n2:] = np.tile(self.damper.initial_state(), self.plant.n_dampers)
+        st.Y[:, n2:] = self.damper.rest_states(self.plant.S @ st.Y[0, :self.plant.n_dof])
         st.U[:] = self.damper.command.v_min
         st.t = 0.0
 

@@ -264,11 +264,16 @@ class CoupledModel:
         return cls(damper, np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((0, 2)), np.zeros((1, 0)),
                    np.zeros((1, 0)), Dx=e[0:1], Dv=e[1:2])
 
-    def initial_state(self, x0=None) -> np.ndarray:
+    def initial_state(self, x0=None, w0=None) -> np.ndarray:
+        """Y at plant state ``x0`` (default zero) and inputs ``w0`` (default zero), the dampers' internal states at
+        rest at their strokes there, as the environments reset them (:meth:`~mrd_env.dampers.DamperModel.rest_state`)."""
         Y = np.zeros(self.ny)
         if x0 is not None:
             Y[:self.nx] = x0
-        Y[self.nx:] = np.tile(self.damper.initial_state(), self.nd)
+        strokes = self.Cx @ Y[:self.nx]
+        if w0 is not None:
+            strokes = strokes + self.Dx @ np.asarray(w0, dtype=float)
+        Y[self.nx:] = self.damper.damper.rest_states(strokes)
         return Y
 
     def split(self, Y):

@@ -299,7 +299,7 @@ class ShootingModel:
     def data(self, problem) -> dict:
         """The episode's inputs: the disturbance, the initial state (plant, damper at rest, the static force, the
         effective command at v_min as the environment resets it, zero filter states) and the reward's weights."""
-        Y0 = self.model.initial_state(problem.x0)
+        Y0 = self.model.initial_state(problem.x0, problem.W[0])
         F0 = np.asarray(self.model.forces(Y0, problem.W[0], np.full(self.nd, problem.v_min))).ravel()
         x0 = np.concatenate([Y0, F0, np.full(self.nd, problem.v_min), np.zeros(self.nf)])
         wp = [np.asarray(t.weight, float) for t in problem.terms if t.sos is None]

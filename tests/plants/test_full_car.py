@@ -18,6 +18,7 @@ from scipy.interpolate import CubicSpline
 import mrd_env  # noqa: F401  (registers the environments)
 from experiments.cli import main
 from mrd_env import make_damper
+from mrd_env.dampers import available_dampers
 from mrd_env.disturbances import Record, iso8608_psd
 from mrd_env.plants import CoupledPlant, plant
 from mrd_env.plants.full_car import full_car
@@ -224,10 +225,9 @@ def test_the_dampers_dissipate_energy_over_an_episode(command):
 
 # --- (d) static equilibrium ----------------------------------------------------------------------------------------
 def test_the_car_starts_in_static_equilibrium_on_a_warped_road():
-    """On four road heights no plane holds, the start is K q = E z_r: the springs share the twist and, with dampers
-    that have no stiffness at rest (a dashpot), the car stays where it starts. A Spencer–Dyke damper's accumulator
-    and internal spring meet the warp's strokes from their rest state (a plant cannot set a damper's internal
-    states): a few newtons, no visible motion. On a plane (level or tilted) the strokes are zero."""
+    """On four road heights no plane holds, the start with dampers that have no stiffness at rest (a dashpot) is
+    K q = E z_r: the springs share the twist and the car stays where it starts. A Spencer–Dyke damper's accumulator
+    holds a part of the twist (k1·x_d, below 50 N). On a plane (level or tilted) the strokes are zero."""
     heights = np.array([0.02, -0.01, 0.015, 0.03])
     data = np.zeros((1001, 8))
     data[:, 0::2] = heights
@@ -259,27 +259,76 @@ def test_the_car_starts_in_static_equilibrium_on_a_warped_road():
     np.testing.assert_allclose(lp.S @ q, 0.0, atol=1e-12)
 
 
-@pytest.mark.xfail(strict=True, reason="the dampers' internal states start at the model's rest state of zero stroke "
-                   "(mrd_env.envs.core resets them to damper.initial_state()), and the static equilibrium K q = E z_r "
-                   "leaves out the dampers' stiffness at rest: on this warp a Spencer–Dyke damper pushes 40-46 N at "
-                   "t = 0 (its internal spring k0 (x - y) with y = 0, and the accumulator's k1 x), the wheels "
-                   "accelerate at 1.0-1.3 m/s²; a fix needs the dampers' rest state at a stroke (y = x, z = 0) in the "
-                   "reset and in mrd_env.optimal's episode problem, and k1 in the equilibrium (issue 40)")
-def test_the_dampers_internal_states_start_at_rest_on_a_warped_road():
-    """On four road heights no plane holds the strokes are not zero at the start: the dampers' internal states
-    (Spencer–Dyke's internal displacement y and Bouc–Wen z) must be at rest at those strokes and the equilibrium
-    must hold the dampers' forces at rest, so that nothing accelerates and no damper force beyond the preload acts
-    at t = 0."""
-    heights = np.array([0.02, -0.01, 0.015, 0.03])
+WARP = np.array([0.02, -0.01, 0.015, 0.03])   # m: four heights no plane holds
+
+
+@pytest.mark.parametrize("model, preset", [(m, None) for m in available_dampers()] + [("spencer_dyke", "automotive")])
+def test_every_damper_starts_at_rest_at_the_strokes_of_a_warped_road(model, preset):
+    """On four road heights no plane holds the strokes are not zero at the start: the dampers' internal states start
+    at rest at those strokes (Spencer–Dyke's y = x_d, a non-symmetric Bouc–Wen z at its saturation) and the static
+    equilibrium holds their forces at rest, K q + Sᵀ (F − F_static) = E z_r. Nothing accelerates at t = 0 and
+    nothing moves over 0.2 s (but a hysteretic bi-viscous damper, not passive at standstill); a Spencer–Dyke damper's force beyond its preload is its accumulator's k1·x_d alone,
+    a dashpot's (Bingham, LuGre) zero."""
     data = np.zeros((1001, 8))
-    data[:, 0::2] = heights
+    data[:, 0::2] = WARP
     sensors = ("body_acc", "pitch_acc", "roll_acc", "wheel_acc", "damper_force")
+    kw = {} if preset is None else {"damper_preset": preset}
     env = gym.make(V0, road=Record(DT, data, ROAD, ("m", "m/s") * 4), episode_seconds=None, sensors=sensors,
-                   damper_preset="automotive")
+                   damper=model, **kw)
     obs, _ = env.reset(seed=0)
-    assert np.max(np.abs(full_car("sedan").plant().S @ env.unwrapped.plant_state[:7])) > 5e-3   # twisted
-    assert np.max(np.abs(obs[:7])) < 0.01, obs[:7]                               # m/s², rad/s²
-    assert np.max(np.abs(obs[7:] - env.unwrapped.F_static)) < 0.5, obs[7:]       # N
+    base = env.unwrapped
+    lp = full_car("sedan").plant()
+    Y0 = base.plant_state.copy()
+    q, x = Y0[:7], lp.S @ Y0[:7]
+    assert np.max(np.abs(x)) > 5e-3                                                   # twisted
+    np.testing.assert_array_equal(Y0[7:14], 0.0)
+    dF = obs[7:].astype(float) - base.F_static
+    np.testing.assert_allclose(lp.K @ q + lp.S.T @ dF, lp.E[:, 0::2] @ WARP, rtol=0, atol=1e-4)   # N (float32 obs)
+    assert np.max(np.abs(obs[:7])) < 1e-8, obs[:7]                                    # m/s², rad/s²
+    if model == "spencer_dyke":
+        np.testing.assert_allclose(dF, base.damper.params.k1 * x, rtol=1e-5)          # the accumulator alone
+    if model in ("bingham", "lugre"):
+        assert np.max(np.abs(dF)) < 1e-4                                              # N, float32 obs
+    if model == "hysteretic_bi_viscous":   # its loop is open at ẋ = 0 (±c_pre v0): round-off grows from any rest
+        return
+    for _ in range(200):
+        obs, *_ = env.step(env.action_space.low)
+    assert np.max(np.abs(obs[:7])) < 1e-6, obs[:7]
+    np.testing.assert_allclose(base.plant_state, Y0, rtol=0, atol=1e-9)
+
+
+def test_the_car_starts_with_zero_stroke_rates_and_only_the_tyres_damping_accelerates_it():
+    """Road velocities no plane follows at t = 0 (as on a random two-track road): the car starts as one rigid body
+    (every stroke rate zero, no damper driven), its wheels' velocities the least-squares plane of the roads'; nothing
+    accelerates but each wheel by its tyre's damping, c_t (ż_r − ż_w)/m_u; on a plane of velocities the wheels move
+    with their roads. The clairvoyant's episode problem starts from the same state, the dampers' included."""
+    from mrd_env.optimal.casadi_model import CoupledModel, SymbolicDamper
+    from mrd_env.optimal.problem import episode_problem
+
+    lp = full_car("sedan").plant()
+    m_u, c_t = np.diag(lp.M)[3:], lp.E[3:, 1::2].diagonal()
+    t = np.arange(1001) * DT
+    sensors = ("body_acc", "pitch_acc", "roll_acc", "wheel_acc", "travel_rate", "damper_force")
+    for v in (np.array([0.3, -0.1, 0.05, 0.2]), np.array([(-A, TRACK / 2), (-A, -TRACK / 2), (B, TRACK / 2),
+                                                          (B, -TRACK / 2)]) @ [0.2, -0.3] + 0.1):
+        data = np.zeros((1001, 8))
+        data[:, 0::2] = WARP + np.outer(t, v)
+        data[:, 1::2] = v
+        road = Record(DT, data, ROAD, ("m", "m/s") * 4)
+        env = gym.make(V0, road=road, episode_seconds=None, sensors=sensors)
+        obs, _ = env.reset(seed=0)
+        Y = np.array(env.unwrapped.core.driver.state("Y")[0])
+        qd = Y[7:14]
+        np.testing.assert_allclose(lp.S @ qd, 0.0, atol=1e-15)
+        np.testing.assert_allclose(obs[7:11], 0.0, atol=1e-12)                        # stroke rates
+        assert np.max(np.abs(obs[:3])) < 1e-9                                         # body
+        np.testing.assert_allclose(obs[3:7], c_t * (v - qd[3:]) / m_u, rtol=1e-5, atol=1e-9)
+        if v[0] != 0.3:                                                               # the plane
+            np.testing.assert_allclose(qd[3:], v, atol=1e-12)
+        problem = episode_problem(V0, seed=0, road=road, episode_seconds=0.1)
+        model = CoupledModel(SymbolicDamper(problem.damper), problem.A, problem.BF, problem.Bw, problem.Cx,
+                             problem.Cv)
+        np.testing.assert_array_equal(model.initial_state(problem.x0, problem.W[0]), Y)
 
 
 # --- (e) two-track roads -------------------------------------------------------------------------------------------

@@ -4,7 +4,9 @@ from __future__ import annotations
 import functools
 
 import numpy as np
+import scipy.linalg
 
+from ...dampers import DamperModel
 from ...disturbances import Record
 from ...envs import options as opt
 from ...envs.base import MRDamperEnv
@@ -145,15 +147,20 @@ def _absolute_reference() -> dict:
     return {"comfort": A_REF ** 2, "travel": 4 * X_REF ** 2, "tyre": 4.0}
 
 
-def static_state(p: FullCarParams, road_now: np.ndarray) -> np.ndarray:
-    """[q, q̇] at static equilibrium on the roads' heights ``road_now`` (the 8 road channels at one instant): K q =
-    E_z z_r (on a warped road — four heights no plane holds — the springs and bars share the twist), moving with
-    the road quasi-statically (q̇ = K⁻¹ E_z ż_r): no spring or tyre is stepped at the start."""
+def static_state(p: FullCarParams, road_now: np.ndarray, damper: DamperModel | None = None) -> np.ndarray:
+    """[q, q̇] at rest on the roads' heights ``road_now`` (the 8 road channels at one instant), as the other cars
+    start: in static equilibrium, K q + Sᵀ (F_r(S q) − F_r(0)) = E_z z_r with the ``damper``'s static force at rest
+    F_r (a Spencer–Dyke accumulator's k1·x_d; on a warped road — four heights no plane holds — the springs, bars
+    and dampers share the twist), and with zero stroke rates (S q̇ = 0): the body and wheels move as one rigid
+    body, the wheels' velocities the least-squares fit of the roads' ż_r (exact on a plane), so no damper is
+    driven at t = 0 and nothing but the tyres' damping of the rest of ż_r accelerates."""
     lp = p.plant()
     Ez = lp.E[:, 0::2]
-    q = np.linalg.solve(lp.K, Ez @ road_now[0::2])
-    qd = np.linalg.solve(lp.K, Ez @ road_now[1::2])
-    return np.concatenate([q, qd])
+    q = lp.static_deflection(Ez @ road_now[0::2], damper)
+    rigid = scipy.linalg.null_space(lp.S)                   # q̇ with S q̇ = 0: heave, pitch, roll of the whole car
+    wheels = rigid[3:7]
+    a = np.linalg.lstsq(wheels, np.asarray(road_now[1::2], dtype=float), rcond=None)[0]
+    return np.concatenate([q, rigid @ a])
 
 
 def nominal_reference(p: FullCarParams, geometry_track: float, dt: float) -> dict:
@@ -185,12 +192,14 @@ def _with_previews(rec: Record, geometry: Geometry, dt: float) -> Record:
 
 
 def _new_episode(p: FullCarParams, geometry: Geometry, episode_seconds: float | None, dt: float,
-                 rec: Record) -> Episode:
-    """An episode on road ``rec``: the car in static equilibrium on the roads' initial heights
-    (:func:`static_state`), the passive car's reference scales, the previews."""
-    x0 = static_state(p, np.asarray(rec.data[0, :8]))
+                 damper: DamperModel, rec: Record) -> Episode:
+    """An episode on road ``rec``: the car at rest on the roads' initial heights with ``damper`` at each corner
+    (:func:`static_state`), the passive car's reference scales (that car at rest on the same heights), the
+    previews."""
+    x0 = static_state(p, np.asarray(rec.data[0, :8]), damper)
     rows = rec.n_samples if episode_seconds is None else min(rec.n_samples, int(round(episode_seconds / dt)) + 1)
-    ref = passive_reference(p, rec, x0, rows, dt) if np.any(p.passive_damping > 0) else _absolute_reference()
+    ref = (passive_reference(p, rec, static_state(p, np.asarray(rec.data[0, :8])), rows, dt)
+           if np.any(p.passive_damping > 0) else _absolute_reference())
     return Episode(_with_previews(rec, geometry, dt), x0, {"reference": {k: max(v, 1e-12) for k, v in ref.items()}})
 
 
@@ -275,7 +284,7 @@ def assembly(*, plant_preset: str = "sedan", plant_params=None, road="iso8608", 
         kind=SPEC.name, damper=d, plant_params=p, linear_plant=lp, coupled=coupled, signals=sm,
         sensor_names=tuple(SENSOR_UNITS), sensors=sensor_part, disturbance=source, reward=reward,
         limits=Limits({"travel": limit}, penalty=0.0, penalty_rate=w["termination"]),
-        new_episode=functools.partial(_new_episode, p, geometry, episode_seconds, dt),
+        new_episode=functools.partial(_new_episode, p, geometry, episode_seconds, dt, d),
         metrics=functools.partial(metrics, static=static),
         roles={"body_velocity": "body_vel_at_corners", "wheel_velocity": "wheel_vel",
                "damper_velocity": "travel_rate", "damper_stroke": "travel", "damper_force": "damper_force"},
@@ -355,8 +364,12 @@ class FullCarEnv(MRDamperEnv):
 
     ## Starting State
 
-    In static equilibrium on the roads' initial heights — K q = E z_r(0): on four heights no plane holds, the
-    springs share the twist — moving with the road quasi-statically: no spring or tyre is stepped at the start.
+    At rest on the roads' initial heights (:func:`static_state`), as the other cars start: in static equilibrium,
+    K q + Sᵀ (F_r(S q) − F_r(0)) = E z_r(0) with the dampers' internal states at rest at their strokes and their
+    static forces F_r (a Spencer–Dyke accumulator's k1·x_d) — on four heights no plane holds, springs, bars and
+    dampers share the twist —, and with zero stroke rates: the car moves as one rigid body, its wheels' velocities
+    the least-squares fit of the roads' ż_r(0). No spring, tyre or damper is stepped and nothing accelerates at
+    t = 0 but through the tyres' damping of the part of ż_r(0) no plane follows.
     A generated road is new each episode, drawn from ``np_random`` (``reset(seed=...)``).
 
     ## Episode End
