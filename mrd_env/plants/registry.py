@@ -1,7 +1,8 @@
 """Gymnasium's registrations, generated from the plants' specs (:func:`mrd_env.plants.plants`): for every plant
 the physics-level id ``mrd_env/<Name>Physical-v0``, the RL id ``mrd_env/<Name>-v1`` and its former ids, each with a
 scalar entry point (the environment in a TimeLimit at its own episode length: :mod:`mrd_env.envs.entry`) and a
-vector entry point (the plant's native vector environment).
+vector entry point (the plant's native vector environment, or with ``backend="jax"`` its JAX one,
+``mrd_env/plants/<name>/jax_vector.py``'s ``<Name>JaxVectorEnv``: JAX is imported only then).
 
 The two set-ups are two environments, not two versions of one: Gymnasium reads ``-v0`` beside ``-v1`` of the same
 name as an outdated version (it says "out of date" at every ``make``), so the physics-level set-up has its own name.
@@ -10,8 +11,11 @@ Its former ids (``mrd_env/QuarterCar-v0``, ...) still make the same environment,
 >>> import gymnasium as gym, mrd_env
 >>> env = gym.make("mrd_env/QuarterCarPhysical-v0", road="iso8608", road_params={"road_class": "D"})
 >>> venv = gym.make_vec("mrd_env/QuarterCarPhysical-v0", num_envs=64, vectorization_mode="vector_entry_point")
+>>> jvenv = gym.make_vec("mrd_env/QuarterCar-v1", num_envs=64, vectorization_mode="vector_entry_point", backend="jax")
 """
 from __future__ import annotations
+
+import importlib
 
 from ..envs import RL_DEFAULTS
 from ..envs.entry import FormerIdEntryPoint, TimeLimitedEntryPoint
@@ -55,7 +59,7 @@ def register_envs() -> None:
     import gymnasium
 
     for s in plants().values():
-        vector = f"{s.env_module}:{s.vector_env_class}"
+        vector = f"{__name__}:{s.vector_env_class}"
         scalar = f"{__name__}:{s.env_class}"
         if s.physics_id not in gymnasium.registry:
             gymnasium.register(id=s.physics_id, entry_point=scalar, vector_entry_point=vector)
@@ -68,12 +72,39 @@ def register_envs() -> None:
                                    vector_entry_point=vector)
 
 
-def __getattr__(name: str) -> TimeLimitedEntryPoint:
-    """The registered entry points: ``<Name>Env`` (every plant's scalar class in its TimeLimit) and a former id's
-    ``<Name>_v0``."""
+#: The vector entry points' ``backend`` values.
+BACKENDS = ("native", "jax")
+
+
+class VectorEntryPoint:
+    """A plant's vector entry point: its native vector environment, or (``backend="jax"``) its JAX one."""
+
+    def __init__(self, spec):
+        self.spec = spec
+
+    def __call__(self, num_envs: int = 1, backend: str = "native", **kwargs):
+        if backend == "native":
+            return self.spec.vector_env(num_envs=num_envs, **kwargs)
+        if backend != "jax":
+            raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
+        name = f"{self.spec.package}.jax_vector"
+        try:
+            module = importlib.import_module(name)
+        except ModuleNotFoundError as e:
+            if e.name != name:
+                raise  # JAX itself missing: its own message (pip install mrd-env[jax])
+            raise ValueError(f"backend 'jax' is not available for the plant {self.spec.name!r} (no {name})") from None
+        return getattr(module, f"{self.spec.id_name}JaxVectorEnv")(num_envs=num_envs, **kwargs)
+
+
+def __getattr__(name: str) -> TimeLimitedEntryPoint | VectorEntryPoint:
+    """The registered entry points: ``<Name>Env`` (every plant's scalar class in its TimeLimit), ``<Name>VectorEnv``
+    (:class:`VectorEntryPoint`) and a former id's ``<Name>_v0``."""
     for s in plants().values():
         if s.env_class == name:
             return TimeLimitedEntryPoint(s.env_module, s.env_class)
+        if s.vector_env_class == name:
+            return VectorEntryPoint(s)
         for former in s.former_ids:
             if former_id_entry(former) == name:
                 return FormerIdEntryPoint(s.env_module, s.env_class, former, s.physics_id)
