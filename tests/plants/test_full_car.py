@@ -267,7 +267,7 @@ def test_every_damper_starts_at_rest_at_the_strokes_of_a_warped_road(model, pres
     """On four road heights no plane holds the strokes are not zero at the start: the dampers' internal states start
     at rest at those strokes (Spencer–Dyke's y = x_d, a non-symmetric Bouc–Wen z at its saturation) and the static
     equilibrium holds their forces at rest, K q + Sᵀ (F − F_static) = E z_r. Nothing accelerates at t = 0 and
-    nothing moves over 0.2 s (but a hysteretic bi-viscous damper, not passive at standstill); a Spencer–Dyke damper's force beyond its preload is its accumulator's k1·x_d alone,
+    nothing moves over 0.2 s (stepped here for a few models, the others in the slow test below); a Spencer–Dyke damper's force beyond its preload is its accumulator's k1·x_d alone,
     a dashpot's (Bingham, LuGre) zero."""
     data = np.zeros((1001, 8))
     data[:, 0::2] = WARP
@@ -289,12 +289,35 @@ def test_every_damper_starts_at_rest_at_the_strokes_of_a_warped_road(model, pres
         np.testing.assert_allclose(dF, base.damper.params.k1 * x, rtol=1e-5)          # the accumulator alone
     if model in ("bingham", "lugre"):
         assert np.max(np.abs(dF)) < 1e-4                                              # N, float32 obs
-    if model == "hysteretic_bi_viscous":   # its loop is open at ẋ = 0 (±c_pre v0): round-off grows from any rest
-        return
+    if model in STEPPED_IN_CI and preset is None:
+        _stays_at_rest(env, Y0)
+
+
+#: The models whose full-car kernel the rest-state test steps in CI: stepping compiles a kernel per model for the
+#: four-damper car, about 30 s each from a cold cache (measured 2026-11-27), so the others step in the slow test.
+STEPPED_IN_CI = ("spencer_dyke", "bouc_wen", "bingham")
+
+
+def _stays_at_rest(env, Y0):
+    """Nothing moves over 0.2 s of the lowest command from the rest state ``Y0``."""
     for _ in range(200):
         obs, *_ = env.step(env.action_space.low)
     assert np.max(np.abs(obs[:7])) < 1e-6, obs[:7]
-    np.testing.assert_allclose(base.plant_state, Y0, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(env.unwrapped.plant_state, Y0, rtol=0, atol=1e-9)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("model", [m for m in available_dampers()
+                                   if m not in STEPPED_IN_CI and m != "hysteretic_bi_viscous"])
+def test_every_other_damper_stays_at_rest_on_a_warped_road(model):
+    """The rest of the models, stepped: nothing moves over 0.2 s from the warped road's rest state (a hysteretic
+    bi-viscous damper is left out: its loop is open at ẋ = 0 (±c_pre v0), so round-off grows from any rest)."""
+    data = np.zeros((1001, 8))
+    data[:, 0::2] = WARP
+    env = gym.make(V0, road=Record(DT, data, ROAD, ("m", "m/s") * 4), episode_seconds=None,
+                   sensors=("body_acc", "pitch_acc", "roll_acc", "wheel_acc", "damper_force"), damper=model)
+    env.reset(seed=0)
+    _stays_at_rest(env, env.unwrapped.plant_state.copy())
 
 
 def test_the_car_starts_with_zero_stroke_rates_and_only_the_tyres_damping_accelerates_it():
