@@ -16,10 +16,13 @@ pytestmark = pytest.mark.xdist_group("jax")
 
 
 def test_matches_the_native_vector_env_through_an_autoreset():
-    """One road, 2 cars, 5-step episodes, 12 steps: observations, rewards, flags and the NEXT_STEP autoreset."""
+    """One road, 2 cars, 5-step episodes, 12 steps: observations, rewards, flags and the NEXT_STEP autoreset; the
+    JAX one made by make_vec with backend="jax" (the RL id's options: 10 ms, normalised actions)."""
     rec = iso8608_road("D", 20.0, 0.05, 1e-3, rng=7, method="fft")
     native = gym.make_vec("mrd_env/QuarterCar-v1", num_envs=2, vectorization_mode="vector_entry_point", road=rec)
-    twin = QuarterCarJaxVectorEnv(2, roads=[rec], episode_seconds=0.05)
+    twin = gym.make_vec("mrd_env/QuarterCar-v1", num_envs=2, vectorization_mode="vector_entry_point", road=rec,
+                        episode_seconds=0.05, backend="jax")
+    assert isinstance(twin, QuarterCarJaxVectorEnv) and twin.control_dt == pytest.approx(0.01)
     assert twin.observation_space == native.observation_space and twin.action_space == native.action_space
     o_n, _ = native.reset(seed=0)
     o_j, _ = twin.reset(seed=0)
@@ -48,3 +51,26 @@ def test_bad_actions_are_refused_and_change_nothing():
     assert twin._state is before and not twin._restart.any()
     with pytest.raises(ValueError, match="num_envs"):
         QuarterCarJaxVectorEnv(0)
+    with pytest.raises(ValueError, match="autoreset_mode"):
+        QuarterCarJaxVectorEnv(1, autoreset_mode="same_step")
+
+
+def test_make_vec_backends():
+    """The physics-level id's JAX environment has the native one's defaults (1 ms, physical commands); an unknown
+    backend is refused by name; the native backend does not import JAX (a subprocess: this one has)."""
+    import subprocess
+    import sys
+
+    rec = iso8608_road("C", 20.0, 0.02, 1e-3, rng=2, method="fft")
+    env = gym.make_vec("mrd_env/QuarterCarPhysical-v0", num_envs=1, vectorization_mode="vector_entry_point",
+                       backend="jax", road=rec, episode_seconds=0.02)
+    assert env.control_dt == pytest.approx(1e-3) and env.single_action_space.high[0] > 1.0
+    with pytest.raises(ValueError, match="backend"):
+        gym.make_vec("mrd_env/QuarterCar-v1", num_envs=1, vectorization_mode="vector_entry_point", backend="torch")
+    code = ("import sys, gymnasium as gym, mrd_env; e = gym.make_vec('mrd_env/QuarterCar-v1', num_envs=2, "
+            "vectorization_mode='vector_entry_point', backend='native'); print(type(e).__name__, 'jax' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120).stdout.split()
+    assert out == ["QuarterCarVectorEnv", "False"]
+    with pytest.raises(ValueError, match="not available"):  # a plant without a JAX twin
+        gym.make_vec("mrd_env/ShearBuildingPhysical-v0", num_envs=1, vectorization_mode="vector_entry_point",
+                     backend="jax")

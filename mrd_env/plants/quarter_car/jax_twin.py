@@ -66,6 +66,7 @@ class EnvParams:
     substeps: int = dataclasses.field(metadata={"static": True}, default=1)
     newton_iterations: int = dataclasses.field(metadata={"static": True}, default=2)
     normalized: bool = dataclasses.field(metadata={"static": True}, default=True)
+    param_names: tuple = dataclasses.field(metadata={"static": True}, default=())  # the columns of P
 
 
 _STATIC = [f.name for f in dataclasses.fields(EnvParams) if f.metadata.get("static")]
@@ -141,7 +142,7 @@ def make_params(*, plant_preset: str = "set_a", damper: str = "spencer_dyke", da
         penalty=float(w["termination"] * episode_seconds), atol=ATOL, rtol=RTOL, model=model.name, scheme=scheme,
         n_sub=n_sub, n_steps=n_steps, queue=int(math.floor(d.command.delay / dt * (1 + 1e-12))) + 2,
         max_level=max_level, substeps=substeps, newton_iterations=newton_iterations,
-        normalized=action_mode == "normalized")
+        normalized=action_mode == "normalized", param_names=tuple(f.name for f in dataclasses.fields(d.params)))
 
 
 def _inputs(params: EnvParams, road, row):
@@ -271,3 +272,66 @@ def step_autoreset(key, state: EnvState, action, params: EnvParams):
     new = jax.tree_util.tree_map(lambda a, b: jnp.where(done, a, b), state0, new)
     info = {**info, "final_observation": obs}
     return jnp.where(done, obs0, obs), new, reward, terminated, truncated, info
+
+
+def params_of_problem(problem, **options) -> EnvParams:
+    """The twin of an :class:`~mrd_env.optimal.EpisodeProblem` of the quarter car (physical commands at its
+    control step, its road as the bank's only one; the plant, damper, stroke limit and reward weights from its
+    options); ``options``: the scheme's (``scheme``, ``substeps``, ``newton_iterations``)."""
+    keep = ("plant_preset", "damper", "damper_preset", "damper_params", "stroke_limit", "reward_weights")
+    road = np.asarray(problem.W[:, :2], dtype=np.float64)
+    return make_params(**{k: problem.options[k] for k in keep if k in problem.options}, dt=problem.dt,
+                       control_dt=problem.control_dt, episode_seconds=problem.duration, action_mode="physical",
+                       roads=[_Road(road)], **options)
+
+
+def episode_return(actions, data):
+    """The return of a whole episode under ``actions`` from ``data`` = (params, its first state): the function
+    :func:`mrd_env.jax.clairvoyant.clairvoyant` maximises."""
+    params, state = data
+    return rollout(params, state, actions)[2].sum()
+
+
+class _Road(NamedTuple):
+    data: np.ndarray
+
+
+#: The bands :func:`draw_params` draws (the robustness twin's, ``ROBUST_BANDS`` of the plant's suites).
+DRAWN_BANDS = ("damper_params", "command")
+
+
+def draw_params(key, params: EnvParams, bands: dict) -> EnvParams:
+    """``params`` with an episode's draw of ``bands`` (the robustness twin's layout): ``damper_params``
+    {name: (lo, hi)}, each parameter × U(lo, hi); ``command`` {"eta": (lo, hi)}, the lag rate (rise and fall) ×
+    U(lo, hi). Only arrays change, so a batch of draws (``jax.vmap(lambda k: draw_params(k, params, bands))(keys)``,
+    stepped with ``in_axes=0`` for the parameters) runs the same compiled step as the nominal one. Other bands (the
+    delay, masses and stiffnesses: they change the queue's length or the eliminated plant matrices) raise
+    ``ValueError`` naming them."""
+    other = sorted(set(bands) - set(DRAWN_BANDS) - {"seed"}) + sorted(
+        f"command.{k}" for k in bands.get("command", {}) if k != "eta")
+    if other:
+        raise ValueError(f"draw_params draws only damper_params and command.eta, got the bands {other}")
+    unknown = sorted(set(bands.get("damper_params", {})) - set(params.param_names))
+    if unknown:
+        raise ValueError(f"damper_params bands must name parameters among {params.param_names}, got {unknown}")
+    items = [(params.param_names.index(n), b) for n, b in bands.get("damper_params", {}).items()]
+    eta = bands.get("command", {}).get("eta")
+    lo = jnp.asarray([b[0] for _, b in items] + ([eta[0]] if eta else []), jnp.float64)
+    hi = jnp.asarray([b[1] for _, b in items] + ([eta[1]] if eta else []), jnp.float64)
+    f = jax.random.uniform(key, lo.shape, jnp.float64, lo, hi)
+    P, lag = params.P, params.lag
+    if items:
+        P = P.at[0, jnp.asarray([i for i, _ in items])].multiply(f[:len(items)])
+    if eta:
+        lag = lag.at[0, :2].multiply(f[-1])
+    return dataclasses.replace(params, P=P, lag=lag)
+
+
+def drawn_options(params: EnvParams, nominal: EnvParams) -> dict:
+    """The native environment's ``damper_params`` option of one draw of :func:`draw_params` (unbatched):
+    the drawn values of every parameter that changed, and ``command`` {"eta"} if the lag rate did."""
+    P, P0 = np.asarray(params.P[0]), np.asarray(nominal.P[0])
+    out: dict = {n: float(P[i]) for i, n in enumerate(params.param_names) if P[i] != P0[i]}
+    if float(params.lag[0, 0]) != float(nominal.lag[0, 0]):
+        out["command"] = {"eta": float(params.lag[0, 0])}
+    return {"damper_params": out}

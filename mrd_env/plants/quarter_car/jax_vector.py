@@ -6,8 +6,14 @@ compares the two on one road): the step after an episode ends resets that enviro
 observation with reward 0 and both flags false. Not yet the native infos (constraint costs, episode metrics,
 termination reason): ``infos`` holds ``t`` (s) and the effective command. Roads come from the bank of
 :func:`~.jax_twin.make_params`; ``reset(seed=s)`` draws environment i's from a key made of s and i.
+
+``gymnasium.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point", backend="jax", **options)`` makes it
+(:mod:`mrd_env.plants.registry`): the control step and action mode default to the native environment's (the
+physics-level id's), and the RL id sets its own, as for the native vector environment.
 """
 from __future__ import annotations
+
+import inspect
 
 import jax
 import jax.numpy as jnp
@@ -17,19 +23,32 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from . import jax_twin as qc
+from .env import assembly
+
+#: The options whose defaults are the native environment's, not :func:`~.jax_twin.make_params`'s (the RL set-up's).
+_NATIVE_DEFAULTS = {k: inspect.signature(assembly).parameters[k].default for k in ("control_dt", "action_mode")}
 
 
 class QuarterCarJaxVectorEnv(VectorEnv):
     """``num_envs`` quarter cars stepped by one jitted, vmapped call; ``options`` as
-    :func:`~.jax_twin.make_params` (``action_mode`` "normalized" or "physical")."""
+    :func:`~.jax_twin.make_params` (``action_mode`` "normalized" or "physical"; ``control_dt`` and ``action_mode``
+    default to the native environment's), or ``road``: one road record (the native option's spelling, as
+    ``roads=[road]``). ``autoreset_mode``: only ``NEXT_STEP``."""
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP}
 
-    def __init__(self, num_envs: int = 1, **options):
+    def __init__(self, num_envs: int = 1, autoreset_mode=AutoresetMode.NEXT_STEP, road=None, **options):
         if not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
+        if autoreset_mode not in (AutoresetMode.NEXT_STEP, AutoresetMode.NEXT_STEP.value):
+            raise ValueError(f"autoreset_mode must be NEXT_STEP (the only mode of the JAX environment), got "
+                             f"{autoreset_mode!r}")
+        if road is not None:
+            if not hasattr(road, "data") or "roads" in options:
+                raise ValueError("road must be a road record (a bank of roads: roads=[...]), and not given with roads")
+            options["roads"] = [road]
         self.num_envs = int(num_envs)
-        self.params = p = qc.make_params(**options)
+        self.params = p = qc.make_params(**{**_NATIVE_DEFAULTS, **options})
         self.control_dt = p.dt * p.n_sub
         low, high = (-1.0, 1.0) if p.normalized else (p.v_min, p.v_max)
         self.single_action_space = spaces.Box(low, high, (1,), np.float32)
