@@ -86,6 +86,31 @@ def test_preview_suite_says_who_has_preview_and_shares_references(shipped):
         assert [p.reference_options(*e) for e in p.episodes()] == [c.reference_options(*e) for e in c.episodes()]
 
 
+def _constant_command_return(env_id: str, options: dict, seed: int, control_dt: float) -> float:
+    import gymnasium as gym
+
+    env = gym.make(env_id, **options, control_dt=control_dt)
+    env.reset(seed=seed)
+    total, done = 0.0, False
+    while not done:
+        _, r, term, trunc, _ = env.step(0.5 * (env.action_space.low + env.action_space.high))
+        total, done = total + float(r), term or trunc
+    env.close()
+    return total
+
+
+def test_the_sensor_options_change_no_episode(shipped):
+    """The references are computed without the sensor options (preview, noise, ...): a constant command's return on
+    the episode a controller meets (with them) must equal the one on the references' episode, on every shipped
+    suite — a preview that changed the road (the full car's v2 did) would score controllers against other roads'
+    references."""
+    for s in shipped.values():
+        sc, seed = s.episodes()[0]
+        got = _constant_command_return(s.env_id, s.episode_options(sc, seed), seed, s.control_dt)
+        want = _constant_command_return(s.env_id, s.reference_options(sc, seed), seed, s.control_dt)
+        assert got == pytest.approx(want, rel=1e-12, abs=1e-12), (s.id, got, want)
+
+
 def test_reference_options_drop_the_sensors(shipped):
     s = shipped.get("car-preview-v1") or next(iter(shipped.values()))
     sc, seed = s.episodes()[0]

@@ -50,6 +50,7 @@ from ...disturbances import ISO8608_N_MAX, ISO8608_N_MIN, Record, iso8608_psd
 from ...disturbances.record import n_samples_for
 from ...envs import randomize
 from ...envs.disturbance import Disturbance, FixedRecord, Generated
+from ...envs.options import MAX_PREVIEW
 from ...resources import Budget
 from ...validation import check_scalar
 from .physics import CORNERS, ROAD_CHANNELS, ROAD_UNITS
@@ -172,8 +173,10 @@ def two_track_spectrum(road_class: str, speed: float, m: int, dt: float, track: 
 
 
 def _period(n: int, dt: float, geometry: Geometry, delay: float) -> int:
-    """An FFT length whose period holds the episode, its previews and the delay (see the module docstring)."""
-    ahead = int(math.ceil(geometry.horizon() / dt - 1e-9))
+    """An FFT length whose period holds the episode, the longest preview any option may ask for (MAX_PREVIEW, not
+    the geometry's own: the road under the wheels must not depend on whether a controller has preview, or a preview
+    suite's episodes would not be its nominal suite's) and the delay (see the module docstring)."""
+    ahead = int(math.ceil(max(MAX_PREVIEW, geometry.horizon()) / dt - 1e-9))
     return scipy.fft.next_fast_len(n + ahead + int(math.ceil(delay / dt)) + 1, real=True)
 
 

@@ -42,7 +42,7 @@ SCENARIOS = (_iso("C", 20.0), _iso("D", 20.0), _iso("A", 30.0),
                                               "episode_seconds": EPISODE_SECONDS}, (0,)))
 
 COMFORT = SuiteDefinition(
-    name="car-full", version=2,
+    name="car-full", version=3,
     description="Full car (the 7-DOF sedan, Spencer–Dyke dampers at the four corners, automotive preset), 10 ms "
                 "control, the test car's sensors (no preview): two-track ISO 8608 class C and D roads at 20 m/s and "
                 "class A at 30 m/s (3 seeds each) and a 5 cm bump under the left wheels, 1 s each — fewer and "
@@ -52,11 +52,13 @@ COMFORT = SuiteDefinition(
                 "ABNORMAL line search: its R_c is the best of them, not an optimum (a share there is not a share "
                 "of the achievable gain). Version 2: the car starts at rest on the roads' initial heights (the "
                 "dampers' internal states at rest at the start's strokes, their static forces in the equilibrium, "
-                "zero stroke rates); version 1's episodes started with the dampers out of rest.",
+                "zero stroke rates); version 1's episodes started with the dampers out of rest. Version 3: the roads no "
+                "longer depend on the preview option (version 2's preview twin drove other roads than its references'"
+                ").",
     options={"sensors": SENSORS}, control_dt=CONTROL_DT, scenarios=SCENARIOS, criteria=CRITERIA)
 
 PREVIEW_SUITE = SuiteDefinition(
-    name="car-full-preview", version=2,
+    name="car-full-preview", version=3,
     description="car-full's episodes with the road-preview sensor granted to the controller: each wheel's road "
                 "height 10, 20, ..., 100 ms ahead (sensor 'road_preview'), beside the test car's sensors. The same "
                 "plant and episodes, so car-full's references.",
