@@ -70,7 +70,7 @@ def clairvoyant(episode_return: Callable, replay: Callable[[np.ndarray], float],
     ``coarse``: command blocks (in control steps, each ≥ 2) solved first, longest first; ``max_iter`` per level;
     ``tol``: the final level's relative improvement over 20 iterations that stops it.
     """
-    from ..optimal.full_knowledge import COARSE_TOL, COARSE_WINDOW, WINDOW, _blocked, minimize_lbfgsb
+    from ..optimal.full_knowledge import COARSE_TOL, COARSE_WINDOW, WINDOW, blocked, minimize_lbfgsb
 
     if isinstance(n_starts, bool) or not isinstance(n_starts, int) or n_starts < 0:
         raise ValueError(f"n_starts must be an int >= 0, got {n_starts!r}")
@@ -104,7 +104,7 @@ def clairvoyant(episode_return: Callable, replay: Callable[[np.ndarray], float],
         statuses, ok, nit, nev = [], True, 0, 0
         for level, blk in enumerate(blocks):
             final = level == len(blocks) - 1
-            fb, Vc0, expand = _blocked(fun, V, blk)
+            fb, Vc0, expand = blocked(fun, V, blk)
             Vc, st, ok_l, it_l, ev_l = minimize_lbfgsb(fb, Vc0, v_min, v_max, max_iter, tol if final else COARSE_TOL,
                                                        WINDOW if final else COARSE_WINDOW, None)
             V = expand(Vc)

@@ -463,7 +463,7 @@ def _levels(problem, coarse) -> list[int]:
     return out + [1]
 
 
-def _blocked(fun, V, blk):
+def blocked(fun, V, blk):
     """``fun`` over commands held for ``blk`` control steps: (function of the block values, their start from V
     (block means), expansion back to every step)."""
     n, nd = V.shape
@@ -581,7 +581,7 @@ def clairvoyant(problem_or_env_id, *, seed: int | None = None, control_dt: float
                     bar = tqdm(total=max_iter, desc=f"{name}, blocks of {blk * problem.control_dt:g} s", unit="it",
                                leave=False, mininterval=2.0)
                 lo, hi = problem.v_min, problem.v_max
-                fb, Vc0, expand = _blocked(fun, V, blk)
+                fb, Vc0, expand = blocked(fun, V, blk)
                 try:
                     if method == "lbfgsb":
                         Vc, st, ok_l, it_l, ev_l = minimize_lbfgsb(fb, Vc0, lo, hi, max_iter, tol if final else COARSE_TOL,
