@@ -129,19 +129,25 @@ class PlantProfile:
         given = {k: v for k, v in given.items() if v is not None}
         if not given:
             return self
-        offered = [o.name for o in self.offered_options]
-        unknown = [k for k in given if k not in offered]
-        if unknown:
-            raise ValueError(f"--{unknown[0]} is not an option of the {self.title} (its plant options: "
-                             f"{', '.join('--' + o for o in offered)})")
+        self._check_offered(given)
         base = _registered(self.name)
         values = {**dict(self.applied), **given}
         return dataclasses.replace(base, options=self.plant_environment(base.options, values),
                                    training=self.plant_environment(base.training, values),
                                    applied=tuple(sorted(values.items())))
 
+    def _check_offered(self, values: Mapping[str, str]) -> None:
+        """``ValueError`` naming the first of ``values`` that is not one of this plant's options."""
+        offered = [o.name for o in self.offered_options]
+        unknown = [k for k in values if k not in offered]
+        if unknown:
+            raise ValueError(f"--{unknown[0]} is not an option of the {self.title} (its plant options: "
+                             f"{', '.join('--' + o for o in offered)})")
+
     def plant_environment(self, options: Mapping, values: Mapping[str, str]) -> dict:
-        """Environment ``options`` with the plant options ``values`` ({option name: text}) applied."""
+        """Environment ``options`` with the plant options ``values`` ({option name: text}) applied (``ValueError``
+        for an option the plant does not offer)."""
+        self._check_offered(values)
         out = dict(options)
         own = {k: v for k, v in values.items() if k != DAMPER_OPTION.name}
         if own:

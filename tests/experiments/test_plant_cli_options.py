@@ -53,6 +53,8 @@ def test_a_plant_without_the_option_refuses_it():
     ["benchmark", "--plant", OTHER, "--storeys", "6", "--quick", "--seeds", "1"],
     ["score", "--suite", "building-seismic-v1", "--controller", "passive_on", "--storeys", "6"],
     ["score", "--suite", "building-seismic-v1", "--controller", "passive_on", "--damper", "bouc_wen"],
+    # another plant's option on a suite (was an internal error: the car has no apply_plant_options)
+    ["score", "--suite", "car-comfort-v1", "--controller", "passive_on", "--damper-storeys", "1,2"],
 ])
 def test_bad_or_plant_changing_options_are_one_line_and_exit_2(argv, capsys, tmp_path):
     code = main([*argv, "--out", str(tmp_path / "out")])
