@@ -21,23 +21,10 @@ import numpy as np
 
 
 @dataclass
-class GradientSolve:
-    """One optimiser run: its warm start, status, iterations, evaluations, seconds, the twin's return and the
-    native environment's."""
-    start: str
-    status: str
-    success: bool
-    iterations: int
-    evaluations: int
-    seconds: float
-    model_return: float
-    ret: float
-
-
-@dataclass
 class GradientClairvoyant:
     """The result: the best return in the native environment, its commands (n_steps, nd), where they come from
-    ("optimiser" or a warm start's name), the warm starts' returns, the runs, the wall time (s, compilation
+    ("optimiser" or a warm start's name), the warm starts' returns, the runs (the CasADi path's
+    :class:`~mrd_env.optimal.full_knowledge.Solve`, its ``terminated`` left False), the wall time (s, compilation
     included) and the compilation's share."""
     ret: float
     commands: np.ndarray
@@ -70,7 +57,7 @@ def clairvoyant(episode_return: Callable, replay: Callable[[np.ndarray], float],
     ``coarse``: command blocks (in control steps, each ≥ 2) solved first, longest first; ``max_iter`` per level;
     ``tol``: the final level's relative improvement over 20 iterations that stops it.
     """
-    from ..optimal.full_knowledge import COARSE_TOL, COARSE_WINDOW, WINDOW, blocked, minimize_lbfgsb
+    from ..optimal.full_knowledge import COARSE_TOL, COARSE_WINDOW, WINDOW, Solve, blocked, minimize_lbfgsb
 
     if isinstance(n_starts, bool) or not isinstance(n_starts, int) or n_starts < 0:
         raise ValueError(f"n_starts must be an int >= 0, got {n_starts!r}")
@@ -115,7 +102,7 @@ def clairvoyant(episode_return: Callable, replay: Callable[[np.ndarray], float],
         V = np.clip(V, v_min, v_max)
         secs = time.perf_counter() - t0
         ret = float(replay(V))
-        solves.append(GradientSolve(name, "; ".join(statuses), ok, nit, nev, secs, -fun(V)[0], ret))
+        solves.append(Solve(name, "; ".join(statuses), ok, nit, nev, secs, -fun(V)[0], ret))
         if ret > best[0]:
             best = (ret, V, "optimiser")
     return GradientClairvoyant(ret=float(best[0]), commands=np.asarray(best[1]), source=best[2],
