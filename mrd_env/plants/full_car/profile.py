@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from ..profile import PlantProfile, TestCase
 from ..quarter_car import SPEC as QUARTER_CAR
-from ..quarter_car.profile import CAR_LAWS, PROFILE as QUARTER_CAR_PROFILE
+from ..quarter_car.profile import CAR_LAWS, PROFILE as QUARTER_CAR_PROFILE, road_tests
 from . import SPEC
 from .physics import full_car
 from .suites import SUITES
@@ -19,12 +19,7 @@ from .suites import SUITES
 def _full_car_tests(plant: dict, quick: bool) -> list[TestCase]:
     """ISO 8608 class C and D at 20 m/s and class A at 30 m/s (two tracks, unseen seeds), a bump on the left and
     a pothole on the right (one side: roll)."""
-    dur = 3.0 if quick else 10.0
-    out = [(f"ISO-{c} 20 m/s", dict(**plant, road="iso8608", road_params={"road_class": c, "speed": 20.0},
-                                    episode_seconds=dur), True) for c in ("C", "D")]
-    if not quick:
-        out.append(("ISO-A 30 m/s", dict(**plant, road="iso8608", road_params={"road_class": "A", "speed": 30.0},
-                                         episode_seconds=dur), True))
+    out = road_tests(plant, quick, bump=False)   # the quarter car's test roads, on two tracks
     out.append(("bump 5 cm left", dict(**plant, road="bump", road_params={"height": 0.05, "length": 0.5,
                                                                             "speed": 10.0, "side": "left"},
                                        episode_seconds=3.0), False))
