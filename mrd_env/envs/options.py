@@ -40,6 +40,17 @@ def make_env_damper(damper, preset, params, default_preset: str) -> DamperModel:
     return make_damper(damper, preset, **params)
 
 
+def plant_parameters(params_class: type, make, preset, given):
+    """A plant's parameters: ``given`` itself when it is a ``params_class``, else ``make(preset, **given)`` (the
+    preset with the overrides of the dict ``given``, or none); ``ValueError`` naming ``plant_params`` otherwise."""
+    if isinstance(given, params_class):
+        return given
+    if given is not None and not isinstance(given, dict):
+        raise ValueError(f"plant_params must be a dict of {params_class.__name__} overrides or a "
+                         f"{params_class.__name__} instance, got {type(given).__name__}")
+    return make(preset, **named_options("plant_params", given))
+
+
 def named_options(name: str, given) -> dict:
     """A dict of overrides whose keys are names (strings), else ``ValueError`` naming ``name``."""
     out = as_options(name, given)

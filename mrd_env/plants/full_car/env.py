@@ -53,12 +53,7 @@ NOMINAL_ROAD = {"road_class": "C", "speed": 20.0, "duration": 100.0, "seed": 0}
 
 # --- the plant and its signals -----------------------------------------------------------------------------------
 def _plant_params(plant_preset, plant_params) -> FullCarParams:
-    if isinstance(plant_params, FullCarParams):
-        return plant_params
-    if plant_params is not None and not isinstance(plant_params, dict):
-        raise ValueError(f"plant_params must be a dict of FullCarParams overrides or a FullCarParams, got "
-                         f"{type(plant_params).__name__}")
-    return full_car(plant_preset, **opt.named_options("plant_params", plant_params))
+    return opt.plant_parameters(FullCarParams, full_car, plant_preset, plant_params)
 
 
 def with_inputs(lp: LinearPlant, names: tuple[str, ...]) -> LinearPlant:

@@ -187,12 +187,7 @@ def base_motion_source(base_motion, base_motion_params, dt: float, episode_secon
 
 # --- the assembly ------------------------------------------------------------------------------------------------
 def _plant_params(plant_preset, plant_params) -> IsolatorParams:
-    if isinstance(plant_params, IsolatorParams):
-        return plant_params
-    if plant_params is not None and not isinstance(plant_params, dict):
-        raise ValueError(f"plant_params must be a dict of IsolatorParams overrides or an IsolatorParams, got "
-                         f"{type(plant_params).__name__}")
-    return isolator(plant_preset, **opt.named_options("plant_params", plant_params))
+    return opt.plant_parameters(IsolatorParams, isolator, plant_preset, plant_params)
 
 
 def signals(coupled: CoupledPlant, command_unit: str) -> SignalMap:

@@ -45,12 +45,7 @@ EPISODE_FLOATS = 10
 
 # --- the assembly ------------------------------------------------------------------------------------------------
 def _plant_params(plant_preset, plant_params) -> QuarterCarParams:
-    if isinstance(plant_params, QuarterCarParams):
-        return plant_params
-    if plant_params is not None and not isinstance(plant_params, dict):
-        raise ValueError(f"plant_params must be a dict of QuarterCarParams overrides or a QuarterCarParams, "
-                         f"got {type(plant_params).__name__}")
-    return quarter_car(plant_preset, **opt.named_options("plant_params", plant_params))
+    return opt.plant_parameters(QuarterCarParams, quarter_car, plant_preset, plant_params)
 
 
 def preview_channels(times: tuple[float, ...]) -> tuple[str, ...]:

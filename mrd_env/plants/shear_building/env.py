@@ -232,13 +232,7 @@ def ground_motion_source(gm, gm_params, dt: float, episode_seconds, building_tim
 
 # --- the assembly ------------------------------------------------------------------------------------------------
 def _plant_params(plant_preset, plant_params, damper_floors) -> ShearBuildingParams:
-    if isinstance(plant_params, ShearBuildingParams):
-        params = plant_params
-    else:
-        if plant_params is not None and not isinstance(plant_params, dict):
-            raise ValueError("plant_params must be a dict of ShearBuildingParams overrides or a ShearBuildingParams, "
-                             f"got {type(plant_params).__name__}")
-        params = shear_building(plant_preset, **opt.named_options("plant_params", plant_params))
+    params = opt.plant_parameters(ShearBuildingParams, shear_building, plant_preset, plant_params)
     if damper_floors is not None:
         floors = (damper_floors,) if isinstance(damper_floors, (int, np.integer)) else damper_floors
         try:
