@@ -86,6 +86,23 @@ def test_preview_suite_says_who_has_preview_and_shares_references(shipped):
         assert [p.reference_options(*e) for e in p.episodes()] == [c.reference_options(*e) for e in c.episodes()]
 
 
+def test_every_suite_that_shares_references_has_the_same_episodes(shipped):
+    """Every ``references_of`` suite (the preview twins, nominal and randomised) ships its source's references,
+    and its episodes are the source's on the same plant: the same reference options, the same drawn plants."""
+    sharing = [(sid, d) for sid, (_, _, d) in suite_definitions().items() if d.references_of]
+    assert any(d.randomise for _, d in sharing), "no randomised twin shares references"
+    for sid, d in sharing:
+        _, _, src = suite_definition(d.references_of)
+        assert sid in shipped and src.id in shipped, sid
+        p, c = shipped[sid], shipped[src.id]
+        assert p.references == c.references and p.procedure["references_of_digest"] == c.digest, sid
+        assert [p.reference_options(*e) for e in p.episodes()] == [c.reference_options(*e) for e in c.episodes()]
+        if d.randomise:
+            assert p.randomised["draws"] and {k: {o: v for o, v in dr.items() if o not in SENSOR_OPTIONS}
+                                               for k, dr in p.randomised["draws"].items()} == \
+                {k: {o: v for o, v in dr.items() if o not in SENSOR_OPTIONS} for k, dr in c.randomised["draws"].items()}
+
+
 def _constant_command_return(env_id: str, options: dict, seed: int, control_dt: float) -> float:
     import gymnasium as gym
 

@@ -149,14 +149,14 @@ def copy_references(plant: str, env_id: str, definition, command: str):
     (``references_of``): the same plant and episodes, checked."""
     from dataclasses import replace
 
-    from mrd_env.suites import suites
+    from mrd_env.suites import draws, suites
 
     sources = sorted((s.version, s) for s in suites().values() if s.name == definition.references_of)
     if not sources:
         raise SystemExit(f"suite {definition.id} takes the references of {definition.references_of}, which has no "
                          "shipped file yet: compute it first")
     src = sources[-1][1]
-    new = definition.suite(plant, env_id)
+    new = definition.suite(plant, env_id, draws(definition, env_id))  # a twin's episodes include its draws
     for (a, sa), (b, sb) in zip(new.episodes(), src.episodes()):
         if a.label(sa) != b.label(sb) or new.reference_options(a, sa) != src.reference_options(b, sb):
             raise SystemExit(f"suite {definition.id}: episode {a.label(sa)} is not {src.id}'s {b.label(sb)} on the "

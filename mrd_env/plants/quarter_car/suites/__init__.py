@@ -76,4 +76,12 @@ ROBUST = SuiteDefinition(
     options={"sensors": SENSORS}, control_dt=CONTROL_DT, scenarios=SCENARIOS, criteria=CRITERIA,
     randomise=ROBUST_BANDS)
 
-SUITES = (COMFORT, PREVIEW_SUITE, ROBUST)
+PREVIEW_ROBUST = SuiteDefinition(
+    name="car-preview-robust", version=1,
+    description="car-comfort-robust's episodes (the same drawn cars, dampers, sensor noise and sensor delays) with "
+                "the road-preview sensor of car-preview granted to the controller; the preview itself is exact (no "
+                "noise band: the draws are car-comfort-robust's, so its references).",
+    options={"sensors": (*SENSORS, "road_preview"), "preview": PREVIEW}, control_dt=CONTROL_DT,
+    scenarios=SCENARIOS, criteria=CRITERIA, references_of="car-comfort-robust", randomise=ROBUST_BANDS)
+
+SUITES = (COMFORT, PREVIEW_SUITE, ROBUST, PREVIEW_ROBUST)
