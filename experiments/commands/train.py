@@ -205,7 +205,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="training disturbance as JSON (default: the plant's training distribution), e.g. "
                         "'{\"kind\": \"iso8608\", \"road_class\": \"C\"}'")
     p.add_argument("--warm-start", default=None, metavar="LAW",
-                   help="cmaes: begin as this classical law (behaviour cloning; default: the YAML's warm_start)")
+                   help="cmaes: begin as this classical law (behaviour cloning; default: the YAML's warm_start); "
+                        "shac: begin as this agent (a folder, or 'cmaes': the shipped CMA-ES agent)")
     p.add_argument("--eval-freq", type=int, default=20_000, help="validation every so many steps (0: never)")
     p.add_argument("--eval-episodes", type=int, default=8, help="validation episodes (unseen seeds)")
     p.add_argument("--checkpoint-freq", type=int, default=0, help="checkpoint every so many steps (0: never)")
@@ -219,7 +220,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def check_before_training(algo: str, hyper: dict, env_id: str, env_kwargs: dict) -> None:
     """What an SB3 entry must pass before any training starts (its keys and values are checked when it is read):
     the residual's and the paired baseline's laws apply to the plant, and SB3 builds the model."""
-    if algo != "cmaes":
+    if algo not in ("cmaes", "shac"):
         full_kwargs = {**env_kwargs, **(hyper.get("env_kwargs") or {})}
         check_laws(hyper, env_id, full_kwargs)
         check_with_sb3(algo, hyper, env_id, full_kwargs)
@@ -254,9 +255,9 @@ def run(args: argparse.Namespace) -> int:
             disturbance = text  # a kind's name
     if args.warm_start is not None:
         from controllers import available_controllers
-        if args.algo != "cmaes":
-            raise ValueError("--warm-start applies to --algo cmaes")
-        if args.warm_start not in available_controllers():
+        if args.algo not in ("cmaes", "shac"):
+            raise ValueError("--warm-start applies to --algo cmaes and shac")
+        if args.algo == "cmaes" and args.warm_start not in available_controllers():
             raise ValueError(f"--warm-start must be a law of {available_controllers()}, got {args.warm_start!r}")
     plant = with_plant_options([profile(args.plant)], args)[0]
     env_kwargs = env_options(plant, args.control_dt, args.sensors, args.history, disturbance)
@@ -280,9 +281,9 @@ def run(args: argparse.Namespace) -> int:
                              "--residual none")
     if args.paired_baseline is not None:
         overrides["paired_baseline"] = None if args.paired_baseline == "none" else args.paired_baseline
-    if args.algo == "cmaes" and (overrides.get("residual") or overrides.get("paired_baseline")):
-        raise ValueError("--residual and --paired-baseline apply to the SB3 algorithms, not to cmaes "
-                         "(CMA-ES warm-starts from a law with --warm-start)")
+    if args.algo in ("cmaes", "shac") and (overrides.get("residual") or overrides.get("paired_baseline")):
+        raise ValueError(f"--residual and --paired-baseline apply to the SB3 algorithms, not to {args.algo} "
+                         "(it warm-starts with --warm-start)")
     hyper = hyperparameters(args.algo, env_id, args.hyperparams, overrides)
     if args.residual is None and options:  # options of the YAML's residual
         spec = residual_spec(hyper.get("residual"))

@@ -75,6 +75,8 @@ TRAINERS: dict[str, Trainer] = {
                      ("report", "checkpoint_freq", "tensorboard")) for algo, label in _SB3.items()},
     "cmaes": Trainer("cmaes", "CMA-ES", "experiments.common.evolution:train_cmaes",
                      "experiments.common.evolution:check_entry", ("warm_start",)),
+    "shac": Trainer("shac", "SHAC", "experiments.common.shac:train_shac", "experiments.common.shac:check_entry",
+                    ("warm_start",)),
 }
 
 

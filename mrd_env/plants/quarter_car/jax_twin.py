@@ -4,9 +4,11 @@
 The physics and the reward are the native environment's (:mod:`mrd_env.plants.quarter_car`): the same plant
 matrices and elimination matrices (built by :class:`~mrd_env.mechanics.CoupledPlant`), the same damper equations,
 the command lag and its delay, the Wk-filtered sprung acceleration, the reward relative to the passive car on the
-episode's road, the stroke limit and its penalty; the default sensors in the native order (float64 here).
+episode's road, the stroke limit and its penalty; the default sensors in the native order (float64 here), and
+with ``preview`` the ``road_preview`` sensor after them as the native environment gives it.
 Roads are a bank drawn once by :func:`make_params` with the project's generator (ISO 8608, ``method="fft"``), the
-passive car's reference computed for each; :func:`reset` draws one from its key.
+passive car's reference computed for each; :func:`reset` draws one from its key. :func:`native_roads` draws the
+roads a native environment would meet at ``reset(seed=s)`` (the training mixture of classes and speeds).
 """
 from __future__ import annotations
 
@@ -48,7 +50,7 @@ class EnvParams:
     lag: jnp.ndarray        # (1, 3) η_rise, η_fall, delay
     tyre: jnp.ndarray       # (2,) k_t, c_t
     sos: jnp.ndarray        # (n_sections, 6) the Wk weighting at 1/dt
-    roads: jnp.ndarray      # (n_roads, rows, 2) z_r, ż_r at every physics step
+    roads: jnp.ndarray      # (n_roads, rows [+ the longest preview], 2) z_r, ż_r at every physics step
     reward_scale: jnp.ndarray  # (n_roads, 3) the reward's weights × control_dt / the passive car's mean squares
     v_min: float
     v_max: float
@@ -67,6 +69,7 @@ class EnvParams:
     newton_iterations: int = dataclasses.field(metadata={"static": True}, default=2)
     normalized: bool = dataclasses.field(metadata={"static": True}, default=True)
     param_names: tuple = dataclasses.field(metadata={"static": True}, default=())  # the columns of P
+    preview_steps: tuple = dataclasses.field(metadata={"static": True}, default=())  # road_preview's rows ahead
 
 
 _STATIC = [f.name for f in dataclasses.fields(EnvParams) if f.metadata.get("static")]
@@ -91,12 +94,14 @@ def make_params(*, plant_preset: str = "set_a", damper: str = "spencer_dyke", da
                 damper_params=None, dt: float = 1e-3, control_dt: float = 0.01, episode_seconds: float = 10.0,
                 road_class: str = "C", speed: float = 20.0, n_roads: int = 16, seed: int = 0, roads=None,
                 scheme: str = "exact", substeps: int = 1, newton_iterations: int = 2,
-                action_mode: str = "normalized", stroke_limit: float = 0.1, reward_weights=None) -> EnvParams:
+                action_mode: str = "normalized", stroke_limit: float = 0.1, reward_weights=None,
+                preview=None) -> EnvParams:
     """The quarter car's parameters with the native environment's defaults (``QuarterCar-v1``: 10 ms control,
     normalised actions). ``roads``: records with channels (z_r, ż_r) at ``dt`` (default: ``n_roads`` ISO 8608
     roads of ``road_class`` at ``speed`` drawn from ``seed``). ``scheme``: "exact" or "differentiable" (with
-    ``substeps``, a power of two up to 8, and ``newton_iterations``). Bad values raise ``ValueError`` naming the
-    option."""
+    ``substeps``, a power of two up to 8, and ``newton_iterations``). ``preview``: the native option (the times
+    ahead, s): the observation ends with the ``road_preview`` sensor, z_r(t + τ) for each τ, the record's last
+    height held beyond its end. Bad values raise ``ValueError`` naming the option."""
     if scheme not in SCHEMES:
         raise ValueError(f"scheme must be one of {SCHEMES}, got {scheme!r}")
     if not isinstance(substeps, int) or substeps < 1 or substeps > MAX_SUBSTEPS or substeps & (substeps - 1):
@@ -108,6 +113,7 @@ def make_params(*, plant_preset: str = "set_a", damper: str = "spencer_dyke", da
     dt, control_dt, episode_seconds = opt.time_steps(dt, control_dt, episode_seconds)
     n_sub = int(round(control_dt / dt))
     n_steps = int(round(episode_seconds / control_dt))
+    ahead = tuple(int(round(t / dt)) for t in opt.preview_times(preview, dt))
     p = quarter_car(plant_preset)
     d = opt.make_env_damper(damper, damper_preset, damper_params, "automotive")
     model = jax_damper(d.name)
@@ -130,7 +136,8 @@ def make_params(*, plant_preset: str = "set_a", damper: str = "spencer_dyke", da
         q0 = np.array([arr[0, 0], arr[0, 0], arr[0, 1], arr[0, 1]])
         ref = native.passive_reference(p, rec, q0, rows, dt)
         scales.append([w[k] * control_dt / max(ref[k], 1e-12) for k in native.REWARD_SIGNALS])
-        data.append(arr[:rows])
+        # the preview reads rows ahead of the episode's, from the record while it lasts (as native with_preview)
+        data.append(arr[np.minimum(np.arange(rows + max(ahead, default=0)), len(arr) - 1)])
     limit = check_scalar("stroke_limit", stroke_limit, 0.0, lo_open=True, unit="m")
     return EnvParams(
         plant=sc.Plant(*(jnp.asarray(a) for a in (system.C, system.D, Ainv, Bbar, Mq, PP))),
@@ -142,7 +149,21 @@ def make_params(*, plant_preset: str = "set_a", damper: str = "spencer_dyke", da
         penalty=float(w["termination"] * episode_seconds), atol=ATOL, rtol=RTOL, model=model.name, scheme=scheme,
         n_sub=n_sub, n_steps=n_steps, queue=int(math.floor(d.command.delay / dt * (1 + 1e-12))) + 2,
         max_level=max_level, substeps=substeps, newton_iterations=newton_iterations,
-        normalized=action_mode == "normalized", param_names=tuple(f.name for f in dataclasses.fields(d.params)))
+        normalized=action_mode == "normalized", param_names=tuple(f.name for f in dataclasses.fields(d.params)),
+        preview_steps=ahead)
+
+
+def native_roads(road, seeds, *, dt: float = 1e-3, episode_seconds: float = 10.0) -> list:
+    """The road records a native quarter-car environment with the option ``road`` (its spelling: a kind's name or
+    ``{"kind": ..., **options}``, e.g. the training mixture of classes and speeds) meets at ``reset(seed=s)``
+    for each of ``seeds``: the same generator, drawn from the same Gymnasium seeding, so that :func:`make_params`
+    (``roads=``) gives the twin the native episodes' roads."""
+    from gymnasium.utils.seeding import np_random
+
+    from ...envs.roads import road_source
+
+    source = road_source(road, None, dt, episode_seconds)
+    return [source.sample(np_random(int(s))[0], dt) for s in seeds]
 
 
 def _inputs(params: EnvParams, road, row):
@@ -159,6 +180,13 @@ def _signals(params: EnvParams, Y, F, w, cmd):
     tyre = -params.tyre[0] * q[1] - params.tyre[1] * q[3] + params.tyre[0] * w[0] + params.tyre[1] * w[1]
     sensors = jnp.stack([acc[0], acc[1], travel, q[2] - q[3], q[2], q[3], F[0], cmd[0]])
     return sensors, acc[0], travel, tyre
+
+
+def _observe(params: EnvParams, road, row, sensors):
+    """The observation: the default sensors, then the road ahead (``road_preview``) if the params have one."""
+    if not params.preview_steps:
+        return sensors
+    return jnp.concatenate([sensors, params.roads[road, row + jnp.asarray(params.preview_steps), 0]])
 
 
 def _filter(sos, zi, x):
@@ -188,7 +216,7 @@ def reset(key, params: EnvParams, road=None):
                      queue=jnp.full((params.queue, 1), params.v_min, jnp.float64), nsub=jnp.asarray(1, jnp.int32),
                      zi=jnp.zeros((params.sos.shape[0], 2)), road=jnp.asarray(road, jnp.int32),
                      k=jnp.asarray(0, jnp.int32), status=jnp.where(finite, OK, sc.NONFINITE).astype(jnp.int32))
-    return _signals(params, Y, F, w, U)[0], state
+    return _observe(params, road, 0, _signals(params, Y, F, w, U)[0]), state
 
 
 def command(params: EnvParams, action):
@@ -244,7 +272,7 @@ def step(key, state: EnvState, action, params: EnvParams):
     truncated = ~terminated & (k >= params.n_steps)
     new = EnvState(Y=Y, U=U, F=F, cmd=cmd, queue=queue, nsub=nsub, zi=zi, road=state.road, k=k, status=status)
     w = _inputs(params, state.road, k * params.n_sub)
-    obs = _signals(params, Y, F, w, cmd)[0]
+    obs = _observe(params, state.road, k * params.n_sub, _signals(params, Y, F, w, cmd)[0])
     info = {"effective_command": U[0], "substeps": used / params.n_sub, "status": status}
     return obs, new, reward, terminated, truncated, info
 
