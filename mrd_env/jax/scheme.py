@@ -290,10 +290,11 @@ def sdirk_step(model, lv, P, lag, cmds, Y, u0, Fz, w0, w1, tau0, h, H, atol, rto
                 o = nq + j * ns + i
                 err = _max(err, jnp.abs(r[j * ns + i]) / (atol + rtol * jnp.maximum(jnp.abs(Y[o]), jnp.abs(Z2[o]))))
         work = work._replace(level=jnp.where(ok, work.level, -1))
-    # the result back into the invariant set (z within ±z_s)
+    # the result back into the invariant set (z within ±z_s); discrete modes (the acceleration branch) switch here,
+    # from the stroke rate at the step's end, as in the kernel
     xs, vs, _ = kinematics(C, D, Z2[:nq], w)
     Zq, Zs = _split(Z2, nq, nd, ns)
-    Zs = [list(model.project(P[j], tuple(Zs[j]))) for j in range(nd)]
+    Zs = [list(model.project(P[j], tuple(Zs[j]), xs[j], vs[j], u2[j])) for j in range(nd)]
     Ynew = Zq + [s for Sj in Zs for s in Sj]
     return ok, jnp.where(ok, err, jnp.inf), Ynew, F2, work
 

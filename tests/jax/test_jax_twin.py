@@ -137,7 +137,7 @@ def test_seeds_are_reproducible(env):
 
 @pytest.mark.parametrize("option,value,match", [
     ("scheme", "rk4", "scheme"), ("substeps", 3, "substeps"), ("newton_iterations", 0, "newton_iterations"),
-    ("damper", "dahl", "damper"), ("action_mode", "force", "action_mode"), ("stroke_limit", -1.0, "stroke_limit"),
+    ("damper", "no_such_model", "damper"), ("action_mode", "force", "action_mode"), ("stroke_limit", -1.0, "stroke_limit"),
     ("roads", [np.zeros((5, 2))], r"roads\[0\]"), ("n_roads", 0, "n_roads"), ("control_dt", 0.0105, "control_dt"),
 ])
 def test_bad_input_names_the_parameter(option, value, match):
