@@ -138,6 +138,22 @@ def _branch_projection(p, s, x, xd, u, tau, a_s):
     return (s[0], smooth_sign((xd - s[0]) / tau, a_s))
 
 
+def _bouc_wen_state(mod):
+    """(rhs, project) of a model whose one state z follows eq. (8) driven by ẋ, with the parameters at the module's
+    ``P_A``, ``P_BETA``, ``P_GAMMA``, ``P_N``: ż, and z kept within ±z_s."""
+    def rhs(p, s, x, xd, u):
+        return (bouc_wen_zdot(s[0], xd, p[mod.P_A], p[mod.P_BETA], p[mod.P_GAMMA], p[mod.P_N]),)
+
+    def project(p, s, x, xd, u):
+        return (clip_to_saturation(s[0], p[mod.P_A], p[mod.P_BETA], p[mod.P_GAMMA], p[mod.P_N]),)
+    return rhs, project
+
+
+_bw_rhs, _bw_project = _bouc_wen_state(_bw)
+_mb_rhs, _mb_project = _bouc_wen_state(_mb)
+_ar_rhs, _ar_project = _bouc_wen_state(_ar)
+
+
 # --- Spencer–Dyke ----------------------------------------------------------------------------------------------
 def _sd_coefficients(p, u):
     c0 = p[_sd.P_C0A] + p[_sd.P_C0B] * u
@@ -177,10 +193,6 @@ def _sd_project(p, s, x, xd, u):
 
 
 # --- Bouc–Wen (and the non-symmetrical one: the same parameters first, the same force and saturation) ----------
-def _bw_rhs(p, s, x, xd, u):
-    return (bouc_wen_zdot(s[0], xd, p[_bw.P_A], p[_bw.P_BETA], p[_bw.P_GAMMA], p[_bw.P_N]),)
-
-
 def _bw_force(p, s, x, xd, xdd, u):
     return ((p[_bw.P_C0A] + p[_bw.P_C0B] * u) * xd + (p[_bw.P_K0A] + p[_bw.P_K0B] * u) * (x - p[_bw.P_X0])
             + (p[_bw.P_ALPHA_A] + p[_bw.P_ALPHA_B] * u) * s[0])
@@ -191,10 +203,6 @@ def _bw_partials(p, s, x, xd, xdd, u):
     zero = jnp.zeros_like(dz)
     return ((dz, zero, dv),
             (p[_bw.P_ALPHA_A] + p[_bw.P_ALPHA_B] * u, p[_bw.P_K0A] + p[_bw.P_K0B] * u, p[_bw.P_C0A] + p[_bw.P_C0B] * u))
-
-
-def _bw_project(p, s, x, xd, u):
-    return (clip_to_saturation(s[0], p[_bw.P_A], p[_bw.P_BETA], p[_bw.P_GAMMA], p[_bw.P_N]),)
 
 
 def _nb_rhs(p, s, x, xd, u):
@@ -210,18 +218,10 @@ def _shear_thinning_damping(a1, a2, pw, v):
     return a1 * jnp.exp(-jnp.where(a > 0.0, jnp.where(a > 0.0, a, 1.0) ** pw, 0.0))
 
 
-def _mb_rhs(p, s, x, xd, u):
-    return (bouc_wen_zdot(s[0], xd, p[_mb.P_A], p[_mb.P_BETA], p[_mb.P_GAMMA], p[_mb.P_N]),)
-
-
 def _mb_force(p, s, x, xd, xdd, u):
     c = _shear_thinning_damping(p[_mb.P_A1A] + p[_mb.P_A1B] * u, p[_mb.P_A2], p[_mb.P_P], xd)
     return (p[_mb.P_M] * xdd + c * xd + (p[_mb.P_KA] + p[_mb.P_KB] * u) * (x - p[_mb.P_X0])
             + (p[_mb.P_ALPHA_A] + p[_mb.P_ALPHA_B] * u) * s[0])
-
-
-def _mb_project(p, s, x, xd, u):
-    return (clip_to_saturation(s[0], p[_mb.P_A], p[_mb.P_BETA], p[_mb.P_GAMMA], p[_mb.P_N]),)
 
 
 # --- Ali & Ramaswamy ---------------------------------------------------------------------------------------------
@@ -229,18 +229,10 @@ def _ar_quad(p, o, a, u):
     return p[o] + p[o + 1] * a + p[o + 2] * a * a + (p[o + 3] + p[o + 4] * a + p[o + 5] * a * a) * u
 
 
-def _ar_rhs(p, s, x, xd, u):
-    return (bouc_wen_zdot(s[0], xd, p[_ar.P_A], p[_ar.P_BETA], p[_ar.P_GAMMA], p[_ar.P_N]),)
-
-
 def _ar_force(p, s, x, xd, xdd, u):
     a = p[_ar.P_X_A]
     return (_ar_quad(p, _ar.P_C1, a, u) * xd + _ar_quad(p, _ar.P_K1, a, u) * x + _ar_quad(p, _ar.P_ALPHA1, a, u) * s[0]
             + p[_ar.P_F0])
-
-
-def _ar_project(p, s, x, xd, u):
-    return (clip_to_saturation(s[0], p[_ar.P_A], p[_ar.P_BETA], p[_ar.P_GAMMA], p[_ar.P_N]),)
 
 
 # --- Dahl and LuGre: eq. (8) with n = 1, β = 0 -------------------------------------------------------------------

@@ -1,9 +1,11 @@
 """The JAX twins of every damper model (:mod:`mrd_env.jax.dampers`, issue 41) against the numba functions they mirror:
 rhs, force, project and the Jacobian on random states, inputs and commands at each model's default preset; the
 Jacobian against calculus (``jax.jacfwd``); a quarter car's record through the exact scheme against the numba kernel;
-the quarter car's JAX environment with each model. The record runs of all but two models are ``slow`` (one
-compilation each)."""
+the quarter car's JAX environment with each model. The record runs and rollouts of all models but one are
+``slow`` (one compilation each)."""
 from __future__ import annotations
+
+import functools
 
 import numpy as np
 import pytest
@@ -29,9 +31,12 @@ NAMES = available_dampers()
 N = 300  # random samples per model
 ZEROS = 12  # of which the first have exact zeros (x, ẋ, the hysteretic state): the branches' edges
 EPS = np.finfo(float).eps
-#: record runs in the default selection: the branch switched between steps from ẋ (sigmoid) and a stiff two-state
-#: model with forward-difference derivatives and sub-steps (gamota_filisko); Spencer–Dyke: test_jax_twin.py
-FAST = ("sigmoid", "gamota_filisko")
+#: the model whose record and rollout run in the default selection (one compilation each): two states, the kernel's
+#: forward-difference Jacobian, the branch switched between steps from ẋ; Spencer–Dyke's is in test_jax_twin.py
+FAST = "sigmoid"
+#: the models whose Jacobian is checked against the kernel's in the default selection (the kernel's forward
+#: differences compile in about a second per model): the analytic ones and forward differences with 0, 1, 2 states
+KERNEL_FD = ("bingham", "dahl", "sigmoid", "spencer_dyke", "bouc_wen")
 
 
 def _state_scales(d) -> tuple:
@@ -45,10 +50,9 @@ def _state_scales(d) -> tuple:
     return (d.saturation(),) * d.n_states  # the hysteresis variable within its saturation
 
 
-@pytest.fixture(scope="module", params=NAMES)
-def case(request):
+@functools.lru_cache(maxsize=None)
+def _case(name):
     """A model's numba and JAX values on N random (s, x, ẋ, ẍ, u)."""
-    name = request.param
     cls = damper_class(name)
     d = cls()
     ns = d.n_states
@@ -60,15 +64,11 @@ def case(request):
     xd[:ZEROS // 2] = 0.0
     S[1:ZEROS:3] = 0.0
     p = d.params.as_array()
-    # the Jacobian the kernel uses: the model's analytic one, else the kernel's own forward differences
-    partials = cls.partials if cls.partials is not None else kernel_module(cls, compiled=True).partials
-    ref = {"rhs": np.zeros((N, ns)), "force": np.zeros(N), "project": np.zeros((N, ns)),
-           "partials": np.zeros((N, ns + 1, ns + 2))}
+    ref = {"rhs": np.zeros((N, ns)), "force": np.zeros(N), "project": np.zeros((N, ns))}
     for i in range(N):
         s = S[i].copy()
         cls.rhs(p, s, x[i], xd[i], u[i], ref["rhs"][i])
         ref["force"][i] = cls.force_law(p, s, x[i], xd[i], xdd[i], u[i])
-        partials(p, s, x[i], xd[i], xdd[i], u[i], ref["partials"][i], np.zeros(2 * ns + 2))
         cls.project(p, s, x[i], xd[i], u[i])
         ref["project"][i] = s
     m = jax_damper(name)
@@ -100,34 +100,42 @@ def test_every_model_of_the_registry_has_a_twin():
         jax_damper("no_such_model")
 
 
-def test_rhs_force_project_match_numba(case):
-    _, m, _, ref, got = case
+@pytest.mark.parametrize("name", NAMES)
+def test_rhs_force_project_match_numba(name):
+    _, m, _, ref, got = _case(name)
     for key in ("rhs", "force", "project"):
         assert got[key].shape == ref[key].shape, key
         assert _relative(got[key], ref[key]) <= 1e-12, key
 
 
-def test_partials_match_the_kernels(case):
+@pytest.mark.parametrize("name", [n if n in KERNEL_FD else pytest.param(n, marks=pytest.mark.slow) for n in NAMES])
+def test_partials_match_the_kernels(name):
     """Analytic derivatives to rounding; the kernel's forward differences to the rounding of the two evaluations
     over the step (XLA's tanh and exp may differ from libm's by an ulp: divided by a step of 1e-7·|value|)."""
-    cls, m, (S, x, xd, xdd, u), ref, got = case
-    J, J_ref = got["partials"], ref["partials"]
+    cls, m, (S, x, xd, xdd, u), ref, got = _case(name)
+    ns = S.shape[1]
+    # the Jacobian the kernel uses: the model's analytic one, else the kernel's own forward differences
+    partials = cls.partials if cls.partials is not None else kernel_module(cls, compiled=True).partials
+    p = damper_class(name)().params.as_array()
+    J_ref = np.zeros((N, ns + 1, ns + 2))
+    for i in range(N):
+        partials(p, S[i].copy(), x[i], xd[i], xdd[i], u[i], J_ref[i], np.zeros(2 * ns + 2))
+    J = got["partials"]
     assert J.shape == J_ref.shape
     if cls.partials is not None:
         assert _relative(J, J_ref) <= 1e-12
         return
-    ns = S.shape[1]
     steps = 1e-7 * np.maximum(np.abs(np.column_stack([S, x, xd])), 1e-3)  # (N, ns + 2): the kernel's steps
     rows = np.abs(np.column_stack([ref["rhs"], ref["force"]])).max(axis=0)  # (ns + 1,): the values' sizes
     bound = 64 * EPS * rows[None, :, None] / steps[:, None, :] + 1e-12 * np.abs(J_ref).max(axis=0)
     assert np.all(np.abs(J - J_ref) <= bound), np.max(np.abs(J - J_ref) / bound)
-    assert J.shape[1:] == (ns + 1, ns + 2)
 
 
-def test_partials_match_calculus(case):
+@pytest.mark.parametrize("name", NAMES)
+def test_partials_match_calculus(name):
     """J against ``jax.jacfwd`` of (rhs, force), away from the kinks (the samples without exact zeros): analytic
     ones to rounding, forward differences to their truncation (1e-5 of each entry's size)."""
-    cls, m, (S, x, xd, xdd, u), _, got = case
+    cls, m, (S, x, xd, xdd, u), _, got = _case(name)
     ns = S.shape[1]
     p = jnp.asarray(damper_class(m.name)().params.as_array())
 
@@ -179,7 +187,7 @@ def _difference(Y, F, Y_ref, F_ref):
                float(np.max(np.abs(F - F_ref)) / np.abs(F_ref).max()))
 
 
-@pytest.mark.parametrize("name", [n if n in FAST else pytest.param(n, marks=pytest.mark.slow) for n in NAMES])
+@pytest.mark.parametrize("name", [n if n == FAST else pytest.param(n, marks=pytest.mark.slow) for n in NAMES])
 def test_record_matches_the_numba_kernel(name):
     """The exact scheme's record against the kernel's: within 1e-12, or within 100× the kernel's own response to a
     1-ulp change of one initial plant coordinate, whichever is larger. (Newton stops at 1 % of the tolerance and
@@ -212,7 +220,7 @@ def test_quarter_car_env_with_every_model():
         assert params.model == name and params.P.shape[1] == len(damper_class(name).Params.names())
 
 
-@pytest.mark.parametrize("name", [n if n == "sigmoid" else pytest.param(n, marks=pytest.mark.slow) for n in NAMES])
+@pytest.mark.parametrize("name", [n if n == FAST else pytest.param(n, marks=pytest.mark.slow) for n in NAMES])
 def test_quarter_car_rollout_is_finite(name):
     params = qc.make_params(damper=name, n_roads=1, episode_seconds=0.05, scheme="differentiable")
     _, state = qc.reset(None, params, road=0)
