@@ -23,7 +23,8 @@ truncation (the time limit) is bootstrapped from the value of the episode's last
 Roads: a bank of ``--n-roads`` ISO 8608 roads, classes cycled over ``--road-classes`` at speeds drawn uniformly in
 ``--speeds`` (numpy, from the seed), each with its passive reference (``jax_twin.make_params``); each episode draws
 one. At the end the deterministic policy (the Gaussian's mean network) is saved in the project's code-free agent
-format (``controllers.mlp_policy.MLPPolicy``, ``controllers.agents.save_agent``: atomic) for ``QuarterCar-v1``,
+format (``controllers.mlp_policy.MLPPolicy``, ``controllers.agents.save_agent``: atomic) for ``QuarterCar-v1``'s
+set-up (recorded as the physics-level id with ``control_dt`` 0.01 and normalised actions, as the suites need),
 with the learning curve (``training.csv``: one row per update).
 """
 from __future__ import annotations
@@ -38,7 +39,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-#: The native environment the twin stands for (the agent is saved for it; its defaults: 10 ms, actions in [−1, 1]).
+#: The native environment the twin stands for (its defaults: 10 ms control, actions in [−1, 1]). The agent is
+#: saved for its physics-level id with those two options stated (what the suites run: ``mrd-env score``).
 ENV_ID = "mrd_env/QuarterCar-v1"
 CONTROL_DT = 0.01
 
@@ -402,7 +404,8 @@ def save(folder, runner: Runner, rows, cfg: Config, meta: dict) -> Path:
     from mrd_env.plants import plant_of_id
 
     policy, normalizer = mean_policy(runner, cfg)
-    meta = {"name": f"PPO-JAX s{meta.get('seed', 0)}", "plant": plant_of_id(ENV_ID).name, "env_id": ENV_ID,
+    spec = plant_of_id(ENV_ID)
+    meta = {"name": f"PPO-JAX s{meta.get('seed', 0)}", "plant": spec.name, "env_id": spec.physics_id,
             "algo": "PPO-JAX", "recurrent": False, **meta,
             "hyperparameters": {**dataclasses.asdict(cfg), **meta.get("hyperparameters", {})}}
     return save_agent(folder, meta, policy=policy, normalizer=normalizer,

@@ -98,12 +98,15 @@ def test_gae_against_a_plain_reference():
 
 def test_saved_agent_acts_as_the_mean_policy(runs, tmp_path):
     from controllers import load_agent
+    from mrd_env.suites import suite
 
     runner, rows = runs[0]["a"]
     pj.save(tmp_path / "agent", runner, rows, CFG, {"seed": 0, "timesteps": 64, "env_kwargs": {
         "episode_seconds": 0.05, "action_mode": "normalized", "control_dt": pj.CONTROL_DT}})
     agent = load_agent(tmp_path / "agent")
     assert agent.meta["network"] == {"class": "MLPPolicy", "sizes": [8, 8, 1], "activation": "tanh"}
+    assert agent.env_id == suite("car-comfort-v1").env_id  # what mrd-env score needs
+    assert agent.observation_kwargs == {"action_mode": "normalized", "control_dt": 0.01}
     stats = runner.stats
     obs = np.asarray(stats.mean) + np.sqrt(np.asarray(stats.var)) * np.random.default_rng(0).normal(0, 2, (16, 8))
     got, _ = agent.predict(obs)
