@@ -7,7 +7,7 @@ Run: ``nice -n 10 python -m experiments.scripts.bench_ppo_jax [--sizes 64 256] [
 For each N: the JAX training (``--updates`` updates of N × ``--num-steps`` env-steps, the differentiable scheme
 and, at ``--exact-size``, the exact one) compiled once (cold: JAX's persistent cache is switched off here; the
 compile time is reported apart), then timed per seed; SB3's ``PPO("MlpPolicy")`` with the same settings (n_steps,
-batch = N × n_steps / minibatches, epochs, γ, λ, clip, learning rate, 64×64 tanh networks for the policy and the
+batch = N × n_steps / 4 minibatches, 4 epochs, γ, λ, clip, learning rate 3e-4, 64×64 tanh networks for the policy and the
 value, the same initial log-std, observations normalised by ``VecNormalize``, rewards not) on
 ``make_sb3_vec_env("mrd_env/QuarterCar-v1", n_envs=N)`` (the bridge over ``gymnasium.make_vec``'s native vector
 environment, its thread tuner on), torch on one thread, timed over ``model.learn`` of as many env-steps. The two
@@ -25,6 +25,10 @@ from pathlib import Path
 
 from experiments.scripts import ppo_jax as pj
 
+#: The PPO settings both trainers share here (SB3's learning rate, epochs and minibatch count; fixed, so that the
+#: figures do not move with ppo_jax's defaults).
+SETTINGS = {"update_epochs": 4, "num_minibatches": 4, "lr": 3e-4, "hidden": (64, 64)}
+
 
 def _load() -> float:
     return round(os.getloadavg()[0], 2)
@@ -34,7 +38,7 @@ def jax_runner(n: int, num_steps: int, updates: int, scheme: str):
     """(a function seed → seconds of one training, the compile time)."""
     import jax
 
-    cfg = pj.Config(num_envs=n, num_steps=num_steps, total_timesteps=n * num_steps * updates)
+    cfg = pj.Config(num_envs=n, num_steps=num_steps, total_timesteps=n * num_steps * updates, **SETTINGS)
     params = pj.env_params(seed=0, scheme=scheme)
     t0 = time.perf_counter()
     compiled = jax.jit(pj.make_train(cfg)).lower(jax.random.PRNGKey(0), params).compile()
@@ -57,7 +61,7 @@ def sb3_run(n: int, num_steps: int, updates: int, seed: int) -> float:
     from mrd_env.envs.sb3 import make_sb3_vec_env
 
     torch.set_num_threads(1)
-    cfg = pj.Config()
+    cfg = pj.Config(**SETTINGS)
     venv = VecNormalize(make_sb3_vec_env(pj.ENV_ID, n_envs=n, seed=seed), norm_obs=True, norm_reward=False,
                         clip_obs=cfg.obs_clip)
     model = PPO("MlpPolicy", venv, n_steps=num_steps, batch_size=n * num_steps // cfg.num_minibatches,
