@@ -393,7 +393,7 @@ def mean_policy(runner: Runner, cfg: Config):
 
 
 def curve_csv(rows) -> bytes:
-    """The learning curve: one row per update (``METRICS``), the env-steps done at its end first."""
+    """The learning curve: one row per update (its number, then ``METRICS``)."""
     rows = np.asarray(rows)
     lines = [",".join(("update",) + METRICS)]
     lines += [",".join([str(i + 1)] + [f"{x:.10g}" for x in row]) for i, row in enumerate(rows)]
