@@ -134,13 +134,10 @@ def train_cmaes(plant: PlantProfile, algo: str, seed: int, *, out: Path, timeste
     import gymnasium as gym
 
     from controllers.agents import ObservationNormalizer, save_agent
-    from controllers.base import AgentController
     from controllers.mlp_policy import MLPPolicy
 
-    from .evaluation import evaluate_batch
     from .scenarios import HELD_OUT_SEED
-    from .trainers import (agent_name, env_options, plot_learning_curve, run_name, say_validation, validation_split,
-                           write_csv)
+    from .trainers import NetworkValidation, agent_name, env_options, plot_learning_curve, run_name, validation_split
 
     import mrd_env  # noqa: F401
     h = check(dict(hyper or {}))
@@ -174,20 +171,10 @@ def train_cmaes(plant: PlantProfile, algo: str, seed: int, *, out: Path, timeste
         save_agent(folder, meta, policy=MLPPolicy(policy.sizes, theta), in_place=in_place,
                    normalizer=ObservationNormalizer(mean, var, float(h["obs_clip"]), 1e-8))
 
-    rows, best = [], -np.inf
+    validation = NetworkValidation(run_dir, val, obs_kwargs, save, progress)
 
     def validate(theta: np.ndarray, steps: int) -> None:
-        nonlocal best
-        live = NormalizedPolicy(MLPPolicy(policy.sizes, theta), mean, var, float(h["obs_clip"]))
-        eps = evaluate_batch(lambda v: AgentController(v, live, name="live"), val, "", **obs_kwargs)
-        r = np.array([e.episode_return for e in eps])
-        rows.append({"timesteps": steps, "validation_return": float(r.mean()),
-                     "validation_return_std": float(r.std())})
-        write_csv(run_dir / "validation.csv", rows)
-        if r.mean() > best:
-            best = float(r.mean())
-            save(run_dir / "best", theta, {"validation_return": best, "timesteps": steps})
-        say_validation(run_dir.name, steps, float(r.mean()), best, progress)
+        validation(NormalizedPolicy(MLPPolicy(policy.sizes, theta), mean, var, float(h["obs_clip"])), theta, steps)
 
     from tqdm.auto import tqdm
     bar = tqdm(total=timesteps, desc=f"train {run_dir.name}", unit="step", disable=not progress)

@@ -309,14 +309,11 @@ def train_shac(plant: PlantProfile, algo: str, seed: int, *, out: Path, timestep
 
     import mrd_env.jax  # noqa: F401  (float64, the compilation cache)
     from controllers.agents import save_agent
-    from controllers.base import AgentController
     from controllers.mlp_policy import MLPPolicy
 
-    from .evaluation import evaluate_batch
     from .evolution import NormalizedPolicy
     from .scenarios import HELD_OUT_SEED
-    from .trainers import (agent_name, env_options, plot_learning_curve, run_name, say_validation, validation_split,
-                           write_csv)
+    from .trainers import NetworkValidation, agent_name, env_options, plot_learning_curve, run_name, validation_split
 
     qc = twin_of(plant)
     h = check(dict(hyper or {}))
@@ -352,21 +349,12 @@ def train_shac(plant: PlantProfile, algo: str, seed: int, *, out: Path, timestep
                 "wall_time_s": time.perf_counter() - t_start, **extra}
         save_agent(folder, meta, policy=MLPPolicy(sizes, np.asarray(th)), in_place=in_place, normalizer=normalizer)
 
-    rows, best = [], -np.inf
+    validation = NetworkValidation(run_dir, val, obs_kwargs, save, progress)
 
     def validate(th, steps: int) -> None:
-        nonlocal best
         live = NormalizedPolicy(MLPPolicy(sizes, np.asarray(th)), normalizer.mean, normalizer.var, normalizer.clip,
                                 normalizer.epsilon)
-        eps = evaluate_batch(lambda v: AgentController(v, live, name="live"), val, "", **obs_kwargs)
-        r = np.array([e.episode_return for e in eps])
-        rows.append({"timesteps": steps, "validation_return": float(r.mean()),
-                     "validation_return_std": float(r.std()), "wall_time_s": time.perf_counter() - t_start})
-        write_csv(run_dir / "validation.csv", rows)
-        if r.mean() > best:
-            best = float(r.mean())
-            save(run_dir / "best", th, {"validation_return": best, "timesteps": steps})
-        say_validation(run_dir.name, steps, float(r.mean()), best, progress)
+        validation(live, th, steps, wall_time_s=time.perf_counter() - t_start)
 
     from tqdm.auto import tqdm
     bar = tqdm(total=timesteps, desc=f"train {run_dir.name}", unit="step", disable=not progress)

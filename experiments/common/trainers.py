@@ -235,13 +235,46 @@ def say_validation(run: str, steps: int, value: float, best: float, progress: bo
 
 
 def write_csv(path: Path, rows: list[dict]) -> None:
-    """``rows`` as a CSV file (the header: the first row's keys), e.g. ``validation.csv``."""
+    """``rows`` as a CSV file (the header: the first row's keys), e.g. ``validation.csv``; written atomically (a
+    reader during training sees the previous file or the new one, never half of one)."""
     import csv
+    import io
 
-    with path.open("w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
+    from mrd_env.storage import write_text
+
+    buf = io.StringIO(newline="")
+    w = csv.DictWriter(buf, fieldnames=list(rows[0]))
+    w.writeheader()
+    w.writerows(rows)
+    write_text(path, buf.getvalue())
+
+
+class NetworkValidation:
+    """The validation of a policy network during training (the CMA-ES and SHAC trainers): each call scores ``live``
+    (a policy with ``predict``) on the validation ``episodes``, appends a row to the run's ``validation.csv`` (with
+    any extra ``columns``) and, when its mean return is the best so far, saves the parameters ``theta`` in ``best/``
+    through ``save(folder, theta, extra)``."""
+
+    def __init__(self, run_dir: Path, episodes: Scenario, obs_kwargs: dict, save, progress: bool):
+        self.run_dir, self.episodes, self.obs_kwargs, self.save, self.progress = (run_dir, episodes, obs_kwargs,
+                                                                                  save, progress)
+        self.rows: list[dict] = []
+        self.best = -np.inf
+
+    def __call__(self, live, theta, steps: int, **columns) -> None:
+        from controllers.base import AgentController
+
+        from .evaluation import evaluate_batch
+
+        eps = evaluate_batch(lambda v: AgentController(v, live, name="live"), self.episodes, "", **self.obs_kwargs)
+        r = np.array([e.episode_return for e in eps])
+        self.rows.append({"timesteps": steps, "validation_return": float(r.mean()),
+                          "validation_return_std": float(r.std()), **columns})
+        write_csv(self.run_dir / "validation.csv", self.rows)
+        if r.mean() > self.best:
+            self.best = float(r.mean())
+            self.save(self.run_dir / "best", theta, {"validation_return": self.best, "timesteps": steps})
+        say_validation(self.run_dir.name, steps, float(r.mean()), self.best, self.progress)
 
 
 def steps_label(run_dir: Path) -> str:
