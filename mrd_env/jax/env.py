@@ -1,0 +1,466 @@
+"""Every plant's environment in JAX: the native driver's period (:mod:`mrd_env.stepping`, ``_driver_template.py``)
+as pure functions of :class:`EnvParams` and :class:`EnvState` (the gymnax layout), jit- and vmap-able, float64.
+
+The twin is made from the plant's own :class:`~mrd_env.envs.core.Assembly` (:func:`make_params`: an environment
+id and its options, as ``gymnasium.make`` takes them), so every fact comes from the plant's folder once: the coupled
+plant and its elimination matrices, the damper and its command lag and delay, the named signals' rows G
+(h = G·[Y, F, w]), the online filters (the cars' Wk weighting), the reward's signals and per-episode scales, the
+limits that end an episode and their penalty, the constraint costs, the sensors (with their noise, delay and
+history). The records are a bank drawn once with the plant's own disturbance and the native environment's
+seeding (the records ``reset(seed=s)`` meets), each turned into an episode by the plant's ``new_episode`` (the
+passive car's or the uncontrolled building's reference scales, the initial state, the road ahead of a preview).
+
+The step is the driver's: the command held over the period's ``n_sub`` physics steps through the delay queue,
+:func:`mrd_env.jax.scheme.macro_step` (``exact`` or ``differentiable``), the row h, the filters, the reward's
+integral over the period, the limits (``terminated``; an episode that diverges is ``terminated`` too, with the
+penalty alone as its reward, as the native one), the time in violation of each cost term (``info["cost"]``, s),
+the measurement with its noise (from the step's key), delay and history. Not here: the episode metrics' statistics
+(the native environment's), Python-callable rewards and ``action_mode="force"`` (they raise ``ValueError``).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax import lax
+
+from ..stepping.scheme import ATOL, MAX_SUBSTEPS, OK, RTOL, max_level_of
+from . import scheme as sc
+from .dampers import jax_damper
+
+#: The two schemes (:mod:`mrd_env.jax.scheme`).
+SCHEMES = ("exact", "differentiable")
+
+
+@dataclasses.dataclass(frozen=True)
+class EnvParams:
+    """Everything an episode needs (arrays: pytree leaves) and the static choices (hashable fields: ``jit``
+    recompiles when they change)."""
+    plant: sc.Plant
+    G: jnp.ndarray          # (n_signals, n + nd + nw) the named signals' rows
+    P: jnp.ndarray          # (nd, n_params) damper parameters
+    lag: jnp.ndarray        # (nd, 3) η_rise, η_fall, delay
+    sos: jnp.ndarray        # (n_sections, 6) every filter's second-order sections
+    W: jnp.ndarray          # (n_records, rows, nw) the bank's inputs at every physics step, the last row held
+    Y0: jnp.ndarray         # (n_records, n) each episode's initial state
+    reward_scale: jnp.ndarray  # (n_records, n_reward_terms) the reward's weights × control_dt, per episode
+    steps: jnp.ndarray      # (n_records,) control steps of each episode
+    limits: jnp.ndarray     # (n_limit_columns,)
+    cost_limits: jnp.ndarray  # (n_cost_columns,)
+    noise: jnp.ndarray      # (n_measured,) the sensors' noise standard deviations
+    v_min: float
+    v_max: float
+    dt: float
+    penalty: float          # the termination penalty's constant part
+    penalty_step: float     # and its part per control step of the episode's planned length
+    atol: float
+    rtol: float
+    model: str = dataclasses.field(metadata={"static": True}, default="spencer_dyke")
+    scheme: str = dataclasses.field(metadata={"static": True}, default="exact")
+    n_sub: int = dataclasses.field(metadata={"static": True}, default=10)
+    n_steps: int = dataclasses.field(metadata={"static": True}, default=1000)  # the bank's longest episode
+    queue: int = dataclasses.field(metadata={"static": True}, default=2)
+    max_level: int = dataclasses.field(metadata={"static": True}, default=3)
+    substeps: int = dataclasses.field(metadata={"static": True}, default=1)
+    newton_iterations: int = dataclasses.field(metadata={"static": True}, default=2)
+    normalized: bool = dataclasses.field(metadata={"static": True}, default=True)
+    width: int = dataclasses.field(metadata={"static": True}, default=0)  # columns of the row h
+    reward_cols: tuple = dataclasses.field(metadata={"static": True}, default=())
+    limit_cols: tuple = dataclasses.field(metadata={"static": True}, default=())
+    cost_cols: tuple = dataclasses.field(metadata={"static": True}, default=())
+    cost_sides: tuple = dataclasses.field(metadata={"static": True}, default=())
+    cost_terms: tuple = dataclasses.field(metadata={"static": True}, default=(0,))  # each term's first column
+    filters: tuple = dataclasses.field(metadata={"static": True}, default=())  # (in, out, first section, count)
+    meas_cols: tuple = dataclasses.field(metadata={"static": True}, default=())
+    delay: int = dataclasses.field(metadata={"static": True}, default=0)
+    history: int = dataclasses.field(metadata={"static": True}, default=1)
+    noisy: bool = dataclasses.field(metadata={"static": True}, default=False)
+    param_names: tuple = dataclasses.field(metadata={"static": True}, default=())  # the columns of P
+    cost_names: tuple = dataclasses.field(metadata={"static": True}, default=())
+    kind: str = dataclasses.field(metadata={"static": True}, default="")  # the plant's name
+
+    @property
+    def nd(self) -> int:
+        return self.P.shape[0]
+
+    @property
+    def control_dt(self) -> float:
+        return self.dt * self.n_sub
+
+
+_STATIC = [f.name for f in dataclasses.fields(EnvParams) if f.metadata.get("static")]
+jax.tree_util.register_dataclass(EnvParams, data_fields=[f.name for f in dataclasses.fields(EnvParams)
+                                                         if f.name not in _STATIC], meta_fields=_STATIC)
+
+
+class EnvState(NamedTuple):
+    Y: jnp.ndarray        # (n,) plant [q, q̇] and damper states
+    U: jnp.ndarray        # (nd,) effective commands
+    F: jnp.ndarray        # (nd,) damper forces
+    cmd: jnp.ndarray      # (nd,) the commands held over the last period
+    queue: jnp.ndarray    # (queue, nd) past commands, newest first (the delay reads them)
+    nsub: jnp.ndarray     # sub-steps to start the next step with (exact scheme)
+    zi: jnp.ndarray       # (n_sections, 2) the filters' states
+    fifo: jnp.ndarray     # (delay + history, n_measured) past measurements, newest first
+    cost: jnp.ndarray     # (1 + n_terms,) the episode's time in violation (s): of any term, of each
+    record: jnp.ndarray   # index of the episode's record in the bank
+    k: jnp.ndarray        # control steps taken
+    status: jnp.ndarray   # OK, or the stepping's failure code
+
+
+def assembly_of(env_id: str, options: dict):
+    """The native :class:`~mrd_env.envs.core.Assembly` of ``gymnasium.make(env_id, **options)`` (the id's
+    registered options first) and the plant's spec."""
+    import gymnasium
+
+    from ..envs.core import assemble
+    from ..plants import plants
+
+    try:
+        spec = gymnasium.spec(env_id)
+    except gymnasium.error.Error as exc:
+        raise ValueError(f"env_id: {exc}") from None
+    plant = next((s for s in plants().values() if spec.entry_point.endswith(f":{s.env_class}")), None)
+    if plant is None:
+        raise ValueError(f"env_id must be an id of an mrd_env plant, got {env_id!r}")
+    cls = getattr(plant.module("env"), plant.env_class)
+    return assemble(cls, {**spec.kwargs, **options}, own=()), plant
+
+
+def native_records(asm, seeds) -> list:
+    """The records a native environment of ``asm`` meets at ``reset(seed=s)`` for each of ``seeds`` (its
+    disturbance drawn from the same Gymnasium seeding)."""
+    from gymnasium.utils.seeding import np_random
+
+    return [asm.disturbance.sample(np_random(int(s))[0], asm.dt) for s in seeds]
+
+
+def params_of_assembly(asm, records, *, scheme: str = "exact", substeps: int = 1,
+                       newton_iterations: int = 2) -> EnvParams:
+    """The twin of an assembly on the bank ``records`` (:class:`~mrd_env.disturbances.Record` of the plant's
+    disturbance channels at the assembly's dt), each made an episode by the plant's ``new_episode``."""
+    from ..envs.costs import Costs
+    from ..envs.reward import CallableReward
+
+    if scheme not in SCHEMES:
+        raise ValueError(f"scheme must be one of {SCHEMES}, got {scheme!r}")
+    if not isinstance(substeps, int) or substeps < 1 or substeps > MAX_SUBSTEPS or substeps & (substeps - 1):
+        raise ValueError(f"substeps must be a power of two in [1, {MAX_SUBSTEPS}], got {substeps!r}")
+    if not isinstance(newton_iterations, int) or not 1 <= newton_iterations <= 12:
+        raise ValueError(f"newton_iterations must be an integer in [1, 12], got {newton_iterations!r}")
+    if isinstance(asm.reward, CallableReward):
+        raise ValueError("reward: the JAX twin takes the plant's quadratic reward (reward_weights), not a Python "
+                         "callable")
+    if asm.action_mode not in ("normalized", "physical"):
+        raise ValueError(f"action_mode must be 'normalized' or 'physical' in the JAX twin, got {asm.action_mode!r}")
+    records = list(records)
+    if not records:
+        raise ValueError("records: the bank needs one record or more")
+    d, system, sig = asm.damper, asm.coupled.system, asm.signals
+    model = jax_damper(d.name)
+    meas_cols, noise, _, _ = asm.sensors.bind(sig, asm.sensor_names)
+    rcols, rw = asm.reward.bind(sig)
+    rw = rw * asm.control_dt
+    lcols, limits = asm.limits.bind(sig)
+    costs = asm.costs if asm.costs is not None else Costs()
+    ccols, climits, csides, cterms = costs.bind(sig)
+    sos, filters = [], []
+    for i, o, s in asm.filters:
+        s = np.atleast_2d(np.asarray(s, dtype=np.float64))
+        filters.append((int(sig[i].columns[0]), int(sig[o].columns[0]), sum(len(x) for x in sos), len(s)))
+        sos.append(s)
+    max_level = max_level_of(MAX_SUBSTEPS)
+    Ainv, Bbar, Mq, PP = system.levels(asm.dt, max_level)
+    n_sub, n2, n_in = asm.n_sub, 2 * asm.linear_plant.n_dof, system.nw - 1
+    episodes, steps = [], []
+    for i, rec in enumerate(records):
+        n = asm.episode_steps(rec.n_samples)
+        if n < 1:
+            raise ValueError(f"records[{i}] ({rec.duration:g} s) is shorter than one control period "
+                             f"({asm.control_dt:g} s)")
+        episodes.append(asm.new_episode(rec))
+        steps.append(n)
+    rows = max(steps) * n_sub + 1
+    W = np.zeros((len(records), rows, system.nw))
+    Y0 = np.zeros((len(records), asm.coupled.n))
+    scales = np.zeros((len(records), len(rcols)))
+    for b, (ep, n) in enumerate(zip(episodes, steps)):
+        r = n * n_sub + 1
+        data = np.asarray(ep.record.data, dtype=np.float64)
+        if data.ndim != 2 or data.shape[1] != n_in or not np.all(np.isfinite(data[:r])):
+            raise ValueError(f"records[{b}] must hold the {n_in} input channels {asm.linear_plant.input_names}, "
+                             f"finite, got shape {data.shape}")
+        W[b, :r, :n_in] = data[:r]
+        W[b, :r, n_in] = 1.0  # the constant channel that balances the static preload
+        W[b, r:] = W[b, r - 1]
+        if ep.q0 is not None:
+            Y0[b, :n2] = ep.q0
+        Y0[b, n2:] = d.rest_states(system.Cx @ Y0[b, :n2])
+        scales[b] = asm.reward.scales(ep, rw)
+    lag = np.stack([d.command.lag_vector()] * system.nd)
+    delay = asm.sensors.delay
+    return EnvParams(
+        plant=sc.Plant(*(jnp.asarray(a) for a in (system.C, system.D, Ainv, Bbar, Mq, PP))),
+        G=jnp.asarray(sig.G), P=jnp.asarray(np.stack([d.params.as_array()] * system.nd)), lag=jnp.asarray(lag),
+        sos=jnp.asarray(np.concatenate(sos) if sos else np.zeros((0, 6))), W=jnp.asarray(W), Y0=jnp.asarray(Y0),
+        reward_scale=jnp.asarray(scales), steps=jnp.asarray(steps, jnp.int32),
+        limits=jnp.asarray(limits, jnp.float64), cost_limits=jnp.asarray(climits, jnp.float64),
+        noise=jnp.asarray(noise, jnp.float64), v_min=float(d.command.v_min), v_max=float(d.command.v_max),
+        dt=float(asm.dt), penalty=float(asm.limits.penalty), penalty_step=float(asm.limits.penalty_rate
+                                                                                  * asm.control_dt),
+        atol=ATOL, rtol=RTOL, model=model.name, scheme=scheme, n_sub=n_sub, n_steps=max(steps),
+        queue=int(math.floor(d.command.delay / asm.dt * (1 + 1e-12))) + 2, max_level=max_level, substeps=substeps,
+        newton_iterations=newton_iterations, normalized=asm.action_mode == "normalized", width=sig.width,
+        reward_cols=tuple(int(c) for c in rcols), limit_cols=tuple(int(c) for c in lcols),
+        cost_cols=tuple(ccols), cost_sides=tuple(csides), cost_terms=tuple(cterms), filters=tuple(filters),
+        meas_cols=tuple(int(c) for c in meas_cols), delay=int(delay), history=int(asm.sensors.history),
+        noisy=bool(np.any(np.asarray(noise) > 0)), param_names=tuple(f.name for f in dataclasses.fields(d.params)),
+        cost_names=costs.names, kind=asm.kind)
+
+
+def make_params(env_id: str, *, seeds=range(16), records=None, scheme: str = "exact", substeps: int = 1,
+                newton_iterations: int = 2, **options) -> EnvParams:
+    """The twin of ``gymnasium.make(env_id, **options)`` (any mrd_env id and its options) on a bank of records:
+    ``records`` (the plant's disturbance, e.g. road records), else those a native environment meets at
+    ``reset(seed=s)`` for each of ``seeds``. ``scheme``: "exact" or "differentiable" (with ``substeps``, a power of
+    two up to 8, and ``newton_iterations``). Bad values raise ``ValueError`` naming the option."""
+    asm, _ = assembly_of(env_id, options)
+    if records is None:
+        seeds = list(seeds)
+        if not seeds or len(seeds) > 100_000:
+            raise ValueError(f"seeds must name 1 to 100000 episodes, got {len(seeds)}")
+        records = native_records(asm, seeds)
+    return params_of_assembly(asm, records, scheme=scheme, substeps=substeps, newton_iterations=newton_iterations)
+
+
+# --- the period ---------------------------------------------------------------------------------------------
+def _row(params: EnvParams, Y, F, w, cmd, zi):
+    """The row h = [G·[Y, F, w], the commands, the filters' outputs] and the filters' new states."""
+    h = jnp.zeros(params.width).at[:params.G.shape[0]].set(params.G @ jnp.concatenate([Y, F, w]))
+    nsig = params.G.shape[0]
+    h = h.at[nsig:nsig + params.nd].set(cmd)
+    for fin, fout, s0, count in params.filters:
+        x = h[fin]
+        rows = []
+        for s in range(s0, s0 + count):
+            c = params.sos[s]
+            y = c[0] * x + zi[s, 0]
+            rows.append(jnp.stack([c[1] * x - c[4] * y + zi[s, 1], c[2] * x - c[5] * y]))
+            x = y
+        h = h.at[fout].set(x)
+        zi = zi.at[s0:s0 + count].set(jnp.stack(rows))
+    return h, zi
+
+
+def _measure(params: EnvParams, h, key):
+    m = h[jnp.asarray(params.meas_cols, jnp.int32)]
+    if params.noisy:
+        if key is None:
+            raise ValueError("the sensors are noisy: step and reset need a key")
+        m = m + params.noise * jax.random.normal(key, m.shape, jnp.float64)
+    return m
+
+
+def _observe(params: EnvParams, fifo):
+    """The observation: measurements of steps k − delay − history + 1 … k − delay, oldest first."""
+    return fifo[params.delay:params.delay + params.history][::-1].reshape(-1)
+
+
+def _violations(params: EnvParams, h):
+    """[any term violated, each term violated] at the row h (0/1)."""
+    out = []
+    for t in range(len(params.cost_terms) - 1):
+        v = jnp.asarray(False)
+        for i in range(params.cost_terms[t], params.cost_terms[t + 1]):
+            x = h[params.cost_cols[i]]
+            x = jnp.abs(x) if params.cost_sides[i] == 0 else (-x if params.cost_sides[i] < 0 else x)
+            v = v | (x > params.cost_limits[i])
+        out.append(v)
+    anyv = jnp.asarray(False)
+    for v in out:
+        anyv = anyv | v
+    return jnp.stack([anyv, *out]).astype(jnp.float64)
+
+
+def reset(key, params: EnvParams, record=None):
+    """(observation, state) of a new episode on a record of the bank drawn from ``key`` (or the index
+    ``record``): the plant's initial state, the effective commands at their minimum, the sensors' FIFO full of
+    the first measurement (noise drawn from ``key``)."""
+    if record is None:
+        key, sub = jax.random.split(key)
+        record = jax.random.randint(sub, (), 0, params.W.shape[0])
+    model = jax_damper(params.model)
+    nd = params.nd
+    Y = params.Y0[record]
+    U = jnp.full(nd, params.v_min, jnp.float64)  # strongly typed, as step returns it: no second compile
+    w = params.W[record, 0]
+    F, finite = sc.end_forces(model, params.plant.C, params.plant.D, params.P, [Y[i] for i in range(Y.shape[0])],
+                              [U[j] for j in range(nd)], [w[i] for i in range(w.shape[0])])
+    F = jnp.stack(F)
+    zi = jnp.zeros((params.sos.shape[0], 2))
+    h = jnp.zeros(params.width).at[:params.G.shape[0]].set(params.G @ jnp.concatenate([Y, F, w]))
+    h = h.at[params.G.shape[0]:params.G.shape[0] + nd].set(U)
+    m = _measure(params, h, key)
+    fifo = jnp.tile(m[None], (params.delay + params.history, 1))
+    state = EnvState(Y=Y, U=U, F=F, cmd=U, queue=jnp.full((params.queue, nd), params.v_min, jnp.float64),
+                     nsub=jnp.asarray(1, jnp.int32), zi=zi, fifo=fifo,
+                     cost=jnp.zeros(len(params.cost_terms), jnp.float64), record=jnp.asarray(record, jnp.int32),
+                     k=jnp.asarray(0, jnp.int32), status=jnp.where(finite, OK, sc.NONFINITE).astype(jnp.int32))
+    return _observe(params, fifo), state
+
+
+def command(params: EnvParams, action):
+    """The dampers' commands (V or A) of an action: clipped to the Box and mapped onto [v_min, v_max] when
+    normalised."""
+    a = jnp.asarray(action, jnp.float64).reshape(params.nd)
+    if params.normalized:
+        a = params.v_min + (jnp.clip(a, -1.0, 1.0) + 1.0) * 0.5 * (params.v_max - params.v_min)
+    return jnp.clip(a, params.v_min, params.v_max)
+
+
+def step(key, state: EnvState, action, params: EnvParams):
+    """One control period: (observation, state, reward, terminated, truncated, info). ``info``: the effective
+    commands, the sub-steps used per physics step, the status, ``cost`` (s of the period in violation of any
+    constraint) and ``cost_terms`` (s, per term, in ``params.cost_names``' order)."""
+    model = jax_damper(params.model)
+    exact = params.scheme == "exact"
+    nd = params.nd
+    cmd = command(params, action)
+    scale = params.reward_scale[state.record]
+    splits = [sc.delay_split(params.lag[j, 2], params.dt) for j in range(nd)]
+    lag = [[params.lag[j, 0], params.lag[j, 1]] for j in range(nd)]
+
+    def physics(carry, k):
+        Y, U, F, queue, nsub, zi, h, work, status, total, hit, cost, used_total = carry
+        row = state.k * params.n_sub + k
+        queue = jnp.concatenate([cmd[None], queue[:-1]])
+        cmds = ([queue[m + 1, j] for j, (m, _) in enumerate(splits)], [queue[m, j] for j, (m, _) in enumerate(splits)],
+                [s for _, s in splits])
+        w0, w1 = params.W[state.record, row], params.W[state.record, row + 1]
+        st, Yn, Un, Fn, used, nsub_n, work = sc.macro_step(
+            model, params.plant, params.P, lag, cmds, [Y[i] for i in range(Y.shape[0])], [U[j] for j in range(nd)],
+            [F[j] for j in range(nd)], [w0[i] for i in range(w0.shape[0])], [w1[i] for i in range(w1.shape[0])],
+            params.dt, params.atol, params.rtol, nsub, work, exact=exact, max_level=params.max_level,
+            substeps=params.substeps, newton_iterations=params.newton_iterations)
+        running = status == OK
+        ok = running & (st == OK)
+        Yn, Un, Fn = jnp.stack(Yn), jnp.stack(Un), jnp.stack(Fn)
+        hn, zin = _row(params, Yn, Fn, w1, cmd, zi)
+        keep = lambda new, old: jnp.where(ok, new, old)  # noqa: E731  (a failed system stays as it was)
+        term = jnp.asarray(0.0)
+        for i, c in enumerate(params.reward_cols):
+            term = term + scale[i] * hn[c] * hn[c]
+        total = total + jnp.where(ok, term, 0.0)
+        for i, c in enumerate(params.limit_cols):
+            hit = hit | (ok & (jnp.abs(hn[c]) > params.limits[i]))
+        cost = cost + jnp.where(ok, _violations(params, hn), 0.0)
+        status = jnp.where(running, st, status).astype(jnp.int32)
+        return (keep(Yn, Y), keep(Un, U), keep(Fn, F), queue, keep(nsub_n, nsub), keep(zin, zi), keep(hn, h), work,
+                status, total, hit, cost, used_total + jnp.where(ok, used, 0)), None
+
+    work = sc.empty_work(nd, model.ns)
+    h0 = jnp.zeros(params.width)
+    init = (state.Y, state.U, state.F, state.queue, state.nsub, state.zi, h0, work, state.status, jnp.asarray(0.0),
+            jnp.asarray(False), jnp.zeros(len(params.cost_terms)), jnp.asarray(0))
+    (Y, U, F, queue, nsub, zi, h, _, status, total, hit, cost, used), _ = lax.scan(physics, init,
+                                                                                   jnp.arange(params.n_sub))
+    k = state.k + 1
+    diverged = status != OK
+    terminated = hit | diverged
+    planned = params.penalty + params.penalty_step * params.steps[state.record]
+    reward = jnp.where(diverged, -planned, -total / params.n_sub - jnp.where(hit, planned, 0.0))
+    truncated = ~terminated & (k >= params.steps[state.record])
+    cost = cost * params.dt
+    m = _measure(params, h, key)
+    fifo = jnp.concatenate([m[None], state.fifo[:-1]])
+    new = EnvState(Y=Y, U=U, F=F, cmd=cmd, queue=queue, nsub=nsub, zi=zi, fifo=fifo, cost=state.cost + cost,
+                   record=state.record, k=k, status=status)
+    info = {"effective_command": U, "substeps": used / params.n_sub, "status": status, "cost": cost[0],
+            "cost_terms": cost[1:]}
+    return _observe(params, fifo), new, reward, terminated, truncated, info
+
+
+def rollout(params: EnvParams, state: EnvState, actions, key=None):
+    """A whole episode (or ``len(actions)`` steps) in one ``lax.scan``: (final state, observations, rewards,
+    terminated, truncated), without autoreset (the steps after an episode's end repeat its last state and
+    reward 0). ``key``: the sensors' noise (needed only if they are noisy)."""
+    keys = None if key is None else jax.random.split(key, actions.shape[0])
+
+    def body(carry, x):
+        st, done = carry
+        a, kk = x
+        obs, new, r, term, trunc, _ = step(kk, st, a, params)
+        new = jax.tree_util.tree_map(lambda u, v: jnp.where(done, u, v), st, new)
+        return (new, done | term | trunc), (obs, jnp.where(done, 0.0, r), term & ~done, trunc & ~done)
+
+    (state, _), out = lax.scan(body, (state, jnp.asarray(False)), (actions, keys))
+    return (state, *out)
+
+
+def step_autoreset(key, state: EnvState, action, params: EnvParams):
+    """:func:`step`, then a new episode (a record drawn from ``key``) in place of one that ended, in the same call
+    (gymnax's convention): the returned observation and state are the new episode's; ``info["final_observation"]``
+    holds the ended one's last observation."""
+    k1, k2 = (None, None) if key is None else jax.random.split(key)
+    obs, new, reward, terminated, truncated, info = step(k1, state, action, params)
+    done = terminated | truncated
+    obs0, state0 = reset(k2, params)
+    new = jax.tree_util.tree_map(lambda a, b: jnp.where(done, a, b), state0, new)
+    info = {**info, "final_observation": obs}
+    return jnp.where(done, obs0, obs), new, reward, terminated, truncated, info
+
+
+def episode_return(actions, data):
+    """The return of a whole episode under ``actions`` from ``data`` = (params, its first state): the function
+    :func:`mrd_env.jax.clairvoyant.clairvoyant` maximises."""
+    params, state = data
+    return rollout(params, state, actions)[2].sum()
+
+
+#: The bands :func:`draw_params` draws (the robustness twins' layout, ``ROBUST_BANDS`` of the plants' suites).
+DRAWN_BANDS = ("damper_params", "command")
+
+
+def draw_params(key, params: EnvParams, bands: dict) -> EnvParams:
+    """``params`` with an episode's draw of ``bands`` (the robustness twin's layout): ``damper_params``
+    {name: (lo, hi)}, each parameter × U(lo, hi) (every damper the same); ``command`` {"eta": (lo, hi)}, the lag
+    rate (rise and fall) × U(lo, hi). Only arrays change, so a batch of draws (``jax.vmap(lambda k:
+    draw_params(k, params, bands))(keys)``, stepped with ``in_axes=0`` for the parameters) runs the same compiled
+    step as the nominal one. Other bands (the delay, masses and stiffnesses: they change the queue's length or the
+    eliminated plant matrices) raise ``ValueError`` naming them."""
+    other = sorted(set(bands) - set(DRAWN_BANDS) - {"seed"}) + sorted(
+        f"command.{k}" for k in bands.get("command", {}) if k != "eta")
+    if other:
+        raise ValueError(f"draw_params draws only damper_params and command.eta, got the bands {other}")
+    unknown = sorted(set(bands.get("damper_params", {})) - set(params.param_names))
+    if unknown:
+        raise ValueError(f"damper_params bands must name parameters among {params.param_names}, got {unknown}")
+    items = [(params.param_names.index(n), b) for n, b in bands.get("damper_params", {}).items()]
+    eta = bands.get("command", {}).get("eta")
+    lo = jnp.asarray([b[0] for _, b in items] + ([eta[0]] if eta else []), jnp.float64)
+    hi = jnp.asarray([b[1] for _, b in items] + ([eta[1]] if eta else []), jnp.float64)
+    f = jax.random.uniform(key, lo.shape, jnp.float64, lo, hi)
+    P, lag = params.P, params.lag
+    if items:
+        P = P.at[:, jnp.asarray([i for i, _ in items])].multiply(f[:len(items)])
+    if eta:
+        lag = lag.at[:, :2].multiply(f[-1])
+    return dataclasses.replace(params, P=P, lag=lag)
+
+
+def drawn_options(params: EnvParams, nominal: EnvParams) -> dict:
+    """The native environment's ``damper_params`` option of one draw of :func:`draw_params` (unbatched):
+    the drawn values of every parameter that changed, and ``command`` {"eta"} if the lag rate did."""
+    P, P0 = np.asarray(params.P[0]), np.asarray(nominal.P[0])
+    out: dict = {n: float(P[i]) for i, n in enumerate(params.param_names) if P[i] != P0[i]}
+    if float(params.lag[0, 0]) != float(nominal.lag[0, 0]):
+        out["command"] = {"eta": float(params.lag[0, 0])}
+    return {"damper_params": out}
+
+
+__all__ = ["EnvParams", "EnvState", "SCHEMES", "assembly_of", "native_records", "params_of_assembly", "make_params",
+           "reset", "step", "step_autoreset", "rollout", "command", "episode_return", "draw_params", "drawn_options"]
