@@ -215,8 +215,8 @@ class Setup:
             return states, jnp.where(done[:, None], o0, obs)
 
         def start(params):
-            n = params.roads.shape[0]
-            return jax.vmap(lambda i: qc.reset(None, params, road=i))(jnp.arange(n))
+            n = params.W.shape[0]
+            return jax.vmap(lambda i: qc.reset(None, params, record=i))(jnp.arange(n))
 
         self.loss = jax.jit(loss)
         self.actor_update = jax.jit(actor_update)
@@ -231,7 +231,7 @@ _SETUPS: dict = {}
 def setup_for(qc, params, sizes, critic_sizes, norm, h: dict) -> Setup:
     """The :class:`Setup` of these choices, made once per process (its jitted functions compile once: a second
     run of the same set-up, e.g. another seed, reuses them)."""
-    key = (qc.__name__, params.preview_steps, params.n_steps, params.scheme, params.substeps, params.newton_iterations,
+    key = (qc.__name__, params.meas_cols, params.n_steps, params.scheme, params.substeps, params.newton_iterations,
            tuple(sizes), tuple(critic_sizes), *(np.asarray(a, np.float64).tobytes() for a in norm[:2]),
            float(norm[2]), tuple(sorted((k, str(v)) for k, v in h.items())))
     if key not in _SETUPS:

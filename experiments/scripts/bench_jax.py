@@ -78,7 +78,7 @@ def exact_vs_numba(episodes: int) -> tuple[list[dict], dict]:
             cmds = rng.uniform(d.command.v_min, d.command.v_max, p["exact"].n_steps)
             out = {}
             for label, params in p.items():
-                _, s0 = qc.reset(None, params, road=e)
+                _, s0 = qc.reset(None, params, record=e)
                 fn = jax.jit(episode)
                 if e == 0:
                     fn, compile_s[f"episode scan, {label}, {damper}"] = _compiled(episode, params, s0,
@@ -87,7 +87,7 @@ def exact_vs_numba(episodes: int) -> tuple[list[dict], dict]:
             # the numba kernel, one call per control period (as the environment)
             params = p["exact"]
             cp = CoupledPlant(quarter_car("set_a").plant(), d, N=1, n_steps=params.n_sub)
-            road = np.asarray(params.roads[e])
+            road = np.asarray(params.W[e, :, :2])
             cp.reset(np.array([road[0, 0], road[0, 0], road[0, 1], road[0, 1]]))
             Yn, Fn = [], []
             for k in range(params.n_steps):
@@ -102,7 +102,7 @@ def exact_vs_numba(episodes: int) -> tuple[list[dict], dict]:
             env.reset(seed=0)
             rn = np.array([env.step(np.array([c], np.float32))[1] for c in cmds.astype(np.float32)])
             env.close()
-            _, s0 = qc.reset(None, params, road=e)
+            _, s0 = qc.reset(None, params, record=e)
             rj = np.asarray(jax.jit(episode)(params, s0, jnp.asarray(cmds.astype(np.float32), jnp.float64))[2])
             peak = np.maximum(np.abs(Yn).max(axis=0), 1e-300)
             row = {"damper": damper, "episode": e,
@@ -161,7 +161,7 @@ def gradient_check() -> dict:
     from mrd_env.plants.quarter_car import jax_twin as qc
 
     params = qc.make_params(n_roads=1, seed=3000, scheme="differentiable")
-    _, s0 = qc.reset(None, params, road=0)
+    _, s0 = qc.reset(None, params, record=0)
 
     def cost(a):
         return -jnp.sum(qc.rollout(params, s0, a)[2])

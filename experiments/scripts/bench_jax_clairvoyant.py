@@ -37,7 +37,7 @@ def episode(suite, scenario, seed: int, n_starts: int, scheme_options: dict) -> 
     starts["best constant"] = np.full((problem.n_steps, problem.nd), vp)
     t1 = time.perf_counter()
     params = qc.params_of_problem(problem, scheme="differentiable", **scheme_options)
-    _, s0 = qc.reset(None, params, road=0)
+    _, s0 = qc.reset(None, params, record=0)
     cv = clairvoyant(qc.episode_return, lambda V: problem.replay(V).ret, starts,
                      problem.v_min, problem.v_max, data=(params, s0), n_starts=n_starts)
     label = scenario.label(seed)

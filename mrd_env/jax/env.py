@@ -28,6 +28,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax import lax
 
+from ..disturbances import Record
 from ..stepping.scheme import ATOL, MAX_SUBSTEPS, OK, RTOL, max_level_of
 from . import scheme as sc
 from .dampers import jax_damper
@@ -139,10 +140,11 @@ def native_records(asm, seeds) -> list:
     return [asm.disturbance.sample(np_random(int(s))[0], asm.dt) for s in seeds]
 
 
-def params_of_assembly(asm, records, *, scheme: str = "exact", substeps: int = 1,
-                       newton_iterations: int = 2) -> EnvParams:
+def params_of_assembly(asm, records, *, scheme: str = "exact", substeps: int = 1, newton_iterations: int = 2,
+                       name: str = "records") -> EnvParams:
     """The twin of an assembly on the bank ``records`` (:class:`~mrd_env.disturbances.Record` of the plant's
-    disturbance channels at the assembly's dt), each made an episode by the plant's ``new_episode``."""
+    disturbance channels at the assembly's dt), each made an episode by the plant's ``new_episode``; ``name``:
+    the option's name in error messages."""
     from ..envs.costs import Costs
     from ..envs.reward import CallableReward
 
@@ -159,7 +161,7 @@ def params_of_assembly(asm, records, *, scheme: str = "exact", substeps: int = 1
         raise ValueError(f"action_mode must be 'normalized' or 'physical' in the JAX twin, got {asm.action_mode!r}")
     records = list(records)
     if not records:
-        raise ValueError("records: the bank needs one record or more")
+        raise ValueError(f"{name}: the bank needs one record or more")
     d, system, sig = asm.damper, asm.coupled.system, asm.signals
     model = jax_damper(d.name)
     meas_cols, noise, _, _ = asm.sensors.bind(sig, asm.sensor_names)
@@ -178,9 +180,12 @@ def params_of_assembly(asm, records, *, scheme: str = "exact", substeps: int = 1
     n_sub, n2, n_in = asm.n_sub, 2 * asm.linear_plant.n_dof, system.nw - 1
     episodes, steps = [], []
     for i, rec in enumerate(records):
+        if not isinstance(rec, Record) or abs(rec.dt - asm.dt) > 1e-9 * asm.dt:
+            raise ValueError(f"{name}[{i}] must be a Record at dt={asm.dt:g} s, got {type(rec).__name__}"
+                             + (f" at dt={rec.dt:g} s" if isinstance(rec, Record) else ""))
         n = asm.episode_steps(rec.n_samples)
         if n < 1:
-            raise ValueError(f"records[{i}] ({rec.duration:g} s) is shorter than one control period "
+            raise ValueError(f"{name}[{i}] ({rec.duration:g} s) is shorter than one control period "
                              f"({asm.control_dt:g} s)")
         episodes.append(asm.new_episode(rec))
         steps.append(n)
@@ -192,7 +197,7 @@ def params_of_assembly(asm, records, *, scheme: str = "exact", substeps: int = 1
         r = n * n_sub + 1
         data = np.asarray(ep.record.data, dtype=np.float64)
         if data.ndim != 2 or data.shape[1] != n_in or not np.all(np.isfinite(data[:r])):
-            raise ValueError(f"records[{b}] must hold the {n_in} input channels {asm.linear_plant.input_names}, "
+            raise ValueError(f"{name}[{b}] must hold the {n_in} input channels {asm.linear_plant.input_names}, "
                              f"finite, got shape {data.shape}")
         W[b, :r, :n_in] = data[:r]
         W[b, :r, n_in] = 1.0  # the constant channel that balances the static preload

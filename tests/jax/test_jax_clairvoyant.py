@@ -26,7 +26,7 @@ def test_gradient_clairvoyant_beats_every_law_on_a_short_episode():
     laws = {name: problem.commands_of(lambda env, n=name: make_controller(n, env))
             for name in ("passive_off", "skyhook_continuous")}
     params = qc.params_of_problem(problem, scheme="differentiable")
-    _, s0 = qc.reset(None, params, road=0)
+    _, s0 = qc.reset(None, params, record=0)
     res = clairvoyant(qc.episode_return, lambda V: problem.replay(V).ret, laws,
                       problem.v_min, problem.v_max, data=(params, s0), n_starts=1, max_iter=30)
     assert res.source == "optimiser"  # the optimiser improved on its warm start in the native environment

@@ -223,7 +223,7 @@ def test_quarter_car_env_with_every_model():
 @pytest.mark.parametrize("name", [n if n == FAST else pytest.param(n, marks=pytest.mark.slow) for n in NAMES])
 def test_quarter_car_rollout_is_finite(name):
     params = qc.make_params(damper=name, n_roads=1, episode_seconds=0.05, scheme="differentiable")
-    _, state = qc.reset(None, params, road=0)
+    _, state = qc.reset(None, params, record=0)
     actions = jnp.asarray(np.random.default_rng(2).uniform(-1.0, 1.0, (params.n_steps, 1)))
     final, obs, reward, terminated, truncated = jax.jit(qc.rollout)(params, state, actions)
     assert np.all(np.isfinite(np.asarray(obs))) and np.all(np.isfinite(np.asarray(reward)))

@@ -24,7 +24,7 @@ def test_draws_do_not_recompile_and_match_the_native_env():
     rec = iso8608_road("D", 20.0, 0.05, 1e-3, rng=4, method="fft")
     params = qc.make_params(roads=[rec], episode_seconds=0.05, scheme="exact")
     draw = jax.jit(jax.vmap(lambda k: qc.draw_params(k, params, BANDS)))
-    _, s0 = qc.reset(None, params, road=0)
+    _, s0 = qc.reset(None, params, record=0)
     roll = jax.jit(jax.vmap(qc.rollout, in_axes=(0, None, None)))
     actions = jnp.asarray(np.random.default_rng(1).uniform(-1, 1, (params.n_steps, 1)).astype(np.float32), jnp.float64)
     batches = [draw(jax.random.split(jax.random.PRNGKey(s), 3)) for s in (0, 1)]

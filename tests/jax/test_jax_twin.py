@@ -126,7 +126,7 @@ def test_seeds_are_reproducible(env):
             action = jnp.full((N, 1), 0.5, jnp.float64)  # a strong dtype, as above: no second compilation
             obs, state, r, *_ = step(jax.random.split(keys[k % N], N), state, action, params)
             out += [np.asarray(obs), np.asarray(r)]
-        return out, np.asarray(state.road)
+        return out, np.asarray(state.record)
 
     a, roads_a = episode(1)
     b, roads_b = episode(1)

@@ -17,10 +17,7 @@ from experiments.common import shac  # noqa: E402
 from experiments.common.plants import profile  # noqa: E402
 from experiments.common.scenarios import preview_options  # noqa: E402
 from experiments.common.trainers import env_options  # noqa: E402
-from mrd_env.disturbances import Record  # noqa: E402
-from mrd_env.envs.disturbance import with_preview  # noqa: E402
 from mrd_env.plants.quarter_car import jax_twin as qc  # noqa: E402
-from mrd_env.plants.quarter_car.env import preview_channels  # noqa: E402
 
 pytestmark = pytest.mark.xdist_group("jax")
 CAR = profile("quarter_car")
@@ -37,10 +34,10 @@ def test_preview_observation_is_the_native_sensor():
     seed = 4242
     params = qc.make_params(roads=qc.native_roads(kw["road"], [seed], episode_seconds=0.3), episode_seconds=0.3,
                             preview=kw["preview"])
-    assert params.preview_steps == tuple(range(10, 101, 10))
+    assert params.W.shape[2] == 2 + 10 + 1  # z_r, ż_r, the road at 10 times ahead, the preload's constant
     env.reset(seed=seed)
     rec = env.unwrapped.record
-    o_j, state = qc.reset(None, params, road=0)
+    o_j, state = qc.reset(None, params, record=0)
     step = jax.jit(qc.step)
     rng = np.random.default_rng(0)
     for k in range(1, 26):
@@ -51,15 +48,9 @@ def test_preview_observation_is_the_native_sensor():
         assert o_j.shape == (18,)
         assert np.max(np.abs(o_j[8:] - rec.data[k * 10, 2:])) < 1e-12  # the sensor reads the record ahead
         np.testing.assert_allclose(o_j.astype(np.float32), o_n, rtol=1e-6, atol=1e-9)
-    # the rows ahead of the episode's last come from the record while it lasts, then its last height is held
-    # (as the native environment's with_preview)
-    assert params.roads.shape[1] == params.n_steps * params.n_sub + 1 + 100
-    assert np.array_equal(np.asarray(params.roads[0]), rec.data[:params.roads.shape[1], :2])
-    short = Record(rec.dt, rec.data[:301, :2], rec.channels[:2], rec.units[:2])
-    held = qc.make_params(roads=[short], episode_seconds=0.3, preview=kw["preview"])
-    want = with_preview(short, "z_r", list(held.preview_steps), preview_channels(kw["preview"]), "m").data[300, 2:]
-    assert np.array_equal(np.asarray(held.roads[0, 300 + np.asarray(held.preview_steps), 0]), want)
-    assert np.all(want == short.data[-1, 0])
+    # the inputs, preview channels included, are the native episode's record (with_preview's rows ahead)
+    rows = params.n_steps * params.n_sub + 1
+    assert np.array_equal(np.asarray(params.W[0, :rows, :-1]), rec.data[:rows])
     env.close()
 
 
