@@ -1,11 +1,12 @@
-"""The clairvoyant optimum by gradient (:func:`mrd_env.jax.clairvoyant.clairvoyant` through the quarter car's JAX
-twin, differentiable scheme) on the episodes of ``car-comfort-v1``, against the suite's stored R_c (the CasADi path,
-:func:`mrd_env.optimal.clairvoyant`), both re-simulated in the native environment.
+"""The clairvoyant optimum by gradient (:func:`mrd_env.jax.clairvoyant.clairvoyant` through the plant's JAX twin,
+:mod:`mrd_env.jax.env`, differentiable scheme) on the episodes of a suite (default ``car-comfort-v1``), against the
+suite's stored R_c (the CasADi path, :func:`mrd_env.optimal.clairvoyant`), both re-simulated in the native
+environment.
 
-``nice -n 10 python -m experiments.scripts.bench_jax_clairvoyant [--per-scenario K] [--starts N]
+``nice -n 10 python -m experiments.scripts.bench_jax_clairvoyant [--suite ID] [--per-scenario K] [--starts N]
 [--out results/bench]`` (CPU; needs ``pip install mrd-env[jax]``). The procedure is the references' (1 ms commands,
 the warm laws of the suite's procedure at 1 ms and the best of its 17 constant commands, the optimiser from the
-``--starts`` best, 10 ms blocks then 1 ms); writes ``<out>/jax_clairvoyant.json`` after each episode and prints a
+``--starts`` best, 10 ms blocks then 1 ms); writes ``<out>/jax_clairvoyant[-<suite>].json`` after each episode and prints a
 table. The stored wall time is the references' ``clairvoyant_s`` (its solves, compilation from the cache).
 """
 from __future__ import annotations
@@ -25,8 +26,8 @@ def episode(suite, scenario, seed: int, n_starts: int, scheme_options: dict) -> 
     from experiments.common.yardstick import warm_starts
     from experiments.scripts.suite_references import STEP, best_constant
     from mrd_env.jax.clairvoyant import clairvoyant
+    from mrd_env.jax import env as je
     from mrd_env.optimal import episode_problem
-    from mrd_env.plants.quarter_car import jax_twin as qc
 
     opts = suite.reference_options(scenario, seed)
     problem = episode_problem(suite.env_id, seed=int(seed), control_dt=STEP, **opts)
@@ -36,9 +37,9 @@ def episode(suite, scenario, seed: int, n_starts: int, scheme_options: dict) -> 
     starts = warm_starts(problem, suite.procedure["warm_laws"], agents=())
     starts["best constant"] = np.full((problem.n_steps, problem.nd), vp)
     t1 = time.perf_counter()
-    params = qc.params_of_problem(problem, scheme="differentiable", **scheme_options)
-    _, s0 = qc.reset(None, params, record=0)
-    cv = clairvoyant(qc.episode_return, lambda V: problem.replay(V).ret, starts,
+    params = je.params_of_problem(problem, scheme="differentiable", **scheme_options)
+    _, s0 = je.reset(None, params, record=0)
+    cv = clairvoyant(je.episode_return, lambda V: problem.replay(V).ret, starts,
                      problem.v_min, problem.v_max, data=(params, s0), n_starts=n_starts)
     label = scenario.label(seed)
     ref = suite.references[label]
@@ -55,6 +56,7 @@ def episode(suite, scenario, seed: int, n_starts: int, scheme_options: dict) -> 
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--suite", default=SUITE, help=f"a shipped suite's id (default {SUITE})")
     ap.add_argument("--per-scenario", type=int, default=0, help="the first K episodes of each scenario (0: all)")
     ap.add_argument("--starts", type=int, default=2, help="warm starts the optimiser runs from (the references: 2)")
     ap.add_argument("--newton-iterations", type=int, default=2)
@@ -65,8 +67,11 @@ def main(argv=None) -> None:
     from mrd_env import storage
     from mrd_env.suites import suite
 
-    s = suite(SUITE)
-    out = Path(a.out) / "jax_clairvoyant.json"
+    try:
+        s = suite(a.suite)
+    except ValueError as exc:
+        ap.exit(2, f"bench_jax_clairvoyant: {exc}\n")
+    out = Path(a.out) / ("jax_clairvoyant.json" if s.id == SUITE else f"jax_clairvoyant-{s.id}.json")
     rows = []
     meta = {"suite": s.id, "starts": a.starts, "newton_iterations": a.newton_iterations, "cpus": os.cpu_count(),
             "platform": platform.platform(), "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())}

@@ -242,6 +242,20 @@ def make_params(env_id: str, *, seeds=range(16), records=None, scheme: str = "ex
     return params_of_assembly(asm, records, scheme=scheme, substeps=substeps, newton_iterations=newton_iterations)
 
 
+def params_of_problem(problem, **scheme) -> EnvParams:
+    """The twin of an :class:`~mrd_env.optimal.EpisodeProblem` (any plant): its environment, options and control
+    step with physical commands, its seeded episode as the bank's only record (checked: the same inputs as the
+    problem's, row for row); ``scheme``: ``scheme``, ``substeps``, ``newton_iterations``."""
+    asm, _ = assembly_of(problem.env_id, {**problem.options, "control_dt": problem.control_dt,
+                                          "action_mode": "physical"})
+    params = params_of_assembly(asm, native_records(asm, [problem.seed]), **scheme)
+    rows = problem.n_rows
+    if params.n_steps != problem.n_steps or not np.array_equal(np.asarray(params.W[0, :rows]), problem.W[:rows]):
+        raise ValueError(f"the problem's episode ({problem.episode_name}) is not the one its environment draws at "
+                         f"reset(seed={problem.seed})")
+    return params
+
+
 # --- the period ---------------------------------------------------------------------------------------------
 def _row(params: EnvParams, Y, F, w, cmd, zi):
     """The row h = [G·[Y, F, w], the commands, the filters' outputs] and the filters' new states."""
@@ -468,4 +482,5 @@ def drawn_options(params: EnvParams, nominal: EnvParams) -> dict:
 
 
 __all__ = ["EnvParams", "EnvState", "SCHEMES", "assembly_of", "native_records", "params_of_assembly", "make_params",
-           "reset", "step", "step_autoreset", "rollout", "command", "episode_return", "draw_params", "drawn_options"]
+           "params_of_problem", "reset", "step", "step_autoreset", "rollout", "command", "episode_return",
+           "draw_params", "drawn_options"]

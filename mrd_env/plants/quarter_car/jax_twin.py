@@ -6,7 +6,7 @@ roads with the project's generator (ISO 8608, ``method="fft"``; or takes ``roads
 reference on each road, the Wk filter, the stroke limit and its penalty, the constraint costs and, with ``preview``,
 the ``road_preview`` sensor are the native environment's. :func:`native_roads` draws the roads a native
 environment meets at ``reset(seed=s)`` (the training mixture of classes and speeds). ``reset``, ``step``,
-``rollout``, ``step_autoreset``, ``draw_params`` are :mod:`mrd_env.jax.env`'s.
+``rollout``, ``step_autoreset``, ``draw_params``, ``params_of_problem`` are :mod:`mrd_env.jax.env`'s.
 """
 from __future__ import annotations
 
@@ -14,7 +14,8 @@ import numpy as np
 
 from ...disturbances import Record, iso8608_road
 from ...jax.env import (DRAWN_BANDS, SCHEMES, EnvParams, EnvState, command, draw_params, drawn_options,  # noqa: F401
-                        episode_return, native_records, params_of_assembly, reset, rollout, step, step_autoreset)
+                        episode_return, native_records, params_of_assembly, params_of_problem, reset, rollout, step,
+                        step_autoreset)
 from ...validation import check_scalar
 from . import SPEC
 from . import env as native
@@ -57,18 +58,6 @@ def native_roads(road, seeds, *, dt: float = 1e-3, episode_seconds: float = 10.0
     for each of ``seeds``: the same generator, drawn from the same Gymnasium seeding, so that :func:`make_params`
     (``roads=``) gives the twin the native episodes' roads."""
     return native_records(native.assembly(road=road, dt=dt, episode_seconds=episode_seconds), seeds)
-
-
-def params_of_problem(problem, **options) -> EnvParams:
-    """The twin of an :class:`~mrd_env.optimal.EpisodeProblem` of the quarter car (physical commands at its
-    control step, its road as the bank's only one; the plant, damper, stroke limit and reward weights from its
-    options); ``options``: the scheme's (``scheme``, ``substeps``, ``newton_iterations``)."""
-    keep = ("plant_preset", "damper", "damper_preset", "damper_params", "stroke_limit", "reward_weights")
-    road = np.asarray(problem.W[:, :2], dtype=np.float64)
-    return make_params(**{k: problem.options[k] for k in keep if k in problem.options}, dt=problem.dt,
-                       control_dt=problem.control_dt, episode_seconds=problem.duration, action_mode="physical",
-                       roads=[Record(problem.dt, road, native.ROAD_CHANNELS, native.ROAD_UNITS)],
-                       **options)
 
 
 __all__ = ["SPEC", "SENSORS", "SCHEMES", "DRAWN_BANDS", "EnvParams", "EnvState", "make_params", "native_roads",
