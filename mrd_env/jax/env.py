@@ -115,21 +115,21 @@ class EnvState(NamedTuple):
 
 def assembly_of(env_id: str, options: dict):
     """The native :class:`~mrd_env.envs.core.Assembly` of ``gymnasium.make(env_id, **options)`` (the id's
-    registered options first) and the plant's spec."""
+    registered options first) and the environment's class."""
     import gymnasium
+    from gymnasium.envs.registration import load_env_creator
 
     from ..envs.core import assemble
-    from ..plants import plants
 
     try:
         spec = gymnasium.spec(env_id)
     except gymnasium.error.Error as exc:
         raise ValueError(f"env_id: {exc}") from None
-    plant = next((s for s in plants().values() if spec.entry_point.endswith(f":{s.env_class}")), None)
-    if plant is None:
-        raise ValueError(f"env_id must be an id of an mrd_env plant, got {env_id!r}")
-    cls = getattr(plant.module("env"), plant.env_class)
-    return assemble(cls, {**spec.kwargs, **options}, own=()), plant
+    cls = getattr(load_env_creator(spec.entry_point), "env_class", None) if isinstance(spec.entry_point, str) \
+        else None
+    if cls is None or not hasattr(cls, "build"):
+        raise ValueError(f"env_id must be an id of an mrd_env environment, got {env_id!r}")
+    return assemble(cls, {**spec.kwargs, **options}, own=()), cls
 
 
 def native_records(asm, seeds) -> list:
