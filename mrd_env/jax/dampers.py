@@ -71,6 +71,23 @@ def fd_partials(rhs: Callable, force: Callable, ns: int) -> Callable:
     return partials
 
 
+def exact_partials(rhs: Callable, force: Callable, ns: int) -> Callable:
+    """The Jacobian by forward-mode differentiation (``jax.jacfwd``) of the model's equations: exact where the
+    forward differences carry truncation and rounding noise (the differentiable scheme's option
+    ``jacobian="exact"``; the exact scheme keeps the kernel's Jacobian, so as to iterate as the kernel does)."""
+    import jax
+
+    def partials(p, s, x, xd, xdd, u):
+        def f(z):
+            sz = tuple(z[i] for i in range(ns))
+            g = rhs(p, sz, z[ns], z[ns + 1], u)
+            return jnp.stack([*(jnp.asarray(v, jnp.float64) for v in g), jnp.asarray(force(p, sz, z[ns], z[ns + 1],
+                                                                                            xdd, u), jnp.float64)])
+        J = jax.jacfwd(f)(jnp.stack([jnp.asarray(v, jnp.float64) for v in (*tuple(s), x, xd)]))
+        return tuple(tuple(J[r, c] for c in range(ns + 2)) for r in range(ns + 1))
+    return partials
+
+
 def _fd_model(cls, rhs, force, project) -> JaxDamper:
     ns = len(cls.state_names)
     return JaxDamper(cls.name, ns, rhs, force, fd_partials(rhs, force, ns), project)
@@ -374,8 +391,16 @@ MODELS = {m.name: m for m in (
 )}
 
 
-def jax_damper(name: str) -> JaxDamper:
-    """The JAX twin of the damper model ``name``; ``ValueError`` naming the ones that have one."""
+#: The Jacobians a model's twin can use: the numba kernel's (analytic or its forward differences), or exact.
+JACOBIANS = ("kernel", "exact")
+
+
+def jax_damper(name: str, jacobian: str = "kernel") -> JaxDamper:
+    """The JAX twin of the damper model ``name`` with the Jacobian ``jacobian`` (:data:`JACOBIANS`); ``ValueError``
+    naming the ones that have one."""
     if name not in MODELS:
         raise ValueError(f"damper = {name!r} has no JAX twin; available: {sorted(MODELS)}")
-    return MODELS[name]
+    if jacobian not in JACOBIANS:
+        raise ValueError(f"jacobian must be one of {JACOBIANS}, got {jacobian!r}")
+    m = MODELS[name]
+    return m if jacobian == "kernel" else m._replace(partials=exact_partials(m.rhs, m.force, m.ns))

@@ -31,7 +31,7 @@ from jax import lax
 from ..disturbances import Record
 from ..stepping.scheme import ATOL, MAX_SUBSTEPS, OK, RTOL, max_level_of
 from . import scheme as sc
-from .dampers import jax_damper
+from .dampers import JACOBIANS, jax_damper
 
 #: The two schemes (:mod:`mrd_env.jax.scheme`).
 SCHEMES = ("exact", "differentiable")
@@ -68,6 +68,7 @@ class EnvParams:
     max_level: int = dataclasses.field(metadata={"static": True}, default=3)
     substeps: int = dataclasses.field(metadata={"static": True}, default=1)
     newton_iterations: int = dataclasses.field(metadata={"static": True}, default=2)
+    jacobian: str = dataclasses.field(metadata={"static": True}, default="kernel")  # the Newton matrix's damper part
     normalized: bool = dataclasses.field(metadata={"static": True}, default=True)
     width: int = dataclasses.field(metadata={"static": True}, default=0)  # columns of the row h
     reward_cols: tuple = dataclasses.field(metadata={"static": True}, default=())
@@ -141,10 +142,12 @@ def native_records(asm, seeds) -> list:
 
 
 def params_of_assembly(asm, records, *, scheme: str = "exact", substeps: int = 1, newton_iterations: int = 2,
-                       name: str = "records") -> EnvParams:
+                       jacobian: str = "kernel", name: str = "records") -> EnvParams:
     """The twin of an assembly on the bank ``records`` (:class:`~mrd_env.disturbances.Record` of the plant's
     disturbance channels at the assembly's dt), each made an episode by the plant's ``new_episode``; ``name``:
-    the option's name in error messages."""
+    the option's name in error messages; ``jacobian``: the damper's Jacobian in the Newton matrix, "kernel" (the
+    numba kernel's: analytic or forward differences) or "exact" (``jax.jacfwd``, differentiable scheme only: its
+    gradients are then those of the scheme's equations without the differences' noise)."""
     from ..envs.costs import Costs
     from ..envs.reward import CallableReward
 
@@ -154,6 +157,9 @@ def params_of_assembly(asm, records, *, scheme: str = "exact", substeps: int = 1
         raise ValueError(f"substeps must be a power of two in [1, {MAX_SUBSTEPS}], got {substeps!r}")
     if not isinstance(newton_iterations, int) or not 1 <= newton_iterations <= 12:
         raise ValueError(f"newton_iterations must be an integer in [1, 12], got {newton_iterations!r}")
+    if jacobian not in JACOBIANS or (jacobian == "exact" and scheme == "exact"):
+        raise ValueError(f"jacobian must be one of {JACOBIANS} ('exact' with the differentiable scheme: the exact "
+                         f"scheme iterates as the kernel does), got {jacobian!r} with scheme={scheme!r}")
     if isinstance(asm.reward, CallableReward):
         raise ValueError("reward: the JAX twin takes the plant's quadratic reward (reward_weights), not a Python "
                          "callable")
@@ -219,7 +225,7 @@ def params_of_assembly(asm, records, *, scheme: str = "exact", substeps: int = 1
                                                                                   * asm.control_dt),
         atol=ATOL, rtol=RTOL, model=model.name, scheme=scheme, n_sub=n_sub, n_steps=max(steps),
         queue=int(math.floor(d.command.delay / asm.dt * (1 + 1e-12))) + 2, max_level=max_level, substeps=substeps,
-        newton_iterations=newton_iterations, normalized=asm.action_mode == "normalized", width=sig.width,
+        newton_iterations=newton_iterations, jacobian=jacobian, normalized=asm.action_mode == "normalized", width=sig.width,
         reward_cols=tuple(int(c) for c in rcols), limit_cols=tuple(int(c) for c in lcols),
         cost_cols=tuple(ccols), cost_sides=tuple(csides), cost_terms=tuple(cterms), filters=tuple(filters),
         meas_cols=tuple(int(c) for c in meas_cols), delay=int(delay), history=int(asm.sensors.history),
@@ -228,18 +234,19 @@ def params_of_assembly(asm, records, *, scheme: str = "exact", substeps: int = 1
 
 
 def make_params(env_id: str, *, seeds=range(16), records=None, scheme: str = "exact", substeps: int = 1,
-                newton_iterations: int = 2, **options) -> EnvParams:
+                newton_iterations: int = 2, jacobian: str = "kernel", **options) -> EnvParams:
     """The twin of ``gymnasium.make(env_id, **options)`` (any mrd_env id and its options) on a bank of records:
     ``records`` (the plant's disturbance, e.g. road records), else those a native environment meets at
     ``reset(seed=s)`` for each of ``seeds``. ``scheme``: "exact" or "differentiable" (with ``substeps``, a power of
-    two up to 8, and ``newton_iterations``). Bad values raise ``ValueError`` naming the option."""
+    two up to 8, ``newton_iterations`` and ``jacobian``: :func:`params_of_assembly`). Bad values raise ``ValueError`` naming the option."""
     asm, _ = assembly_of(env_id, options)
     if records is None:
         seeds = list(seeds)
         if not seeds or len(seeds) > 100_000:
             raise ValueError(f"seeds must name 1 to 100000 episodes, got {len(seeds)}")
         records = native_records(asm, seeds)
-    return params_of_assembly(asm, records, scheme=scheme, substeps=substeps, newton_iterations=newton_iterations)
+    return params_of_assembly(asm, records, scheme=scheme, substeps=substeps, newton_iterations=newton_iterations,
+                              jacobian=jacobian)
 
 
 def params_of_problem(problem, **scheme) -> EnvParams:
@@ -312,7 +319,7 @@ def reset(key, params: EnvParams, record=None):
     if record is None:
         key, sub = jax.random.split(key)
         record = jax.random.randint(sub, (), 0, params.W.shape[0])
-    model = jax_damper(params.model)
+    model = jax_damper(params.model, params.jacobian)
     nd = params.nd
     Y = params.Y0[record]
     U = jnp.full(nd, params.v_min, jnp.float64)  # strongly typed, as step returns it: no second compile
@@ -345,7 +352,7 @@ def step(key, state: EnvState, action, params: EnvParams):
     """One control period: (observation, state, reward, terminated, truncated, info). ``info``: the effective
     commands, the sub-steps used per physics step, the status, ``cost`` (s of the period in violation of any
     constraint) and ``cost_terms`` (s, per term, in ``params.cost_names``' order)."""
-    model = jax_damper(params.model)
+    model = jax_damper(params.model, params.jacobian)
     exact = params.scheme == "exact"
     nd = params.nd
     cmd = command(params, action)

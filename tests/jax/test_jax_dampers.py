@@ -131,6 +131,25 @@ def test_partials_match_the_kernels(name):
     assert np.all(np.abs(J - J_ref) <= bound), np.max(np.abs(J - J_ref) / bound)
 
 
+@pytest.mark.parametrize("name", ["spencer_dyke", "bouc_wen"])
+def test_exact_jacobian_is_the_analytic_one(name):
+    """The option ``jacobian="exact"`` (``jax.jacfwd`` of the equations) against the numba model's hand-derived
+    partials, on the same random states (away from the kinks: the samples without exact zeros)."""
+    cls, _, (S, x, xd, xdd, u), _, _ = _case(name)
+    ns = S.shape[1]
+    p = damper_class(name)().params.as_array()
+    m = jax_damper(name, "exact")
+    keep = np.arange(ZEROS, N)
+    J_ref = np.zeros((len(keep), ns + 1, ns + 2))
+    for k, i in enumerate(keep):
+        cls.partials(p, S[i].copy(), x[i], xd[i], xdd[i], u[i], J_ref[k], np.zeros(2 * ns + 2))
+    J = np.asarray(jax.vmap(lambda s, *a: jnp.asarray(m.partials(jnp.asarray(p), tuple(s), *a)))(
+        jnp.asarray(S[keep]), *(jnp.asarray(v[keep]) for v in (x, xd, xdd, u))))
+    assert _relative(J, J_ref) <= 1e-12
+    with pytest.raises(ValueError, match="jacobian"):
+        jax_damper(name, "numerical")
+
+
 @pytest.mark.parametrize("name", NAMES)
 def test_partials_match_calculus(name):
     """J against ``jax.jacfwd`` of (rhs, force), away from the kinks (the samples without exact zeros): analytic

@@ -27,13 +27,13 @@ SENSORS = native.DEFAULT_SENSORS
 def make_params(*, plant_preset: str = "set_a", damper: str = "spencer_dyke", damper_preset: str | None = None,
                 damper_params=None, dt: float = 1e-3, control_dt: float = 0.01, episode_seconds: float = 10.0,
                 road_class: str = "C", speed: float = 20.0, n_roads: int = 16, seed: int = 0, roads=None,
-                scheme: str = "exact", substeps: int = 1, newton_iterations: int = 2,
+                scheme: str = "exact", substeps: int = 1, newton_iterations: int = 2, jacobian: str = "kernel",
                 action_mode: str = "normalized", stroke_limit: float = 0.1, reward_weights=None,
                 preview=None, **options) -> EnvParams:
     """The quarter car's parameters with ``QuarterCar-v1``'s defaults. ``roads``: records with channels
     (z_r, ż_r) at ``dt`` (default: ``n_roads`` ISO 8608 roads of ``road_class`` at ``speed`` drawn from ``seed``,
     ``seed + 1``, ...). ``scheme``: "exact" or "differentiable" (with ``substeps``, a power of two up to 8, and
-    ``newton_iterations``). ``preview``: the native option (the times ahead, s): the observation ends with the
+    ``newton_iterations``; ``jacobian``: :func:`~mrd_env.jax.env.params_of_assembly`). ``preview``: the native option (the times ahead, s): the observation ends with the
     ``road_preview`` sensor (after the default sensors, unless ``sensors`` are given). ``options``: any other option of the native environment (sensors, soft stroke
     limit, ...). Bad values raise ``ValueError`` naming the option."""
     if preview and "sensors" not in options:
@@ -49,7 +49,7 @@ def make_params(*, plant_preset: str = "set_a", damper: str = "spencer_dyke", da
     roads = [r if isinstance(r, Record) else Record(asm.dt, np.asarray(getattr(r, "data", r), np.float64),
                                                     native.ROAD_CHANNELS, native.ROAD_UNITS) for r in roads]
     return params_of_assembly(asm, roads, scheme=scheme, substeps=substeps, newton_iterations=newton_iterations,
-                              name="roads")
+                              jacobian=jacobian, name="roads")
 
 
 def native_roads(road, seeds, *, dt: float = 1e-3, episode_seconds: float = 10.0) -> list:
