@@ -41,18 +41,20 @@ SCHEMES = ("exact", "differentiable")
 class EnvParams:
     """Everything an episode needs (arrays: pytree leaves) and the static choices (hashable fields: ``jit``
     recompiles when they change)."""
-    plant: sc.Plant
-    G: jnp.ndarray          # (n_signals, n + nd + nw) the named signals' rows
-    P: jnp.ndarray          # (nd, n_params) damper parameters
-    lag: jnp.ndarray        # (nd, 3) η_rise, η_fall, delay
+    # the plant and damper of each episode (leading axis E: 1, or one per episode of the bank when they are drawn)
+    plant: sc.Plant         # (E, ...) the coupled plant's matrices (mrd_env.jax.scheme.Plant)
+    G: jnp.ndarray          # (E, n_signals, n + nd + nw) the named signals' rows
+    P: jnp.ndarray          # (E, nd, n_params) damper parameters
+    lag: jnp.ndarray        # (E, nd, 3) η_rise, η_fall, delay
+    noise: jnp.ndarray      # (E, n_measured) the sensors' noise standard deviations
+    sensor_delay: jnp.ndarray  # (E,) the sensors' delay, control steps
+    cost_limits: jnp.ndarray  # (E, n_cost_columns) the constraints' limits (a car's tyre load: its static load)
     sos: jnp.ndarray        # (n_sections, 6) every filter's second-order sections
     W: jnp.ndarray          # (n_records, rows, nw) the bank's inputs at every physics step, the last row held
     Y0: jnp.ndarray         # (n_records, n) each episode's initial state
     reward_scale: jnp.ndarray  # (n_records, n_reward_terms) the reward's weights × control_dt, per episode
     steps: jnp.ndarray      # (n_records,) control steps of each episode
     limits: jnp.ndarray     # (n_limit_columns,)
-    cost_limits: jnp.ndarray  # (n_cost_columns,)
-    noise: jnp.ndarray      # (n_measured,) the sensors' noise standard deviations
     v_min: float
     v_max: float
     dt: float
@@ -78,16 +80,17 @@ class EnvParams:
     cost_terms: tuple = dataclasses.field(metadata={"static": True}, default=(0,))  # each term's first column
     filters: tuple = dataclasses.field(metadata={"static": True}, default=())  # (in, out, first section, count)
     meas_cols: tuple = dataclasses.field(metadata={"static": True}, default=())
-    delay: int = dataclasses.field(metadata={"static": True}, default=0)
+    max_delay: int = dataclasses.field(metadata={"static": True}, default=0)  # the FIFO's depth beyond history
     history: int = dataclasses.field(metadata={"static": True}, default=1)
     noisy: bool = dataclasses.field(metadata={"static": True}, default=False)
     param_names: tuple = dataclasses.field(metadata={"static": True}, default=())  # the columns of P
     cost_names: tuple = dataclasses.field(metadata={"static": True}, default=())
     kind: str = dataclasses.field(metadata={"static": True}, default="")  # the plant's name
+    drawn: bool = dataclasses.field(metadata={"static": True}, default=False)  # a plant per episode (E = records)
 
     @property
     def nd(self) -> int:
-        return self.P.shape[0]
+        return self.P.shape[1]
 
     @property
     def control_dt(self) -> float:
@@ -107,7 +110,7 @@ class EnvState(NamedTuple):
     queue: jnp.ndarray    # (queue, nd) past commands, newest first (the delay reads them)
     nsub: jnp.ndarray     # sub-steps to start the next step with (exact scheme)
     zi: jnp.ndarray       # (n_sections, 2) the filters' states
-    fifo: jnp.ndarray     # (delay + history, n_measured) past measurements, newest first
+    fifo: jnp.ndarray     # (max_delay + history, n_measured) past measurements, newest first
     cost: jnp.ndarray     # (1 + n_terms,) the episode's time in violation (s): of any term, of each
     record: jnp.ndarray   # index of the episode's record in the bank
     k: jnp.ndarray        # control steps taken
@@ -141,16 +144,7 @@ def native_records(asm, seeds) -> list:
     return [asm.disturbance.sample(np_random(int(s))[0], asm.dt) for s in seeds]
 
 
-def params_of_assembly(asm, records, *, scheme: str = "exact", substeps: int = 1, newton_iterations: int = 2,
-                       jacobian: str = "kernel", name: str = "records") -> EnvParams:
-    """The twin of an assembly on the bank ``records`` (:class:`~mrd_env.disturbances.Record` of the plant's
-    disturbance channels at the assembly's dt), each made an episode by the plant's ``new_episode``; ``name``:
-    the option's name in error messages; ``jacobian``: the damper's Jacobian in the Newton matrix, "kernel" (the
-    numba kernel's: analytic or forward differences) or "exact" (``jax.jacfwd``, differentiable scheme only: its
-    gradients are then those of the scheme's equations without the differences' noise)."""
-    from ..envs.costs import Costs
-    from ..envs.reward import CallableReward
-
+def _check_scheme(scheme, substeps, newton_iterations, jacobian) -> None:
     if scheme not in SCHEMES:
         raise ValueError(f"scheme must be one of {SCHEMES}, got {scheme!r}")
     if not isinstance(substeps, int) or substeps < 1 or substeps > MAX_SUBSTEPS or substeps & (substeps - 1):
@@ -160,93 +154,177 @@ def params_of_assembly(asm, records, *, scheme: str = "exact", substeps: int = 1
     if jacobian not in JACOBIANS or (jacobian == "exact" and scheme == "exact"):
         raise ValueError(f"jacobian must be one of {JACOBIANS} ('exact' with the differentiable scheme: the exact "
                          f"scheme iterates as the kernel does), got {jacobian!r} with scheme={scheme!r}")
+
+
+def _structure(asm) -> dict:
+    """What every episode of one twin must share (the compiled step's shapes and static choices)."""
+    from ..envs.costs import Costs
+    from ..envs.reward import CallableReward
+
     if isinstance(asm.reward, CallableReward):
         raise ValueError("reward: the JAX twin takes the plant's quadratic reward (reward_weights), not a Python "
                          "callable")
     if asm.action_mode not in ("normalized", "physical"):
         raise ValueError(f"action_mode must be 'normalized' or 'physical' in the JAX twin, got {asm.action_mode!r}")
-    records = list(records)
-    if not records:
-        raise ValueError(f"{name}: the bank needs one record or more")
-    d, system, sig = asm.damper, asm.coupled.system, asm.signals
-    model = jax_damper(d.name)
-    meas_cols, noise, _, _ = asm.sensors.bind(sig, asm.sensor_names)
-    rcols, rw = asm.reward.bind(sig)
-    rw = rw * asm.control_dt
-    lcols, limits = asm.limits.bind(sig)
+    sig, d = asm.signals, asm.damper
     costs = asm.costs if asm.costs is not None else Costs()
-    ccols, climits, csides, cterms = costs.bind(sig)
+    meas_cols = asm.sensors.bind(sig, asm.sensor_names)[0]
+    rcols = asm.reward.bind(sig)[0]
+    lcols, limits = asm.limits.bind(sig)
+    return {"damper": d.name, "shapes": (asm.coupled.n, asm.coupled.system.nw, sig.G.shape, sig.width),
+            "dt": (asm.dt, asm.n_sub), "command": (d.command.v_min, d.command.v_max),
+            "sensors": (tuple(meas_cols), asm.sensors.history), "reward": tuple(rcols),
+            "limits": (tuple(lcols), tuple(limits), asm.limits.penalty, asm.limits.penalty_rate),
+            "costs": (costs.names, *(v for i, v in enumerate(costs.bind(sig)) if i != 1)), "action_mode": asm.action_mode,
+            "filters": tuple((i, o, np.asarray(f).tobytes()) for i, o, f in asm.filters)}
+
+
+def params_of_episodes(episodes, *, scheme: str = "exact", substeps: int = 1, newton_iterations: int = 2,
+                       jacobian: str = "kernel", name: str = "records") -> EnvParams:
+    """The twin of a bank of episodes ``[(assembly, record), ...]``: each record (a
+    :class:`~mrd_env.disturbances.Record` of the plant's disturbance channels at the assembly's dt) made an episode
+    by its assembly's ``new_episode``. One assembly for every record gives one plant; one per record (the
+    robustness twins' drawn plants, dampers, command lags, sensor noise and delays) gives each episode its own,
+    all of one structure (the same damper model, signals, sensors, reward terms, limits and costs: ``ValueError``
+    naming what differs). ``name``: the option's name in error messages; ``jacobian``: the damper's Jacobian in the
+    Newton matrix, "kernel" (the numba kernel's: analytic or forward differences) or "exact" (``jax.jacfwd``,
+    differentiable scheme only)."""
+    from ..envs.costs import Costs
+
+    _check_scheme(scheme, substeps, newton_iterations, jacobian)
+    episodes = list(episodes)
+    if not episodes:
+        raise ValueError(f"{name}: the bank needs one record or more")
+    asms = list({id(a): a for a, _ in episodes}.values())
+    asm = asms[0]
+    shared = _structure(asm)
+    for other in asms[1:]:
+        theirs = _structure(other)
+        differ = sorted(k for k in shared if shared[k] != theirs[k])
+        if differ:
+            raise ValueError(f"{name}: every episode of a twin must have the same {differ} (the compiled step's "
+                             f"structure)")
+    drawn = len(asms) > 1
+    sig, system = asm.signals, asm.coupled.system
+    model = jax_damper(asm.damper.name)
+    costs = asm.costs if asm.costs is not None else Costs()
+    ccols, _, csides, cterms = costs.bind(sig)
+    rcols = asm.reward.bind(sig)[0]
+    lcols, limits = asm.limits.bind(sig)
     sos, filters = [], []
-    for i, o, s in asm.filters:
-        s = np.atleast_2d(np.asarray(s, dtype=np.float64))
-        filters.append((int(sig[i].columns[0]), int(sig[o].columns[0]), sum(len(x) for x in sos), len(s)))
-        sos.append(s)
+    for i, o, f in asm.filters:
+        f = np.atleast_2d(np.asarray(f, dtype=np.float64))
+        filters.append((int(sig[i].columns[0]), int(sig[o].columns[0]), sum(len(x) for x in sos), len(f)))
+        sos.append(f)
     max_level = max_level_of(MAX_SUBSTEPS)
-    Ainv, Bbar, Mq, PP = system.levels(asm.dt, max_level)
     n_sub, n2, n_in = asm.n_sub, 2 * asm.linear_plant.n_dof, system.nw - 1
-    episodes, steps = [], []
-    for i, rec in enumerate(records):
-        if not isinstance(rec, Record) or abs(rec.dt - asm.dt) > 1e-9 * asm.dt:
-            raise ValueError(f"{name}[{i}] must be a Record at dt={asm.dt:g} s, got {type(rec).__name__}"
+
+    def plant_of(a) -> dict:
+        s = a.coupled.system
+        Ainv, Bbar, Mq, PP = s.levels(a.dt, max_level)
+        d = a.damper
+        return {"plant": (s.C, s.D, Ainv, Bbar, Mq, PP), "G": a.signals.G,
+                "P": np.stack([d.params.as_array()] * s.nd), "lag": np.stack([d.command.lag_vector()] * s.nd),
+                "noise": a.sensors.bind(a.signals, a.sensor_names)[1], "sensor_delay": a.sensors.delay,
+                "cost_limits": np.asarray(((a.costs if a.costs is not None else Costs()).bind(a.signals))[1],
+                                          np.float64)}
+
+    plants = [plant_of(a) for a in (asms if not drawn else [a for a, _ in episodes])]
+    stack = lambda key: np.stack([np.asarray(p[key]) for p in plants])  # noqa: E731
+    steps, W_rows, Y0, scales = [], [], [], []
+    for b, (a, rec) in enumerate(episodes):
+        if not isinstance(rec, Record) or abs(rec.dt - a.dt) > 1e-9 * a.dt:
+            raise ValueError(f"{name}[{b}] must be a Record at dt={a.dt:g} s, got {type(rec).__name__}"
                              + (f" at dt={rec.dt:g} s" if isinstance(rec, Record) else ""))
-        n = asm.episode_steps(rec.n_samples)
+        n = a.episode_steps(rec.n_samples)
         if n < 1:
-            raise ValueError(f"{name}[{i}] ({rec.duration:g} s) is shorter than one control period "
-                             f"({asm.control_dt:g} s)")
-        episodes.append(asm.new_episode(rec))
-        steps.append(n)
-    rows = max(steps) * n_sub + 1
-    W = np.zeros((len(records), rows, system.nw))
-    Y0 = np.zeros((len(records), asm.coupled.n))
-    scales = np.zeros((len(records), len(rcols)))
-    for b, (ep, n) in enumerate(zip(episodes, steps)):
+            raise ValueError(f"{name}[{b}] ({rec.duration:g} s) is shorter than one control period "
+                             f"({a.control_dt:g} s)")
+        ep = a.new_episode(rec)
         r = n * n_sub + 1
         data = np.asarray(ep.record.data, dtype=np.float64)
         if data.ndim != 2 or data.shape[1] != n_in or not np.all(np.isfinite(data[:r])):
-            raise ValueError(f"{name}[{b}] must hold the {n_in} input channels {asm.linear_plant.input_names}, "
+            raise ValueError(f"{name}[{b}] must hold the {n_in} input channels {a.linear_plant.input_names}, "
                              f"finite, got shape {data.shape}")
-        W[b, :r, :n_in] = data[:r]
+        y0 = np.zeros(a.coupled.n)
+        if ep.q0 is not None:
+            y0[:n2] = ep.q0
+        y0[n2:] = a.damper.rest_states(a.coupled.system.Cx @ y0[:n2])
+        steps.append(n)
+        W_rows.append(data[:r])
+        Y0.append(y0)
+        scales.append(a.reward.scales(ep, a.reward.bind(a.signals)[1] * a.control_dt))
+    rows = max(steps) * n_sub + 1
+    W = np.zeros((len(episodes), rows, system.nw))
+    for b, data in enumerate(W_rows):
+        r = len(data)
+        W[b, :r, :n_in] = data
         W[b, :r, n_in] = 1.0  # the constant channel that balances the static preload
         W[b, r:] = W[b, r - 1]
-        if ep.q0 is not None:
-            Y0[b, :n2] = ep.q0
-        Y0[b, n2:] = d.rest_states(system.Cx @ Y0[b, :n2])
-        scales[b] = asm.reward.scales(ep, rw)
-    lag = np.stack([d.command.lag_vector()] * system.nd)
-    delay = asm.sensors.delay
+    delays = stack("sensor_delay")
+    lags = stack("lag")
+    noise = stack("noise")
     return EnvParams(
-        plant=sc.Plant(*(jnp.asarray(a) for a in (system.C, system.D, Ainv, Bbar, Mq, PP))),
-        G=jnp.asarray(sig.G), P=jnp.asarray(np.stack([d.params.as_array()] * system.nd)), lag=jnp.asarray(lag),
-        sos=jnp.asarray(np.concatenate(sos) if sos else np.zeros((0, 6))), W=jnp.asarray(W), Y0=jnp.asarray(Y0),
-        reward_scale=jnp.asarray(scales), steps=jnp.asarray(steps, jnp.int32),
-        limits=jnp.asarray(limits, jnp.float64), cost_limits=jnp.asarray(climits, jnp.float64),
-        noise=jnp.asarray(noise, jnp.float64), v_min=float(d.command.v_min), v_max=float(d.command.v_max),
-        dt=float(asm.dt), penalty=float(asm.limits.penalty), penalty_step=float(asm.limits.penalty_rate
-                                                                                  * asm.control_dt),
-        atol=ATOL, rtol=RTOL, model=model.name, scheme=scheme, n_sub=n_sub, n_steps=max(steps),
-        queue=int(math.floor(d.command.delay / asm.dt * (1 + 1e-12))) + 2, max_level=max_level, substeps=substeps,
-        newton_iterations=newton_iterations, jacobian=jacobian, normalized=asm.action_mode == "normalized", width=sig.width,
-        reward_cols=tuple(int(c) for c in rcols), limit_cols=tuple(int(c) for c in lcols),
-        cost_cols=tuple(ccols), cost_sides=tuple(csides), cost_terms=tuple(cterms), filters=tuple(filters),
-        meas_cols=tuple(int(c) for c in meas_cols), delay=int(delay), history=int(asm.sensors.history),
-        noisy=bool(np.any(np.asarray(noise) > 0)), param_names=tuple(f.name for f in dataclasses.fields(d.params)),
-        cost_names=costs.names, kind=asm.kind)
+        plant=sc.Plant(*(jnp.asarray(np.stack([p["plant"][k] for p in plants])) for k in range(6))),
+        G=jnp.asarray(stack("G")), P=jnp.asarray(stack("P")), lag=jnp.asarray(lags), noise=jnp.asarray(noise),
+        sensor_delay=jnp.asarray(delays, jnp.int32),
+        sos=jnp.asarray(np.concatenate(sos) if sos else np.zeros((0, 6))), W=jnp.asarray(W),
+        Y0=jnp.asarray(np.stack(Y0)), reward_scale=jnp.asarray(np.stack(scales)),
+        steps=jnp.asarray(steps, jnp.int32), limits=jnp.asarray(limits, jnp.float64),
+        cost_limits=jnp.asarray(stack("cost_limits")), v_min=float(asm.damper.command.v_min),
+        v_max=float(asm.damper.command.v_max), dt=float(asm.dt), penalty=float(asm.limits.penalty),
+        penalty_step=float(asm.limits.penalty_rate * asm.control_dt), atol=ATOL, rtol=RTOL, model=model.name,
+        scheme=scheme, n_sub=n_sub, n_steps=max(steps),
+        queue=int(math.floor(float(lags[..., 2].max()) / asm.dt * (1 + 1e-12))) + 2, max_level=max_level,
+        substeps=substeps, newton_iterations=newton_iterations, jacobian=jacobian,
+        normalized=asm.action_mode == "normalized", width=sig.width, reward_cols=tuple(int(c) for c in rcols),
+        limit_cols=tuple(int(c) for c in lcols), cost_cols=tuple(ccols), cost_sides=tuple(csides),
+        cost_terms=tuple(cterms), filters=tuple(filters),
+        meas_cols=tuple(int(c) for c in asm.sensors.bind(sig, asm.sensor_names)[0]), max_delay=int(delays.max()),
+        history=int(asm.sensors.history), noisy=bool(np.any(noise > 0)),
+        param_names=tuple(f.name for f in dataclasses.fields(asm.damper.params)), cost_names=costs.names,
+        kind=asm.kind, drawn=drawn)
 
 
-def make_params(env_id: str, *, seeds=range(16), records=None, scheme: str = "exact", substeps: int = 1,
-                newton_iterations: int = 2, jacobian: str = "kernel", **options) -> EnvParams:
-    """The twin of ``gymnasium.make(env_id, **options)`` (any mrd_env id and its options) on a bank of records:
+def params_of_assembly(asm, records, **scheme) -> EnvParams:
+    """The twin of one assembly on the bank ``records`` (:func:`params_of_episodes`)."""
+    return params_of_episodes([(asm, r) for r in records], **scheme)
+
+
+def make_params(env_id: str, *, seeds=range(16), records=None, randomise=None, scheme: str = "exact",
+                substeps: int = 1, newton_iterations: int = 2, jacobian: str = "kernel", **options) -> EnvParams:
+    """The twin of ``gymnasium.make(env_id, **options)`` (any mrd_env id and its options) on a bank of episodes:
     ``records`` (the plant's disturbance, e.g. road records), else those a native environment meets at
-    ``reset(seed=s)`` for each of ``seeds``. ``scheme``: "exact" or "differentiable" (with ``substeps``, a power of
-    two up to 8, ``newton_iterations`` and ``jacobian``: :func:`params_of_assembly`). Bad values raise ``ValueError`` naming the option."""
+    ``reset(seed=s)`` for each of ``seeds``. ``randomise``: bands in the robustness twins' layout
+    (:func:`mrd_env.suites.draw_episode`: damper parameters, command lag and delay, plant parameters, sensor noise
+    and delay; its ``seed``), one draw per seed, each episode's environment built with its draw by the plant's own
+    code (so the episodes are those of ``gymnasium.make(env_id, **options, **draw)``). ``scheme``: "exact" or
+    "differentiable" (with ``substeps``, a power of two up to 8, ``newton_iterations`` and ``jacobian``:
+    :func:`params_of_episodes`). Bad values raise ``ValueError`` naming the option."""
+    from ..suites import draw_episode, nominal_values
+
+    scheme_options = {"scheme": scheme, "substeps": substeps, "newton_iterations": newton_iterations,
+                      "jacobian": jacobian}
+    _check_scheme(**scheme_options)
     asm, _ = assembly_of(env_id, options)
     if records is None:
-        seeds = list(seeds)
+        seeds = [int(s) for s in seeds]
         if not seeds or len(seeds) > 100_000:
             raise ValueError(f"seeds must name 1 to 100000 episodes, got {len(seeds)}")
-        records = native_records(asm, seeds)
-    return params_of_assembly(asm, records, scheme=scheme, substeps=substeps, newton_iterations=newton_iterations,
-                              jacobian=jacobian)
+    if randomise is None:
+        return params_of_assembly(asm, native_records(asm, seeds) if records is None else records,
+                                  **scheme_options)
+    if records is not None:
+        raise ValueError("randomise draws a plant per seed: give seeds, not records")
+    if not isinstance(randomise, dict) or "seed" not in randomise:
+        raise ValueError(f"randomise must be bands {{'seed': int, band: ...}} (mrd_env.suites.draw_episode), got "
+                         f"{randomise!r}")
+    nominal = nominal_values(env_id, options)
+    episodes = []
+    for s in seeds:
+        a, _ = assembly_of(env_id, {**options, **draw_episode(randomise, nominal, 0, s)})
+        episodes.append((a, native_records(a, [s])[0]))
+    return params_of_episodes(episodes, **scheme_options)
 
 
 def params_of_problem(problem, **scheme) -> EnvParams:
@@ -264,10 +342,27 @@ def params_of_problem(problem, **scheme) -> EnvParams:
 
 
 # --- the period ---------------------------------------------------------------------------------------------
-def _row(params: EnvParams, Y, F, w, cmd, zi):
+class _Episode(NamedTuple):
+    """An episode's plant and damper (its row of the per-episode arrays, or the shared one)."""
+    plant: sc.Plant
+    G: jnp.ndarray
+    P: jnp.ndarray
+    lag: jnp.ndarray
+    noise: jnp.ndarray
+    sensor_delay: jnp.ndarray
+    cost_limits: jnp.ndarray
+
+
+def _episode(params: EnvParams, record) -> _Episode:
+    i = record if params.drawn else 0
+    return _Episode(sc.Plant(*(a[i] for a in params.plant)), params.G[i], params.P[i], params.lag[i],
+                    params.noise[i], params.sensor_delay[i], params.cost_limits[i])
+
+
+def _row(params: EnvParams, G, Y, F, w, cmd, zi):
     """The row h = [G·[Y, F, w], the commands, the filters' outputs] and the filters' new states."""
-    h = jnp.zeros(params.width).at[:params.G.shape[0]].set(params.G @ jnp.concatenate([Y, F, w]))
-    nsig = params.G.shape[0]
+    nsig = G.shape[0]
+    h = jnp.zeros(params.width).at[:nsig].set(G @ jnp.concatenate([Y, F, w]))
     h = h.at[nsig:nsig + params.nd].set(cmd)
     for fin, fout, s0, count in params.filters:
         x = h[fin]
@@ -282,21 +377,21 @@ def _row(params: EnvParams, Y, F, w, cmd, zi):
     return h, zi
 
 
-def _measure(params: EnvParams, h, key):
+def _measure(params: EnvParams, noise, h, key):
     m = h[jnp.asarray(params.meas_cols, jnp.int32)]
     if params.noisy:
         if key is None:
             raise ValueError("the sensors are noisy: step and reset need a key")
-        m = m + params.noise * jax.random.normal(key, m.shape, jnp.float64)
+        m = m + noise * jax.random.normal(key, m.shape, jnp.float64)
     return m
 
 
-def _observe(params: EnvParams, fifo):
+def _observe(params: EnvParams, delay, fifo):
     """The observation: measurements of steps k − delay − history + 1 … k − delay, oldest first."""
-    return fifo[params.delay:params.delay + params.history][::-1].reshape(-1)
+    return lax.dynamic_slice_in_dim(fifo, delay, params.history)[::-1].reshape(-1)
 
 
-def _violations(params: EnvParams, h):
+def _violations(params: EnvParams, limits, h):
     """[any term violated, each term violated] at the row h (0/1)."""
     out = []
     for t in range(len(params.cost_terms) - 1):
@@ -304,7 +399,7 @@ def _violations(params: EnvParams, h):
         for i in range(params.cost_terms[t], params.cost_terms[t + 1]):
             x = h[params.cost_cols[i]]
             x = jnp.abs(x) if params.cost_sides[i] == 0 else (-x if params.cost_sides[i] < 0 else x)
-            v = v | (x > params.cost_limits[i])
+            v = v | (x > limits[i])
         out.append(v)
     anyv = jnp.asarray(False)
     for v in out:
@@ -320,23 +415,24 @@ def reset(key, params: EnvParams, record=None):
         key, sub = jax.random.split(key)
         record = jax.random.randint(sub, (), 0, params.W.shape[0])
     model = jax_damper(params.model, params.jacobian)
+    ep = _episode(params, record)
     nd = params.nd
     Y = params.Y0[record]
     U = jnp.full(nd, params.v_min, jnp.float64)  # strongly typed, as step returns it: no second compile
     w = params.W[record, 0]
-    F, finite = sc.end_forces(model, params.plant.C, params.plant.D, params.P, [Y[i] for i in range(Y.shape[0])],
+    F, finite = sc.end_forces(model, ep.plant.C, ep.plant.D, ep.P, [Y[i] for i in range(Y.shape[0])],
                               [U[j] for j in range(nd)], [w[i] for i in range(w.shape[0])])
     F = jnp.stack(F)
     zi = jnp.zeros((params.sos.shape[0], 2))
-    h = jnp.zeros(params.width).at[:params.G.shape[0]].set(params.G @ jnp.concatenate([Y, F, w]))
-    h = h.at[params.G.shape[0]:params.G.shape[0] + nd].set(U)
-    m = _measure(params, h, key)
-    fifo = jnp.tile(m[None], (params.delay + params.history, 1))
+    h = jnp.zeros(params.width).at[:ep.G.shape[0]].set(ep.G @ jnp.concatenate([Y, F, w]))
+    h = h.at[ep.G.shape[0]:ep.G.shape[0] + nd].set(U)
+    m = _measure(params, ep.noise, h, key)
+    fifo = jnp.tile(m[None], (params.max_delay + params.history, 1))
     state = EnvState(Y=Y, U=U, F=F, cmd=U, queue=jnp.full((params.queue, nd), params.v_min, jnp.float64),
                      nsub=jnp.asarray(1, jnp.int32), zi=zi, fifo=fifo,
                      cost=jnp.zeros(len(params.cost_terms), jnp.float64), record=jnp.asarray(record, jnp.int32),
                      k=jnp.asarray(0, jnp.int32), status=jnp.where(finite, OK, sc.NONFINITE).astype(jnp.int32))
-    return _observe(params, fifo), state
+    return _observe(params, ep.sensor_delay, fifo), state
 
 
 def command(params: EnvParams, action):
@@ -357,8 +453,9 @@ def step(key, state: EnvState, action, params: EnvParams):
     nd = params.nd
     cmd = command(params, action)
     scale = params.reward_scale[state.record]
-    splits = [sc.delay_split(params.lag[j, 2], params.dt) for j in range(nd)]
-    lag = [[params.lag[j, 0], params.lag[j, 1]] for j in range(nd)]
+    ep = _episode(params, state.record)
+    splits = [sc.delay_split(ep.lag[j, 2], params.dt) for j in range(nd)]
+    lag = [[ep.lag[j, 0], ep.lag[j, 1]] for j in range(nd)]
 
     def physics(carry, k):
         Y, U, F, queue, nsub, zi, h, work, status, total, hit, cost, used_total = carry
@@ -368,14 +465,14 @@ def step(key, state: EnvState, action, params: EnvParams):
                 [s for _, s in splits])
         w0, w1 = params.W[state.record, row], params.W[state.record, row + 1]
         st, Yn, Un, Fn, used, nsub_n, work = sc.macro_step(
-            model, params.plant, params.P, lag, cmds, [Y[i] for i in range(Y.shape[0])], [U[j] for j in range(nd)],
+            model, ep.plant, ep.P, lag, cmds, [Y[i] for i in range(Y.shape[0])], [U[j] for j in range(nd)],
             [F[j] for j in range(nd)], [w0[i] for i in range(w0.shape[0])], [w1[i] for i in range(w1.shape[0])],
             params.dt, params.atol, params.rtol, nsub, work, exact=exact, max_level=params.max_level,
             substeps=params.substeps, newton_iterations=params.newton_iterations)
         running = status == OK
         ok = running & (st == OK)
         Yn, Un, Fn = jnp.stack(Yn), jnp.stack(Un), jnp.stack(Fn)
-        hn, zin = _row(params, Yn, Fn, w1, cmd, zi)
+        hn, zin = _row(params, ep.G, Yn, Fn, w1, cmd, zi)
         keep = lambda new, old: jnp.where(ok, new, old)  # noqa: E731  (a failed system stays as it was)
         term = jnp.asarray(0.0)
         for i, c in enumerate(params.reward_cols):
@@ -383,7 +480,7 @@ def step(key, state: EnvState, action, params: EnvParams):
         total = total + jnp.where(ok, term, 0.0)
         for i, c in enumerate(params.limit_cols):
             hit = hit | (ok & (jnp.abs(hn[c]) > params.limits[i]))
-        cost = cost + jnp.where(ok, _violations(params, hn), 0.0)
+        cost = cost + jnp.where(ok, _violations(params, ep.cost_limits, hn), 0.0)
         status = jnp.where(running, st, status).astype(jnp.int32)
         return (keep(Yn, Y), keep(Un, U), keep(Fn, F), queue, keep(nsub_n, nsub), keep(zin, zi), keep(hn, h), work,
                 status, total, hit, cost, used_total + jnp.where(ok, used, 0)), None
@@ -401,13 +498,13 @@ def step(key, state: EnvState, action, params: EnvParams):
     reward = jnp.where(diverged, -planned, -total / params.n_sub - jnp.where(hit, planned, 0.0))
     truncated = ~terminated & (k >= params.steps[state.record])
     cost = cost * params.dt
-    m = _measure(params, h, key)
+    m = _measure(params, ep.noise, h, key)
     fifo = jnp.concatenate([m[None], state.fifo[:-1]])
-    new = EnvState(Y=Y, U=U, F=F, cmd=cmd, queue=queue, nsub=nsub, zi=zi, fifo=fifo, cost=state.cost + cost,
+    new = EnvState(Y=Y, U=U, F=F, cmd=cmd, queue=queue, nsub=nsub.astype(jnp.int32), zi=zi, fifo=fifo, cost=state.cost + cost,
                    record=state.record, k=k, status=status)
     info = {"effective_command": U, "substeps": used / params.n_sub, "status": status, "cost": cost[0],
             "cost_terms": cost[1:]}
-    return _observe(params, fifo), new, reward, terminated, truncated, info
+    return _observe(params, ep.sensor_delay, fifo), new, reward, terminated, truncated, info
 
 
 def rollout(params: EnvParams, state: EnvState, actions, key=None):
@@ -456,8 +553,9 @@ def draw_params(key, params: EnvParams, bands: dict) -> EnvParams:
     {name: (lo, hi)}, each parameter × U(lo, hi) (every damper the same); ``command`` {"eta": (lo, hi)}, the lag
     rate (rise and fall) × U(lo, hi). Only arrays change, so a batch of draws (``jax.vmap(lambda k:
     draw_params(k, params, bands))(keys)``, stepped with ``in_axes=0`` for the parameters) runs the same compiled
-    step as the nominal one. Other bands (the delay, masses and stiffnesses: they change the queue's length or the
-    eliminated plant matrices) raise ``ValueError`` naming them."""
+    step as the nominal one, drawn inside ``jit``. Other bands (the delay, masses and stiffnesses, sensor noise
+    and delay) raise ``ValueError`` naming them: :func:`make_params` (``randomise=``) draws every band, on the
+    host, an episode's plant built by the plant's own code."""
     other = sorted(set(bands) - set(DRAWN_BANDS) - {"seed"}) + sorted(
         f"command.{k}" for k in bands.get("command", {}) if k != "eta")
     if other:
@@ -472,19 +570,19 @@ def draw_params(key, params: EnvParams, bands: dict) -> EnvParams:
     f = jax.random.uniform(key, lo.shape, jnp.float64, lo, hi)
     P, lag = params.P, params.lag
     if items:
-        P = P.at[:, jnp.asarray([i for i, _ in items])].multiply(f[:len(items)])
+        P = P.at[:, :, jnp.asarray([i for i, _ in items])].multiply(f[:len(items)])
     if eta:
-        lag = lag.at[:, :2].multiply(f[-1])
+        lag = lag.at[:, :, :2].multiply(f[-1])
     return dataclasses.replace(params, P=P, lag=lag)
 
 
 def drawn_options(params: EnvParams, nominal: EnvParams) -> dict:
     """The native environment's ``damper_params`` option of one draw of :func:`draw_params` (unbatched):
     the drawn values of every parameter that changed, and ``command`` {"eta"} if the lag rate did."""
-    P, P0 = np.asarray(params.P[0]), np.asarray(nominal.P[0])
+    P, P0 = np.asarray(params.P[0, 0]), np.asarray(nominal.P[0, 0])
     out: dict = {n: float(P[i]) for i, n in enumerate(params.param_names) if P[i] != P0[i]}
-    if float(params.lag[0, 0]) != float(nominal.lag[0, 0]):
-        out["command"] = {"eta": float(params.lag[0, 0])}
+    if float(params.lag[0, 0, 0]) != float(nominal.lag[0, 0, 0]):
+        out["command"] = {"eta": float(params.lag[0, 0, 0])}
     return {"damper_params": out}
 
 

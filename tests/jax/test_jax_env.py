@@ -123,3 +123,34 @@ def test_gradient_of_a_building_episode_matches_finite_differences():
 def test_bad_input_names_the_parameter(call, match):
     with pytest.raises(ValueError, match=match):
         call()
+
+
+@pytest.mark.parametrize("plant", ["quarter_car", "shear_building"])
+def test_randomised_bank_is_the_native_robustness_draws(plant):
+    """``randomise=`` the robustness twin's bands (damper, command lag and delay, masses and stiffnesses, sensor
+    noise and delay): each episode is the native environment built with its draw (rewards to 1e-10 — the noise does
+    not enter them), the plants differ between episodes, and one compiled step runs them all."""
+    from mrd_env.plants import plant as plant_spec
+    from mrd_env.suites import draw_episode, nominal_values
+
+    spec = plant_spec(plant)
+    bands = spec.module("suites").ROBUST_BANDS
+    env_id, options = spec.rl_id, {"episode_seconds": 0.3}
+    seeds = [11, 12]
+    params = je.make_params(env_id, seeds=seeds, randomise=bands, **options)
+    assert params.drawn and params.plant.Ainv.shape[0] == 2 and params.noisy
+    assert not np.allclose(np.asarray(params.plant.Ainv[0]), np.asarray(params.plant.Ainv[1]))
+    nominal = nominal_values(env_id, options)
+    step = jax.jit(lambda *args: je.step(*args))  # its own cache (jit's cache is per function)
+    for b, s in enumerate(seeds):
+        env = gym.make(env_id, **options, **draw_episode(bands, nominal, 0, s))
+        env.reset(seed=s)
+        _, state = je.reset(jax.random.PRNGKey(0), params, record=b)
+        rng = np.random.default_rng(b)
+        for k in range(params.steps[b]):
+            a = rng.uniform(-1, 1, env.action_space.shape).astype(np.float32)
+            _, r, te, tr, _ = env.step(a)
+            _, state, r2, te2, tr2, _ = step(jax.random.PRNGKey(k), state, jnp.asarray(a, jnp.float64), params)
+            assert float(r2) == pytest.approx(r, rel=1e-10, abs=1e-13) and (bool(te2), bool(tr2)) == (te, tr)
+        env.close()
+    assert step._cache_size() == 1
