@@ -2,29 +2,37 @@
 horizons with a learned value at the horizon's end (SHAC: Xu et al., "Accelerated policy learning with parallel
 differentiable simulation", ICLR 2022).
 
-Why: the return of a car's episode is dominated by the road, which a critic cannot predict, so a likelihood-ratio
-policy gradient (PPO) is mostly noise near a good law (see :mod:`.evolution`). The JAX twin of the quarter car
-(:mod:`mrd_env.plants.quarter_car.jax_twin`, its differentiable scheme) gives the exact derivative of the rewards
-with respect to the policy's weights along the road actually driven: no noise from the road at all. Over a long
+Why: the return of an episode is dominated by its disturbance (the road, the earthquake), which a critic cannot
+predict, so a likelihood-ratio policy gradient (PPO) is mostly noise near a good law (see :mod:`.evolution`). Every
+plant's JAX twin (:mod:`mrd_env.jax.env`, made from the plant's own assembly: :func:`~mrd_env.jax.env.make_params`
+of the training environment's id and options, its differentiable scheme) gives the exact derivative of the rewards
+with respect to the policy's weights along the disturbance actually met: no noise from it at all. Over a long
 horizon those derivatives explode or vanish, so the episode is cut into windows of ``horizon`` control steps; the
-loss of a window is −(Σ γᵗ rₜ + γᴴ V(o_H)) over ``n_envs`` cars, V a critic fitted to TD(λ) targets of the same
+loss of a window is −(Σ γᵗ rₜ + γᴴ V(o_H)) over ``n_envs`` episodes, V a critic fitted to TD(λ) targets of the same
 rollouts (a target copy, Polyak-averaged, gives the bootstrap), and Adam takes one step per window on the
-policy's weights. The critic also sees the episode's remaining time (the return ends with it).
+policy's weights. The critic also sees the episode's remaining time (the return ends with it), as a
+fraction of the bank's longest episode.
 
 The policy is the CMA-ES agents' network (:class:`~controllers.mlp_policy.MLPPolicy`: tanh layers, actions in
 [−1, 1], deterministic) on the same normalised observations, so the agent saves and loads in the same code-free
-format. It starts from a shipped agent (``warm_start``: a folder, or "cmaes" for the shipped CMA-ES agent with the
-same observation options), keeping that agent's observation statistics.
+format. It starts from a shipped agent (``warm_start``: a folder, or "cmaes" for the plant's shipped CMA-ES agent
+with the same observation options), keeping that agent's observation statistics.
 
-Training roads are the training environment's (its ``road`` option: ISO 8608 classes B–D at 10–30 m/s), drawn as
-the native environment draws them at ``reset(seed=s)`` (:func:`~mrd_env.plants.quarter_car.jax_twin.native_roads`)
+The training environment's options go to the twin as they are: whatever it refuses (a Python-callable reward,
+``action_mode="force"``) SHAC refuses with its ``ValueError``. Noisy sensors (``sensor_noise``) draw their noise
+from keys split off the run's key. Training episodes are the training environment's (its disturbance option: for
+the quarter car ISO 8608 classes B–D at 10–30 m/s, for the building the mixture of Kanai–Tajimi and PEER
+records), drawn as the native environment draws them at ``reset(seed=s)`` (:func:`~mrd_env.jax.env.native_records`)
 for seeds below ``HELD_OUT_SEED``, as CMA-ES draws its training seeds: validation and the suites use seeds above.
-Every round all cars drive one episode (a car stopped by the stroke limit restarts on another road of the round),
-then the round's roads are replaced. Validation (the native environment on unseen seeds), best-agent saving and the
+Every round each of the ``n_envs`` episodes starts once and the round lasts the bank's longest episode (one that
+ends earlier, at its record's end or a limit, restarts on another record of the round), then the round's records
+are replaced; a round's bank is padded (its last input row held) to the longest bank met so far, so that records
+of other lengths do not recompile. Validation (the native environment on unseen seeds), best-agent saving and the
 agent folder are those of every ``mrd-env train`` run (:mod:`.trainers`).
 """
 from __future__ import annotations
 
+import dataclasses
 import sys
 import time
 from pathlib import Path
@@ -38,8 +46,6 @@ DEFAULTS = {"n_timesteps": 2.5e6, "n_envs": 32, "horizon": 100, "gamma": 0.995, 
             "critic_lr": 1e-3, "critic_iterations": 16, "critic_minibatches": 4, "critic_hidden": [64, 64],
             "target_alpha": 0.2, "grad_clip": 1.0, "warm_start": "cmaes", "substeps": 1, "newton_iterations": 2,
             "critic_warmup": 30, "lr_decay": True}
-#: The observation options the twin reproduces (the rest of a training environment's options are refused).
-_TWIN_OPTIONS = ("road", "episode_seconds", "action_mode", "control_dt", "history", "sensors", "preview")
 
 
 def check(hyper: dict) -> dict:
@@ -102,12 +108,17 @@ def n_weights(sizes) -> int:
 
 class Setup:
     """The jitted functions of one training set-up: the window's loss and its gradient, the critic's fit, the
-    resets. ``qc``: the plant's twin module (``reset``, ``step``); ``norm`` = (mean, scale, clip) of the observation normalisation; ``sizes`` the policy's,
-    ``critic_sizes`` the critic's (its input: the normalised observation and the remaining time)."""
+    resets, on any plant's twin (:mod:`mrd_env.jax.env`: its parameters are an argument, so one set-up serves
+    every bank). ``norm`` = (mean, scale, clip) of the observation normalisation; ``sizes`` the policy's,
+    ``critic_sizes`` the critic's (its input: the normalised observation and the episode's remaining time).
+    ``key`` (the loss, the actor's update, :meth:`start`): the sensors' noise, needed only if the twin's sensors
+    are noisy (None otherwise)."""
 
-    def __init__(self, qc, params, sizes, critic_sizes, norm, h: dict):
+    def __init__(self, sizes, critic_sizes, norm, h: dict):
         import jax
         import jax.numpy as jnp
+
+        from mrd_env.jax import env as je
 
         self.sizes, self.critic_sizes, self.h = tuple(sizes), tuple(critic_sizes), h
         mean, scale, clip = (jnp.asarray(norm[0]), jnp.asarray(norm[1]), float(norm[2]))
@@ -116,19 +127,22 @@ class Setup:
         def normalize(o):
             return jnp.clip((o - mean) / scale, -clip, clip)
 
-        def features(o, k, params):
-            return jnp.concatenate([normalize(o), (1.0 - k / params.n_steps)[None]])
+        def features(o, k, record, params):
+            # the episode's remaining steps over the bank's longest, written so that an episode of the bank's
+            # length gives 1 − k/n bit for bit (XLA divides by a constant n as a product by its reciprocal)
+            rest = (1.0 - k / params.n_steps) - (params.n_steps - params.steps[record]) / params.n_steps
+            return jnp.concatenate([normalize(o), rest[None]])
 
-        def value(phi, o, k, params):
-            return mlp(phi, self.critic_sizes, features(o, k, params), linear_out=True)[0]
+        def value(phi, o, k, record, params):
+            return mlp(phi, self.critic_sizes, features(o, k, record, params), linear_out=True)[0]
 
-        def window(theta, phi, state, obs, params):
-            """One car's window: (its loss, (observations, steps, rewards, ends) for the critic, final state and
-            observation, done)."""
-            def body(carry, _):
+        def window(theta, phi, state, obs, params, key):
+            """One episode's window: (its loss, (observations, steps, rewards, ends, final observation and step,
+            record) for the critic, final state and observation, done)."""
+            def body(carry, k):
                 st, o, done, ret, disc = carry
                 a = mlp(theta, self.sizes, normalize(o))
-                o2, st2, r, term, trunc, _ = qc.step(None, st, a, params)
+                o2, st2, r, term, trunc, _ = je.step(k, st, a, params)
                 ret = ret + disc * jnp.where(done, 0.0, r)
                 ended = done | term | trunc
                 st2 = jax.tree_util.tree_map(lambda x, y: jnp.where(done, x, y), st, st2)
@@ -137,21 +151,25 @@ class Setup:
                 return (st2, o2, ended, ret, disc * gamma), out
 
             init = (state, obs, jnp.asarray(False), jnp.asarray(0.0), jnp.asarray(1.0))
-            (st, o, done, ret, disc), (O, K, R, D) = jax.lax.scan(body, init, None, length=H)
-            total = ret + disc * jnp.where(done, 0.0, value(phi, o, st.k, params))
-            return -total, (O, K, R, D, jax.lax.stop_gradient(o), st.k), (st, o, done)
+            keys = None if key is None else jax.random.split(key, H)
+            (st, o, done, ret, disc), (O, K, R, D) = jax.lax.scan(body, init, keys, length=H)
+            total = ret + disc * jnp.where(done, 0.0, value(phi, o, st.k, st.record, params))
+            return -total, (O, K, R, D, jax.lax.stop_gradient(o), st.k, st.record), (st, o, done)
 
-        def loss(theta, phi, states, obs, params):
-            l, traj, end = jax.vmap(window, in_axes=(None, None, 0, 0, None))(theta, phi, states, obs, params)
+        def loss(theta, phi, states, obs, params, key=None):
+            keys = None if key is None else jax.random.split(key, obs.shape[0])
+            l, traj, end = jax.vmap(window, in_axes=(None, None, 0, 0, None, None if key is None else 0))(
+                theta, phi, states, obs, params, keys)
             return jnp.mean(l) / H, (traj, end)
 
         grad = jax.value_and_grad(loss, has_aux=True)
 
         def targets(phi, traj, params):
             """TD(λ) targets of every visited observation (N, H), bootstrapped by the critic ``phi``."""
-            O, K, R, D, o_end, k_end = traj
-            V = jax.vmap(jax.vmap(value, in_axes=(None, 0, 0, None)), in_axes=(None, 0, 0, None))(phi, O, K, params)
-            v_end = jax.vmap(value, in_axes=(None, 0, 0, None))(phi, o_end, k_end, params)
+            O, K, R, D, o_end, k_end, rec = traj
+            V = jax.vmap(jax.vmap(value, in_axes=(None, 0, 0, None, None)), in_axes=(None, 0, 0, 0, None))(
+                phi, O, K, rec, params)
+            v_end = jax.vmap(value, in_axes=(None, 0, 0, 0, None))(phi, o_end, k_end, rec, params)
             V_next = jnp.concatenate([V[:, 1:], v_end[:, None]], axis=1)
 
             def back(g_next, x):
@@ -168,8 +186,8 @@ class Setup:
             step = lr * (m / (1 - 0.9 ** t)) / (jnp.sqrt(v / (1 - 0.999 ** t)) + 1e-8)
             return p - step, m, v
 
-        def actor_update(theta, m, v, t, lr, phi_target, states, obs, params):
-            (l, (traj, end)), g = grad(theta, phi_target, states, obs, params)
+        def actor_update(theta, m, v, t, lr, phi_target, states, obs, params, key=None):
+            (l, (traj, end)), g = grad(theta, phi_target, states, obs, params, key)
             norm_g = jnp.linalg.norm(g)
             g = g * jnp.minimum(1.0, h["grad_clip"] / (norm_g + 1e-12))  # why: a rare stiff window must not jump
             new = adam(theta, g, m, v, t, lr)
@@ -178,8 +196,8 @@ class Setup:
 
         def critic_update(phi, phi_target, m, v, t, traj, key, params):
             G = targets(phi_target, traj, params)
-            O, K = traj[0], traj[1]
-            X = jax.vmap(jax.vmap(features, in_axes=(0, 0, None)), in_axes=(0, 0, None))(O, K, params)
+            O, K, rec = traj[0], traj[1], traj[6]
+            X = jax.vmap(jax.vmap(features, in_axes=(0, 0, None, None)), in_axes=(0, 0, 0, None))(O, K, rec, params)
             X, G = X.reshape(-1, X.shape[-1]), G.reshape(-1)
             n_mb = int(h["critic_minibatches"])
             size = X.shape[0] // n_mb
@@ -207,16 +225,19 @@ class Setup:
             return phi, phi_target, m, v, t, ls[-1]
 
         def restart(key, states, obs, done, params):
-            """Cars whose episode ended restart on a road of the bank drawn from ``key``."""
+            """Episodes that ended restart on a record of the bank drawn from ``key``."""
             keys = jax.random.split(key, done.shape[0])
-            o0, s0 = jax.vmap(qc.reset, in_axes=(0, None))(keys, params)
+            o0, s0 = jax.vmap(je.reset, in_axes=(0, None))(keys, params)
             states = jax.tree_util.tree_map(
                 lambda a, b: jnp.where(done.reshape((-1,) + (1,) * (a.ndim - 1)), a, b), s0, states)
             return states, jnp.where(done[:, None], o0, obs)
 
-        def start(params):
+        def start(params, key=None):
+            """Every record of the bank's episode, in order."""
             n = params.W.shape[0]
-            return jax.vmap(lambda i: qc.reset(None, params, record=i))(jnp.arange(n))
+            if key is None:
+                return jax.vmap(lambda i: je.reset(None, params, record=i))(jnp.arange(n))
+            return jax.vmap(lambda k, i: je.reset(k, params, record=i))(jax.random.split(key, n), jnp.arange(n))
 
         self.loss = jax.jit(loss)
         self.actor_update = jax.jit(actor_update)
@@ -228,46 +249,33 @@ class Setup:
 _SETUPS: dict = {}
 
 
-def setup_for(qc, params, sizes, critic_sizes, norm, h: dict) -> Setup:
-    """The :class:`Setup` of these choices, made once per process (its jitted functions compile once: a second
-    run of the same set-up, e.g. another seed, reuses them)."""
-    key = (qc.__name__, params.meas_cols, params.n_steps, params.scheme, params.substeps, params.newton_iterations,
-           tuple(sizes), tuple(critic_sizes), *(np.asarray(a, np.float64).tobytes() for a in norm[:2]),
+def setup_for(sizes, critic_sizes, norm, h: dict) -> Setup:
+    """The :class:`Setup` of these choices, made once per process (its jitted functions compile once per shape of
+    the twin's parameters: a second run of the same set-up, e.g. another seed, reuses them)."""
+    key = (tuple(sizes), tuple(critic_sizes), *(np.asarray(a, np.float64).tobytes() for a in norm[:2]),
            float(norm[2]), tuple(sorted((k, str(v)) for k, v in h.items())))
     if key not in _SETUPS:
-        _SETUPS[key] = Setup(qc, params, sizes, critic_sizes, norm, h)
+        _SETUPS[key] = Setup(sizes, critic_sizes, norm, h)
     return _SETUPS[key]
 
 
-def twin_of(plant: PlantProfile):
-    """The JAX twin module of ``plant`` (``ValueError`` if it has none: only the quarter car has one yet)."""
-    import importlib.util
+def twin_params(plant: PlantProfile, env_kwargs: dict, seeds, h: dict, n_steps: int = 0):
+    """The twin (:func:`mrd_env.jax.env.make_params`, differentiable scheme) of ``plant``'s environment with the
+    training options ``env_kwargs`` on the records its native environment meets at ``reset(seed=s)`` for each of
+    ``seeds``; its inputs padded (the last row held) to ``n_steps`` control steps if the bank is shorter, so that
+    banks of other lengths share one compilation. ``ValueError`` (the twin's) for an option it does not
+    reproduce."""
+    from mrd_env.jax import env as je
 
-    if importlib.util.find_spec(f"{plant.spec.package}.jax_twin") is None:
-        raise ValueError(f"SHAC trains through a plant's JAX twin; the {plant.title} has none")
-    return plant.spec.module("jax_twin")
+    params = je.make_params(plant.env_id, seeds=list(seeds), scheme="differentiable", substeps=int(h["substeps"]),
+                            newton_iterations=int(h["newton_iterations"]), **env_kwargs)
+    if params.n_steps >= n_steps:
+        return params
+    import jax.numpy as jnp
 
-
-def twin_params(qc, env_kwargs: dict, seeds, h: dict):
-    """The twin's (module ``qc``) parameters for a bank of the training environment's roads at ``seeds``
-    (``ValueError`` naming an environment option the twin does not reproduce)."""
-    other = sorted(set(env_kwargs) - set(_TWIN_OPTIONS))
-    if other:
-        raise ValueError(f"SHAC trains on the quarter car's JAX twin, which has none of the options {other}")
-    if int(env_kwargs.get("history", 1)) != 1:
-        raise ValueError(f"SHAC's twin observes one step (history 1), got history={env_kwargs['history']!r}")
-    preview = env_kwargs.get("preview")
-    sensors = tuple(env_kwargs.get("sensors") or qc.SENSORS)
-    if sensors != (*qc.SENSORS, *(["road_preview"] if preview else [])):
-        raise ValueError(f"SHAC's twin observes the default sensors{' and road_preview' if preview else ''}, "
-                         f"got sensors={sensors}")
-    seconds = float(env_kwargs.get("episode_seconds", 10.0))
-    dt = 1e-3
-    roads = qc.native_roads(env_kwargs.get("road", "iso8608"), seeds, dt=dt, episode_seconds=seconds)
-    return qc.make_params(roads=roads, dt=dt, control_dt=float(env_kwargs.get("control_dt", 0.01)),
-                          episode_seconds=seconds, action_mode=env_kwargs.get("action_mode", "normalized"),
-                          preview=preview, scheme="differentiable", substeps=int(h["substeps"]),
-                          newton_iterations=int(h["newton_iterations"]))
+    W = params.W
+    W = jnp.concatenate([W, jnp.repeat(W[:, -1:], n_steps * params.n_sub + 1 - W.shape[1], axis=1)], axis=1)
+    return dataclasses.replace(params, W=W, n_steps=int(n_steps))
 
 
 def warm_start_agent(spec: str, plant: PlantProfile, env_kwargs: dict):
@@ -284,7 +292,7 @@ def warm_start_agent(spec: str, plant: PlantProfile, env_kwargs: dict):
 
     if spec == "cmaes":
         shipped = Path(__file__).parents[2] / "controllers" / "agents"
-        for folder in sorted(shipped.glob(f"{plant.name}_cmaes*")):
+        for folder in sorted(shipped.glob("*_cmaes*")):  # the plant's former name too (building_cmaes)
             agent = load_agent(folder)
             if agent.meta.get("plant") == plant.name and same(agent):
                 return folder, agent
@@ -303,7 +311,7 @@ def train_shac(plant: PlantProfile, algo: str, seed: int, *, out: Path, timestep
                hyper: dict | None = None, env_kwargs: dict | None = None, eval_freq: int = 20_000,
                eval_episodes: int = 8, progress: bool = False, command: str = "",
                warm_start: str | None = None) -> Path:
-    """Train one SHAC agent on ``plant`` (the quarter car: see the module docstring); return its folder."""
+    """Train one SHAC agent on ``plant`` (any plant: see the module docstring); return its folder."""
     import jax
     import jax.numpy as jnp
 
@@ -315,7 +323,6 @@ def train_shac(plant: PlantProfile, algo: str, seed: int, *, out: Path, timestep
     from .scenarios import HELD_OUT_SEED
     from .trainers import NetworkValidation, agent_name, env_options, plot_learning_curve, run_name, validation_split
 
-    qc = twin_of(plant)
     h = check(dict(hyper or {}))
     env_kwargs = dict(env_kwargs if env_kwargs is not None else env_options(plant))
     env_kwargs.update(h.get("env_kwargs") or {})
@@ -329,10 +336,10 @@ def train_shac(plant: PlantProfile, algo: str, seed: int, *, out: Path, timestep
     t_start = time.perf_counter()
 
     rng = np.random.default_rng(seed)
-    params = twin_params(qc, env_kwargs, [int(s) for s in rng.integers(0, HELD_OUT_SEED, size=N)], h)
+    params = twin_params(plant, env_kwargs, [int(s) for s in rng.integers(0, HELD_OUT_SEED, size=N)], h)
     sizes = policy0.sizes
     critic_sizes = (sizes[0] + 1, *h["critic_hidden"], 1)
-    setup = setup_for(qc, params, sizes, critic_sizes, (normalizer.mean, normalizer.scale, normalizer.clip), h)
+    setup = setup_for(sizes, critic_sizes, (normalizer.mean, normalizer.scale, normalizer.clip), h)
     key = jax.random.PRNGKey(seed)
     key, k_phi = jax.random.split(key)
     theta = jnp.asarray(policy0.theta)
@@ -361,14 +368,17 @@ def train_shac(plant: PlantProfile, algo: str, seed: int, *, out: Path, timestep
     monitor = run_dir / "training.monitor.csv"
     monitor.write_text(f'#{{"t_start": {time.time()}, "env_id": "{plant.env_id}"}}\nr,l,t\n', encoding="utf-8")
     steps, next_eval, t, windows_done = 0, 0, 0, 0
-    windows = -(-params.n_steps // H)
+    noise = None  # the sensors' noise keys, split off only if they are noisy (else the run's keys are as without)
     try:
         while steps < timesteps:
-            if steps > 0:  # a new round: new roads (the same shapes: nothing recompiles)
-                params = twin_params(qc, env_kwargs, [int(s) for s in rng.integers(0, HELD_OUT_SEED, size=N)], h)
-            obs, states = setup.start(params)
+            if steps > 0:  # a new round: new records (padded to the longest bank yet: nothing recompiles)
+                params = twin_params(plant, env_kwargs, [int(s) for s in rng.integers(0, HELD_OUT_SEED, size=N)],
+                                     h, n_steps=params.n_steps)
+            if params.noisy:
+                key, noise = jax.random.split(key)
+            obs, states = setup.start(params, noise)
             returns = np.zeros(N)
-            for _ in range(windows):
+            for _ in range(-(-params.n_steps // H)):
                 if eval_freq and steps >= next_eval:
                     validate(theta, steps)
                     next_eval = steps + eval_freq
@@ -376,8 +386,10 @@ def train_shac(plant: PlantProfile, algo: str, seed: int, *, out: Path, timestep
                 learn = windows_done >= h["critic_warmup"]
                 t += int(learn)
                 lr = float(h["actor_lr"]) * (1.0 - steps / timesteps if h["lr_decay"] else 1.0) * learn
+                if params.noisy:
+                    key, noise = jax.random.split(key)
                 theta, am, av, loss, gnorm, traj, (states, obs, done) = setup.actor_update(
-                    theta, am, av, max(t, 1), lr, phi_target, states, obs, params)
+                    theta, am, av, max(t, 1), lr, phi_target, states, obs, params, noise)
                 windows_done += 1
                 key, k1, k2 = jax.random.split(key, 3)
                 phi, phi_target, cm, cv, ct, closs = setup.critic_update(phi, phi_target, cm, cv, ct, traj, k1,

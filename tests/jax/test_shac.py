@@ -1,7 +1,10 @@
-"""SHAC, the agent trained through the JAX twin (issue 41, item 3b): the twin's road-preview observation against the
-native sensor, the short-horizon loss's gradient against finite differences, a tiny training run's determinism and
-the saved agent acting as the trained JAX policy."""
+"""SHAC, the agent trained through a plant's JAX twin (:mod:`mrd_env.jax.env`): the training bank against the
+native episodes (inputs, road-preview observation), the short-horizon loss's gradient against finite differences,
+noisy sensors' keys, a tiny training run's determinism and the saved agent acting as the trained JAX policy, on the
+quarter car and on the shear building."""
 from __future__ import annotations
+
+import dataclasses
 
 import numpy as np
 import pytest
@@ -17,10 +20,11 @@ from experiments.common import shac  # noqa: E402
 from experiments.common.plants import profile  # noqa: E402
 from experiments.common.scenarios import preview_options  # noqa: E402
 from experiments.common.trainers import env_options  # noqa: E402
-from mrd_env.plants.quarter_car import jax_twin as qc  # noqa: E402
+from mrd_env.jax import env as je  # noqa: E402
 
 pytestmark = pytest.mark.xdist_group("jax")
 CAR = profile("quarter_car")
+BUILDING = profile("shear_building")
 TINY = {"n_envs": 2, "horizon": 5, "critic_warmup": 1, "critic_iterations": 2, "critic_minibatches": 2,
         "critic_hidden": [8], "actor_lr": 1e-2}
 
@@ -28,17 +32,19 @@ TINY = {"n_envs": 2, "horizon": 5, "critic_warmup": 1, "critic_iterations": 2, "
 def test_preview_observation_is_the_native_sensor():
     """A training road drawn as the native environment draws it at reset(seed=s), then 25 random actions: the
     twin's road_preview equals the native record's preview channels (float64) exactly, and the whole observation
-    (exact scheme) rounds to the native float32 observation."""
-    kw = preview_options(CAR, env_options(CAR))
-    env = gym.make(CAR.env_id, **{**kw, "episode_seconds": 0.3})
+    (the exact scheme) rounds to the native float32 observation."""
+    kw = {**preview_options(CAR, env_options(CAR)), "episode_seconds": 0.3}
+    env = gym.make(CAR.env_id, **kw)
     seed = 4242
-    params = qc.make_params(roads=qc.native_roads(kw["road"], [seed], episode_seconds=0.3), episode_seconds=0.3,
-                            preview=kw["preview"])
-    assert params.W.shape[2] == 2 + 10 + 1  # z_r, ż_r, the road at 10 times ahead, the preload's constant
+    params = shac.twin_params(CAR, kw, [seed], shac.check({}))
+    assert params.scheme == "differentiable" and params.W.shape[2] == 2 + 10 + 1  # z_r, ż_r, 10 ahead, constant
     env.reset(seed=seed)
     rec = env.unwrapped.record
-    o_j, state = qc.reset(None, params, record=0)
-    step = jax.jit(qc.step)
+    rows = params.n_steps * params.n_sub + 1
+    assert np.array_equal(np.asarray(params.W[0, :rows, :-1]), rec.data[:rows])  # preview channels included
+    params = dataclasses.replace(params, scheme="exact")
+    o_j, state = je.reset(None, params, record=0)
+    step = jax.jit(je.step)
     rng = np.random.default_rng(0)
     for k in range(1, 26):
         a = np.float32(rng.uniform(-1, 1))
@@ -48,18 +54,32 @@ def test_preview_observation_is_the_native_sensor():
         assert o_j.shape == (18,)
         assert np.max(np.abs(o_j[8:] - rec.data[k * 10, 2:])) < 1e-12  # the sensor reads the record ahead
         np.testing.assert_allclose(o_j.astype(np.float32), o_n, rtol=1e-6, atol=1e-9)
-    # the inputs, preview channels included, are the native episode's record (with_preview's rows ahead)
-    rows = params.n_steps * params.n_sub + 1
-    assert np.array_equal(np.asarray(params.W[0, :rows, :-1]), rec.data[:rows])
     env.close()
 
 
-def test_native_roads_are_the_training_mixture():
-    """Seeds draw the classes and speeds of the training option (B–D at 10–30 m/s), the same for the same seed."""
-    road = CAR.training["road"]
-    a, b = qc.native_roads(road, [1, 2, 3], episode_seconds=2.0), qc.native_roads(road, [1], episode_seconds=2.0)
-    assert np.array_equal(a[0].data, b[0].data) and not np.array_equal(a[0].data, a[1].data)
-    assert all(r.dt == 1e-3 and r.channels == ("z_r", "zdot_r") for r in a)
+def test_training_bank_is_the_native_episodes_padded():
+    """The building's bank: each seed's ground motion is the one the native environment meets at reset(seed=s)
+    (records of several lengths: each keeps its own episode length); padded to a longer bank, the last input row
+    is held and nothing else changes."""
+    kw = env_options(BUILDING)
+    h = shac.check({})
+    seeds = [int(s) for s in np.random.default_rng(5).integers(0, 10_000, 6)]
+    params = shac.twin_params(BUILDING, kw, seeds, h)
+    env = gym.make(BUILDING.env_id, **kw)
+    lengths = set()
+    for b, s in enumerate(seeds):
+        env.reset(seed=s)
+        rec = env.unwrapped.record
+        n = int(params.steps[b])
+        lengths.add(n)
+        rows = n * params.n_sub + 1
+        assert np.array_equal(np.asarray(params.W[b, :rows, :-1]), rec.data[:rows])
+    env.close()
+    assert len(lengths) > 1 and params.n_steps == max(lengths)
+    longer = shac.twin_params(BUILDING, kw, seeds, h, n_steps=params.n_steps + 7)
+    assert longer.n_steps == params.n_steps + 7 and np.array_equal(np.asarray(longer.steps), np.asarray(params.steps))
+    W, W2 = np.asarray(params.W), np.asarray(longer.W)
+    assert np.array_equal(W2[:, :W.shape[1]], W) and np.all(W2[:, W.shape[1]:] == W[:, -1:])
 
 
 @pytest.fixture(scope="module")
@@ -68,10 +88,10 @@ def tiny():
     h = shac.check(TINY)
     kw = {**env_options(CAR), "episode_seconds": 0.2}
     folder, agent = shac.warm_start_agent("cmaes", CAR, kw)
-    params = shac.twin_params(qc, kw, [3, 4], h)
+    params = shac.twin_params(CAR, kw, [3, 4], h)
     n = agent.normalizer
     sizes = agent.model.sizes
-    setup = shac.setup_for(qc, params, sizes, (sizes[0] + 1, 8, 1), (n.mean, n.scale, n.clip), h)
+    setup = shac.setup_for(sizes, (sizes[0] + 1, 8, 1), (n.mean, n.scale, n.clip), h)
     return setup, params, agent, kw, h
 
 
@@ -122,6 +142,52 @@ def test_tiny_training_is_reproducible_and_saves_the_trained_policy(tiny, tmp_pa
     np.testing.assert_allclose(got, want, rtol=1e-5, atol=1e-6)
 
 
+def test_noisy_sensors_draw_their_noise_from_the_key(tiny):
+    """With sensor_noise the twin's observations are noisy: the window's loss needs a key, is the same for the same
+    key and differs for another; without noise the loss is the noise-free one whatever the key."""
+    setup, params, agent, kw, h = tiny
+    noisy = shac.twin_params(CAR, {**kw, "sensor_noise": {"travel": 1e-3}}, [3, 4], h)
+    assert noisy.noisy and not params.noisy
+    theta = jnp.asarray(agent.model.theta)
+    phi = shac._init_critic(jax.random.PRNGKey(0), setup.critic_sizes)
+    k1, k2 = jax.random.split(jax.random.PRNGKey(7))
+    obs, states = setup.start(noisy, k1)
+    loss = [float(setup.loss(theta, phi, states, obs, noisy, k)[0]) for k in (k1, k1, k2)]
+    assert loss[0] == loss[1] and loss[0] != loss[2]
+    with pytest.raises(ValueError, match="key"):
+        setup.loss(theta, phi, states, obs, noisy)
+
+
+@pytest.mark.slow
+def test_tiny_building_training_saves_an_agent_that_acts_in_the_native_env(tmp_path):
+    """SHAC on the shear building (the RL set-up, 0.2 s episodes) from its shipped CMA-ES agent: the weights move;
+    the saved agent loads (controllers.load_agent) and acts in the native environment as the JAX policy the trainer
+    differentiated, the episode running to its end."""
+    from controllers import load_agent
+
+    kw = {**env_options(BUILDING), "episode_seconds": 0.2}
+    folder = shac.train_shac(BUILDING, "shac", 0, out=tmp_path, timesteps=40, hyper=TINY, env_kwargs=kw, eval_freq=0)
+    saved = load_agent(folder)
+    start = load_agent(saved.meta["hyperparameters"]["warm_start"])
+    assert saved.meta["algo"] == "SHAC" and saved.meta["plant"] == "shear_building"
+    assert start.meta["plant"] == "shear_building" and saved.model.sizes == start.model.sizes
+    assert not np.array_equal(saved.model.theta, start.model.theta)
+    env = gym.make(saved.env_id, **saved.env_kwargs)
+    obs, _ = env.reset(seed=123_456)
+    n = saved.normalizer
+    steps, done = 0, False
+    while not done:
+        action = saved.predict(obs)[0]
+        want = shac.mlp(jnp.asarray(saved.model.theta), saved.model.sizes,
+                        jnp.clip((obs - n.mean) / n.scale, -n.clip, n.clip))
+        np.testing.assert_allclose(action, np.asarray(want), rtol=1e-5, atol=1e-6)
+        obs, reward, terminated, truncated, _ = env.step(action)
+        assert np.isfinite(reward)
+        done, steps = terminated or truncated, steps + 1
+    env.close()
+    assert steps == 20 and truncated
+
+
 def test_bad_hyperparameters_are_named():
     with pytest.raises(ValueError, match="horizon"):
         shac.check({"horizon": 0})
@@ -129,7 +195,5 @@ def test_bad_hyperparameters_are_named():
         shac.check({"gamma": 1.5})
     with pytest.raises(ValueError, match="not SHAC options"):
         shac.check({"popsize": 4})
-    with pytest.raises(ValueError, match="twin"):
-        shac.twin_params(qc, {**env_options(CAR), "sensor_noise": {"travel": 1e-3}}, [0], shac.check({}))
-    with pytest.raises(ValueError, match="twin"):
-        shac.twin_of(profile("shear_building"))
+    with pytest.raises(ValueError, match="action_mode"):  # the twin's refusal, as it words it
+        shac.twin_params(CAR, {**env_options(CAR), "action_mode": "force"}, [0], shac.check({}))
