@@ -2,7 +2,7 @@
 the physics-level id ``mrd_env/<Name>Physical-v0``, the RL id ``mrd_env/<Name>-v1`` and its former ids, each with a
 scalar entry point (the environment in a TimeLimit at its own episode length: :mod:`mrd_env.envs.entry`) and a
 vector entry point (the plant's native vector environment, or with ``backend="jax"`` its JAX one,
-``mrd_env/plants/<name>/jax_vector.py``'s ``<Name>JaxVectorEnv``: JAX is imported only then).
+:class:`mrd_env.jax.vector.JaxVectorEnv` of the same id and options, for every plant: JAX is imported only then).
 
 The two set-ups are two environments, not two versions of one: Gymnasium reads ``-v0`` beside ``-v1`` of the same
 name as an outdated version (it says "out of date" at every ``make``), so the physics-level set-up has its own name.
@@ -14,8 +14,6 @@ Its former ids (``mrd_env/QuarterCar-v0``, ...) still make the same environment,
 >>> jvenv = gym.make_vec("mrd_env/QuarterCar-v1", num_envs=64, vectorization_mode="vector_entry_point", backend="jax")
 """
 from __future__ import annotations
-
-import importlib
 
 from ..envs import RL_DEFAULTS
 from ..envs.entry import FormerIdEntryPoint, TimeLimitedEntryPoint
@@ -77,7 +75,8 @@ BACKENDS = ("native", "jax")
 
 
 class VectorEntryPoint:
-    """A plant's vector entry point: its native vector environment, or (``backend="jax"``) its JAX one."""
+    """A plant's vector entry point: its native vector environment, or (``backend="jax"``) its JAX one
+    (:class:`mrd_env.jax.vector.JaxVectorEnv`)."""
 
     def __init__(self, spec):
         self.spec = spec
@@ -87,14 +86,10 @@ class VectorEntryPoint:
             return self.spec.vector_env(num_envs=num_envs, **kwargs)
         if backend != "jax":
             raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
-        name = f"{self.spec.package}.jax_vector"
-        try:
-            module = importlib.import_module(name)
-        except ModuleNotFoundError as e:
-            if e.name != name:
-                raise  # JAX itself missing: its own message (pip install mrd-env[jax])
-            raise ValueError(f"backend 'jax' is not available for the plant {self.spec.name!r} (no {name})") from None
-        return getattr(module, f"{self.spec.id_name}JaxVectorEnv")(num_envs=num_envs, **kwargs)
+        from ..jax.vector import JaxVectorEnv  # JAX missing: its own ImportError (pip install mrd-env[jax])
+
+        # the physics-level id: make_vec passes an RL id's registered options (control_dt, ...) in kwargs
+        return JaxVectorEnv(self.spec.physics_id, num_envs=num_envs, **kwargs)
 
 
 def __getattr__(name: str) -> TimeLimitedEntryPoint | VectorEntryPoint:
