@@ -45,6 +45,25 @@ from .base import action_space, as_action, force_actuation, render_fps
 from .core import Assembly, EnvCore, PlantDeclarations, assemble
 
 
+def reset_mask(options, num_envs: int, started: bool) -> np.ndarray:
+    """The environments a vector reset starts again: all, or ``options["reset_mask"]`` (a numpy bool array of shape
+    (num_envs,), selecting one or more; every one at the first reset), else ``ValueError`` naming the option."""
+    unknown = sorted(set(options or {}) - {"reset_mask"})
+    if unknown:  # a misspelt mask would otherwise reset every environment
+        raise ValueError(f"reset options {unknown} are not known; valid: ['reset_mask']")
+    if options is None or "reset_mask" not in options:
+        return np.ones(num_envs, dtype=bool)
+    mask = options["reset_mask"]
+    if not isinstance(mask, np.ndarray) or mask.dtype != np.bool_ or mask.shape != (num_envs,):
+        raise ValueError(f"options['reset_mask'] must be a numpy bool array of shape ({num_envs},), got "
+                         f"{type(mask).__name__} {getattr(mask, 'dtype', '')} {getattr(mask, 'shape', '')}")
+    if not mask.any():
+        raise ValueError("options['reset_mask'] must select at least one environment")
+    if not started and not mask.all():
+        raise ValueError("the first reset must start every environment (reset_mask all true, or no mask)")
+    return mask.copy()
+
+
 class MRDamperVectorEnv(PlantDeclarations, VectorEnv):
     """N environments of one plant in one compiled call (see the module docstring); options as the plant's scalar
     class, plus ``num_envs``, ``autoreset_mode``, ``render_mode`` ("rgb_array": ``render()`` returns one frame per
@@ -142,7 +161,7 @@ class MRDamperVectorEnv(PlantDeclarations, VectorEnv):
         if not all(s is None or (isinstance(s, (int, np.integer)) and not isinstance(s, bool) and s >= 0)
                    for s in seeds):
             raise ValueError(f"seeds must be None or ints >= 0, got {seed!r}")
-        mask = self._reset_mask(options)
+        mask = reset_mask(options, self.num_envs, self._started)
         for b in np.flatnonzero(mask):  # None keeps an environment's generator, as a scalar env's reset does
             if seeds[b] is not None or self._rngs[b] is None:
                 self._rngs[b], self._seeds[b] = seeding.np_random(seeds[b])
@@ -166,23 +185,6 @@ class MRDamperVectorEnv(PlantDeclarations, VectorEnv):
         """Each environment's seed (the last reset's, or the one drawn for it), as SyncVectorEnv gives them."""
         return tuple(self._seeds)
 
-    def _reset_mask(self, options) -> np.ndarray:
-        """The environments a reset starts again (all, or ``options["reset_mask"]``), checked."""
-        N = self.num_envs
-        unknown = sorted(set(options or {}) - {"reset_mask"})
-        if unknown:  # a misspelt mask would otherwise reset every environment
-            raise ValueError(f"reset options {unknown} are not known; valid: ['reset_mask']")
-        if options is None or "reset_mask" not in options:
-            return np.ones(N, dtype=bool)
-        mask = options["reset_mask"]
-        if not isinstance(mask, np.ndarray) or mask.dtype != np.bool_ or mask.shape != (N,):
-            raise ValueError(f"options['reset_mask'] must be a numpy bool array of shape ({N},), got "
-                             f"{type(mask).__name__} {getattr(mask, 'dtype', '')} {getattr(mask, 'shape', '')}")
-        if not mask.any():
-            raise ValueError("options['reset_mask'] must select at least one environment")
-        if not self._started and not mask.all():
-            raise ValueError("the first reset must start every environment (reset_mask all true, or no mask)")
-        return mask.copy()
 
     def _add_costs(self, infos: dict, mask: np.ndarray | None = None) -> np.ndarray:
         """Every environment's cost over its last step and per term (0 for those that (re)started and did not

@@ -20,6 +20,7 @@ from gymnasium.vector.utils import batch_space
 
 from ..envs.base import action_space, as_action
 from ..envs.core import PlantDeclarations
+from ..envs.vector import reset_mask
 from ..stepping.scheme import MAX_SUBSTEPS, OK
 from ..stepping.stepper import diverged_error
 from . import env as je
@@ -169,7 +170,7 @@ class JaxVectorEnv(PlantDeclarations, VectorEnv):
         N = self.num_envs
         if seed is not None and (isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0):
             raise ValueError(f"seed must be None or an int >= 0 (one seed for the batch), got {seed!r}")
-        mask = self._reset_mask(options)
+        mask = reset_mask(options, self.num_envs, self._state is not None)
         if seed is not None or self._keys is None:
             self._seed = int(seed) if seed is not None else int(np.random.SeedSequence().entropy % 2 ** 63)
             base = jax.random.PRNGKey(self._seed)
@@ -193,23 +194,6 @@ class JaxVectorEnv(PlantDeclarations, VectorEnv):
         self._add_costs(infos, np.zeros((N, 1 + len(self.cost_names))), mask)
         return np.asarray(obs, np.float32), infos
 
-    def _reset_mask(self, options) -> np.ndarray:
-        """The environments a reset starts again (all, or ``options["reset_mask"]``), checked as the native one."""
-        N = self.num_envs
-        unknown = sorted(set(options or {}) - {"reset_mask"})
-        if unknown:
-            raise ValueError(f"reset options {unknown} are not known; valid: ['reset_mask']")
-        if options is None or "reset_mask" not in options:
-            return np.ones(N, dtype=bool)
-        mask = options["reset_mask"]
-        if not isinstance(mask, np.ndarray) or mask.dtype != np.bool_ or mask.shape != (N,):
-            raise ValueError(f"options['reset_mask'] must be a numpy bool array of shape ({N},), got "
-                             f"{type(mask).__name__} {getattr(mask, 'dtype', '')} {getattr(mask, 'shape', '')}")
-        if not mask.any():
-            raise ValueError("options['reset_mask'] must select at least one environment")
-        if self._state is None and not mask.all():
-            raise ValueError("the first reset must start every environment (reset_mask all true, or no mask)")
-        return mask.copy()
 
     def _add_costs(self, infos: dict, C: np.ndarray, mask: np.ndarray) -> None:
         """``cost`` (N,) and ``cost_terms`` {term: (N,)} from ``C`` (N, 1 + T), with the mask ``mask``."""
