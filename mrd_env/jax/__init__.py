@@ -3,9 +3,9 @@
 Importing it switches JAX to float64 (``jax_enable_x64``: the schemes need it; set before any array is made) and,
 unless the process chose one already, points JAX's persistent compilation cache at the project's cache folder
 (:func:`mrd_env.caches.cache_folder` ``("jax")``), so that a later process loads what an earlier one compiled.
-See ``docs/jax.md``: the stepping scheme (:mod:`.scheme`), the dampers (:mod:`.dampers`), any system over a
-record (:mod:`.simulate`); a plant's environment functions live in its folder (the quarter car's:
-:mod:`mrd_env.plants.quarter_car.jax_twin`).
+See ``docs/jax.md``: every plant's environment made from its own assembly (:mod:`.env`) and its Gymnasium
+``VectorEnv`` (:mod:`.vector`), the stepping scheme (:mod:`.scheme`), the dampers (:mod:`.dampers`), any system over
+a record (:mod:`.simulate`), the clairvoyant by gradient (:mod:`.clairvoyant`).
 """
 from __future__ import annotations
 

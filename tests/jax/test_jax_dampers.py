@@ -236,7 +236,7 @@ def test_quarter_car_env_with_every_model():
     """make_params takes every model (its automotive preset where it has one) and the twin steps from its reset."""
     for name in NAMES:
         params = qc.make_params(damper=name, n_roads=1, episode_seconds=0.05)
-        assert params.model == name and params.P.shape[1] == len(damper_class(name).Params.names())
+        assert params.model == name and params.P.shape[2] == len(damper_class(name).Params.names())
 
 
 @pytest.mark.parametrize("name", [n if n == FAST else pytest.param(n, marks=pytest.mark.slow) for n in NAMES])
