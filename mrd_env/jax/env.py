@@ -301,8 +301,6 @@ def make_params(env_id: str, *, seeds=range(16), records=None, randomise=None, s
     code (so the episodes are those of ``gymnasium.make(env_id, **options, **draw)``). ``scheme``: "exact" or
     "differentiable" (with ``substeps``, a power of two up to 8, ``newton_iterations`` and ``jacobian``:
     :func:`params_of_episodes`). Bad values raise ``ValueError`` naming the option."""
-    from ..suites import draw_episode, nominal_values
-
     scheme_options = {"scheme": scheme, "substeps": substeps, "newton_iterations": newton_iterations,
                       "jacobian": jacobian}
     _check_scheme(**scheme_options)
@@ -316,6 +314,14 @@ def make_params(env_id: str, *, seeds=range(16), records=None, randomise=None, s
                                   **scheme_options)
     if records is not None:
         raise ValueError("randomise draws a plant per seed: give seeds, not records")
+    return params_of_episodes(drawn_episodes(env_id, options, randomise, seeds), **scheme_options)
+
+
+def drawn_episodes(env_id: str, options: dict, randomise: dict, seeds) -> list:
+    """[(assembly, record)] of each seed's draw of the bands ``randomise`` (:func:`mrd_env.suites.draw_episode`,
+    scenario 0): the native environment built with the draw and the record it meets at ``reset(seed=s)``."""
+    from ..suites import draw_episode, nominal_values
+
     if not isinstance(randomise, dict) or "seed" not in randomise:
         raise ValueError(f"randomise must be bands {{'seed': int, band: ...}} (mrd_env.suites.draw_episode), got "
                          f"{randomise!r}")
@@ -324,7 +330,7 @@ def make_params(env_id: str, *, seeds=range(16), records=None, randomise=None, s
     for s in seeds:
         a, _ = assembly_of(env_id, {**options, **draw_episode(randomise, nominal, 0, s)})
         episodes.append((a, native_records(a, [s])[0]))
-    return params_of_episodes(episodes, **scheme_options)
+    return episodes
 
 
 def params_of_problem(problem, **scheme) -> EnvParams:
@@ -587,5 +593,5 @@ def drawn_options(params: EnvParams, nominal: EnvParams) -> dict:
 
 
 __all__ = ["EnvParams", "EnvState", "SCHEMES", "assembly_of", "native_records", "params_of_assembly", "make_params",
-           "params_of_problem", "reset", "step", "step_autoreset", "rollout", "command", "episode_return",
+           "drawn_episodes", "params_of_problem", "reset", "step", "step_autoreset", "rollout", "command", "episode_return",
            "draw_params", "drawn_options"]

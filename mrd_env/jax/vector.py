@@ -49,6 +49,16 @@ def bands_of(params: je.EnvParams, randomise: dict | None) -> dict:
             "command": {"eta": band("command.eta")}}
 
 
+def _host_bands(randomise) -> set:
+    """The bands of ``randomise`` that change more than the damper's parameters and lag rate (masses, stiffnesses,
+    the command delay, sensor noise and delay): drawn per episode of the bank, on the host
+    (:func:`mrd_env.jax.env.drawn_episodes`), not in the step."""
+    if not isinstance(randomise, dict):
+        return set()
+    return ({k for k in randomise if k not in ("seed", *je.DRAWN_BANDS)}
+            | {f"command.{k}" for k in randomise.get("command", {}) if k != "eta"})
+
+
 def _start(key, params, bands):
     """One environment's new episode: (observation, state, P, lag), its damper drawn from ``bands``."""
     k_draw, k_reset = jax.random.split(key)
@@ -92,9 +102,12 @@ class JaxVectorEnv(PlantDeclarations, VectorEnv):
     native environment meets at ``reset(seed=s)`` for s in 0…15). Each (re)starting environment draws its record
     from the bank, and its sensor noise, from its own JAX key; ``reset(seed=s)`` makes environment i's key of s
     and i, so a seeded reset replays bit for bit (the records are the bank's, not those the native environment
-    draws from the same seed). ``randomise``: bands in the robustness twins' layout (``ROBUST_BANDS``;
-    ``damper_params`` and ``command.eta`` only, its ``seed`` unused: the draws come from the environments'
-    keys), drawn for each environment at every reset and autoreset without compiling anything new.
+    draws from the same seed). ``randomise``: bands in the robustness twins' layout (``ROBUST_BANDS``). With
+    ``damper_params`` and ``command.eta`` only, they are drawn for each environment at every reset and autoreset
+    inside the step (its ``seed`` unused: the draws come from the environments' keys); with any other band (masses,
+    stiffnesses, the command delay, sensor noise and delay) every band is drawn once per seed of the bank, on the
+    host, by the plant's own code (:func:`mrd_env.jax.env.drawn_episodes`, the ``seed`` of the bands used), and
+    each (re)start picks one of those episodes. Either way nothing new is compiled.
     ``max_episode_steps``: episodes end, truncated, after at most that many steps (as the native one).
     ``autoreset_mode``: ``NEXT_STEP`` only.
 
@@ -124,17 +137,25 @@ class JaxVectorEnv(PlantDeclarations, VectorEnv):
                 max_episode_steps, (int, np.integer)) or max_episode_steps < 1):
             raise ValueError(f"max_episode_steps must be None or an int >= 1, got {max_episode_steps!r}")
         asm, _ = je.assembly_of(env_id, options)
+        host = sorted(_host_bands(randomise))
         if records is None:
-            seeds = (range(16) if asm.disturbance.random else (0,)) if seeds is None else seeds
+            seeds = (range(16) if asm.disturbance.random or host else (0,)) if seeds is None else seeds
             seeds = list(seeds)
             if not seeds or len(seeds) > 100_000:
                 raise ValueError(f"seeds must name 1 to 100000 episodes, got {len(seeds)}")
-            records = je.native_records(asm, seeds)
+            episodes = (je.drawn_episodes(env_id, options, randomise, seeds) if host
+                        else [(asm, r) for r in je.native_records(asm, seeds)])
         elif seeds is not None:
             raise ValueError("seeds and records: give one of them (the bank's records, or the seeds that draw them)")
-        records = list(records)
-        params = je.params_of_assembly(asm, records, scheme=scheme, substeps=substeps,
+        elif host:
+            raise ValueError(f"randomise {host} draws a plant per seed on the host: give seeds, not records")
+        else:
+            episodes = [(asm, r) for r in records]
+        records = [r for _, r in episodes]
+        params = je.params_of_episodes(episodes, scheme=scheme, substeps=substeps,
                                        newton_iterations=newton_iterations, jacobian=jacobian)
+        if host:  # every band drawn per episode of the bank, on the host: nothing left to draw in the step
+            randomise = None
         if max_episode_steps is not None:
             params = dataclasses.replace(params, steps=jnp.minimum(params.steps, int(max_episode_steps)))
         self.env_id = env_id
