@@ -21,10 +21,11 @@ def check_scalar(name: str, value, lo: float = -math.inf, hi: float = math.inf, 
 
 def as_real(name: str, value) -> float:
     """``float(value)``, or a ``ValueError`` naming ``name`` for anything that is not one real number (a complex
-    value would lose its imaginary part silently, an int beyond float64 raises ``OverflowError``)."""
+    value would lose its imaginary part silently, an int beyond float64 raises ``OverflowError``, and a string is
+    text, not a number: ``float("1")`` would take a mistyped option as 1)."""
     try:
-        if np.iscomplexobj(value):
-            raise TypeError("complex")
+        if np.iscomplexobj(value) or isinstance(value, (str, bytes, np.str_, np.bytes_)):
+            raise TypeError("not a real number")
         return float(value)
     except (TypeError, ValueError, OverflowError):
         raise ValueError(f"{name} must be a real number, got {shown(value)}") from None
