@@ -34,11 +34,12 @@ from pathlib import Path
 import numpy as np
 
 
-def _load() -> float:
+def load_average() -> float:
+    """The 1-minute load average, as the benchmarks record it."""
     return round(os.getloadavg()[0], 2)
 
 
-def _compiled(fn, *args):
+def compiled(fn, *args):
     """(compiled function, seconds to compile it)."""
     import jax
 
@@ -81,7 +82,7 @@ def exact_vs_numba(episodes: int) -> tuple[list[dict], dict]:
                 _, s0 = qc.reset(None, params, record=e)
                 fn = jax.jit(episode)
                 if e == 0:
-                    fn, compile_s[f"episode scan, {label}, {damper}"] = _compiled(episode, params, s0,
+                    fn, compile_s[f"episode scan, {label}, {damper}"] = compiled(episode, params, s0,
                                                                                  jnp.asarray(cmds))
                 out[label] = [np.asarray(a) for a in fn(params, s0, jnp.asarray(cmds))]
             # the numba kernel, one call per control period (as the environment)
@@ -168,8 +169,8 @@ def gradient_check() -> dict:
 
     rng = np.random.default_rng(3)
     a = jnp.asarray(rng.uniform(-0.8, 0.8, params.n_steps))
-    g, t_compile = _compiled(jax.grad(cost), a)
-    c, t_compile_cost = _compiled(cost, a)
+    g, t_compile = compiled(jax.grad(cost), a)
+    c, t_compile_cost = compiled(cost, a)
     t0 = time.perf_counter()
     gv = np.asarray(g(a))
     t_grad = time.perf_counter() - t0
@@ -189,7 +190,7 @@ def gradient_check() -> dict:
             "rel_error_normwise": float(np.linalg.norm(gv[idx] - fd) / np.linalg.norm(fd)),
             "rel_error_worst_component": float(np.max(np.abs(gv[idx] - fd) / np.abs(fd))),
             "grad_seconds": t_grad, "cost_seconds": t_cost, "grad_compile_seconds": t_compile,
-            "cost_compile_seconds": t_compile_cost, "load": _load()}
+            "cost_compile_seconds": t_compile_cost, "load": load_average()}
 
 
 def throughput(sizes, repeats: int, seconds: float) -> tuple[list[dict], dict]:
@@ -202,7 +203,7 @@ def throughput(sizes, repeats: int, seconds: float) -> tuple[list[dict], dict]:
 
     rows, compile_s = [], {}
     for N in sizes:
-        load0 = _load()
+        load0 = load_average()
         native = gym.make_vec("mrd_env/QuarterCar-v1", num_envs=N, vectorization_mode="vector_entry_point")
         native.reset(seed=0)
         cases = {}
@@ -225,8 +226,8 @@ def throughput(sizes, repeats: int, seconds: float) -> tuple[list[dict], dict]:
 
             label = f"{scheme}" + (f", {substeps} sub-steps" if scheme == "differentiable" else "")
             a1 = jnp.zeros((N, 1))
-            step_fn, compile_s[f"vmapped step, {label}, N={N}"] = _compiled(vstep, jax.random.PRNGKey(1), states, a1)
-            scan_fn, compile_s[f"scan of 100 vmapped steps, {label}, N={N}"] = _compiled(
+            step_fn, compile_s[f"vmapped step, {label}, N={N}"] = compiled(vstep, jax.random.PRNGKey(1), states, a1)
+            scan_fn, compile_s[f"scan of 100 vmapped steps, {label}, N={N}"] = compiled(
                 vscan, jax.random.PRNGKey(1), states, jnp.zeros((100, N, 1)))
             cases[label] = (step_fn, scan_fn, states)
         for pattern in ("alternating", "random"):
@@ -279,7 +280,7 @@ def throughput(sizes, repeats: int, seconds: float) -> tuple[list[dict], dict]:
             for label, rs in rates.items():
                 rows.append({"N": N, "actions": pattern, "environment": label,
                              "env_steps_per_s": float(np.median(rs)), "x_native": float(np.median(rs)) / ref,
-                             "load_before": load0, "load_after": _load()})
+                             "load_before": load0, "load_after": load_average()})
                 print(rows[-1], flush=True)
         native.close()
     return rows, compile_s
@@ -305,12 +306,12 @@ def main(argv=None) -> int:
 
     set_mode("wait")  # the compiled numba kernel, never the interpreted one of a first use
     out = {"jax": jax.__version__, "device": str(jax.devices()[0]), "cpus": os.cpu_count(),
-           "machine": platform.platform(), "xla_flags": os.environ.get("XLA_FLAGS", ""), "load_start": _load(),
+           "machine": platform.platform(), "xla_flags": os.environ.get("XLA_FLAGS", ""), "load_start": load_average(),
            "compile_seconds": {}}
     md = []
     if "exact" in args.parts:
         rows, cs = exact_vs_numba(args.episodes)
-        out["exact_vs_numba"], out["load_after_exact"] = rows, _load()
+        out["exact_vs_numba"], out["load_after_exact"] = rows, load_average()
         out["compile_seconds"].update(cs)
         md.append(markdown_table(rows, title="Exact scheme vs the numba kernel (and differentiable vs exact)",
                                  floatfmt=".3g"))
@@ -328,7 +329,7 @@ def main(argv=None) -> int:
         md.append(markdown_table(rows, title="Env-steps/s at 10 ms control (median of repeats)", floatfmt=".3g"))
     md.append(markdown_table([{"function": k, "seconds": v} for k, v in out["compile_seconds"].items()],
                              title="Cold compile times", floatfmt=".3g"))
-    out["load_end"] = _load()
+    out["load_end"] = load_average()
     args.out.mkdir(parents=True, exist_ok=True)
     suffix = "" if set(args.parts) == {"exact", "radau", "grad", "speed"} else "_" + "_".join(args.parts)
     write_json(args.out / f"jax{suffix}.json", out, indent=1)

@@ -34,6 +34,8 @@ from pathlib import Path
 
 import numpy as np
 
+from experiments.scripts.bench_jax import compiled, load_average
+
 def _plants() -> dict:
     """name -> (environment id, options): every registered plant's RL id (10 ms control, normalised actions), and
     the six-storey building (its preset on the physical-level id, 4 dampers) as an extra case."""
@@ -56,19 +58,6 @@ SCHEMES = {
 
 #: The first held-out seed (training and tuning draw from 0 upwards).
 HELD_OUT = 1000
-
-
-def _load() -> float:
-    return round(os.getloadavg()[0], 2)
-
-
-def compiled(fn, *args):
-    """(compiled ``jax.jit(fn)`` for ``args``' shapes, seconds to lower and compile it)."""
-    import jax
-
-    t0 = time.perf_counter()
-    c = jax.jit(fn).lower(*args).compile()
-    return c, time.perf_counter() - t0
 
 
 def _peak_rels(x, ref) -> np.ndarray:
@@ -212,7 +201,7 @@ def throughput(name: str, sizes, repeats: int, window: float, schemes=("differen
     env_id, options = PLANTS[name]
     rows, compile_s = [], {}
     for N in sizes:
-        load0 = _load()
+        load0 = load_average()
         try:
             native = gym.make_vec(env_id, num_envs=N, vectorization_mode="vector_entry_point", **options)
             native.reset(seed=0)
@@ -273,7 +262,7 @@ def throughput(name: str, sizes, repeats: int, window: float, schemes=("differen
         for label in schemes:
             row[f"jax_{label}"] = float(np.median(rates[label])) if label in rates else None
             row[f"x_{label}"] = row[f"jax_{label}"] / ref if label in rates and ref else None
-        row.update(steps_timed=counts, native_threads=threads, load_before=load0, load_after=_load())
+        row.update(steps_timed=counts, native_threads=threads, load_before=load0, load_after=load_average())
         if refused:
             row["native_refused"] = refused
         rows.append(row)
@@ -338,7 +327,7 @@ def main(argv=None) -> int:
     set_mode("wait")  # the compiled numba kernel, never the interpreted one of a first use
     writable_folder(args.out.parent)
     out = {"jax": jax.__version__, "device": str(jax.devices()[0]), "cpus": os.cpu_count(),
-           "machine": platform.platform(), "xla_flags": os.environ.get("XLA_FLAGS", ""), "load_start": _load(),
+           "machine": platform.platform(), "xla_flags": os.environ.get("XLA_FLAGS", ""), "load_start": load_average(),
            "episodes": args.episodes, "seconds": args.seconds, "held_out_seeds_from": HELD_OUT,
            "accuracy": [], "compile_seconds": [], "throughput": []}
     for name in plants:
@@ -353,7 +342,7 @@ def main(argv=None) -> int:
             crow.update({f"vmapped_{k}": v for k, v in tcs.items()})
         out["compile_seconds"].append(crow)
         print(crow, flush=True)
-        out["load_end"] = _load()
+        out["load_end"] = load_average()
         write_json(args.out, out, indent=1)  # after each plant: a partial run keeps what it measured
     md = []
     if "accuracy" in parts:
