@@ -21,7 +21,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from mrd_env import storage
 
-    from ..common.scoring import leaderboard
+    from ..common.leaderboard import leaderboard
 
     board = leaderboard(args.results)  # every file read and checked before anything is written
     storage.writable_folder(args.out)

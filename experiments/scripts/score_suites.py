@@ -85,8 +85,8 @@ def candidates(suite) -> list[dict]:
 
 def score_suite(suite, out: Path, executor: dict) -> dict:
     """Score every candidate on ``suite``; the suite's entry of ``score_suites.json``."""
-    from experiments.common.scoring import (check_controller, controller_spec, leaderboard, one_torch_thread,
-                                            result_filename, score)
+    from experiments.common.leaderboard import leaderboard
+    from experiments.common.scoring import check_controller, controller_spec, one_torch_thread, result_filename, score
 
     folder = out / suite.id
     folder.mkdir(parents=True, exist_ok=True)

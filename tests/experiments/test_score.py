@@ -18,7 +18,8 @@ import pytest
 
 from controllers.protocol import ControllerProtocol, build_controller, import_object
 from experiments.cli import main
-from experiments.common.scoring import leaderboard, read_result, score
+from experiments.common.leaderboard import leaderboard, read_result
+from experiments.common.scoring import score
 from mrd_env.suites import Reference, Suite, SuiteScenario, read_suite, write_suite
 
 ROOT = Path(__file__).resolve().parents[2]
