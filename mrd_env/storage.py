@@ -10,6 +10,8 @@ through here.
   one; elsewhere the previous folder is moved aside first and :func:`recover_folder` puts it back after a kill.
 - :func:`inside`: a file named by a file (an agent's ``agent.json``, a preset) resolved inside its folder: no
   absolute path, no ``..``, no symlink leaving it.
+- :func:`read_limited`: a file read only if it is a regular file (never a FIFO, a device such as ``/dev/zero``, a
+  socket) and at most a given size, so that no shared file can hang or exhaust a reader.
 - :func:`private_folder`: a per-user folder (mode 0700, owned by the user, not a symlink), checked before use as
   numba's own cache does.
 """
@@ -213,6 +215,38 @@ def inside(folder: str | Path, name, *, what: str = "file") -> Path:
     if resolved != root and root not in resolved.parents:
         raise ValueError(f"{what} {name!r} in {folder}: it is a link that leaves the folder (to {resolved})")
     return root / p
+
+
+def read_limited(path: str | Path, limit: int, *, what: str = "file") -> bytes:
+    """The bytes of ``path`` if it is a regular file (after following links) of at most ``limit`` bytes; a
+    ``ValueError`` naming ``what``, the file and the limit otherwise. Opened without blocking, so a FIFO is refused
+    rather than waited on; the size is checked before reading and again while reading (a file that grows)."""
+    path = Path(path)
+    try:
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0))
+    except OSError as exc:
+        raise ValueError(f"{what} {path}: cannot be read ({exc.strerror or exc})") from None
+    try:
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode):
+            raise ValueError(f"{what} {path}: not a regular file (a device, FIFO or socket): refused")
+        if st.st_size > limit:
+            raise ValueError(f"{what} {path}: {st.st_size} bytes, more than the {limit} bytes a {what} may hold: "
+                             "refused")
+        chunks, size = [], 0
+        while True:
+            chunk = os.read(fd, min(1 << 20, limit + 1 - size))
+            if not chunk:
+                break
+            chunks.append(chunk)
+            size += len(chunk)
+            if size > limit:
+                raise ValueError(f"{what} {path}: more than the {limit} bytes a {what} may hold: refused")
+        return b"".join(chunks)
+    except OSError as exc:
+        raise ValueError(f"{what} {path}: cannot be read ({exc.strerror or exc})") from None
+    finally:
+        os.close(fd)
 
 
 def private_folder(path: str | Path) -> Path:

@@ -2,6 +2,7 @@
 folders are swapped whole, a file named by a file stays inside its folder, SIGTERM is handled like Ctrl-C."""
 import os
 import signal
+from pathlib import Path
 
 import pytest
 
@@ -100,3 +101,28 @@ def test_sigterm_ends_a_command_like_ctrl_c_with_exit_143(monkeypatch, capsys):
     assert seen == ["saved"]
     assert capsys.readouterr().err == "mrd-env yardstick: terminated\n"
     assert signal.getsignal(signal.SIGTERM) == before   # the caller's handler is restored
+
+
+@pytest.mark.hostile
+def test_read_limited_refuses_devices_fifos_and_big_files(tmp_path):
+    """A shared file is read only if it is a regular file within its size cap: /dev/zero, a FIFO (which a plain open
+    waits on forever) and a file over the cap are refused by name, without reading them."""
+    import os
+
+    from mrd_env.storage import read_limited
+
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    big = tmp_path / "big.json"
+    big.write_bytes(b"x" * 101)
+    link = tmp_path / "link.json"
+    link.symlink_to("/dev/zero")
+    for path, why in ((Path("/dev/zero"), "not a regular file"), (fifo, "not a regular file"),
+                      (link, "not a regular file"), (big, "101 bytes, more than the 100"),
+                      (tmp_path / "missing", "cannot be read")):
+        with pytest.raises(ValueError, match=why) as err:
+            read_limited(path, 100, what="suite file")
+        assert str(err.value).startswith(f"suite file {path}")
+    ok = tmp_path / "ok.json"
+    ok.write_bytes(b"x" * 100)
+    assert read_limited(ok, 100) == b"x" * 100
