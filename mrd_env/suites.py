@@ -11,20 +11,38 @@ R_b — with the command that reproduces them. A controller's share of the achie
 A suite file is plain JSON: its ``digest`` is the SHA-256 of its canonical content, checked on load, so that an
 edited or damaged file is refused; references recomputed by another procedure make a new ``version``. A result
 file names the suite, its version and its digest, so that results of different suites are never merged.
+
+A suite file may come from another lab (``mrd-env score --suite their-suite.json``), so reading one runs no code and
+trusts nothing in it (:func:`from_json`): it is read as a regular file of at most :data:`MAX_SUITE_BYTES`; every
+field's type and range is checked (one ``ValueError`` naming the file and the field); its ``env_id`` must be one
+mrd_env registers (an id ``"module:Env"`` would make Gymnasium import that module); a file it names (a measured
+road's or a record's ``path``, a damper preset) must be a plain name inside the suite file's folder; and a shipped
+suite's id (:func:`shipped_digest`) means the shipped content: a suite of one's own needs a name of its own.
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import math
+import os
+import re
+import stat
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .storage import inside, write_json
+from .storage import inside, read_limited, write_json
 
 #: The suite files' format (bumped when the fields change).
 FORMAT = "mrd-env-suite"
 FORMAT_VERSION = 1
+#: The largest suite file read: 4 MiB, 66 times the largest shipped one (car-preview-robust-v1, 63 662 bytes); a
+#: larger file is refused before it is read (a suite file from elsewhere must not exhaust memory).
+MAX_SUITE_BYTES = 4 * 1024 ** 2
+#: The deepest nesting of objects and lists in a suite file (the shipped ones nest 7 deep, the file itself counted).
+MAX_NESTING = 16
+#: Seeds are NumPy's: whole numbers in [0, 2**32 - 1].
+MAX_SEED = 2 ** 32 - 1
 
 
 def content_digest(data: dict) -> str:
@@ -122,6 +140,9 @@ class Suite:
     procedure: dict = field(default_factory=dict)   #: how the references were computed, and the command
     randomised: dict = field(default_factory=dict)  #: a robustness twin's draws ({} for a nominal suite)
     digest: str = ""
+    #: the folder of the file it was read from, where the files its options name are (:func:`named_files`); ""
+    #: for a suite made in code
+    folder: str = field(default="", compare=False, repr=False)
 
     @property
     def id(self) -> str:
@@ -138,7 +159,14 @@ class Suite:
         """The environment options of an episode as a controller is scored on it (the suite's, the scenario's and,
         for a robustness twin, the episode's stored draw; the control step is :attr:`control_dt`)."""
         draw = self.randomised.get("draws", {}).get(scenario.label(seed), {}) if self.randomised else {}
-        return _json_options({**self.options, **scenario.options, **draw})
+        options = _json_options({**self.options, **scenario.options, **draw})
+        if self.folder:  # a file an option names is the one in the suite file's folder (checked again: links move)
+            for keys, name in named_files(options):
+                target = options
+                for k in keys[:-1]:
+                    target = target[k]
+                target[keys[-1]] = str(_confined(self.folder, name, f"suite {self.id}: {_field(keys)}"))
+        return options
 
     def reference_options(self, scenario: SuiteScenario, seed: int) -> dict:
         """The environment options the references of an episode are computed on: :meth:`episode_options` without
@@ -171,24 +199,286 @@ class Suite:
                 "procedure": self.procedure, "randomised": self.randomised}
 
 
-def from_json(data: dict, where: str = "suite") -> Suite:
-    """A :class:`Suite` from its JSON content, after checking its format and digest (``ValueError`` naming
-    ``where`` otherwise)."""
+#: A suite file's fields (``procedure`` and ``randomised`` may be left out: {}).
+FIELDS = ("format", "format_version", "name", "version", "plant", "env_id", "description", "options", "control_dt",
+          "scenarios", "criteria", "references", "digest")
+OPTIONAL_FIELDS = ("procedure", "randomised")
+#: An episode's reference: these three are numbers; ``bound`` and ``f_max`` numbers or null (not computed).
+REFERENCE_NUMBERS = ("passive", "passive_command", "clairvoyant")
+REFERENCE_FIELDS = REFERENCE_NUMBERS + ("bound", "f_max")
+#: A suite's name: it is part of file names and table rows.
+NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}")
+#: A criterion: an episode metric's name.
+CRITERION = re.compile(r"[A-Za-z_][A-Za-z0-9_]{0,63}")
+#: The longest scenario name (it heads a table row), description and file name a suite may hold.
+MAX_LABEL, MAX_DESCRIPTION, MAX_FILE_NAME = 200, 10_000, 4096
+#: The highest suite version.
+MAX_VERSION = 10 ** 6
+
+
+def from_json(data: dict, where: str = "suite", folder: str | Path | None = None, *, shipped: bool = False) -> Suite:
+    """A :class:`Suite` from its JSON content, after checking everything in it, before anything is imported or made:
+    its structure field by field (:func:`check_structure`), its digest, its environment (an id mrd_env registers,
+    of its plant), that a shipped suite's id holds the shipped content (:func:`check_shipped_id`; not for the
+    package's own files, ``shipped``), and that every file its options name is a regular file inside ``folder``,
+    the suite file's (a suite given without a folder names no file). A one-line ``ValueError`` naming ``where`` and
+    the field otherwise."""
+    check_structure(data, where)
+    if data["digest"] != content_digest(data):
+        raise ValueError(f"{where}: its content does not match its digest (edited or damaged): refused")
+    _check_environment(data["plant"], data["env_id"], where)
+    if not shipped:
+        check_shipped_id(f"{data['name']}-v{data['version']}", data["digest"], where)
+    for keys, name in _files_named(data):
+        if folder is None:
+            raise ValueError(f"{where}: {_field(keys)} names the file {_shown(name)}: only a suite read from its "
+                             "file names files (in that file's folder)")
+        _confined(folder, name, f"{where}: {_field(keys)}")
+    refs = {k: Reference(**{f: (math.nan if v is None else float(v)) for f, v in r.items()})
+            for k, r in data["references"].items()}
+    return Suite(name=data["name"], version=data["version"], plant=data["plant"], env_id=data["env_id"],
+                 description=data["description"], options=data["options"], control_dt=float(data["control_dt"]),
+                 scenarios=tuple(SuiteScenario(s["name"], s["options"], tuple(s["seeds"])) for s in data["scenarios"]),
+                 criteria=tuple(data["criteria"]), references=refs, procedure=data.get("procedure", {}),
+                 randomised=data.get("randomised", {}), digest=data["digest"],
+                 folder=str(Path(folder).resolve()) if folder is not None else "")
+
+
+def check_structure(data, where: str = "suite") -> None:
+    """``ValueError`` (one line naming ``where`` and the field) unless ``data`` is a suite file's content of the
+    right structure: every field of :data:`FIELDS` and no other; a name of :data:`NAME`; whole numbers where
+    whole numbers belong (versions; seeds in [0, 2**32 - 1], NumPy's); finite numbers elsewhere (a positive
+    ``control_dt``); options as objects of names; one reference, of :data:`REFERENCE_FIELDS`, per episode at most;
+    nothing nested deeper than :data:`MAX_NESTING`. The environment is checked by :func:`from_json`."""
     if not isinstance(data, dict) or data.get("format") != FORMAT:
         raise ValueError(f"{where} is not an mrd-env suite (format must be {FORMAT!r})")
-    if data.get("format_version") != FORMAT_VERSION:
-        raise ValueError(f"{where}: suite format version {data.get('format_version')!r}, this mrd-env reads "
-                         f"{FORMAT_VERSION}")
-    if data.get("digest") != content_digest(data):
-        raise ValueError(f"{where}: its content does not match its digest (edited or damaged): refused")
-    refs = {k: Reference(**{f: (math.nan if v is None else v) for f, v in r.items()})
-            for k, r in data["references"].items()}
-    return Suite(name=data["name"], version=int(data["version"]), plant=data["plant"], env_id=data["env_id"],
-                 description=data["description"], options=data["options"], control_dt=float(data["control_dt"]),
-                 scenarios=tuple(SuiteScenario(s["name"], s["options"], tuple(int(x) for x in s["seeds"]))
-                                 for s in data["scenarios"]),
-                 criteria=tuple(data["criteria"]), references=refs, procedure=data.get("procedure", {}),
-                 randomised=data.get("randomised", {}), digest=data["digest"])
+    version = data.get("format_version")
+    if type(version) is not int or version != FORMAT_VERSION:
+        raise ValueError(f"{where}: suite format version {_shown(version)}, this mrd-env reads {FORMAT_VERSION}")
+    missing = [k for k in FIELDS if k not in data]
+    unknown = [k for k in data if k not in FIELDS + OPTIONAL_FIELDS]
+    if missing or unknown:
+        what = f"lacks the field(s) {missing}" if missing else f"has unknown field(s) {[_shown(k) for k in unknown[:5]]}"
+        raise ValueError(f"{where}: {what}; a suite file has {list(FIELDS + OPTIONAL_FIELDS)}")
+
+    def fail(field: str, want: str, got) -> None:
+        raise ValueError(f"{where}: {field} must be {want}, got {_shown(got)}")
+
+    for key in ("name", "plant", "env_id", "description"):
+        if not isinstance(data[key], str):
+            fail(key, "text", data[key])
+    if not NAME.fullmatch(data["name"]):
+        fail("name", "1 to 64 letters, digits, '.', '_' or '-' (starting with a letter or digit)", data["name"])
+    if len(data["description"]) > MAX_DESCRIPTION:
+        fail("description", f"at most {MAX_DESCRIPTION} characters", f"{len(data['description'])} characters")
+    if type(data["version"]) is not int or not 1 <= data["version"] <= MAX_VERSION:
+        fail("version", f"a whole number in [1, {MAX_VERSION}]", data["version"])
+    if not isinstance(data["digest"], str) or not re.fullmatch(r"[0-9a-f]{64}", data["digest"]):
+        fail("digest", "a SHA-256 (64 hexadecimal digits)", data["digest"])
+    _check_options(data["options"], where, "options")
+    dt = data["control_dt"]
+    if not _finite(dt) or dt <= 0:
+        fail("control_dt", "a positive finite number of seconds", dt)
+
+    scenarios = data["scenarios"]
+    if not isinstance(scenarios, list) or not scenarios:
+        fail("scenarios", "a non-empty list of scenarios", scenarios)
+    labels: list[str] = []
+    for i, sc in enumerate(scenarios):
+        at = f"scenarios[{i}]"
+        if not isinstance(sc, dict) or set(sc) != {"name", "options", "seeds"}:
+            fail(at, "an object of name, options and seeds", sc if not isinstance(sc, dict) else sorted(sc, key=str))
+        name = sc["name"]
+        if not isinstance(name, str) or not name.strip() or len(name) > MAX_LABEL or not name.isprintable():
+            fail(f"{at}.name", f"text on one line of 1 to {MAX_LABEL} characters", name)
+        at = f"{at} ({name!r})"
+        _check_options(sc["options"], where, f"{at}.options")
+        seeds = sc["seeds"]
+        if not isinstance(seeds, list) or not seeds:
+            fail(f"{at}.seeds", "a non-empty list of seeds", seeds)
+        for j, seed in enumerate(seeds):
+            if type(seed) is not int or not 0 <= seed <= MAX_SEED:
+                fail(f"{at}.seeds[{j}]", f"a whole number in [0, {MAX_SEED}] (NumPy's seeds)", seed)
+        if len(set(seeds)) != len(seeds):
+            fail(f"{at}.seeds", "distinct seeds", seeds)
+        one = SuiteScenario(name, {}, tuple(seeds))
+        labels += [one.label(seed) for seed in seeds]
+    if len(set(labels)) != len(labels):
+        twice = sorted({x for x in labels if labels.count(x) > 1})[:3]
+        fail("scenarios", "scenarios whose names give distinct episode labels", twice)
+    episodes = set(labels)
+
+    criteria = data["criteria"]
+    if not isinstance(criteria, list) or not all(isinstance(c, str) and CRITERION.fullmatch(c) for c in criteria) \
+            or len(set(criteria)) != len(criteria):
+        fail("criteria", "a list of distinct episode metric names", criteria)
+
+    refs = data["references"]
+    if not isinstance(refs, dict):
+        fail("references", "an object {episode label: reference}", refs)
+    for label, ref in refs.items():
+        if label not in episodes:
+            fail("references", f"references of the suite's episodes (e.g. {labels[0]!r})", label)
+        at = f"references[{label!r}]"
+        if not isinstance(ref, dict) or set(ref) != set(REFERENCE_FIELDS):
+            fail(at, f"an object of {list(REFERENCE_FIELDS)}", ref if not isinstance(ref, dict)
+                 else sorted(ref, key=str))
+        for f in REFERENCE_FIELDS:
+            v = ref[f]
+            if not (_finite(v) or (v is None and f not in REFERENCE_NUMBERS)):
+                fail(f"{at}.{f}", "a finite number" + ("" if f in REFERENCE_NUMBERS else " or null"), v)
+
+    procedure = data.get("procedure", {})
+    if not isinstance(procedure, dict):
+        fail("procedure", "an object", procedure)
+    _check_json(procedure, where, "procedure", 1)
+    randomised = data.get("randomised", {})
+    if not isinstance(randomised, dict) or not set(randomised) <= {"bands", "draws"}:
+        fail("randomised", "an object of bands and draws (or {})", randomised)
+    if not isinstance(randomised.get("bands", {}), dict):
+        fail("randomised.bands", "an object", randomised["bands"])
+    _check_json(randomised.get("bands", {}), where, "randomised.bands", 2)
+    drawn = randomised.get("draws", {})
+    if not isinstance(drawn, dict):
+        fail("randomised.draws", "an object {episode label: options}", drawn)
+    for label, options in drawn.items():
+        if label not in episodes:
+            fail("randomised.draws", f"draws of the suite's episodes (e.g. {labels[0]!r})", label)
+        _check_options(options, where, f"randomised.draws[{label!r}]", 3)
+
+
+def _check_options(options, where: str, field: str, depth: int = 1) -> None:
+    """Environment options: an object of option names, plain JSON values inside (checked by the environment)."""
+    if not isinstance(options, dict):
+        raise ValueError(f"{where}: {field} must be an object of environment options, got {_shown(options)}")
+    _check_json(options, where, field, depth)
+
+
+def _check_json(value, where: str, field: str, depth: int) -> None:
+    """``ValueError`` unless ``value`` is plain JSON (objects of text keys, lists, text, finite numbers, true,
+    false, null) nested at most :data:`MAX_NESTING` deep in the file (``depth``: its own depth there)."""
+    if depth > MAX_NESTING:
+        raise ValueError(f"{where}: {field} is nested more than {MAX_NESTING} levels deep")
+    if isinstance(value, dict):
+        for k, v in value.items():
+            if not isinstance(k, str):
+                raise ValueError(f"{where}: {field} must have names (text) as keys, got {_shown(k)}")
+            _check_json(v, where, f"{field}.{k}" if re.fullmatch(r"\w+", k) else f"{field}[{k[:60]!r}]", depth + 1)
+    elif isinstance(value, (list, tuple)):
+        for i, v in enumerate(value):
+            _check_json(v, where, f"{field}[{i}]", depth + 1)
+    elif isinstance(value, float) and not math.isfinite(value):
+        raise ValueError(f"{where}: {field} must be a finite number, got {value!r}")
+    elif not (value is None or isinstance(value, (str, int, float))):
+        raise ValueError(f"{where}: {field} must be a JSON value, got a {type(value).__name__}")
+
+
+def _check_environment(plant: str, env_id: str, where: str) -> None:
+    """``ValueError`` unless ``env_id`` is an id mrd_env registers (an id ``"module:Env"`` would make Gymnasium
+    import that module: a suite runs no code) and one of ``plant``'s."""
+    import gymnasium as gym
+
+    from .plants import plants
+    from .plants.registry import register_envs
+
+    register_envs()
+    valid = sorted(k for k in gym.registry if k.startswith("mrd_env/"))
+    if env_id not in valid:
+        raise ValueError(f"{where}: env_id must be an environment of mrd_env, one of {valid}; got {_shown(env_id)}")
+    every = plants()
+    if plant not in every:
+        raise ValueError(f"{where}: plant must be one of {sorted(every)}, got {_shown(plant)}")
+    ids = [*every[plant].ids, *every[plant].former_ids]
+    if env_id not in ids:
+        raise ValueError(f"{where}: env_id {env_id!r} is not an environment of the plant {plant!r} (its ids: {ids})")
+
+
+def named_files(options) -> list[tuple[tuple, object]]:
+    """The files an options object names, as (keys to the value, the value): a measured road's or a ground-motion
+    record's ``path`` at any depth (``road_params``, ``ground_motion_params``, a road or ground-motion object, a
+    mixture's ``sources``) and a ``damper`` that names a preset file (a name ending in .json, as
+    :func:`mrd_env.dampers.is_preset_file`)."""
+    out = []
+
+    def walk(value, keys):
+        if isinstance(value, dict):
+            for k, v in value.items():
+                if k == "path" or (k == "damper" and isinstance(v, str) and v.lower().endswith(".json")):
+                    out.append(((*keys, k), v))
+                else:
+                    walk(v, (*keys, k))
+        elif isinstance(value, (list, tuple)):
+            for i, v in enumerate(value):
+                walk(v, (*keys, i))
+
+    walk(options, ())
+    return out
+
+
+def _files_named(data: dict) -> list[tuple[tuple, object]]:
+    """The files a suite's content names: in its options, each scenario's and each drawn episode's."""
+    out = [(("options", *k), v) for k, v in named_files(data["options"])]
+    for i, sc in enumerate(data["scenarios"]):
+        out += [(("scenarios", i, "options", *k), v) for k, v in named_files(sc["options"])]
+    for label, draw in data.get("randomised", {}).get("draws", {}).items():
+        out += [(("randomised", "draws", label, *k), v) for k, v in named_files(draw)]
+    return out
+
+
+def _confined(folder: str | Path, name, what: str) -> Path:
+    """``folder / name`` for a file a suite names: a plain name inside the suite file's folder
+    (:func:`mrd_env.storage.inside`: no absolute path, no ``..``, no link leaving it) of a regular file (not a
+    folder, device, FIFO or socket, which the environment's read would hang on or never finish)."""
+    if isinstance(name, str) and len(name) > MAX_FILE_NAME:
+        raise ValueError(f"{what} {_shown(name)}: a file name of at most {MAX_FILE_NAME} characters is required")
+    path = inside(folder, name, what=what)
+    try:
+        st = os.stat(path)
+    except OSError as exc:
+        raise ValueError(f"{what} {name!r} in {folder}: cannot be read ({exc.strerror or exc})") from None
+    if not stat.S_ISREG(st.st_mode):
+        raise ValueError(f"{what} {name!r} in {folder}: not a regular file (a folder, device, FIFO or socket): "
+                         "refused")
+    return path
+
+
+def _field(keys: tuple) -> str:
+    """A field's place in a suite file: ``scenarios[0].options.road_params.path``."""
+    out = ""
+    for k in keys:
+        if isinstance(k, int):
+            out += f"[{k}]"
+        elif re.fullmatch(r"\w+", k):
+            out += f".{k}" if out else k
+        else:
+            out += f"[{k[:60]!r}]"
+    return out
+
+
+def _finite(value) -> bool:
+    """A finite number (not a bool, which JSON does not mix up with numbers)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return False
+    try:
+        return math.isfinite(float(value))
+    except OverflowError:
+        return False
+
+
+def _shown(value) -> str:
+    """``value`` in an error message: short, whatever a file holds (a 5 MB text, a list nested 900 deep, an
+    integer of 10 000 digits)."""
+    if isinstance(value, dict):
+        return f"an object of {len(value)} field(s)"
+    if isinstance(value, (list, tuple)):
+        return f"a list of {len(value)} item(s)"
+    if isinstance(value, str):
+        return repr(value[:60]) + ("..." if len(value) > 60 else "")
+    if isinstance(value, int) and not isinstance(value, bool) and value.bit_length() > 64:
+        return f"an integer of {value.bit_length()} bits"
+    if value is None or isinstance(value, (bool, int, float)):
+        return repr(value)
+    return f"a {type(value).__name__}"
 
 
 def write_suite(suite: Suite, path: str | Path) -> Path:
@@ -199,13 +489,33 @@ def write_suite(suite: Suite, path: str | Path) -> Path:
 
 
 def read_suite(path: str | Path) -> Suite:
-    """The suite in the file ``path`` (its format and digest checked)."""
+    """The suite in the file ``path``: a regular file of at most :data:`MAX_SUITE_BYTES` (never a FIFO or a
+    device), checked by :func:`from_json` (the files it names are in its folder; a shipped file is the package's
+    own, the others are held to :func:`check_shipped_id`)."""
     path = Path(path)
+    resolved = path.resolve()
+    shipped = resolved.parent.name == "suites" and resolved.parent.parent.parent == PLANTS_FOLDER
+    return from_json(_load(path), where=f"suite file {path}", folder=path.parent, shipped=shipped)
+
+
+def _load(path: Path):
+    """The JSON content of the suite file ``path``; ``ValueError`` naming it otherwise."""
+    raw = read_limited(path, MAX_SUITE_BYTES, what="suite file")
+
+    def constant(name):  # NaN and Infinity are not JSON (and not a suite's)
+        raise ValueError(f"{name} is not a JSON number")
+
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        return json.loads(raw.decode("utf-8"), parse_constant=constant)
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"suite file {path}: cannot be read (byte {exc.start} is not UTF-8 text)") from None
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"suite file {path}: cannot be read (not JSON: {exc.msg} at line {exc.lineno})") from None
+    except RecursionError:
+        raise ValueError(f"suite file {path}: cannot be read (nested too deeply; a suite file nests at most "
+                         f"{MAX_NESTING} levels)") from None
+    except ValueError as exc:
         raise ValueError(f"suite file {path}: cannot be read ({exc})") from None
-    return from_json(data, where=f"suite file {path}")
 
 
 #: The plants' folders, where each ships its suites (``<plant>/suites/*.json``): found by path, so that this
@@ -228,7 +538,7 @@ def suites() -> dict[str, Suite]:
 
 def suite(name: str) -> Suite:
     """The shipped suite ``name`` (``car-comfort-v1``; a name without version: its latest), or a suite file's
-    path; ``ValueError`` naming the suites otherwise."""
+    path (:func:`read_suite`); ``ValueError`` naming the suites otherwise."""
     if isinstance(name, str) and name.endswith(".json"):
         return read_suite(name)
     every = suites()
@@ -237,7 +547,71 @@ def suite(name: str) -> Suite:
     versions = sorted((s.version, s) for s in every.values() if s.name == name)
     if versions:
         return versions[-1][1]
-    raise ValueError(f"suite must be one of {sorted(every)} (or a suite file), got {name!r}")
+    raise ValueError(f"suite must be one of {sorted(every)} (or a suite file), got {_shown(name)}")
+
+
+# ------------------------------------------------------------------------------ the shipped suites' digests
+
+#: The shipped suites' digests by id (``{"format": ..., "digests": {id: digest}}``): a shipped id means the shipped
+#: content (:func:`check_shipped_id`; the leaderboard's result files too). :func:`write_shipped_digests`
+#: regenerates it from the shipped files; ``tests/test_suite_security.py`` checks that it matches them.
+SHIPPED_DIGESTS = PLANTS_FOLDER / "suite_digests.json"
+DIGESTS_FORMAT = "mrd-env-suite-digests"
+
+
+@functools.lru_cache(maxsize=1)
+def _shipped_digests() -> tuple[tuple[str, str], ...]:
+    if not SHIPPED_DIGESTS.exists():  # an installation without the list: the shipped files themselves say it
+        return tuple(sorted((sid, s.digest) for sid, s in suites().items()))
+    try:
+        data = json.loads(read_limited(SHIPPED_DIGESTS, 1 << 20, what="shipped suites' digest list"))
+    except (UnicodeDecodeError, json.JSONDecodeError):
+        data = None
+    digests = data.get("digests") if isinstance(data, dict) and data.get("format") == DIGESTS_FORMAT else None
+    if not isinstance(digests, dict) or not all(isinstance(k, str) and isinstance(v, str)
+                                                and re.fullmatch(r"[0-9a-f]{64}", v) for k, v in digests.items()):
+        raise ValueError(f"{SHIPPED_DIGESTS} is damaged (not a list of suite digests): reinstall mrd-env")
+    return tuple(sorted(digests.items()))
+
+
+def shipped_digests() -> dict[str, str]:
+    """{suite id: digest} of every shipped suite (:data:`SHIPPED_DIGESTS`)."""
+    return dict(_shipped_digests())
+
+
+def shipped_digest(suite_id: str) -> str | None:
+    """The digest of the shipped suite ``suite_id`` (``car-comfort-v1``), or None if no shipped suite has that
+    id."""
+    return shipped_digests().get(suite_id) if isinstance(suite_id, str) else None
+
+
+def check_shipped_id(suite_id: str, digest: str, where: str = "suite") -> None:
+    """``ValueError`` (one line naming ``where``) if the suite ``suite_id`` (``name-vN``) of ``digest`` passes
+    for a shipped one it is not: a shipped id with another digest (an edited suite whose digest was recomputed),
+    or another version of a shipped suite's name than this mrd-env ships. A suite of one's own needs a name of its
+    own; results of it then never mix with the shipped suite's."""
+    every = shipped_digests()
+    want = every.get(suite_id)
+    if want is not None:
+        if digest != want:
+            shown = digest[:12] + "..." if isinstance(digest, str) else _shown(digest)
+            raise ValueError(f"{where}: {suite_id} is the id of a shipped suite, whose content differs (digest "
+                             f"{shown}, shipped {want[:12]}...): a suite of your own needs a name of its own")
+        return
+    name = suite_id.rsplit("-v", 1)[0] if isinstance(suite_id, str) else None
+    versions = sorted(i for i in every if i.rsplit("-v", 1)[0] == name)
+    if versions:
+        raise ValueError(f"{where}: {_shown(suite_id)} is not a shipped version of the suite {name!r} (this mrd-env "
+                         f"ships {versions}): a suite of your own needs a name of its own")
+
+
+def write_shipped_digests(path: str | Path | None = None) -> Path:
+    """Write {id: digest} of every shipped suite to ``path`` (default :data:`SHIPPED_DIGESTS`), from the shipped
+    files: what ``experiments.scripts.suite_references`` runs after it writes a suite into a plant's folder."""
+    digests = {sid: s.digest for sid, s in sorted(suites().items())}
+    out = write_json(path or SHIPPED_DIGESTS, {"format": DIGESTS_FORMAT, "digests": digests}, indent=1)
+    _shipped_digests.cache_clear()
+    return out
 
 
 def _json_options(options: dict) -> dict:
