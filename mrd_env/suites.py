@@ -429,8 +429,9 @@ def _confined(folder: str | Path, name, what: str) -> Path:
     """``folder / name`` for a file a suite names: a plain name inside the suite file's folder
     (:func:`mrd_env.storage.inside`: no absolute path, no ``..``, no link leaving it) of a regular file (not a
     folder, device, FIFO or socket, which the environment's read would hang on or never finish)."""
-    if isinstance(name, str) and len(name) > MAX_FILE_NAME:
-        raise ValueError(f"{what} {_shown(name)}: a file name of at most {MAX_FILE_NAME} characters is required")
+    if isinstance(name, str) and (len(name) > MAX_FILE_NAME or "\x00" in name):
+        raise ValueError(f"{what} {_shown(name)}: a file name of at most {MAX_FILE_NAME} characters (and no NUL) is "
+                         "required")
     path = inside(folder, name, what=what)
     try:
         st = os.stat(path)

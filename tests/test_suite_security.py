@@ -370,11 +370,11 @@ def _with_road_path(data: dict, where: str, name) -> dict:
 PLACES = ["suite", "scenario", "road object", "ground-motion mixture", "draw"]
 OUTSIDE = [("/etc/passwd", "no absolute path"), ("/dev/zero", "no absolute path"),
            ("../outside.csv", "no '..'"), ("sub/../../outside.csv", "no '..'"), ("", "a file name"),
-           (["road.csv"], "a file name")]
+           (["road.csv"], "a file name"), ("road\x00.csv", "no NUL"), ("x" * 5000, "at most 4096 characters")]
 
 
 @pytest.mark.parametrize("where", PLACES)
-@pytest.mark.parametrize("name, why", OUTSIDE, ids=[repr(n) for n, _ in OUTSIDE])
+@pytest.mark.parametrize("name, why", OUTSIDE, ids=[repr(n)[:20] for n, _ in OUTSIDE])
 def test_a_file_outside_the_suites_folder_is_refused(base, where, name, why, tmp_path):
     if where == "draw":  # a damper names a file by its .json ending (a model name otherwise)
         if not isinstance(name, str) or not name:
