@@ -135,7 +135,10 @@ def _shipped_check(path: Path, new, overwrite: bool) -> None:
 
     if not path.exists():
         return
-    old = read_suite(path)
+    try:
+        old = read_suite(path)
+    except ValueError as exc:  # a trial file under a shipped id, or a damaged one: say so, one line
+        raise SystemExit(f"{path}: {exc}") from None
     if old.definition_json() != new.definition_json():
         raise SystemExit(f"{path} holds suite {old.id} with another definition: a changed suite is a new version "
                          f"(bump the version of {new.name} in the plant's suites/)")
@@ -225,6 +228,7 @@ def main(argv=None) -> int:
         _shipped_check(path, new, args.overwrite)
         print(f"{d.id}: {len(new.references)} references of {new.procedure['references_of']} -> "
               f"{write_suite(new, path)}")
+        _list_shipped(args.out)
         return 0
     profile = plant_spec(plant).profile
     if not profile.warm_laws:
@@ -258,7 +262,17 @@ def main(argv=None) -> int:
     if args.episodes is None and not out.complete():
         raise SystemExit(f"{d.id}: references missing for {sorted(set(out.labels()) - set(refs))}")
     print(f"{d.id}: {len(refs)} episodes in {wall:.0f} s -> {write_suite(out, path)}")
+    _list_shipped(args.out)
     return 0
+
+
+def _list_shipped(out) -> None:
+    """A suite written into its plant's folder is shipped: its digest joins the list that binds each shipped id to
+    its content (:func:`mrd_env.suites.write_shipped_digests`); a trial written elsewhere (``--out``) does not."""
+    from mrd_env.suites import write_shipped_digests
+
+    if out is None:
+        print(f"shipped digests -> {write_shipped_digests()}")
 
 
 if __name__ == "__main__":
