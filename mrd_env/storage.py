@@ -38,6 +38,7 @@ def write_bytes(path: str | Path, data: bytes) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
+        _umask_mode(fd)
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
             fh.flush()
@@ -84,6 +85,7 @@ def write_texts(files: dict) -> list[Path]:
             path.parent.mkdir(parents=True, exist_ok=True)
             fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
             staged.append((tmp, path))
+            _umask_mode(fd)
             with os.fdopen(fd, "wb") as fh:
                 fh.write(text.encode("utf-8"))
                 fh.flush()
@@ -120,6 +122,7 @@ def atomic_path(path: str | Path):
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
+    _umask_mode(fd)
     os.close(fd)
     try:
         yield Path(tmp)
@@ -129,6 +132,29 @@ def atomic_path(path: str | Path):
     except BaseException:
         _unlink_quietly(tmp)
         raise
+
+
+def current_umask() -> int:
+    """The process's umask, read without changing it where the system says it (Linux's ``/proc/self/status``);
+    elsewhere set and put back at once."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def _umask_mode(fd: int) -> None:
+    """Give a file made by ``mkstemp`` (mode 0600, for its unpredictable name's sake) the mode a plain ``open``
+    would: 0666 less the umask, so that a result in a shared folder is readable as the user's other files are. The
+    caches' files stay private through their folders (0700, :func:`private_folder`)."""
+    if hasattr(os, "fchmod"):
+        os.fchmod(fd, 0o666 & ~current_umask())
 
 
 def _unlink_quietly(path) -> None:
@@ -142,7 +168,9 @@ def staging_folder(target: str | Path) -> Path:
     """A new empty folder beside ``target`` to write a folder's next content into (then :func:`replace_folder`)."""
     target = Path(target)
     target.parent.mkdir(parents=True, exist_ok=True)
-    return Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".staging", dir=target.parent))
+    staged = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".staging", dir=target.parent))
+    os.chmod(staged, 0o777 & ~current_umask())
+    return staged
 
 
 def _renameat2_exchange():

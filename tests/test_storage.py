@@ -126,3 +126,24 @@ def test_read_limited_refuses_devices_fifos_and_big_files(tmp_path):
     ok = tmp_path / "ok.json"
     ok.write_bytes(b"x" * 100)
     assert read_limited(ok, 100) == b"x" * 100
+
+
+def test_written_files_follow_the_umask(tmp_path):
+    """Results, tables and agent folders are written with the modes a plain open or mkdir would give (0666/0777 less
+    the umask), not mkstemp's 0600: a teaching assistant reads the students' outputs in a shared folder."""
+    import stat
+
+    old = os.umask(0o022)
+    try:
+        a = storage.write_text(tmp_path / "a.json", "{}")
+        b, c = storage.write_texts({tmp_path / "b.md": "x", tmp_path / "b.csv": "y"})
+        with storage.atomic_path(tmp_path / "d.npz") as tmp:
+            tmp.write_bytes(b"z")
+        staged = storage.staging_folder(tmp_path / "agent")
+        for f in (a, b, c, tmp_path / "d.npz"):
+            assert stat.S_IMODE(f.stat().st_mode) == 0o644, f
+        assert stat.S_IMODE(staged.stat().st_mode) == 0o755
+        os.umask(0o077)
+        assert stat.S_IMODE(storage.write_text(tmp_path / "e.json", "{}").stat().st_mode) == 0o600
+    finally:
+        os.umask(old)
