@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import re
 import signal
 import sys
 
@@ -99,7 +100,10 @@ def main(argv: list[str] | None = None) -> int:
         args._argv = argv  # the command line, for the records that say how to reproduce a run
         return int(importlib.import_module(args._module).run(args) or 0)
     except SystemExit as exc:  # --help, or a sub-command that exits by itself
-        return int(exc.code or 0) if not isinstance(exc.code, str) else _fail(prog, exc.code, 2)
+        code = exc.code
+        if code is None or isinstance(code, int):
+            return int(code or 0)
+        return _fail(prog, str(code), 2)  # a message (sys.exit("...")), or whatever else it was given
     except KeyboardInterrupt as exc:
         print(f"{prog}: {'terminated' if isinstance(exc, Terminated) else 'interrupted'}", file=sys.stderr)
         return 143 if isinstance(exc, Terminated) else 130
@@ -114,7 +118,8 @@ def main(argv: list[str] | None = None) -> int:
             return _fail(prog, f"{exc.task.label or exc.task.describe()}: {_message(exc.error)}", 2)
         if "--traceback" in argv:
             raise
-        return _fail(prog, f"internal error: {type(exc).__name__}: {exc} (rerun with --traceback for details)", 1)
+        return _fail(prog, f"internal error: {type(exc).__name__}: {one_line(exc, MAX_ERROR_LINE // 2)} (rerun with "
+                           "--traceback for details)", 1)
     finally:
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
@@ -134,8 +139,22 @@ def _message(exc: BaseException) -> str:
     return str(exc)
 
 
+#: The longest error line printed (characters): a message quoting a huge value (an option, a file's field) is cut.
+MAX_ERROR_LINE = 2000
+
+
+def one_line(message, limit: int = MAX_ERROR_LINE) -> str:
+    """``message`` on one line (runs of white space as one space), cut to ``limit`` characters with a note of how
+    many were cut: one error line must stay readable whatever value it quotes."""
+    text = re.sub(r"\s+", " ", str(message)).strip()
+    if len(text) <= limit:
+        return text
+    cut = len(text) - limit
+    return f"{text[:limit]}… ({cut} characters cut)"
+
+
 def _fail(prog: str, message: str, code: int) -> int:
-    print(f"{prog}: error: {' '.join(str(message).split())}", file=sys.stderr)
+    print(f"{prog}: error: {one_line(message)}", file=sys.stderr)
     return code
 
 

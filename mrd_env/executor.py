@@ -11,11 +11,22 @@ Backends: ``"serial"`` (in this process); ``"pool"`` (``concurrent.futures.Proce
 workers, spawned processes so that numba's and torch's threads are never forked); ``"ray"`` (``ray.init`` on
 ``address``, a running cluster, or a local instance when ``address`` is None; the ``ray`` extra). ``"auto"``:
 the pool when there is more than one task and more than one core, else serial.
+
+Stopping: Ctrl-C, SIGTERM (as ``mrd-env`` routes it: a ``KeyboardInterrupt`` in the main process) or any other
+exception while the pool runs kills its worker processes at once and waits for them to end — a task blocked in a
+worker (a controller that never returns, say) cannot keep the sweep alive; ``ProcessPoolExecutor`` itself only
+cancels the tasks not started and waits for the running ones. The workers ignore Ctrl-C (the parent stops them) and
+are killed by the kernel if the parent dies without stopping them (Linux: ``PR_SET_PDEATHSIG``). A task that raises
+``SystemExit`` or ``KeyboardInterrupt`` in a worker fails as any other task (:class:`TaskExited`): it does not exit
+the caller's process.
 """
 from __future__ import annotations
 
 import copy
 import os
+import reprlib
+import signal
+import sys
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -51,16 +62,50 @@ class TaskFailed(RuntimeError):
 
 
 def _short(v: Any, n: int = 60) -> str:
-    s = repr(v)
+    """``repr(v)`` in at most ``n`` characters, without building the whole of a huge value's repr first."""
+    r = reprlib.Repr()
+    r.maxstring = r.maxother = r.maxlong = n
+    s = r.repr(v)
     return s if len(s) <= n else s[: n - 3] + "..."
 
 
+class TaskExited(RuntimeError):
+    """A task raised ``SystemExit`` or ``KeyboardInterrupt`` in a pool's worker: its own doing (the workers ignore
+    Ctrl-C and the parent stops them), reported as the task's failure rather than exiting the caller."""
+
+
 def _call(task: Task):
-    """Run a task (in a worker); exceptions come back as values so that the caller decides on the retry."""
+    """Run a task; exceptions come back as values so that the caller decides on the retry."""
     try:
         return True, task()
     except Exception as exc:  # noqa: BLE001 — reported with the task's inputs by the caller
         return False, exc
+
+
+def _call_in_worker(task: Task):
+    """:func:`_call` in a pool's worker, where a ``SystemExit`` or ``KeyboardInterrupt`` can only be the task's
+    (Ctrl-C is ignored there, SIGTERM ends the worker): a failure of the task, not a reason to exit the parent."""
+    try:
+        return _call(task)
+    except (SystemExit, KeyboardInterrupt) as exc:
+        what = f"SystemExit({exc.code!r})" if isinstance(exc, SystemExit) else type(exc).__name__
+        return False, TaskExited(f"it raised {_short(what)} in a worker process")
+
+
+def _worker_init() -> None:
+    """A pool worker ignores Ctrl-C (the parent, which gets it too, stops the pool) and dies with its parent
+    (Linux): a worker orphaned by a killed parent would otherwise run — or block — on its own."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+
+            PR_SET_PDEATHSIG = 1
+            ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+            if os.getppid() == 1:  # the parent died before the call: nobody to signal us
+                os._exit(1)
+        except (OSError, AttributeError):
+            pass  # no libc prctl: the parent's stop still kills the workers
 
 
 def default_jobs() -> int:
@@ -124,14 +169,36 @@ def _pool(tasks, jobs, address, bar, retry):
 
     workers = min(jobs or default_jobs(), len(tasks))
     results: list = [None] * len(tasks)
-    with ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn")) as ex:
-        futures = {ex.submit(_call, t): i for i, t in enumerate(tasks)}
+    ex = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"), initializer=_worker_init)
+    try:
+        futures = {ex.submit(_call_in_worker, t): i for i, t in enumerate(tasks)}
         for fut in as_completed(futures):
             i = futures[fut]
             results[i] = _finish(tasks[i], fut.result(),
-                                 (lambda i=i: ex.submit(_call, tasks[i]).result()) if retry else None)
+                                 (lambda i=i: ex.submit(_call_in_worker, tasks[i]).result()) if retry else None)
             bar.update()
+    except BaseException:
+        # Ctrl-C, SIGTERM, a failed task: the running tasks are not waited for (shutdown would wait for them all)
+        _kill_workers(ex)
+        raise
+    ex.shutdown(wait=True)
     return results
+
+
+def _kill_workers(ex, grace: float = 5.0) -> None:
+    """Kill the pool's worker processes, drop its queued tasks and wait (at most ``grace`` s each) until they end."""
+    procs = list((getattr(ex, "_processes", None) or {}).values())  # the pool's own record of its workers
+    for p in procs:
+        try:
+            p.kill()
+        except (OSError, ValueError, AttributeError):
+            pass  # already ended, or closed
+    ex.shutdown(wait=False, cancel_futures=True)
+    for p in procs:
+        try:
+            p.join(grace)
+        except (OSError, ValueError, AssertionError):
+            pass
 
 
 def _ray(tasks, jobs, address, bar, retry):

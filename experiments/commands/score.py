@@ -31,6 +31,28 @@ from ..common import sweep
 from ..common.plants import add_plant_options, check_suite_plant
 
 
+def _whole(option: str, low: int):
+    """argparse's ``type`` of a whole-number option >= ``low``: its error names the option's range (``int()`` takes
+    '²'-free Unicode digits such as '٣' and 5 000-digit numbers; the option takes ASCII digits, at most 18)."""
+    def parse(text: str) -> int:
+        digits = text.strip()
+        if not (digits.isascii() and digits.isdigit() and len(digits) <= 18) or int(digits) < low:
+            raise argparse.ArgumentTypeError(f"must be a whole number >= {low}, got {_bounded(text)}")
+        return int(digits)
+
+    parse.__name__ = option.lstrip("-")
+    return parse
+
+
+def _bounded(value) -> str:
+    """``repr(value)`` cut to about 120 characters (an error message's quote of what the user typed)."""
+    import reprlib
+
+    r = reprlib.Repr()
+    r.maxstring = r.maxother = 120
+    return r.repr(value)
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--suite", required=True,
                    help="a shipped suite (name-vN, e.g. car-comfort-v1; a name without version: its latest) or a "
@@ -46,7 +68,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="the row's and result file's name of the one --controller (default: the law's name, with its "
                         "options; agent <name>; the import spec)")
     p.add_argument("--out", type=Path, default=Path("results/score"))
-    p.add_argument("--episodes", type=int, default=None,
+    p.add_argument("--episodes", type=_whole("--episodes", 1), default=None, metavar="K",
                    help="only the first K episodes of each scenario (a smoke run: the result is marked partial)")
     p.add_argument("--trust-agent", action="store_true",
                    help="also load agents that only have SB3's model.zip (pickles: they can run any code; only from a "
@@ -68,10 +90,12 @@ def run(args: argparse.Namespace) -> int:
     if args.law_options is not None:
         try:
             options = json.loads(args.law_options)
-        except json.JSONDecodeError as exc:
-            raise ValueError(f"--law-options must be a JSON object, got {args.law_options!r} ({exc})") from None
+        except (json.JSONDecodeError, RecursionError) as exc:
+            why = "nested too deeply" if isinstance(exc, RecursionError) else str(exc)
+            raise ValueError(f"--law-options must be a JSON object, got {_bounded(args.law_options)} ({why})") \
+                from None
         if not isinstance(options, dict):
-            raise ValueError(f"--law-options must be a JSON object ({{...}}), got {args.law_options!r}")
+            raise ValueError(f"--law-options must be a JSON object ({{...}}), got {_bounded(args.law_options)}")
     for flag, given in (("--law-options", args.law_options), ("--name", args.name)):
         if given is not None and len(args.controller) != 1:
             raise ValueError(f"{flag} applies to one --controller; {len(args.controller)} were given (score them one "
@@ -83,16 +107,17 @@ def run(args: argparse.Namespace) -> int:
     suite = resolve_suite(args.suite)
     check_suite_plant(suite, args)
     check_references(suite)
-    storage.writable_folder(args.out)
-    # every controller checked before any episode runs: a typo must not cost the first controller's episodes
+    # every controller checked before any episode runs (a typo must not cost the first controller's episodes), and
+    # before --out is made: a refused command writes nothing
     specs = []
     for c in args.controller:
         spec = controller_spec(c, name=args.name, options=options, trust_agent=args.trust_agent,
                                converted=args.out / "converted-agents")
         check_controller(spec, suite)
         if any(s.name == spec.name for s in specs):
-            raise ValueError(f"--controller {c}: {spec.name} is given twice")
+            raise ValueError(f"--controller {_bounded(c)}: {_bounded(spec.name)} is given twice")
         specs.append(spec)
+    storage.writable_folder(args.out)
     for spec in specs:
         one_torch_thread(spec)  # this process is the command's own (an SB3 policy: 10× faster on 2 cores)
     files = [args.out / result_filename(suite.id, s.name) for s in specs]

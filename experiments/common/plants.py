@@ -7,6 +7,7 @@ folder and its line in :data:`mrd_env.plants.PLANT_FOLDERS`.
 from __future__ import annotations
 
 import argparse
+import reprlib
 import warnings
 
 from mrd_env.plants import plant, plant_of_id, plants
@@ -77,6 +78,50 @@ def _dest(name: str) -> str:
     return "plant_option_" + name.replace("-", "_")
 
 
+#: The longest plant option's text taken (characters): a command line's option, not a file.
+MAX_OPTION_TEXT = 100_000
+
+
+def _bounded(text) -> str:
+    r = reprlib.Repr()
+    r.maxstring = r.maxother = 80
+    return r.repr(text)
+
+
+def _text_problem(text: str, valid: str) -> str | None:
+    """What is wrong with a plant option's text (None: nothing), naming ``valid``, its valid values."""
+    if len(text) > MAX_OPTION_TEXT:
+        why = f"{len(text)} characters, more than {MAX_OPTION_TEXT}"
+    elif not (text.isascii() and text.isprintable()):
+        why = "not plain ASCII"
+    else:
+        return None
+    return f"takes {valid or 'plain ASCII text'}, got {_bounded(text)} ({why})"
+
+
+def check_option_text(name: str, text, valid: str = "") -> str:
+    """The text of plant option ``--name``, checked: printable ASCII (``'²'.isdigit()`` and ``'٣'.isdigit()`` are true,
+    but neither is a digit the plants parse), at most :data:`MAX_OPTION_TEXT` characters; ``ValueError`` naming the
+    option and ``valid`` (its valid values) otherwise."""
+    text = str(text)
+    problem = _text_problem(text, valid)
+    if problem:
+        raise ValueError(f"--{name} {problem}")
+    return text
+
+
+def _option_type(option):
+    """argparse's ``type`` of a plant option (:func:`check_option_text`; argparse names the option)."""
+    def parse(text: str) -> str:
+        problem = _text_problem(text, f"{option.metavar}: {option.help}")
+        if problem:
+            raise argparse.ArgumentTypeError(problem)
+        return text
+
+    parse.__name__ = option.name.replace("-", "_")
+    return parse
+
+
 def add_plant_options(parser: argparse.ArgumentParser) -> None:
     """Every plant's options (:attr:`PlantProfile.offered_options`: the building's ``--storeys``, ...; ``--damper``
     of every plant where the command has no ``--damper`` of its own), each once; :func:`with_plant_options` applies
@@ -88,7 +133,8 @@ def add_plant_options(parser: argparse.ArgumentParser) -> None:
             if f"--{o.name}" in seen:
                 continue
             seen.add(f"--{o.name}")
-            group.add_argument(f"--{o.name}", dest=_dest(o.name), metavar=o.metavar, default=None, help=o.help)
+            group.add_argument(f"--{o.name}", dest=_dest(o.name), metavar=o.metavar, default=None, help=o.help,
+                               type=_option_type(o))
 
 
 def plant_option_values(args: argparse.Namespace) -> dict[str, str]:
@@ -100,8 +146,31 @@ def plant_option_values(args: argparse.Namespace) -> dict[str, str]:
 def with_plant_options(plants: list[PlantProfile], args: argparse.Namespace) -> list[PlantProfile]:
     """The chosen ``plants`` with the plant options of the command line applied
     (:meth:`PlantProfile.with_plant_options`; ``ValueError`` for a plant that lacks one, or a bad value)."""
-    given = plant_option_values(args)
-    return [p.with_plant_options(given) for p in plants]
+    given = _checked(plant_option_values(args))
+    return [_naming(given, p.with_plant_options, given) for p in plants]
+
+
+def _checked(given: dict) -> dict:
+    """``given`` ({option: text}) with every text checked (:func:`check_option_text`): also for values set from
+    Python, which argparse's type did not see."""
+    return {k: check_option_text(k, v) for k, v in given.items()}
+
+
+def _flags(given: dict) -> str:
+    """The options as typed (each value cut to 80 characters)."""
+    return " ".join(f"--{k} {v if len(v) <= 80 else v[:77] + '...'}" for k, v in given.items())
+
+
+def _naming(given: dict, fn, *args):
+    """``fn(*args)``, with a ``ValueError`` that names no option (a plant's int() of a value, say) prefixed by the
+    options ``given``: every bad value's line names its option."""
+    try:
+        return fn(*args)
+    except ValueError as exc:
+        text = str(exc)
+        if not any(f"--{k}" in text for k in given):
+            raise ValueError(f"{_flags(given)}: {text}") from None
+        raise
 
 
 def _plain(value):
@@ -116,15 +185,15 @@ def _plain(value):
 def check_suite_plant(suite, args: argparse.Namespace) -> None:
     """A suite fixes its plant: plant options that would change it are refused (``ValueError`` naming the suites of
     that plant whose plant they describe); options that describe the suite's own plant pass."""
-    given = plant_option_values(args)
+    given = _checked(plant_option_values(args))
     if not given:
         return
     plant = profile(suite.plant)
-    if _plain(plant.plant_environment(suite.options, given)) == _plain(suite.options):
+    if _plain(_naming(given, plant.plant_environment, suite.options, given)) == _plain(suite.options):
         return
-    flags = " ".join(f"--{k} {v}" for k, v in given.items())
+    flags = _flags(given)
     fits = [f"{d.name}-v{d.version}" for d in plant.suites
-            if _plain(plant.plant_environment(d.options, given)) == _plain(d.options)]
+            if _plain(_naming(given, plant.plant_environment, d.options, given)) == _plain(d.options)]
     raise ValueError(f"{flags} would change the plant of suite {suite.name}-v{suite.version}, and a suite fixes its "
                      f"plant; " + (f"score {' or '.join(fits)}, whose plant that is" if fits
                                    else "no shipped suite has that plant (use mrd-env benchmark)"))

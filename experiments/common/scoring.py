@@ -31,6 +31,7 @@ import io
 import json
 import math
 import re
+import reprlib
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
@@ -55,6 +56,15 @@ ALL = "all scenarios"
 AGENT_ACTION_OPTIONS = ("action_mode", "inverse", "force_range")
 #: The unit of the constraint costs (:mod:`mrd_env.envs.costs`: time in violation).
 COST_UNIT = "s"
+
+_REPR = reprlib.Repr()
+_REPR.maxstring = _REPR.maxother = _REPR.maxlong = 120
+
+
+def bounded(value) -> str:
+    """``repr(value)`` cut to about 120 characters (and a few items of a container): what an error message quotes
+    of a value the user gave, however large it is."""
+    return _REPR.repr(value)
 
 
 # ---------------------------------------------------------------------------------------------- the suite
@@ -135,7 +145,7 @@ def controller_spec(controller, *, name: str | None = None, options: dict | None
             desc["name"] = name or f"{controller} {json.dumps(desc['options'], sort_keys=True)}"
         return ControllerSpec("law", controller, desc["name"], desc)
     if options:
-        raise ValueError(f"options are a registered law's ({', '.join(available_controllers())}); {controller!r} is "
+        raise ValueError(f"options are a registered law's ({', '.join(available_controllers())}); {bounded(controller)} is "
                          "not one (an agent or Python controller carries its own settings)")
     if isinstance(controller, str) and is_import_spec(controller) and not Path(controller).exists():
         obj = import_object(controller)  # ValueError, one line; runs the user's module (their explicit choice)
@@ -147,7 +157,7 @@ def controller_spec(controller, *, name: str | None = None, options: dict | None
     if isinstance(controller, (str, Path)):
         path = Path(controller)
         if not path.exists():
-            raise ValueError(f"controller {str(controller)!r} is none of: a registered law "
+            raise ValueError(f"controller {bounded(str(controller))} is none of: a registered law "
                              f"({', '.join(available_controllers())}), an agent folder, package.module:attribute")
         return _agent_spec(path, name, trust_agent, converted)
     from controllers.protocol import ControllerProtocol
@@ -170,7 +180,7 @@ def law_options(options, law: str = "the law") -> dict:
     """``options`` as plain JSON (a dict with string keys of numbers, strings, booleans, null, lists and dicts), as the
     result file records them; ``ValueError`` naming ``law`` otherwise."""
     if not isinstance(options, dict) or not all(isinstance(k, str) for k in options):
-        raise ValueError(f"options of {law} must be a dict with string keys, got {options!r}")
+        raise ValueError(f"options of {law} must be a dict with string keys, got {bounded(options)}")
     try:
         return json.loads(json.dumps(options, allow_nan=False))
     except (TypeError, ValueError) as exc:
@@ -217,16 +227,19 @@ def env_options(suite, scenario, seed: int, spec: ControllerSpec) -> dict:
 
 
 def _build(spec: ControllerSpec, venv):
-    """The controller of ``spec`` on ``venv`` (a vector environment of the suite)."""
+    """The controller of ``spec`` on ``venv`` (a vector environment of the suite), built — whatever its kind — on
+    the environment's declarations only (:func:`controllers.protocol.declarations`: it cannot step, reset or read
+    the state or the disturbance of the environment it drives)."""
     from controllers import load_agent, make_controller
-    from controllers.protocol import build_controller, import_object
+    from controllers.protocol import build_controller, declarations, import_object
 
+    view = declarations(venv)
     if spec.kind == "law":
-        return make_controller(spec.ref, venv, **spec.description.get("options", {}))
+        return make_controller(spec.ref, view, **spec.description.get("options", {}))
     if spec.kind == "agent":
-        return load_agent(spec.ref).bind(venv)
+        return load_agent(spec.ref).bind(view)
     obj = import_object(spec.ref) if isinstance(spec.ref, str) else spec.ref
-    return build_controller(obj, venv, what=f"controller {spec.name}")
+    return build_controller(obj, view, what=f"controller {spec.name}")
 
 
 def _check_agent(spec: ControllerSpec, suite, venv) -> None:
@@ -242,10 +255,10 @@ def _check_agent(spec: ControllerSpec, suite, venv) -> None:
     if "sensors" in kw:
         have = [n for n, *_ in base.sensor_layout]
         if list(kw["sensors"]) != have:
-            raise ValueError(f"agent {spec.name}: trained on the sensors {list(kw['sensors'])}, the suite {suite.id} "
+            raise ValueError(f"agent {spec.name}: trained on the sensors {bounded(list(kw['sensors']))}, the suite {suite.id} "
                              f"measures {have}")
     if "preview" in kw and tuple(float(x) for x in kw["preview"]) != tuple(getattr(base, "preview_times", ())):
-        raise ValueError(f"agent {spec.name}: trained with road preview {list(kw['preview'])} s, the suite "
+        raise ValueError(f"agent {spec.name}: trained with road preview {bounded(list(kw['preview']))} s, the suite "
                          f"{suite.id} gives {list(getattr(base, 'preview_times', ()))}")
 
 
@@ -264,11 +277,12 @@ def check_controller(spec: ControllerSpec, suite) -> None:
             if spec.kind == "agent":
                 _check_agent(spec, suite, venv)
             try:
-                _build(spec, venv)
+                with _Signals() as signals:
+                    _built(spec, venv, signals)
             except TypeError as exc:
                 if spec.kind != "law":
                     raise
-                raise ValueError(f"controller {spec.name}: options {spec.description.get('options', {})} of "
+                raise ValueError(f"controller {spec.name}: options {bounded(spec.description.get('options', {}))} of "
                                  f"{spec.ref}: {exc}") from None
             except ValueError as exc:
                 text = str(exc)
@@ -278,26 +292,94 @@ def check_controller(spec: ControllerSpec, suite) -> None:
             venv.close()
 
 
+class _Signals:
+    """Whether SIGINT or SIGTERM arrived while the controllers ran (a context; main thread only): a
+    ``KeyboardInterrupt`` or ``SystemExit`` is a stop only when one did; else the controller's code raised it.
+    Python-level handlers (Python's Ctrl-C handler, ``mrd-env``'s SIGTERM) are wrapped to note the signal before
+    they run; an ignored or default disposition is left alone — then the signal raises nothing in Python (it is
+    ignored, or ends the process), so neither exception can come from it; nor can one outside the main thread,
+    where no handler runs."""
+
+    SIGNALS = ("SIGINT", "SIGTERM")
+
+    def __init__(self):
+        self.seen = False
+        self._previous: dict = {}
+
+    def __enter__(self):
+        import signal
+        import threading
+
+        if threading.current_thread() is not threading.main_thread():
+            return self
+        for name in self.SIGNALS:
+            sig = getattr(signal, name, None)
+            previous = None if sig is None else signal.getsignal(sig)
+            if callable(previous):
+                signal.signal(sig, self._noting(previous))
+                self._previous[sig] = previous
+        return self
+
+    def _noting(self, previous):
+        def handler(signum, frame):
+            self.seen = True
+            return previous(signum, frame)
+        return handler
+
+    def __exit__(self, *exc) -> None:
+        import signal
+
+        for sig, previous in self._previous.items():
+            signal.signal(sig, previous)
+        self._previous.clear()
+
+
+def _exited(name: str, what: str, exc: BaseException, signals: _Signals | None) -> None:
+    """Re-raise ``exc`` (a ``SystemExit`` or ``KeyboardInterrupt``) where a signal raised it (a stop); else it is the
+    controller's own exit: ``ValueError`` naming it."""
+    if signals is None or signals.seen:
+        raise exc
+    raised = f"SystemExit({bounded(exc.code)})" if isinstance(exc, SystemExit) else type(exc).__name__
+    raise ValueError(f"controller {name}: {what} raised {raised} (a controller returns, it does not exit the "
+                     "scorer)") from None
+
+
+def _built(spec: ControllerSpec, venv, signals: _Signals | None):
+    """:func:`_build`, with a ``sys.exit()`` or ``KeyboardInterrupt`` of the controller's construction its error."""
+    try:
+        return _build(spec, venv)
+    except (SystemExit, KeyboardInterrupt) as exc:
+        _exited(spec.name, "building it", exc, signals)
+
+
 class _Driven:
     """A controller as :func:`~experiments.common.evaluation.evaluate_batch` drives it, holding the protocol: the
     state handed back, ``episode_start`` at the first step, ``reset`` only where the controller has one, and every
     action checked (shape, finite) with a one-line error naming the controller. ``user``: the controller is the
-    user's code, whose exceptions are reported as theirs (a one-line ``ValueError``), not as the project's bugs."""
+    user's code, whose exceptions are reported as theirs (a one-line ``ValueError``), not as the project's bugs.
+    A ``SystemExit`` or ``KeyboardInterrupt`` its code raises (``sys.exit()`` in ``predict``) is its error too,
+    whatever its kind — not the scorer's exit; one raised by a signal (``signals``: :class:`_Signals`) stops the
+    scoring."""
 
-    def __init__(self, ctrl, venv, name: str, user: bool = False):
+    def __init__(self, ctrl, venv, name: str, user: bool = False, signals: _Signals | None = None):
         self.ctrl, self.name, self.user = ctrl, name, user
+        self.signals = signals
         self.space = venv.single_action_space
         self.n = int(venv.num_envs)
         self._state, self._start = None, True
 
     def _call(self, what: str, fn, *args, **kwargs):
-        if not self.user:
-            return fn(*args, **kwargs)
         try:
             return fn(*args, **kwargs)
+        except (SystemExit, KeyboardInterrupt) as exc:  # Ctrl-C or SIGTERM stop the scoring; else its error
+            _exited(self.name, what, exc, self.signals)
         except ValueError as exc:
+            if not self.user:
+                raise
             raise ValueError(f"controller {self.name}: {what}: {exc}") from exc
         except Exception as exc:  # the user's code: its error, on one line
+            if not self.user:
+                raise
             raise ValueError(f"controller {self.name}: {what} raised {type(exc).__name__}: {exc}") from exc
 
     def reset(self, mask=None) -> None:
@@ -365,13 +447,15 @@ def scenario_episodes(suite, index: int, seeds: tuple[int, ...], spec: Controlle
         key = json.dumps(options, sort_keys=True, default=repr)
         groups.setdefault(key, (options, []))[1].append(int(seed))
     ran = {}
-    for options, group in groups.values():
-        options = dict(options)
-        control_dt = options.pop("control_dt")
-        eps = evaluate_batch(lambda venv: _Driven(_build(spec, venv), venv, spec.name, user=spec.kind == "python"),
-                             Scenario(sc.name, suite.env_id, options, tuple(group)), "", name=spec.name,
-                             control_dt=control_dt)
-        ran.update(zip(group, eps))
+    with _Signals() as signals:
+        for options, group in groups.values():
+            options = dict(options)
+            control_dt = options.pop("control_dt")
+            eps = evaluate_batch(lambda venv: _Driven(_built(spec, venv, signals), venv, spec.name,
+                                                      user=spec.kind == "python", signals=signals),
+                                 Scenario(sc.name, suite.env_id, options, tuple(group)), "", name=spec.name,
+                                 control_dt=control_dt)
+            ran.update(zip(group, eps))
     eps = [ran[int(seed)] for seed in seeds]
     out = []
     for e, seed in zip(eps, seeds):
@@ -550,7 +634,7 @@ def score(suite, controller, *, name: str | None = None, options: dict | None = 
     suite = resolve_suite(suite)
     check_references(suite)
     if episodes is not None and (isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1):
-        raise ValueError(f"episodes must be a whole number >= 1 (per scenario), got {episodes!r}")
+        raise ValueError(f"episodes must be a whole number >= 1 (per scenario), got {bounded(episodes)}")
     spec = controller if isinstance(controller, ControllerSpec) else \
         controller_spec(controller, name=name, options=options, trust_agent=trust_agent, converted=converted)
     check_controller(spec, suite)
