@@ -270,3 +270,107 @@ def test_the_kernel_cache_key_follows_every_import_of_the_models_code(tmp_path, 
     monkeypatch.setattr(codegen.inspect, "getsourcefile", lambda cls: str(pkg / "dampers" / "model.py"))
     found = {str(p.relative_to(pkg)) for p in map(Path, codegen.model_modules(object))}
     assert found == set(files) - {"unrelated.py"}
+
+
+# --- JAX's compilation cache (issue 48, item 11) ------------------------------------------------------------------
+#: A process that compiles ``x + 1`` (and, with ``plant``, ``x * 100``) after importing mrd_env.jax, prints the
+#: result of ``x + 1`` at 1.0 and, with ``plant``, the cache entries each compile wrote ({name: [new files]}).
+#: ``swap``: the cache folder is replaced by a link to another folder after the import (what "checked only at
+#: import" left open).
+_JAX_PROCESS = r"""
+import json, os, sys
+from pathlib import Path
+import mrd_env.jax, jax
+from mrd_env import caches
+folder = Path(os.environ["JAX_DIR"])
+swap = os.environ.get("SWAP")
+if swap:
+    os.rename(folder, str(folder) + ".moved")
+    os.symlink(swap, folder)
+ls = lambda: set(os.listdir(folder)) if folder.is_dir() else set()
+written = {}
+before = ls()
+plus = jax.jit(lambda x: x + 1.0)(1.0)
+written["plus"] = sorted(ls() - before)
+if os.environ.get("PLANT"):
+    before = ls()
+    jax.jit(lambda x: x * 100.0)(1.0)
+    written["times"] = sorted(ls() - before)
+print(json.dumps({"plus": float(plus), "written": written}))
+"""
+
+
+def _jax_run(env: dict) -> dict:
+    import subprocess
+
+    out = subprocess.run([sys.executable, "-c", _JAX_PROCESS], capture_output=True, text=True, timeout=300,
+                         env={**os.environ, "JAX_PLATFORMS": "cpu", **env})
+    assert out.returncode == 0, out.stderr[-3000:]
+    return {**json.loads(out.stdout.strip().splitlines()[-1]), "stderr": out.stderr}
+
+
+def _plant_times_100_as_plus_1(folder: Path, env: dict) -> None:
+    """The attacker's part: compile ``x + 1`` and ``x * 100`` with the victim's settings, then put the second
+    program's entry under the first one's name (JAX's keys hash the computation; the content is not checked)."""
+    made = _jax_run({**env, "PLANT": "1", "JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS": "0"})
+    assert made["plus"] == 2.0
+    plus = [f for f in made["written"]["plus"] if f.endswith("-cache")]
+    times = [f for f in made["written"]["times"] if f.endswith("-cache")]
+    assert len(plus) == len(times) == 1, made["written"]
+    (folder / plus[0]).write_bytes((folder / times[0]).read_bytes())
+
+
+@pytest.mark.hostile
+def test_a_planted_jax_program_is_never_run_by_default(home, tmp_path):
+    """By default mrd_env.jax keeps compiled programs in memory only: an entry planted in ``<cache>/jax`` under the
+    key of ``x + 1`` (the compiled ``x * 100``) is not read, and nothing is written there (before: 100.0)."""
+    pytest.importorskip("jax")
+    folder = home / "jax"
+    folder.mkdir(parents=True, mode=0o700)
+    home.chmod(0o700)
+    # the planter uses the folder as the old default did (a cache directory JAX reads and writes)
+    _plant_times_100_as_plus_1(folder, {"MRD_ENV_CACHE_DIR": str(home), "JAX_DIR": str(folder),
+                                        "JAX_COMPILATION_CACHE_DIR": str(folder)})
+    planted = sorted(os.listdir(folder))
+    run = _jax_run({"MRD_ENV_CACHE_DIR": str(home), "JAX_DIR": str(folder), "MRD_ENV_JAX_CACHE": ""})
+    assert run["plus"] == 2.0
+    assert sorted(os.listdir(folder)) == planted  # nothing read (no access time written) nor written
+
+
+@pytest.mark.hostile
+def test_an_opted_in_jax_cache_is_checked_at_every_use_not_only_at_import(home, tmp_path):
+    """``MRD_ENV_JAX_CACHE=1``: programs persist in the private ``<cache>/jax`` (a second process finds the first
+    one's entry), and a folder swapped for a link to a folder holding a planted entry after the import is refused
+    at the next compile, with a warning: the planted program does not run."""
+    pytest.importorskip("jax")
+    folder = home / "jax"
+    env = {"MRD_ENV_CACHE_DIR": str(home), "JAX_DIR": str(folder), "MRD_ENV_JAX_CACHE": "1"}
+    _plant_times_100_as_plus_1(folder, env)  # the cache works: each program wrote its entry
+    assert _private(folder) and stat.S_IMODE(os.lstat(folder).st_mode) == 0o700
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir(mode=0o700)
+    for f in os.listdir(folder):  # the attacker's copy of the planted folder
+        (elsewhere / f).write_bytes((folder / f).read_bytes())
+    run = _jax_run({**env, "SWAP": str(elsewhere)})
+    assert run["plus"] == 2.0
+    assert "is a link" in run["stderr"] and "neither read from nor written to" in run["stderr"]
+
+
+@pytest.mark.hostile
+def test_an_opted_in_jax_cache_reads_no_entry_through_a_symlink(home, tmp_path):
+    """An entry that is a symlink (to a file outside the folder) is not read: JAX compiles again."""
+    pytest.importorskip("jax")
+    from mrd_env.jax import CheckedCache
+
+    folder = home / "jax"
+    folder.mkdir(parents=True, mode=0o700)
+    home.chmod(0o700)
+    outside = _victim(tmp_path)
+    (folder / "jit_f-0123-cache").symlink_to(outside)
+    cache_ = CheckedCache(folder, root=home)
+    assert cache_.get("jit_f-0123") is None and cache_.get("../victim") is None
+    cache_.put("jit_f-0123", b"program")
+    assert outside.read_text() == VICTIM and cache_.get("jit_f-0123") == b"program"
+    folder.chmod(0o777)
+    with pytest.warns(RuntimeWarning, match="writable by others"):
+        assert cache_.get("jit_f-0123") is None

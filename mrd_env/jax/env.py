@@ -29,6 +29,7 @@ import numpy as np
 from jax import lax
 
 from ..disturbances import Record
+from ..resources import check as check_memory, format_bytes, record_bytes
 from ..stepping.scheme import ATOL, MAX_SUBSTEPS, OK, RTOL, max_level_of
 from . import scheme as sc
 from .dampers import JACOBIANS, jax_damper
@@ -179,6 +180,117 @@ def _structure(asm) -> dict:
             "filters": tuple((i, o, np.asarray(f).tobytes()) for i, o, f in asm.filters)}
 
 
+# --- memory: estimated before anything is allocated (mrd_env.resources) ------------------------------------
+#: Bytes a batched step takes per byte of one environment's arrays (:func:`env_floats`): the state it reads and
+#: the one it returns, the new episode every step prepares for an autoreset, and the compiled step's temporaries
+#: (XLA's ``memory_analysis`` of the vmapped step: 3.5–4.2 for the plants; ``experiments/scripts/bench_jax_memory.py``).
+STEP_FACTOR = 6
+
+
+def env_floats(asm) -> int:
+    """Floats of one environment of a batch: its state (plant, dampers, command queue, filters, sensor FIFO, costs,
+    counters), its damper's draw and lag, its key, observation and action, and one row h with its inputs."""
+    from ..envs.costs import Costs
+
+    sig, s = asm.signals, asm.coupled.system
+    nd, n = s.nd, asm.coupled.n
+    n_meas = len(asm.sensors.bind(sig, asm.sensor_names)[0])
+    sections = sum(len(np.atleast_2d(np.asarray(f))) for _, _, f in asm.filters)
+    terms = len((asm.costs if asm.costs is not None else Costs()).names)
+    queue = int(float(asm.damper.command.lag_vector()[2]) / asm.dt) + 2
+    n_params = len(dataclasses.fields(asm.damper.params))
+    return (n + nd * (3 + queue + n_params + 3 + 1) + 2 * sections
+            + (asm.sensors.delay + 2 * asm.sensors.history) * n_meas + terms + 1 + 6 + sig.width + s.nw)
+
+
+def plant_bytes(asm) -> int:
+    """Bytes of one episode's plant in a bank that draws a plant per episode (``randomise`` beyond the damper):
+    the elimination matrices of every sub-step level, the output matrices and the signals' rows."""
+    s = asm.coupled.system
+    levels = s.levels(asm.dt, max_level_of(MAX_SUBSTEPS))  # cached by the plant: computed once
+    return int(sum(np.asarray(a).nbytes for a in (*levels, s.C, s.D, asm.signals.G)))
+
+
+#: The most episodes a bank holds (``seeds``).
+MAX_SEEDS = 100_000
+
+
+def seed_list(seeds) -> list[int]:
+    """``seeds`` as a list of ints, its length (1 to :data:`MAX_SEEDS`) checked before the list is made."""
+    try:
+        n = len(seeds)
+    except (TypeError, OverflowError):
+        n = None  # a generator: counted as it is listed, never past the bound
+    if n is not None and not 1 <= n <= MAX_SEEDS:
+        raise ValueError(f"seeds must name 1 to {MAX_SEEDS} episodes, got {n}")
+    out = []
+    for s in seeds:
+        if len(out) == MAX_SEEDS:
+            raise ValueError(f"seeds must name 1 to {MAX_SEEDS} episodes, got more")
+        if isinstance(s, bool) or not isinstance(s, (int, np.integer)) or s < 0:
+            raise ValueError(f"seeds must be ints >= 0, got {s!r}")
+        out.append(int(s))
+    if not out:
+        raise ValueError(f"seeds must name 1 to {MAX_SEEDS} episodes, got 0")
+    return out
+
+
+def record_samples(asm, seeds) -> int:
+    """Samples of the longest record the bank of ``seeds`` holds: the disturbance's bound, else the first seed's
+    record (a disturbance of unknown length: every record of a seeded bank is assumed that long)."""
+    n = asm.disturbance.max_samples
+    if n is None:
+        n = native_records(asm, list(seeds)[:1])[0].n_samples
+    if asm.episode_seconds is not None:
+        n = min(n, int(round(asm.episode_seconds / asm.dt)) + 1)
+    return int(n)
+
+
+def bank_parts(asm, n_episodes: int, n_samples: int, *, drawn: bool = False, generated: bool = True) -> dict:
+    """The estimate {what: bytes} of a bank of ``n_episodes`` on records of ``n_samples``: the records, the inputs W at every physics step, generating one record
+    (``generated``), one episode's data from the plant's ``new_episode`` (dropped before the next) and, ``drawn``, every
+    episode's own plant (its assembly's and the stacked copy)."""
+    FLOAT = 8
+    nw = asm.coupled.system.nw
+    rows = asm.episode_steps(n_samples) * asm.n_sub + 1
+    E = f"{n_episodes} episode{'s' if n_episodes != 1 else ''}"
+    parts = {f"the records ({E} × {n_samples} samples × {nw - 1} channels)": n_episodes * n_samples * FLOAT * (nw - 1),
+             f"the inputs W ({E} × {rows} rows × {nw} columns)": n_episodes * rows * nw * FLOAT,
+             # one episode at a time: the bank keeps its inputs, not the plant's per-episode data
+             "the episode's data computed at a reset": (asm.episode_floats + asm.reset_floats) * n_samples * FLOAT}
+    if generated and asm.disturbance.random:
+        parts["generating a record"] = record_bytes(n_samples, nw - 1, generated=True)
+    if drawn:
+        parts[f"the plant of each episode ({E})"] = 2 * n_episodes * plant_bytes(asm)
+    return parts
+
+
+def batch_parts(asm, num_envs: int, *, drawn: bool = False) -> dict:
+    """The estimate {what: bytes} of ``num_envs`` environments stepped together (:data:`STEP_FACTOR` × their
+    arrays; ``drawn``: each environment's step also gathers its episode's plant)."""
+    each = 8 * STEP_FACTOR * env_floats(asm) + (plant_bytes(asm) if drawn else 0)
+    return {f"{num_envs} environments' state and step ({format_bytes(each)} each)": num_envs * each}
+
+
+def check_bank(asm, *, seeds=None, records=None, num_envs: int = 0, drawn: bool = False) -> float:
+    """``ValueError`` naming the options (``seeds`` or ``records``, ``num_envs``), the estimate and the limit
+    (:func:`mrd_env.resources.check`) if the bank and a batch of ``num_envs`` exceed the memory limit; called before
+    any record is drawn or array made. The estimate (bytes) otherwise."""
+    if records is not None:
+        n_ep, n = len(records), max((int(getattr(r, "n_samples", 0)) for r in records), default=1)
+        cause = [f"records ({n_ep} records of up to {n} samples)"]
+        parts = bank_parts(asm, n_ep, n, drawn=drawn, generated=False)
+        parts.pop(next(k for k in parts if k.startswith("the records")))  # the caller's own arrays
+    else:
+        n_ep, n = len(seeds), record_samples(asm, seeds)
+        cause = [f"seeds ({n_ep} episodes of {(n - 1) * asm.dt:g} s at dt={asm.dt:g} s)"]
+        parts = bank_parts(asm, n_ep, n, drawn=drawn)
+    if num_envs:
+        parts.update(batch_parts(asm, num_envs, drawn=drawn))
+        cause.insert(0, f"num_envs={num_envs}")
+    return check_memory(parts, ", ".join(cause))
+
+
 def params_of_episodes(episodes, *, scheme: str = "exact", substeps: int = 1, newton_iterations: int = 2,
                        jacobian: str = "kernel", name: str = "records") -> EnvParams:
     """The twin of a bank of episodes ``[(assembly, record), ...]``: each record (a
@@ -306,9 +418,11 @@ def make_params(env_id: str, *, seeds=range(16), records=None, randomise=None, s
     _check_scheme(**scheme_options)
     asm, _ = assembly_of(env_id, options)
     if records is None:
-        seeds = [int(s) for s in seeds]
-        if not seeds or len(seeds) > 100_000:
-            raise ValueError(f"seeds must name 1 to 100000 episodes, got {len(seeds)}")
+        seeds = seed_list(seeds)
+        check_bank(asm, seeds=seeds, drawn=randomise is not None)
+    else:
+        records = list(records)
+        check_bank(asm, records=records)
     if randomise is None:
         return params_of_assembly(asm, native_records(asm, seeds) if records is None else records,
                                   **scheme_options)

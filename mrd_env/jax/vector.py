@@ -140,9 +140,9 @@ class JaxVectorEnv(PlantDeclarations, VectorEnv):
         host = sorted(_host_bands(randomise))
         if records is None:
             seeds = (range(16) if asm.disturbance.random or host else (0,)) if seeds is None else seeds
-            seeds = list(seeds)
-            if not seeds or len(seeds) > 100_000:
-                raise ValueError(f"seeds must name 1 to 100000 episodes, got {len(seeds)}")
+            seeds = je.seed_list(seeds)
+            # the bank and the batch estimated before anything is drawn or allocated (mrd_env.resources)
+            je.check_bank(asm, seeds=seeds, num_envs=int(num_envs), drawn=bool(host))
             episodes = (je.drawn_episodes(env_id, options, randomise, seeds) if host
                         else [(asm, r) for r in je.native_records(asm, seeds)])
         elif seeds is not None:
@@ -150,6 +150,8 @@ class JaxVectorEnv(PlantDeclarations, VectorEnv):
         elif host:
             raise ValueError(f"randomise {host} draws a plant per seed on the host: give seeds, not records")
         else:
+            records = list(records)
+            je.check_bank(asm, records=records, num_envs=int(num_envs))
             episodes = [(asm, r) for r in records]
         records = [r for _, r in episodes]
         params = je.params_of_episodes(episodes, scheme=scheme, substeps=substeps,
