@@ -228,33 +228,57 @@ def mean_ci(values, confidence: float = 0.95, upper: float = math.inf) -> tuple[
     return m, m - h, min(m + h, upper)
 
 
+#: The most scenario panels :func:`grouped_bars` draws (the tables hold every scenario): a figure of hundreds of
+#: panels that share an axis takes minutes to lay out (500 took 134 s) and shows nothing legible.
+MAX_PANELS = 12
+
+
+def _plain(text) -> str:
+    """``text`` shown as itself in a figure: a ``$`` would start matplotlib's mathtext (a name such as ``$\\frac``
+    fails to draw, or draws as a formula)."""
+    return str(text).replace("$", r"\$")
+
+
 def grouped_bars(rows: list[dict], value: str, lo: str, hi: str, path: Path, *, xlabel: str, title: str,
-                 refs: tuple[float, ...] = (), xlim: tuple[float, float] | None = None) -> Path:
+                 refs: tuple[float, ...] = (), xlim: tuple[float, float] | None = None,
+                 max_panels: int = MAX_PANELS, metadata: dict | None = None) -> Path:
     """One panel per scenario, a horizontal bar of ``rows[value]`` per controller (one colour per law, its 1 ms row
-    hatched) with the interval [lo, hi] where there is one (the axis label names it only where one is drawn); vertical lines at ``refs``. With ``xlim``, a bar beyond
-    the axis is drawn to its edge and labelled with its value, so that one very poor controller does not squash
-    the others."""
+    hatched) with the interval [lo, hi] where there is one (the axis label names it only where one is drawn);
+    vertical lines at ``refs``. With ``xlim``, a bar beyond the axis is drawn to its edge and labelled with its
+    value, so that one very poor controller does not squash the others. At most ``max_panels`` panels: beyond, the
+    first ``max_panels - 1`` scenarios and the last one (where a pooled row such as "all scenarios" comes), the
+    title saying how many are shown. ``metadata``: the PNG's text entries (:func:`mrd_env.report.save_figure`)."""
     import matplotlib
 
+    if max_panels < 1:
+        raise ValueError(f"max_panels must be at least 1, got {max_panels}")
     scen = list(dict.fromkeys(r["scenario"] for r in rows))
     ctrls = list(dict.fromkeys(r["controller"] for r in rows))
+    if len(scen) > max_panels:
+        title = f"{title}\n({max_panels} of {len(scen)} panels drawn: the first and the last; the tables hold all)"
+        scen = scen[:max_panels - 1] + scen[-1:]
+    # each bar's row found by a look-up, not a search of every row (quadratic in the scenarios)
+    by_key = {}
+    for r in rows:
+        by_key.setdefault((r["scenario"], r["controller"]), r)
     ncol = min(len(scen), 4)
     nrow = -(-len(scen) // ncol)
-    fig, axes = figure(nrow, ncol, figsize=(3.6 * ncol + 1.6, 0.22 * len(ctrls) * nrow + 1.4), sharey=True,
+    # each row of panels: its bars and room for its title and axis label (one row: the height it always had)
+    fig, axes = figure(nrow, ncol, figsize=(3.6 * ncol + 1.6, nrow * (0.22 * len(ctrls) + 0.9) + 0.5), sharey=True,
                        squeeze=False)
-    bases = list(dict.fromkeys(c.split(" @ ")[0] for c in ctrls))
+    bases = {b: i for i, b in enumerate(dict.fromkeys(c.split(" @ ")[0] for c in ctrls))}
     cmap = matplotlib.colormaps["tab20"]
     y = np.arange(len(ctrls))[::-1]
     for k, s in enumerate(scen):
         ax = axes[k // ncol][k % ncol]
         intervals = False
         for i, c in enumerate(ctrls):
-            r = next((r for r in rows if r["scenario"] == s and r["controller"] == c), None)
+            r = by_key.get((s, c))
             if r is None:
                 continue
             m = r[value]
             shown = m if xlim is None else min(max(m, xlim[0]), xlim[1])
-            ax.barh(y[i], shown, 0.8, color=cmap(bases.index(c.split(" @ ")[0]) % 20),
+            ax.barh(y[i], shown, 0.8, color=cmap(bases[c.split(" @ ")[0]] % 20),
                     hatch="//" if c.endswith("@ 1 ms") else None, edgecolor="white", lw=0.3)
             if shown != m:
                 ax.text(shown, y[i], f" {m:.2g} ", va="center", ha="left" if m < shown else "right", fontsize=7)
@@ -265,12 +289,14 @@ def grouped_bars(rows: list[dict], value: str, lo: str, hi: str, path: Path, *, 
             ax.axvline(ref, color="k", lw=0.8, ls="--" if j else "-")
         if xlim is not None:
             ax.set_xlim(*xlim)
-        ax.set_title(s, fontsize=9)
+        ax.set_title(_plain(s), fontsize=9)
         # an interval is named only in a panel that draws one (one episode draws none)
         ax.set_xlabel(f"{xlabel}\n(mean; lines: 95 % interval)" if intervals else xlabel, fontsize=8)
         ax.grid(axis="x", alpha=0.3)
     for ax in axes.flat[len(scen):]:
         ax.set_visible(False)
-    axes[0][0].set_yticks(y, ctrls, fontsize=8)
-    fig.suptitle(title, fontsize=10)
-    return save_figure(fig, path)
+    axes[0][0].set_yticks(y, [_plain(c) for c in ctrls], fontsize=8)
+    for row in axes:  # the shared labels repeat on every row of panels, at the same size
+        row[0].tick_params(axis="y", labelsize=8)
+    fig.suptitle(_plain(title), fontsize=10)
+    return save_figure(fig, path, metadata=metadata)

@@ -1,22 +1,54 @@
 """Reading result files of ``mrd-env score`` and merging them into a leaderboard (``mrd-env leaderboard``).
 
 :func:`read_result` reads one result file as plain data — nothing it names is imported or run — and checks it field
-by field. :func:`leaderboard` refuses a file of another suite, version or digest than the first file's (their shares
-are against other references, or other episodes) and merges the rest into one table (controllers × scenarios, the
-share with its interval) and one figure.
+by field, within bounds (a result file comes from anywhere; none may stall or exhaust the reader):
+
+- the file: a regular file (never a FIFO or a device) of at most :data:`MAX_RESULT_BYTES`, and the files of one
+  leaderboard :data:`MAX_TOTAL_BYTES` together, at most :data:`MAX_RESULTS` of them;
+- at most :data:`MAX_EPISODES` episodes and :data:`MAX_SCENARIOS` scenarios;
+- every name shown in a table (the controller's, the suite's, a scenario, an episode label, a criterion, a unit):
+  one printable line of at most :data:`MAX_NAME` characters; any other text at most :data:`MAX_TEXT` characters.
+
+A file beyond a bound is refused with one line naming the file and the field, before anything is written.
+:func:`leaderboard` refuses a file of another suite, version or digest than the first file's (their shares are
+against other references, or other episodes) and merges the rest into one table (controllers × scenarios, the
+share with its interval) and one figure. :meth:`Leaderboard.write` writes its five files as one set: into a
+staging folder beside ``out``, swapped in whole (:func:`mrd_env.storage.replace_folder`), so that a reader or a
+kill at any moment finds the previous set or the new one.
 """
 from __future__ import annotations
 
 import json
 import math
+import os
 import re
+import shutil
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 from mrd_env import storage
 
 from .evaluation import grouped_bars
-from .scoring import ALL, FORMAT, FORMAT_VERSION, KINDS, SuiteResult, _cell, _csv, summary_rows
+from .scoring import ALL, FORMAT, FORMAT_VERSION, KINDS, SuiteResult, _cell, summary_rows
+
+#: The largest result file read: 4 MiB, 206 times the result of the largest shipped suite (car-comfort-v1, 31
+#: episodes: 20 344 bytes), room for about 6 000 episodes of seven criteria.
+MAX_RESULT_BYTES = 4 * 1024 ** 2
+#: The most bytes of all the result files of one leaderboard together (the memory it takes is a few times this).
+MAX_TOTAL_BYTES = 32 * 1024 ** 2
+#: The most result files (controllers) of one leaderboard.
+MAX_RESULTS = 100
+#: The most episodes, and scenarios, a result file holds (the shipped suites: 31 and 4).
+MAX_EPISODES, MAX_SCENARIOS = 5_000, 500
+#: The longest name shown in a table (a suite's scenario name may have 200 characters, its label 12 more).
+MAX_NAME = 256
+#: The longest other text of a result file (an argument of its command, a path).
+MAX_TEXT = 4096
+#: The leaderboard table's own columns: no scenario may be named so.
+RESERVED = ("rank", "controller", "kind", "episodes", ALL)
+#: The files a leaderboard folder holds: the table (Markdown, CSV), its numbers (Markdown, CSV) and the figure.
+FILES = ("leaderboard.md", "leaderboard.csv", "leaderboard_rows.md", "leaderboard_rows.csv", "leaderboard.png")
 
 
 # ---------------------------------------------------------------------------------------------- reading results
@@ -32,43 +64,92 @@ def _is_number(v, optional: bool = True) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
 
 
-def read_result(path: str | Path) -> SuiteResult:
+def _shown(text: str, n: int = 40) -> str:
+    """A short excerpt of ``text`` for an error line (a 5 MB name must not become a 5 MB message)."""
+    return repr(text[:n]) + (f"… ({len(text)} characters)" if len(text) > n else "")
+
+
+def _check_texts(data, bad) -> None:
+    """``bad(...)`` for a text of the file longer than :data:`MAX_TEXT` (every string and key, however nested)."""
+    stack = [(data, "")]
+    while stack:
+        v, at = stack.pop()
+        if isinstance(v, dict):
+            for k, x in v.items():
+                if len(k) > MAX_TEXT:
+                    raise bad(f"a key in {at or 'the file'} has {len(k)} characters, at most {MAX_TEXT}")
+                stack.append((x, f"{at}.{k}" if at else k))
+        elif isinstance(v, list):
+            stack.extend((x, f"{at}[{i}]") for i, x in enumerate(v))
+        elif isinstance(v, str) and len(v) > MAX_TEXT:
+            raise bad(f"{at} has {len(v)} characters, at most {MAX_TEXT}")
+
+
+def _check_name(value, field: str, bad) -> None:
+    """``bad(...)`` unless ``value`` is one printable line of 1 to :data:`MAX_NAME` characters (it is shown in the
+    tables: a newline would break a row, a control character reach the terminal that prints them)."""
+    if not isinstance(value, str) or not value.strip():
+        raise bad(f"{field} must be a non-empty text")
+    if len(value) > MAX_NAME:
+        raise bad(f"{field} has {len(value)} characters, at most {MAX_NAME}: {_shown(value)}")
+    if not value.isprintable():
+        raise bad(f"{field} must be printable text on one line (no control character), got {_shown(value)}")
+
+
+def read_result(path: str | Path, limit: int = MAX_RESULT_BYTES) -> SuiteResult:
     """The result in the file ``path``, read as plain data (nothing it names is imported or run) and checked field by
-    field; ``ValueError`` (one line, naming the file) for another format or a malformed file."""
+    field within the module's bounds; ``limit``: the most bytes read (at most :data:`MAX_RESULT_BYTES`).
+    ``ValueError`` (one line, naming the file and the field) for another format, a malformed file or one beyond a
+    bound."""
     path = Path(path)
     where = f"result file {path}"
+    raw = storage.read_limited(path, min(limit, MAX_RESULT_BYTES), what="result file")
     try:
-        data = json.loads(path.read_text(encoding="utf-8"), parse_constant=_refuse_constant)
+        data = json.loads(raw.decode("utf-8"), parse_constant=_refuse_constant)
     except (UnicodeDecodeError, json.JSONDecodeError, ValueError) as exc:
-        raise ValueError(f"{where}: not a JSON result of mrd-env score ({exc})") from None
+        raise ValueError(f"{where}: not a JSON result of mrd-env score ({str(exc)[:200]})") from None
+    except RecursionError:
+        raise ValueError(f"{where}: not a result of mrd-env score (nested too deep)") from None
     if not isinstance(data, dict) or data.get("format") != FORMAT:
         raise ValueError(f"{where}: not a result of mrd-env score (its format must be {FORMAT!r})")
     if data.get("format_version") != FORMAT_VERSION:
-        raise ValueError(f"{where}: result format version {data.get('format_version')!r}, this mrd-env reads "
-                         f"{FORMAT_VERSION}")
+        raise ValueError(f"{where}: result format version {str(data.get('format_version'))[:20]}, this mrd-env "
+                         f"reads {FORMAT_VERSION}")
 
     def bad(what: str):
         return ValueError(f"{where}: {what}")
 
+    _check_texts(data, bad)
     s = data.get("suite")
     if not isinstance(s, dict) or not isinstance(s.get("name"), str) or not isinstance(s.get("version"), int) \
             or isinstance(s.get("version"), bool) or not isinstance(s.get("digest"), str) \
             or not re.fullmatch(r"[0-9a-f]{64}", s["digest"]) or s.get("id") != f"{s['name']}-v{s['version']}" \
             or not isinstance(s.get("episodes"), int) or s["episodes"] < 1:
         raise bad("its suite must give name, version, id (name-vN), digest (SHA-256) and episodes")
+    _check_name(s["id"], "its suite's id", bad)
+    if s["episodes"] > MAX_EPISODES:
+        raise bad(f"its suite has {s['episodes']} episodes, a result file at most {MAX_EPISODES}")
     c = data.get("controller")
     if not isinstance(c, dict) or not isinstance(c.get("name"), str) or not c["name"].strip() \
             or c.get("kind") not in KINDS:
         raise bad(f"its controller must give a name and a kind ({', '.join(KINDS)})")
+    _check_name(c["name"], "its controller's name", bad)
     criteria = data.get("criteria")
     if not isinstance(criteria, list) or not all(isinstance(k, str) for k in criteria):
         raise bad("its criteria must be a list of names")
+    for i, k in enumerate(criteria):
+        _check_name(k, f"criteria[{i}]", bad)
     units = data.get("units", {})
     if not isinstance(units, dict) or not all(isinstance(u, str) for u in units.values()):
         raise bad("its units must map criteria to unit names")
+    for k, u in units.items():
+        _check_name(k, "a criterion of its units", bad)
+        _check_name(u, f"the unit of {_shown(k)}", bad)
     eps = data.get("episodes")
     if not isinstance(eps, list) or not eps:
         raise bad("it holds no episodes")
+    if len(eps) > s["episodes"]:
+        raise bad(f"it holds {len(eps)} episodes, its suite has {s['episodes']}")
     for i, e in enumerate(eps):
         if not isinstance(e, dict) or not isinstance(e.get("label"), str) or not isinstance(e.get("scenario"), str) \
                 or not isinstance(e.get("seed"), int) or not _is_number(e.get("return"), optional=False) \
@@ -77,11 +158,18 @@ def read_result(path: str | Path) -> SuiteResult:
                 or not (e.get("terminated") is None or isinstance(e["terminated"], str)):
             raise bad(f"episode {i} must give label, scenario, seed, return, share, criteria (numbers or null) and "
                       "terminated (null or a reason)")
+        _check_name(e["label"], f"episode {i}'s label", bad)
+        _check_name(e["scenario"], f"episode {i}'s scenario", bad)
+        if e["scenario"] in RESERVED:
+            raise bad(f"episode {i}'s scenario is named {e['scenario']!r}, a column of the leaderboard's table")
+        for k in e["criteria"]:
+            _check_name(k, f"a criterion of episode {i}", bad)
     labels = [e["label"] for e in eps]
     if len(set(labels)) != len(labels):
         raise bad("an episode appears twice")
-    if len(eps) > s["episodes"]:
-        raise bad(f"it holds {len(eps)} episodes, its suite has {s['episodes']}")
+    n_scenarios = len({e["scenario"] for e in eps})
+    if n_scenarios > MAX_SCENARIOS:
+        raise bad(f"it holds {n_scenarios} scenarios, at most {MAX_SCENARIOS}")
     eps = [{**e, "share": math.nan if e["share"] is None else e["share"],
             "criteria": {k: math.nan if v is None else v for k, v in e["criteria"].items()}} for e in eps]
     return SuiteResult(suite=s, controller=c, episodes=eps, criteria=criteria, units=units,
@@ -112,28 +200,108 @@ class Leaderboard:
     def markdown(self) -> str:
         from mrd_env.report import markdown_table
 
-        rows = [{k: (str(v).replace("|", "\\|") if isinstance(v, str) else v) for k, v in r.items()}
-                for r in self.table]
-        return markdown_table(rows, title=self.title())
+        return markdown_table(self.table, title=self.title())  # every cell made safe to show there
 
     def write(self, out: str | Path) -> dict[str, Path]:
         """``<out>/leaderboard.md`` and ``.csv`` (the table), ``leaderboard_rows.md``/``.csv`` (the numbers) and
-        ``leaderboard.png`` (one panel per scenario, a bar per controller with its interval)."""
-        from mrd_env.report import write_table
-
+        ``leaderboard.png`` (a panel per scenario, a bar per controller with its interval; the PNG's ``Title`` text
+        entry names the suite), as one set: ``out`` becomes a folder of these five files only (see
+        :func:`check_folder`). Written into a staging folder beside ``out`` and swapped in whole, so that a reader
+        or a kill at any moment finds the previous set or the new one; staging folders of an earlier writer that
+        was killed are removed first. ``ValueError`` before anything is written for an ``out`` that holds other
+        files."""
         out = Path(out)
-        out.mkdir(parents=True, exist_ok=True)
-        md, csv_path = out / "leaderboard.md", out / "leaderboard.csv"
-        storage.write_texts({md: self.markdown(), csv_path: _csv(self.table)})
-        rows_md, rows_csv = write_table(self.rows, out / "leaderboard_rows", floatfmt=".4g",
-                                        title=self.title().replace("mean [95 % interval over episodes]",
-                                                                   "mean, 95 % interval over episodes"))
-        png = grouped_bars(self.rows, "share", "share lo95", "share hi95", out / "leaderboard.png",
-                           xlabel="share of the achievable gain (dimensionless)", refs=(0.0, 1.0), xlim=(-1.0, 1.05),
-                           title=f"{self.suite['id']}: share of the achievable gain, (R − R_p) / (R_c − R_p); 0: best "
-                                 "constant command, dashed 1: clairvoyant optimum")
-        return {"markdown": md, "csv": csv_path, "rows_markdown": rows_md, "rows_csv": rows_csv,
-                "figure": png}
+        out = out.resolve() if out.is_symlink() else out  # the swap replaces the folder, never a link to it
+        storage.recover_folder(out)
+        check_folder(out)
+        _remove_stale_staging(out)
+        made = [q for q in [out.parent, *out.parent.parents] if not q.exists()]
+        try:
+            staged = _staging_folder(out)
+        except OSError as exc:
+            _remove_empty(made)
+            raise OSError(exc.errno, f"leaderboard folder {out} cannot be written ({exc.strerror or exc})") from None
+        try:
+            self._write_files(staged)
+            storage.replace_folder(staged, out)
+        except BaseException:
+            shutil.rmtree(staged, ignore_errors=True)
+            _remove_empty(made)
+            raise
+        return {"markdown": out / FILES[0], "csv": out / FILES[1], "rows_markdown": out / FILES[2],
+                "rows_csv": out / FILES[3], "figure": out / FILES[4]}
+
+    def _write_files(self, folder: Path) -> None:
+        """The five files into ``folder`` (a staging folder nobody reads: plain writes, fsync'd by the swap)."""
+        from mrd_env.report import csv_text, markdown_table
+
+        rows_title = self.title().replace("mean [95 % interval over episodes]", "mean, 95 % interval over episodes")
+        texts = {FILES[0]: self.markdown(), FILES[1]: csv_text(self.table),
+                 FILES[2]: markdown_table(self.rows, title=rows_title, floatfmt=".4g"),
+                 FILES[3]: csv_text(self.rows)}
+        for name, text in texts.items():
+            (folder / name).write_bytes(text.encode("utf-8"))
+        grouped_bars(self.rows, "share", "share lo95", "share hi95", folder / FILES[4],
+                     xlabel="share of the achievable gain (dimensionless)", refs=(0.0, 1.0), xlim=(-1.0, 1.05),
+                     title=f"{self.suite['id']}: share of the achievable gain, (R − R_p) / (R_c − R_p); 0: best "
+                           "constant command, dashed 1: clairvoyant optimum",
+                     metadata={"Title": self.title(), "Software": "mrd-env leaderboard"})
+
+
+def check_folder(out: str | Path) -> None:
+    """``ValueError`` (one line) unless ``out`` can become a leaderboard folder: absent, or a folder that holds
+    nothing but a leaderboard's files (:data:`FILES`, and hidden temporaries of them left by an earlier version
+    killed while writing). The folder is replaced as a whole, so a file of the user's there would be lost: refused
+    rather than deleted."""
+    out = Path(out)
+    if not out.exists():
+        return
+    if not out.is_dir():
+        raise ValueError(f"leaderboard folder {out} is a file, not a folder: refused")
+    others = sorted(f.name for f in out.iterdir()
+                    if f.name not in FILES and not (f.name.startswith(".leaderboard") and f.is_file()))
+    if others:
+        raise ValueError(f"leaderboard folder {out} holds {len(others)} file(s) that are not a leaderboard's "
+                         f"(e.g. {_shown(others[0])}): refused, since the folder is replaced as a whole by the new "
+                         f"leaderboard; choose a new or empty folder, or one that holds only {', '.join(FILES)}")
+
+
+def _staging_folder(out: Path) -> Path:
+    """A new empty folder beside ``out`` named ``.<out name>.<process id>.<random>.staging`` (the process id tells
+    a later writer whether its writer is still alive), with the mode of the user's other folders."""
+    out.parent.mkdir(parents=True, exist_ok=True)
+    staged = Path(tempfile.mkdtemp(prefix=f".{out.name}.{os.getpid()}.", suffix=".staging", dir=out.parent))
+    os.chmod(staged, 0o777 & ~storage.current_umask())
+    return staged
+
+
+def _remove_stale_staging(out: Path) -> None:
+    """Remove the staging folders beside ``out`` whose writer is no longer running (killed mid-write). Only where
+    the process can be asked whether it runs without being signalled (POSIX)."""
+    if os.name != "posix" or not out.parent.is_dir():
+        return
+    pattern = re.compile(rf"\.{re.escape(out.name)}\.(\d+)\.[^/]*\.staging")
+    for f in out.parent.iterdir():
+        m = pattern.fullmatch(f.name)
+        if m is None or not f.is_dir() or f.is_symlink():
+            continue
+        pid = int(m.group(1))
+        try:
+            os.kill(pid, 0)  # signal 0: only asks whether the process exists
+            continue
+        except ProcessLookupError:
+            shutil.rmtree(f, ignore_errors=True)
+        except (PermissionError, OverflowError):  # another user's process (alive), or no process id
+            continue
+
+
+def _remove_empty(folders: list[Path]) -> None:
+    """The folders a refused or failed write made, removed again (deepest first) where still empty."""
+    for q in folders:
+        try:
+            q.rmdir()
+        except OSError:
+            pass
 
 
 def leaderboard(paths, out: str | Path | None = None) -> Leaderboard:
@@ -143,7 +311,16 @@ def leaderboard(paths, out: str | Path | None = None) -> Leaderboard:
     paths = [Path(p) for p in paths]
     if not paths:
         raise ValueError("leaderboard needs at least one result file")
-    results = [read_result(p) for p in paths]
+    if len(paths) > MAX_RESULTS:
+        raise ValueError(f"leaderboard of {len(paths)} result files: at most {MAX_RESULTS} are merged")
+    results, left = [], MAX_TOTAL_BYTES
+    for p in paths:
+        size = _size(p)
+        if size > left and size <= MAX_RESULT_BYTES:
+            raise ValueError(f"result file {p}: the result files hold more than {MAX_TOTAL_BYTES} bytes together, "
+                             "the most one leaderboard reads: refused")
+        results.append(read_result(p, limit=MAX_RESULT_BYTES if size > MAX_RESULT_BYTES else left))
+        left -= size
     first = results[0]
     for p, r in zip(paths[1:], results[1:]):
         if _suite_key(r) != _suite_key(first):
@@ -152,7 +329,11 @@ def leaderboard(paths, out: str | Path | None = None) -> Leaderboard:
                              "another suite, version or reference values are not merged")
     names = [r.name for r in results]
     labels = [n if names.count(n) == 1 else f"{n} ({p.stem})" for n, p in zip(names, paths)]
+    labels = [x if labels.count(x) == 1 else f"{x} ({i + 1})" for i, x in enumerate(labels)]
     scen = list(dict.fromkeys(e["scenario"] for r in results for e in r.episodes))
+    if len(scen) > MAX_SCENARIOS:
+        raise ValueError(f"the result files name {len(scen)} scenarios together, at most {MAX_SCENARIOS} (the "
+                         "results of one suite name its scenarios)")
     summaries = [{x["scenario"]: x for x in summary_rows(r.episodes, [])} for r in results]
     # best first by the share over all scenarios (ties: in the order given; no number: last)
     order = sorted(range(len(results)), key=lambda i: -summaries[i][ALL]["share"]
@@ -173,6 +354,14 @@ def leaderboard(paths, out: str | Path | None = None) -> Leaderboard:
     if out is not None:
         board.write(out)
     return board
+
+
+def _size(path: Path) -> int:
+    """The size of ``path`` in bytes, 0 where it cannot be told (:func:`read_result` then says why)."""
+    try:
+        return path.stat().st_size
+    except OSError:
+        return 0
 
 
 def _share(row: dict) -> tuple[float, float, float]:
