@@ -12,13 +12,16 @@ workers, spawned processes so that numba's and torch's threads are never forked)
 ``address``, a running cluster, or a local instance when ``address`` is None; the ``ray`` extra). ``"auto"``:
 the pool when there is more than one task and more than one core, else serial.
 
-Stopping: Ctrl-C, SIGTERM (as ``mrd-env`` routes it: a ``KeyboardInterrupt`` in the main process) or any other
-exception while the pool runs kills its worker processes at once and waits for them to end — a task blocked in a
-worker (a controller that never returns, say) cannot keep the sweep alive; ``ProcessPoolExecutor`` itself only
-cancels the tasks not started and waits for the running ones. The workers ignore Ctrl-C (the parent stops them) and
-are killed by the kernel if the parent dies without stopping them (Linux: ``PR_SET_PDEATHSIG``). A task that raises
-``SystemExit`` or ``KeyboardInterrupt`` in a worker fails as any other task (:class:`TaskExited`): it does not exit
-the caller's process.
+Stopping: a task that fails for good drops the queued tasks; the running ones end first. On Ctrl-C or SIGTERM (as
+``mrd-env`` routes it: a ``KeyboardInterrupt`` in the main process) the workers are stopped, not waited for
+(``ProcessPoolExecutor`` only cancels the tasks not started and waits for the running ones: a task blocked in a
+worker, a controller that never returns, kept the sweep alive). Each worker gets SIGTERM, raised in its task as
+``KeyboardInterrupt`` so that a task that saves its work on Ctrl-C (a training run: the agent so far) does; a worker
+still running :data:`STOP_GRACE` seconds later is killed. The workers ignore the terminal's Ctrl-C (the parent stops
+them, once), take one SIGTERM (a second, from a job scheduler that signals every process as well, does not
+interrupt a save) and die with their parent if it dies without stopping them (Linux: ``PR_SET_PDEATHSIG``). A task
+that raises ``SystemExit`` or ``KeyboardInterrupt`` of its own in a worker fails as any other task
+(:class:`TaskExited`): it does not exit the caller's process.
 """
 from __future__ import annotations
 
@@ -74,6 +77,11 @@ class TaskExited(RuntimeError):
     Ctrl-C and the parent stops them), reported as the task's failure rather than exiting the caller."""
 
 
+#: Seconds a stopped pool's workers have to end their tasks (a training run saves the agent so far) before they are
+#: killed.
+STOP_GRACE = 5.0
+
+
 def _call(task: Task):
     """Run a task; exceptions come back as values so that the caller decides on the retry."""
     try:
@@ -82,20 +90,36 @@ def _call(task: Task):
         return False, exc
 
 
+#: Set in a worker by the parent's stop (SIGTERM): the worker's later tasks do not start.
+_stopping = False
+
+
 def _call_in_worker(task: Task):
-    """:func:`_call` in a pool's worker, where a ``SystemExit`` or ``KeyboardInterrupt`` can only be the task's
-    (Ctrl-C is ignored there, SIGTERM ends the worker): a failure of the task, not a reason to exit the parent."""
+    """:func:`_call` in a pool's worker. A ``SystemExit`` or ``KeyboardInterrupt`` is the task's own (Ctrl-C is
+    ignored there) or the parent's stop: either way the task's failure, never a reason to exit the parent."""
+    if _stopping:
+        return False, TaskExited("the sweep was stopped before it started")
     try:
         return _call(task)
     except (SystemExit, KeyboardInterrupt) as exc:
-        what = f"SystemExit({exc.code!r})" if isinstance(exc, SystemExit) else type(exc).__name__
-        return False, TaskExited(f"it raised {_short(what)} in a worker process")
+        what = f"SystemExit({_short(exc.code)})" if isinstance(exc, SystemExit) else type(exc).__name__
+        return False, TaskExited("the sweep was stopped" if _stopping else f"it raised {what} in a worker process")
+
+
+def _on_stop(signum, frame):
+    """A worker's SIGTERM (the parent's stop): ``KeyboardInterrupt`` in the running task, once."""
+    global _stopping
+    if not _stopping:
+        _stopping = True
+        raise KeyboardInterrupt
 
 
 def _worker_init() -> None:
-    """A pool worker ignores Ctrl-C (the parent, which gets it too, stops the pool) and dies with its parent
-    (Linux): a worker orphaned by a killed parent would otherwise run — or block — on its own."""
+    """A pool worker ignores the terminal's Ctrl-C (the parent, which gets it too, stops the pool), takes SIGTERM as
+    the stop, and dies with its parent (Linux): a worker orphaned by a killed parent would otherwise run — or block —
+    on its own."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, _on_stop)
     if sys.platform.startswith("linux"):
         try:
             import ctypes
@@ -105,7 +129,7 @@ def _worker_init() -> None:
             if os.getppid() == 1:  # the parent died before the call: nobody to signal us
                 os._exit(1)
         except (OSError, AttributeError):
-            pass  # no libc prctl: the parent's stop still kills the workers
+            pass  # no libc prctl: the parent's stop still ends the workers
 
 
 def default_jobs() -> int:
@@ -177,28 +201,51 @@ def _pool(tasks, jobs, address, bar, retry):
             results[i] = _finish(tasks[i], fut.result(),
                                  (lambda i=i: ex.submit(_call_in_worker, tasks[i]).result()) if retry else None)
             bar.update()
-    except BaseException:
-        # Ctrl-C, SIGTERM, a failed task: the running tasks are not waited for (shutdown would wait for them all)
-        _kill_workers(ex)
+    except Exception:
+        # a failed task: the queued tasks are dropped, the running ones end (a training seed saves its agent) — unless
+        # a Ctrl-C or SIGTERM comes meanwhile
+        try:
+            ex.shutdown(wait=True, cancel_futures=True)
+        except BaseException:
+            _stop_workers(ex)
+            raise
+        raise
+    except BaseException:  # Ctrl-C, SIGTERM: the running tasks are stopped (shutdown would wait for them all)
+        _stop_workers(ex)
         raise
     ex.shutdown(wait=True)
     return results
 
 
-def _kill_workers(ex, grace: float = 5.0) -> None:
-    """Kill the pool's worker processes, drop its queued tasks and wait (at most ``grace`` s each) until they end."""
+def _stop_workers(ex, grace: float | None = None) -> None:
+    """Stop the pool's workers: SIGTERM (each task's ``KeyboardInterrupt``, for it to save what it has), its queued
+    tasks dropped, then SIGKILL for those still running after ``grace`` s (:data:`STOP_GRACE`); waits until they
+    end. A second interrupt while waiting kills them at once."""
+    import time
+
+    grace = STOP_GRACE if grace is None else grace
     procs = list((getattr(ex, "_processes", None) or {}).values())  # the pool's own record of its workers
     for p in procs:
-        try:
-            p.kill()
-        except (OSError, ValueError, AttributeError):
-            pass  # already ended, or closed
+        _signal(p, signal.SIGTERM)
     ex.shutdown(wait=False, cancel_futures=True)
-    for p in procs:
-        try:
-            p.join(grace)
-        except (OSError, ValueError, AssertionError):
-            pass
+    try:
+        end = time.monotonic() + grace
+        for p in procs:
+            p.join(max(0.0, end - time.monotonic()))
+    finally:  # the grace is over, or a second Ctrl-C came: the rest are killed
+        for p in procs:
+            if p.exitcode is None:
+                _signal(p, signal.SIGKILL)
+        for p in procs:
+            p.join(1.0)
+
+
+def _signal(p, sig) -> None:
+    try:
+        if p.pid is not None and p.exitcode is None:
+            os.kill(p.pid, sig)
+    except (OSError, ValueError):
+        pass  # ended meanwhile
 
 
 def _ray(tasks, jobs, address, bar, retry):

@@ -295,3 +295,116 @@ def test_without_retries_a_failure_is_reported_at_once(tmp_path):
     with pytest.raises(TaskFailed, match="only try") as err:
         run_tasks([Task(flaky, (str(tmp_path / "m"), 3))], backend="serial", progress=False, retry=False)
     assert isinstance(err.value.error, OSError)
+
+
+# --- stopping a pool (issue 48, item 7) ---------------------------------------------------------------------------
+
+#: A sweep of tasks that block forever on a pool, run as its own program: SIGTERM raises KeyboardInterrupt there (as
+#: mrd-env routes it); each task leaves its worker's process id in a file before it blocks.
+BLOCKING_SWEEP = """
+import os, signal, sys, time
+from pathlib import Path
+from mrd_env.executor import Task, run_tasks
+
+def block(folder, stubborn):
+    Path(folder, f"worker.{os.getpid()}").write_text("blocking")
+    try:
+        time.sleep(10 ** 6)
+    except KeyboardInterrupt:  # the stop: a task saves what it has (a training run: the agent so far)
+        Path(folder, f"saved.{os.getpid()}").write_text("saved")
+        if stubborn:  # ... or will not stop
+            time.sleep(10 ** 6)
+        raise
+
+def on_term(signum, frame):
+    raise KeyboardInterrupt
+
+if __name__ == "__main__":
+    if sys.argv[2] != "-":
+        signal.signal(signal.SIGTERM, on_term)
+    try:
+        run_tasks([Task(block, (sys.argv[1], sys.argv[2] == "stubborn")) for _ in range(2)], backend="pool", jobs=2,
+                  progress=False)
+    except KeyboardInterrupt:
+        sys.exit(143)
+"""
+
+
+def _alive(pid: int) -> bool:
+    """Whether process ``pid`` runs (a zombie, ended but not yet reaped, does not)."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rpartition(")")[2].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+def _until(predicate, seconds: float) -> bool:
+    import time
+
+    end = time.monotonic() + seconds
+    while time.monotonic() < end and not predicate():
+        time.sleep(0.05)
+    return predicate()
+
+
+@pytest.mark.hostile
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads the processes from /proc")
+@pytest.mark.parametrize("stop", ["SIGTERM handled", "SIGTERM stubborn", "SIGKILL"])
+def test_a_stopped_pool_leaves_no_worker_running(tmp_path, stop):
+    """SIGTERM (routed to KeyboardInterrupt, as mrd-env does) while the tasks block in the workers: the sweep ends
+    at once, each task interrupted where it is (it saves what it has), and a task that will not stop is killed after
+    the grace (ProcessPoolExecutor waits for running tasks: score kept running 596 s); SIGKILL of the parent: the
+    kernel kills the workers (PR_SET_PDEATHSIG), none is left blocking on its own."""
+    from mrd_env.executor import STOP_GRACE
+
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    script = tmp_path / "sweep.py"
+    script.write_text(BLOCKING_SWEEP)
+    root = Path(__file__).resolve().parents[1]
+    proc = subprocess.Popen([sys.executable, str(script), str(tmp_path), stop.split()[1] if " " in stop else "-"],
+                            env={**os.environ, "PYTHONPATH": str(root)}, stderr=subprocess.PIPE)
+    workers: list[int] = []
+    try:
+        assert _until(lambda: len(list(tmp_path.glob("worker.*"))) == 2, 120), proc.stderr.read1().decode()
+        workers = [int(p.suffix[1:]) for p in tmp_path.glob("worker.*")]
+        t0 = time.monotonic()
+        proc.send_signal(signal.SIGTERM if "SIGTERM" in stop else signal.SIGKILL)
+        code = proc.wait(timeout=30)
+        assert code == (143 if "SIGTERM" in stop else -signal.SIGKILL), proc.stderr.read().decode()
+        assert _until(lambda: not any(map(_alive, workers)), 10), [w for w in workers if _alive(w)]
+        took = time.monotonic() - t0
+        if stop == "SIGTERM handled":
+            assert took < 3, f"{took:.1f} s"
+            assert sorted(p.suffix for p in tmp_path.glob("saved.*")) == sorted(f".{w}" for w in workers)
+        else:
+            assert took < STOP_GRACE + 5, f"{took:.1f} s"
+    finally:
+        for w in workers:
+            if _alive(w):
+                os.kill(w, signal.SIGKILL)
+        if proc.poll() is None:
+            proc.kill()
+
+
+def exits(code):
+    import sys
+
+    sys.exit(code)
+
+
+def interrupts():
+    raise KeyboardInterrupt
+
+
+@pytest.mark.hostile
+@pytest.mark.parametrize("task, raised", [(Task(exits, (0,)), r"SystemExit\(0\)"),
+                                          (Task(interrupts), "KeyboardInterrupt")])
+def test_a_task_exiting_in_a_worker_fails_as_a_task_not_as_the_caller(task, raised):
+    """sys.exit(0) in a pool's task raised SystemExit(0) in the caller: mrd-env exited 0 with nothing written."""
+    with pytest.raises(TaskFailed, match=raised):
+        run_tasks([task, Task(draw, (1,))], backend="pool", jobs=2, progress=False, retry=False)

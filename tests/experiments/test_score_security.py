@@ -302,6 +302,19 @@ def test_the_laws_score_the_same_on_the_view_as_on_the_environment(law, options)
     assert raw == seen
 
 
+@pytest.mark.parametrize("law, control_dt", [("nmpc", 0.01), ("clipped_optimal+neural", 0.001)])
+def test_the_nonlinear_mpc_and_the_neural_inverse_score_the_same_on_the_view(law, control_dt):
+    """The laws that read the damper model and the coupled plant's matrices (NMPC), or build an inverse on the
+    damper (its network trained at 1 ms)."""
+    import mrd_env  # noqa: F401
+    from controllers import make_controller
+    from controllers.protocol import declarations
+
+    env = {"episode_seconds": 0.05, "control_dt": control_dt}
+    raw = _returns(lambda v: make_controller(law, v), CAR, env, (1, 2))
+    assert raw == _returns(lambda v: make_controller(law, declarations(v)), CAR, env, (1, 2))
+
+
 def test_a_shipped_agent_scores_the_same_on_the_view_as_on_the_environment():
     import mrd_env  # noqa: F401
     from controllers import load_agent
@@ -314,7 +327,7 @@ def test_a_shipped_agent_scores_the_same_on_the_view_as_on_the_environment():
     assert raw == seen
 
 
-def test_every_registered_law_builds_on_the_view_of_the_building_and_the_car():
+def test_every_registered_law_builds_on_the_view_of_every_plant():
     """What the laws read at construction is declared (the check builds each law on the view, as score does)."""
     import gymnasium as gym
 
@@ -322,8 +335,10 @@ def test_every_registered_law_builds_on_the_view_of_the_building_and_the_car():
     from controllers import available_controllers, make_controller
     from controllers.protocol import declarations
 
-    for env_id, options in ((CAR, {"episode_seconds": 0.1}),
-                            ("mrd_env/ShearBuildingPhysical-v0", {"episode_seconds": 0.1})):
+    from experiments.common.plants import profiles
+
+    for env_id in sorted({p.env_id for p in profiles().values()}):
+        options = {"episode_seconds": 0.1}
         venv = gym.make_vec(env_id, num_envs=1, vectorization_mode="vector_entry_point", **options)
         try:
             for law in available_controllers():
