@@ -393,7 +393,10 @@ class TrainedAgent:
         self.meta = meta
         self.plant = recorded_plant(meta)
         self.env_id = meta["env_id"]
-        self.env_kwargs = dict(meta["env_kwargs"])
+        from mrd_env.envs.build import confine_files
+
+        # a file an option names (a road's path, a preset-file damper) is one of the agent's own, never elsewhere
+        self.env_kwargs = confine_files(meta["env_kwargs"], folder, "agent.json's env_kwargs")
         self.observation_kwargs = {k: v for k, v in self.env_kwargs.items() if k in OBSERVATION_OPTIONS}
         self.name = meta.get("name") or f"{meta['algo']} s{meta.get('seed', 0)}"
         if check_env:

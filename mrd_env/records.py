@@ -19,6 +19,7 @@ from typing import Mapping
 import numpy as np
 
 from . import storage
+from .resources import file_limit
 from .validation import check_signal, check_time, shown
 
 __all__ = ["DamperRecord", "load_record_csv", "read_columns", "own_columns", "UNITS"]
@@ -347,8 +348,10 @@ def _read_table(path: Path, skip_trailing_empty: bool,
         raise ValueError(f"{path}: no such file")
     if path.is_dir():
         raise ValueError(f"{path}: is a folder, not a CSV file")
+    # a regular file of a bounded size only (never a FIFO or /dev/zero: mrd_env.storage.read_limited)
+    data = storage.read_limited(path, file_limit(), what="CSV file")
     try:
-        with path.open(newline="", encoding="utf-8-sig") as fh:
+        with io.StringIO(data.decode("utf-8-sig"), newline="") as fh:
             first = ""
             for first in fh:
                 if first.strip():
@@ -373,13 +376,13 @@ def _read_table(path: Path, skip_trailing_empty: bool,
                 lines.append(reader.line_num)
     except UnicodeDecodeError as exc:
         raise ValueError(f"{path}: not a text CSV file (byte {exc.start} is not UTF-8 text)") from None
-    except csv.Error as exc:
-        raise ValueError(f"{path}: not a readable CSV file ({exc})") from None
+    except csv.Error:
+        raise ValueError(f"{path}: not a readable CSV file") from None
     if header is None:
         raise ValueError(f"{path}: the file is empty (expected a header line)")
     width = len(header)
     if width == 1 and rows:
-        raise ValueError(f"{path}: the header line has a single column ({header[0][:40]!r}); expected column names "
+        raise ValueError(f"{path}: the header line has a single column; expected column names "
                          "separated by commas, semicolons or tabs")
     for cells, line in zip(rows, lines):
         # rows may be shorter only when trailing empty cells were trimmed
@@ -399,6 +402,6 @@ def _parse_column(path: Path, rows: list[list[str]], lines: list[int], j: int, w
         try:
             float(c)
         except ValueError:
-            shown = "an empty cell" if c.strip() == "" else f"the non-numeric value {c!r}"
+            shown = "an empty cell" if c.strip() == "" else "a value that is not a number"
             raise ValueError(f"{path}: {what} has {shown} at data row {i} (file line {line})") from None
     raise AssertionError("unreachable")  # numpy rejected a cell that float() accepts

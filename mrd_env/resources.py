@@ -2,10 +2,13 @@
 
 Every documented option that scales memory — ``episode_seconds``, ``dt``, a ground motion's ``time_scale``, a
 road's ``duration`` or a measured profile's length, ``preview`` and the sensors (the columns of every row),
-``num_envs`` of the vector environment, the length and count of a rig test — is turned into an estimate of the
-arrays it makes (the input records, the environment's input buffer, the history the scalar environment keeps for
-``signal()`` and rendering, the plant's per-episode data such as the building's uncontrolled response, and the
-transient arrays of generating a record). An estimate above the limit is refused with a ``ValueError`` naming the
+``num_envs`` of the vector environment, the length and count of a rig test, the number of dampers and storeys
+(the plant's matrices, the kernel's constants and scratch, which grow with their square), a road's speed where
+the road's length grows with 1/speed (the rear wheels' delay wheelbase/speed of the half and full car's roads) —
+is turned into an estimate of the arrays it makes (the input records, the environment's input buffer, the history
+the scalar environment keeps for ``signal()`` and rendering, the plant's per-episode data such as the building's
+uncontrolled response, and the transient arrays of generating a record, FFT grids included). A file named by an
+option is read only up to :func:`file_limit` bytes (:func:`mrd_env.storage.read_limited`). An estimate above the limit is refused with a ``ValueError`` naming the
 option(s), the estimate and the limit, before anything is allocated; nothing is changed by a refusal.
 
 The limit is :data:`ENV_VAR` (``MRD_ENV_MEMORY_LIMIT``) where set — a size such as ``8G``, ``512M``, ``2.5GiB``
@@ -32,6 +35,16 @@ FLOAT = 8  # bytes of a float64
 #: Bytes per sample while a random record is generated (ISO 8608 road by FFT, Kanai–Tajimi filtered noise):
 #: the spectrum, the noise, the filter outputs and the record itself (measured: 65–140).
 GENERATED_SAMPLE_BYTES = 160
+
+#: Bytes per sample of an FFT grid while a road is generated on it (the spectrum's lines, their amplitudes and
+#: phases, the complex half-spectrum and the inverse transform's output; measured 17 with tracemalloc, 24–33
+#: with the FFT's own buffers in the resident memory: ``experiments/scripts/bench_memory_estimate.py``).
+FFT_SAMPLE_BYTES = 32
+#: Bytes of memory per byte of a text file while it is parsed into numbers (the text, its lines, the rows of
+#: Python floats and the array: measured 10–14 on CSV and AT2 files): the file-size cap is the limit over this.
+TEXT_FILE_EXPANSION = 16
+#: The file-size cap when no memory limit is set (``MRD_ENV_MEMORY_LIMIT=none``).
+UNLIMITED_FILE = 1 << 40
 
 _UNITS = {"": 1, "b": 1, "k": 1024, "m": 1024 ** 2, "g": 1024 ** 3, "t": 1024 ** 4}
 
@@ -65,6 +78,13 @@ def memory_limit() -> int | None:
         return parse_size(given)
     phys = physical_memory()
     return DEFAULT_LIMIT if not phys else min(DEFAULT_LIMIT, phys // 2)
+
+
+def file_limit() -> int:
+    """The most bytes a text file named by an option (a road profile, a ground-motion record, a damper record) may
+    hold: the memory limit over :data:`TEXT_FILE_EXPANSION`, what parsing it takes (256 MiB under the default 4 GiB)."""
+    limit = memory_limit()
+    return UNLIMITED_FILE if limit is None else max(1 << 20, limit // TEXT_FILE_EXPANSION)
 
 
 def format_bytes(n: float) -> str:
@@ -123,6 +143,39 @@ class Budget:
         if self.row_bytes:
             parts["the episode's buffers"] = n_samples * self.row_bytes
         check(parts, cause)
+
+    def check_generation(self, n_samples: float, dt: float | None, channels: int, cause: str, *,
+                         grid_samples: float, what: str = "the record", grid: str = "its FFT grid",
+                         sample_bytes: float = FFT_SAMPLE_BYTES) -> None:
+        """As :meth:`check_record` for a record of ``n_samples`` generated on a longer grid of ``grid_samples``
+        (an FFT period that also holds a delay or a lag, e.g. the rear wheels' wheelbase/speed): the grid's
+        transient arrays (``sample_bytes`` a sample, default :data:`FFT_SAMPLE_BYTES`) are counted beside the record
+        and the episode."""
+        parts = {f"{what} ({samples_text(n_samples, dt)})": record_bytes(n_samples, channels),
+                 f"{grid} ({samples_text(grid_samples, dt)})": grid_samples * sample_bytes}
+        if self.row_bytes:
+            parts["the episode's buffers"] = n_samples * self.row_bytes
+        check(parts, cause)
+
+
+def plant_parts(*, nq: int, nd: int, n_states: int, nw: int, n_signals: int, levels: int,
+                scratch_rows: int) -> dict[str, float]:
+    """The arrays that grow with the plant's size rather than the episode's length: the signal map G (``n_signals``
+    rows over the states, forces and inputs; built, then packed into the kernel's constants), the elimination
+    matrices of every sub-step ``levels`` (nq², nq·nw, nq·nd and 2·nd² each; kept by the system and packed), and
+    the kernel's per-system rows and scratch (``scratch_rows``: environments plus threads), whose Newton matrix
+    over the dampers' forces and states grows with (nd·(n_states + 1))². ``nq``: the plant's first-order states
+    (2 per degree of freedom); ``nd`` dampers of ``n_states`` internal states each; ``nw`` input channels."""
+    n = nq + nd * n_states
+    m = max(nd * (n_states + 1), 1)
+    g = n_signals * (n + nd + nw)
+    lev = levels * (nq * nq + nq * nw + nq * nd + 2 * nd * nd)
+    row = 7 * max(n, m) + 13 * nd + m * m + nd * (n_states + 1) * (n_states + 2)
+    return {f"the signal map ({n_signals} signals over {n + nd + nw} columns, built and packed)": 3 * FLOAT * g,
+            f"the plant's step matrices ({levels} sub-step levels, {nq} states, {nd} dampers; kept and packed)":
+                2 * FLOAT * lev,
+            f"the kernel's rows and Newton scratch ({scratch_rows} rows; {m}² for {nd} dampers)":
+                FLOAT * scratch_rows * row}
 
 
 def episode_parts(*, rows: int, record_samples: int, num_envs: int, inputs: int, record_channels: int,

@@ -215,3 +215,41 @@ def test_the_default_limit_is_at_most_half_the_memory():
 def test_no_limit_lets_a_large_estimate_through(monkeypatch):
     monkeypatch.setenv(resources.ENV_VAR, "none")
     assert resources.check({"x": 1e15}, "test") == 1e15
+
+
+# --- issue 48: the number of dampers and a road's low speed -------------------------------------------------------
+def _peak_and_estimate(env_id, options):
+    """(tracemalloc's peak over construction and reset, the largest estimate a check made meanwhile)."""
+    seen = []
+    real = resources.check
+
+    def spy(parts, cause):
+        seen.append(sum(parts.values()))
+        return real(parts, cause)
+
+    _make(env_id, **{**options, "episode_seconds": 0.1}).reset(seed=0)  # kernels and records loaded
+    import mrd_env.envs.core as core_module
+    tracemalloc.start()
+    try:
+        resources.check = core_module.check_memory = spy
+        env = _make(env_id, **options)
+        env.reset(seed=0)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+        resources.check = core_module.check_memory = real
+    return peak, max(seen)
+
+
+@pytest.mark.parametrize("env_id, options, low, high", [
+    # the signal map, the step matrices and the Newton scratch grow with the dampers' square (measured 0.98–0.99)
+    ("mrd_env/ShearBuildingPhysical-v0", {"damper_floors": [1, 2, 3] * 13 + [1], "episode_seconds": 1.0}, 0.9, 2.5),
+    ("mrd_env/ShearBuildingPhysical-v0", {"damper_floors": [1, 2, 3] * 33 + [1], "episode_seconds": 1.0}, 0.9, 2.5),
+    # the rear wheels' delay wheelbase/speed on the road's grid (measured 2.0 and 1.64)
+    ("mrd_env/FullCar-v1", {"road": "iso8608", "road_params": {"speed": 0.002}, "episode_seconds": 1.0}, 1.0, 2.5),
+    ("mrd_env/HalfCar-v1", {"road": "iso8608", "road_params": {"speed": 0.002}, "episode_seconds": 1.0}, 1.0, 2.5),
+])
+def test_the_estimate_counts_dampers_and_low_speeds(env_id, options, low, high):
+    """The new terms of the estimate against tracemalloc's peak (``bench_memory_estimate.py`` prints more sizes)."""
+    peak, estimate = _peak_and_estimate(env_id, options)
+    assert low * peak <= estimate <= high * peak, (peak, estimate)

@@ -19,7 +19,7 @@ import scipy.signal
 
 from ..validation import check_scalar
 from .record import (STANDARD_GRAVITY, Record, as_generator, check_column, check_duration_dt, n_samples_for,
-                     parse_float, read_table, unit_factor, ACCEL_UNITS, TIME_UNITS)
+                     parse_float, read_table, read_text, unit_factor, ACCEL_UNITS, TIME_UNITS)
 
 GM_CHANNELS = ("xg_ddot",)
 GM_UNITS = ("m/s^2",)
@@ -44,8 +44,7 @@ def read_at2(path) -> Record:
     missing NPTS/DT, a non-numeric value, or a value count different from NPTS.
     """
     p = os.fspath(path)
-    with open(p, encoding="utf-8", errors="replace") as fh:  # a missing file stays a FileNotFoundError
-        lines = fh.read().splitlines()
+    lines = read_text(p, "read_at2").splitlines()
     if len(lines) < 4:
         raise ValueError(f"read_at2: {p!r} has {len(lines)} lines; an AT2 file has 4 header lines then values")
     npts, dt = _parse_npts_dt(lines[3], p)
@@ -56,7 +55,7 @@ def read_at2(path) -> Record:
             try:
                 values.append(parse_float(tok))
             except ValueError:
-                raise ValueError(f"read_at2: {p!r} line {i}: {tok!r} is not a number") from None
+                raise ValueError(f"read_at2: {p!r} line {i} holds a value that is not a number") from None
     if len(values) != npts:
         raise ValueError(f"read_at2: {p!r} header gives NPTS = {npts} but the file has {len(values)} values")
     acc = np.array(values) * factor
@@ -74,16 +73,15 @@ def _parse_npts_dt(line: str, path: str) -> tuple[int, float]:
     elif re.search(r"NPTS", line, re.IGNORECASE) and re.search(r"\bDT\b", line, re.IGNORECASE):
         nums = re.findall(_FLOAT, line)
         if len(nums) < 2:
-            raise ValueError(f"read_at2: {path!r} line 4 names NPTS and DT but gives no values: {line.strip()!r}")
+            raise ValueError(f"read_at2: {path!r} line 4 names NPTS and DT but gives no values")
         n_tok, dt_tok = nums[0], nums[1]
     else:
-        raise ValueError(f"read_at2: {path!r} line 4 must give NPTS and DT (e.g. 'NPTS=  5370, DT=   .0100 SEC'), "
-                         f"got {line.strip()!r}")
+        raise ValueError(f"read_at2: {path!r} line 4 must give NPTS and DT (e.g. 'NPTS=  5370, DT=   .0100 SEC')")
     npts_f, dt = parse_float(n_tok), parse_float(dt_tok)
     if npts_f != int(npts_f) or npts_f < 2:
-        raise ValueError(f"read_at2: {path!r} NPTS must be an integer >= 2, got {n_tok!r}")
+        raise ValueError(f"read_at2: {path!r} line 4: NPTS must be an integer >= 2")
     if not (math.isfinite(dt) and dt > 0):
-        raise ValueError(f"read_at2: {path!r} DT must be finite and > 0 s, got {dt_tok!r}")
+        raise ValueError(f"read_at2: {path!r} line 4: DT must be finite and > 0 s")
     return int(npts_f), dt
 
 
@@ -95,7 +93,7 @@ def _at2_unit_factor(line: str, path: str) -> float:
     unit = m.group(1).lower().replace("sec", "s").replace("/s/s", "/s^2")
     if unit in ACCEL_UNITS:
         return ACCEL_UNITS[unit]
-    raise ValueError(f"read_at2: {path!r} line 3 gives unsupported units {m.group(1)!r}; expected G")
+    raise ValueError(f"read_at2: {path!r} line 3 gives units other than G, m/s^2, cm/s^2 or gal")
 
 
 def read_two_column(path, *, accel_unit: str, time_unit: str = "s", resample_dt: float | None = None,

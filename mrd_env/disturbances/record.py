@@ -9,7 +9,9 @@ from typing import Mapping
 
 import numpy as np
 
+from .. import storage
 from ..constants import GRAVITY
+from ..resources import file_limit
 from ..validation import as_generator, check_n_samples, check_scalar  # noqa: F401 (as_generator: shared)
 
 #: Standard acceleration of gravity, m/s^2 (:data:`mrd_env.constants.GRAVITY`, under the name this package has
@@ -150,17 +152,29 @@ def parse_float(token: str) -> float:
     return float(token.replace("D", "E").replace("d", "e"))
 
 
+def read_text(path, what: str) -> str:
+    """The text of a file named by an option, read through :func:`mrd_env.storage.read_limited`: a regular file
+    only (never a FIFO or a device such as /dev/zero) of at most :func:`mrd_env.resources.file_limit` bytes, UTF-8
+    (a byte-order mark skipped); a ``ValueError`` naming ``what`` and the file otherwise, never quoting it."""
+    data = storage.read_limited(path, file_limit(), what=f"{what}: file")
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = data[:exc.start].count(b"\n") + 1
+        raise ValueError(f"{what}: {os.fspath(path)!r} line {line} is not UTF-8 text") from None
+
+
 def read_table(path, what: str) -> tuple[list[str] | None, np.ndarray, np.ndarray]:
     """Read a numeric text table: comma-, semicolon- or whitespace-separated, '#' comment lines and blank lines
     skipped, at most one header row (detected as a first row that is not all numbers).
 
     Returns (header or None, data of shape (n_rows, n_cols), 1-based line number of each row). Raises
-    ``OSError`` if the file cannot be read and ``ValueError`` naming the file and line for ragged rows or non-numeric values; NaN/empty values are kept
-    as NaN so the caller can report them against the column they belong to.
+    ``ValueError`` naming the file (and line) if it cannot be read (:func:`read_text`), for ragged rows or
+    non-numeric values, never quoting the file; NaN/empty values are kept as NaN so the caller can report them
+    against the column they belong to.
     """
     path = os.fspath(path)
-    with open(path, encoding="utf-8-sig") as fh:  # a missing file stays a FileNotFoundError
-        lines = fh.read().splitlines()
+    lines = read_text(path, what).splitlines()
 
     def split(line: str) -> list[str]:
         if "," in line:
@@ -197,7 +211,7 @@ def read_table(path, what: str) -> tuple[list[str] | None, np.ndarray, np.ndarra
             try:
                 row.append(parse_float(tok))
             except ValueError:
-                raise ValueError(f"{what}: {path!r} line {i}, column {j + 1}: {tok!r} is not a number") from None
+                raise ValueError(f"{what}: {path!r} line {i}, column {j + 1} is not a number") from None
         rows.append(row)
         line_no.append(i)
     if len(rows) < 2:

@@ -342,4 +342,5 @@ def _find_column(header: list[str], column: str, param: str, units, path) -> tup
                 raise ValueError(f"units missing for column {h!r} of {os.fspath(path)!r}: pass units="
                                  f"{{{h_base!r}: 'm'}} or name the column '{h_base} [m]'")
             return j, unit
-    raise ValueError(f"{param} {column!r} is not a column of {os.fspath(path)!r}; columns are {header}")
+    raise ValueError(f"{param} {column!r} is not a column of {os.fspath(path)!r} (its header row names "
+                     f"{len(header)} columns)")

@@ -14,6 +14,10 @@ import numpy as np
 from ..stepping import BAD_ACTION, DIVERGED, HIST_FULL, RUNNING, TERMINATED
 from .core import Assembly, EnvCore, PlantDeclarations, assemble
 from .render import HUMAN_FPS
+from .termination import non_finite_reason
+
+#: The step's status when the kernel ran but an observation or the reward is NaN or infinite (not a kernel code).
+_NON_FINITE = -1
 
 
 def action_space(asm: Assembly) -> gym.spaces.Box:
@@ -199,6 +203,8 @@ class MRDamperEnv(PlantDeclarations, gym.Env):
         cost = self._cost0[0]  # no constraint violated (the common step): every term's cost is 0 too
         info = {"t": t, "cost": cost, "cost_terms": self._no_cost.copy() if cost == 0.0 else
                 dict(zip(self._cost_names, self._cost0.tolist()[1:]))}
+        if status != DIVERGED and not (math.isfinite(reward) and np.isfinite(obs).all()):
+            status = _NON_FINITE  # never handed on as a step that went well
         if status == RUNNING:
             if self.render_mode == "human" and t - self._last_frame_t >= 1.0 / HUMAN_FPS:
                 self._render_human()
@@ -212,10 +218,14 @@ class MRDamperEnv(PlantDeclarations, gym.Env):
             asm = self.assembly
             reward = -asm.limits.amount(core._n_steps[0] * asm.control_dt)
             info["termination_reason"] = f"diverged: {core.failure_message(0)}"
+        elif status == _NON_FINITE:
+            asm = self.assembly
+            reward = -asm.limits.amount(core._n_steps[0] * asm.control_dt)
+            info["termination_reason"] = non_finite_reason(info["t"])
         elif status == TERMINATED:
             info["termination_reason"] = "stroke_limit"
         info["episode_metrics"] = core.episode_metrics(0)
-        terminated = status in (TERMINATED, DIVERGED)
+        terminated = status in (TERMINATED, DIVERGED, _NON_FINITE)
         if self.render_mode == "human":
             self._render_human()
         return obs, reward, terminated, not terminated, info

@@ -52,3 +52,39 @@ def as_options(name: str, given) -> dict:
     if not isinstance(given, Mapping):
         raise ValueError(f"{name} must be a dict, got {type(given).__name__}")
     return dict(given)
+
+
+#: The option keys whose string value names a file the environment reads, at any depth of the options: a road's or a
+#: ground motion's ``path`` (``"csv"``, ``"at2"``, ``"two_column"``), a neural inverse's ``network``; and the
+#: top-level ``damper`` when it is a preset file (``"fitted.json"``).
+FILE_KEYS = ("path", "network")
+#: How deep :func:`confine_files` looks into nested options (deeper options are refused: no environment has them).
+MAX_OPTION_DEPTH = 16
+
+
+def confine_files(options: Mapping, folder, where: str) -> dict:
+    """``options`` with every file they name (:data:`FILE_KEYS`, a preset-file ``damper``) resolved inside
+    ``folder`` by :func:`mrd_env.storage.inside` (a relative name only: no absolute path, no ``..``, no link
+    leaving the folder), for options read from a file in that folder (an agent's ``env_kwargs``, a suite's
+    options); ``ValueError`` naming ``where``, the option and the name otherwise. The options are not changed."""
+    from .. import storage
+    from ..dampers import is_preset_file
+
+    def walk(value, key: str, depth: int):
+        if depth > MAX_OPTION_DEPTH:
+            raise ValueError(f"{where}: options nested deeper than {MAX_OPTION_DEPTH} levels at {key}")
+        if isinstance(value, Mapping):
+            return {k: (str(storage.inside(folder, v, what=f"{where}: {key}[{k!r}]"))
+                        if k in FILE_KEYS and isinstance(v, str) else walk(v, f"{key}[{k!r}]", depth + 1))
+                    for k, v in value.items()}
+        if isinstance(value, (list, tuple)):
+            return type(value)(walk(v, f"{key}[{i}]", depth + 1) for i, v in enumerate(value))
+        return value
+
+    out = {}
+    for k, v in options.items():
+        if k == "damper" and is_preset_file(v):
+            out[k] = str(storage.inside(folder, str(v), what=f"{where}: damper"))
+        else:
+            out[k] = walk(v, str(k), 1)
+    return out

@@ -10,6 +10,7 @@ laws (``roles``) and the default control objective (``objective``).
 from __future__ import annotations
 
 import copy
+import os
 import reprlib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -22,8 +23,9 @@ from gymnasium.vector import VectorEnv
 from ..dampers import DamperModel
 from ..disturbances import Record
 from ..mechanics import CoupledPlant, LinearPlant
-from ..resources import FLOAT, check as check_memory, episode_parts, format_bytes
+from ..resources import FLOAT, check as check_memory, episode_parts, format_bytes, plant_parts
 from ..stepping import HIST_FULL, HIST_NONE, HIST_PERIOD, Driver, Processing, noise_keys
+from ..stepping.scheme import MAX_SUBSTEPS, max_level_of
 from .costs import Costs
 from .disturbance import Disturbance
 from .reward import CallableReward, QuadraticReward
@@ -102,6 +104,10 @@ class Assembly:
     costs: Costs | None = None
     #: (force signal, velocity signal) of the control power Σ_i |F_i·v_i| (channel by channel; None: none)
     power_signals: tuple[str, str] | None = None
+
+    def __post_init__(self) -> None:
+        # parameters that make the physics meaningless (a mass of 1e-300 kg) are refused, naming the parameter
+        self.linear_plant.check_resolved(self.dt)
 
     @property
     def n_sub(self) -> int:
@@ -430,6 +436,10 @@ class EnvCore:
         state = FLOAT * (max(1, int(round(asm.dose_window / asm.dt))) + depth * n_meas + asm.sensors.history * n_meas
                          + 2 * sig.width + 64 * nd + 4 * sig.G.shape[1] + 2 * len(self.cost_names) + 4)
         parts = {f"the state of {N} environments ({format_bytes(state)} each)": N * state}
+        # what grows with the number of dampers and storeys: the signal map, the step matrices, the Newton scratch
+        parts.update(plant_parts(nq=asm.coupled.system.nq, nd=nd, n_states=asm.damper.n_states, nw=nw,
+                                 n_signals=sig.G.shape[0], levels=max_level_of(MAX_SUBSTEPS) + 1,
+                                 scratch_rows=N + min(N, os.cpu_count() or 1)))
         if steps is not None:
             rows = steps * asm.n_sub + 1
             n_rec = max(rows, record_samples or asm.disturbance.max_samples or rows)

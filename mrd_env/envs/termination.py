@@ -40,3 +40,15 @@ class Limits:
         if not cols:
             return np.zeros(0, np.int64), np.zeros(0)
         return np.concatenate(cols).astype(np.int64), np.concatenate(lim)
+
+
+#: ``info["termination_reason"]`` of an episode ended because an observation or the reward was not finite (NaN or
+#: infinite): the step's values are not physics, so the episode cannot go on; it is ``terminated`` with the penalty
+#: of a divergence.
+NON_FINITE = "non_finite"
+
+
+def non_finite_reason(t: float) -> str:
+    """The termination reason of an episode whose observation or reward became non-finite at time ``t`` (s)."""
+    return (f"{NON_FINITE}: an observation or the reward is not finite at t = {t:g} s (the plant's, the damper's or "
+            "the disturbance's parameters make the physics meaningless)")

@@ -43,6 +43,7 @@ from ..stepping import BAD_ACTION, DIVERGED, HIST_FULL, HIST_NONE, RUNNING, TERM
 from ..stepping.driver import PARALLEL_FROM
 from .base import action_space, as_action, force_actuation, render_fps
 from .core import Assembly, EnvCore, PlantDeclarations, assemble
+from .termination import non_finite_reason
 
 
 def reset_mask(options, num_envs: int, started: bool) -> np.ndarray:
@@ -125,6 +126,7 @@ class MRDamperVectorEnv(PlantDeclarations, VectorEnv):
         self._cost_keys = [(i, name, f"_{name}") for i, name in enumerate(core.cost_names, 1)]
         self._all = np.ones(N, dtype=bool)  # copied for the masks of every step (np.ones costs 4 times as much)
         self._ashape = (N, self.nd)
+        self._non_finite = np.zeros(N, dtype=bool)  # ended by a NaN or infinite observation or reward
         self._started = False
         self._renderer = None
         self._bind()
@@ -169,6 +171,7 @@ class MRDamperVectorEnv(PlantDeclarations, VectorEnv):
         if self.actuation is not None:
             self.actuation.reset(mask)
         self._ended[mask] = False
+        self._non_finite[mask] = False
         self._started = True
         infos = {"t": np.zeros(N), "_t": mask.copy()}
         self._add_disturbance(infos, mask)
@@ -255,6 +258,13 @@ class MRDamperVectorEnv(PlantDeclarations, VectorEnv):
             rewards[restart] = 0.0
             self._add_disturbance(infos, restart)
             self._ended = np.zeros(N, dtype=bool)
+        if not (np.isfinite(rewards).all() and np.isfinite(core.obs).all()):
+            # a NaN or infinite value is never handed on as a step that went well: that episode ends
+            bad = ~(np.isfinite(rewards) & np.isfinite(core.obs).all(axis=1)) & (self._status == RUNNING)
+            if restart is not None:
+                bad &= ~restart
+            self._status[bad] = DIVERGED
+            self._non_finite[bad] = True
         # every environment running (RUNNING = 0): the common step (count_nonzero takes a quarter of .any()'s time)
         if not np.count_nonzero(self._status):
             return core.obs.copy(), rewards, np.zeros(N, dtype=bool), np.zeros(N, dtype=bool), infos
@@ -281,7 +291,9 @@ class MRDamperVectorEnv(PlantDeclarations, VectorEnv):
             info = {"t": float(infos["t"][b]), "cost": c[0], "cost_terms": dict(zip(names, c[1:]))}
             if status[b] == DIVERGED:
                 rewards[b] = -asm.limits.amount(core._n_steps[b] * asm.control_dt)
-                info["termination_reason"] = f"diverged: {core.failure_message(b)}"
+                info["termination_reason"] = non_finite_reason(info["t"]) if self._non_finite[b] else \
+                    f"diverged: {core.failure_message(b)}"
+                self._non_finite[b] = False
             elif status[b] == TERMINATED:
                 info["termination_reason"] = "stroke_limit"
             info["episode_metrics"] = core.episode_metrics(int(b))

@@ -36,6 +36,8 @@ class LinearPlant:
     E: np.ndarray
     input_names: tuple[str, ...]
     dof_names: tuple[str, ...]
+    #: the plant parameter that is each coordinate's mass or inertia ("m_s", "masses[0]", "I_y"), for messages
+    mass_names: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         n = len(self.dof_names)
@@ -51,6 +53,51 @@ class LinearPlant:
     @property
     def n_dof(self) -> int:
         return self.M.shape[0]
+
+    def check_resolved(self, dt: float) -> None:
+        """``ValueError`` if the plant moves faster than a physics step of ``dt`` resolves, which no mass, stiffness
+        or damping of a real plant does: a natural frequency above the Nyquist frequency 1/(2·dt) (500 Hz at 1 ms),
+        or a damping rate c/m above 2π/dt (critical damping of that frequency). Such a plant (a mass of 1e-300 kg)
+        gives infinite or NaN observations. The message names the coordinate's mass parameter, its value and the
+        smallest mass these stiffnesses and dampings allow (or the largest stiffness for this mass)."""
+        w_max = np.pi / dt
+        M, K, C = self.M, self.K, self.C
+        diag = np.allclose(M, np.diag(np.diag(M)))
+        with np.errstate(all="ignore"):
+            # the Gershgorin bounds of M⁻¹K and M⁻¹C row by row (M diagonal): each at least the coordinate's share
+            k_row = np.sum(np.abs(K), axis=1)
+            c_row = np.sum(np.abs(C), axis=1)
+            m = np.diag(M)
+            try:
+                lam = np.linalg.eigvals(np.linalg.solve(M, K))
+                rate = np.linalg.eigvals(np.linalg.solve(M, C))
+                w = float(np.sqrt(np.max(np.abs(lam))))
+                g = float(np.max(np.abs(rate)))
+            except np.linalg.LinAlgError:
+                w = g = np.inf
+        if not np.isfinite(w) or not np.isfinite(g):
+            w, g = np.inf, np.inf
+        if w <= w_max and g <= 2.0 * w_max:
+            return
+        names = self.mass_names if len(self.mass_names) == self.n_dof else tuple(
+            f"the mass of {d!r}" for d in self.dof_names)
+        nyquist = 0.5 / dt
+        if w > w_max:
+            i = int(np.argmax(k_row / m)) if diag else 0
+            floor = k_row[i] / w_max ** 2
+            what = (f"a natural frequency of {w / (2 * np.pi):.3g} Hz, above the {nyquist:g} Hz a physics step of "
+                    f"dt = {dt:g} s resolves (1/(2·dt))")
+            valid = (f"with these stiffnesses (row sum {k_row[i]:.3g}) {names[i]} must be at least {floor:.3g}, or the "
+                     f"stiffnesses on it at most {m[i] * w_max ** 2:.3g}")
+        else:
+            i = int(np.argmax(c_row / m)) if diag else 0
+            floor = c_row[i] / (2.0 * w_max)
+            what = (f"a damping rate c/m of {g:.3g} 1/s, above the {2 * w_max:.3g} 1/s (2π/dt) a physics step of "
+                    f"dt = {dt:g} s resolves")
+            valid = (f"with these dampings (row sum {c_row[i]:.3g} N·s/m) {names[i]} must be at least {floor:.3g}, "
+                     f"or the damping on it at most {2 * w_max * m[i]:.3g} N·s/m")
+        raise ValueError(f"plant_params: {names[i]} = {m[i]:.3g} gives {what}: no real plant moves that fast; "
+                         f"{valid} (or a smaller dt)")
 
     @property
     def n_dampers(self) -> int:

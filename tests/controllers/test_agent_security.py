@@ -226,3 +226,40 @@ def test_benchmark_refuses_it_too_and_trust_is_its_only_way_in(malicious, tmp_pa
     with pytest.warns(TrustedCodeWarning):
         assert main([*bench, "--trust-agent"]) == 0
     assert marker.exists() and (tmp_path / "converted-agents").is_dir()
+
+
+# --- files named by agent.json's environment options (issue 48, item 3) ------------------------------------------
+def _road_csv(path: Path) -> None:
+    x = np.linspace(0.0, 100.0, 501)
+    path.write_text("x [m],z [m]\n" + "\n".join(f"{a!r},{float(0.01 * np.sin(a))!r}" for a in x.tolist()))
+
+
+@pytest.mark.hostile
+@pytest.mark.parametrize("path", ["/dev/zero", "/etc/passwd", "../road.csv"])
+def test_a_road_path_outside_the_agent_folder_is_refused(tmp_path, path):
+    """A road ``path`` in env_kwargs is confined to the agent's folder: /dev/zero is never read, /etc/passwd never
+    opened (nothing of it in the message), a name climbing out refused, before the environment is built."""
+    _road_csv(tmp_path / "road.csv")
+    meta = json.loads((SHIPPED / "agent.json").read_text())
+    road = {"kind": "csv", "path": path, "height_column": "z", "distance_column": "x", "speed": 10.0}
+    folder = _edited(tmp_path, env_kwargs={**meta["env_kwargs"], "road": road})
+    with pytest.raises(ValueError, match=r"env_kwargs: road\['path'\] .*only a name inside the folder") as info:
+        load_agent(folder)
+    assert ":x:" not in str(info.value)  # what every line of /etc/passwd holds
+
+
+@pytest.mark.hostile
+def test_a_road_file_inside_the_agent_folder_is_read_from_there(tmp_path, monkeypatch):
+    """A relative name is the agent's own file, read from its folder whatever the working directory."""
+    meta = json.loads((SHIPPED / "agent.json").read_text())
+    road = {"kind": "csv", "path": "road.csv", "height_column": "z", "distance_column": "x", "speed": 10.0}
+    folder = _edited(tmp_path, env_kwargs={**meta["env_kwargs"], "road": road})
+    _road_csv(folder / "road.csv")
+    monkeypatch.chdir(tmp_path)
+    agent = load_agent(folder)
+    assert agent.env_kwargs["road"]["path"] == str(folder.resolve() / "road.csv")
+    (folder / "road.csv").unlink()
+    (folder / "road.csv").symlink_to(tmp_path / "elsewhere.csv")
+    _road_csv(tmp_path / "elsewhere.csv")
+    with pytest.raises(ValueError, match="a link that leaves the folder"):
+        load_agent(folder)

@@ -132,7 +132,8 @@ class FullCarParams:
         for i in range(4):
             E[3 + i, 2 * i], E[3 + i, 2 * i + 1] = kt[i], ct[i]
         M = np.diag([self.m_s, self.I_y, self.I_x, self.m_uf, self.m_uf, self.m_ur, self.m_ur])
-        return LinearPlant(M=M, C=C, K=K, S=S, E=E, input_names=ROAD_CHANNELS, dof_names=DOF_NAMES)
+        return LinearPlant(M=M, C=C, K=K, S=S, E=E, input_names=ROAD_CHANNELS, dof_names=DOF_NAMES,
+                           mass_names=("m_s", "I_y", "I_x", "m_uf", "m_uf", "m_ur", "m_ur"))
 
 
 #: The full car's parameter sets (see the module docstring for the source).

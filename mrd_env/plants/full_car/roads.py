@@ -230,6 +230,14 @@ def _iso8608(*, dt, episode_seconds, geometry: Geometry, budget=None, road_class
         raise ValueError(f"road_params['speed']: the shortest wave (n_max = {n_max:g} cycle/m) at {max(speeds):g} m/s "
                          f"is beyond the Nyquist frequency at dt = {dt:g} s")
     geometry.check_speed(speeds)
+    # the FFT grid holds the rear wheels' delay wheelbase/speed: at a slow speed it is far longer than the episode
+    slowest = min(speeds)
+    grid = _period(n_samples_for(seconds, dt), dt, geometry, geometry.wheelbase / slowest)
+    (budget or Budget()).check_generation(
+        n_samples_for(seconds, dt), dt, len(geometry.channels),
+        f"road_params['speed']={slowest:g} m/s (the rear wheels' delay wheelbase/speed = "
+        f"{geometry.wheelbase / slowest:.3g} s is part of the road's FFT grid) with a {seconds:g} s road",
+        grid_samples=grid, what="the road", grid="generating the two-track road on its FFT grid")
     # the options are checked now, not at reset: every class, and a wave of the band at both ends of the speeds
     for c in classes:
         iso8608_psd(ISO8608_N_MIN, c)

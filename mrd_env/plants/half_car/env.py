@@ -29,6 +29,10 @@ SENSORS = ("body_acc", "pitch_acc", "travel", "travel_rate", "body_vel_at_axles"
 DEFAULT_SENSORS = ("body_acc", "pitch_acc", "travel", "damper_force", "command")
 DEFAULT_REWARD_WEIGHTS = {"comfort": 1.0, "travel": 0.5, "tyre": 0.5, "termination": 10.0}
 X_REF = 0.05  # m, suspension travel
+#: Bytes per sample while the road under both axles is generated with the rear axle's lag (the ISO 8608 FFT road,
+#: its two channels and the four columns of the record: measured 58 with tracemalloc,
+#: ``experiments/scripts/bench_memory_estimate.py``).
+LAGGED_ROAD_SAMPLE_BYTES = 96
 
 
 # --- the road: one rule, these kinds --------------------------------------------------------------------------
@@ -40,11 +44,19 @@ def _iso8608(*, dt, episode_seconds, wheelbase, budget=None, road_class="C", spe
     # one road, the rear axle's lag longer (under a second at the slowest speeds a car drives)
     (budget or Budget()).check_record(episode_seconds / dt + 1, dt, len(CHANNELS), f"episode_seconds={episode_seconds:g}",
                                       what="the road", generated=True)
+    classes = randomize.values("road_params['road_class']", road_class, lambda v: v)
+    speeds = randomize.values("road_params['speed']", speed,
+                              lambda v: opt.check_scalar("road_params['speed']", v, 0.0, lo_open=True, unit="m/s"))
+    # the road is generated wheelbase/speed longer than the episode (the rear axle's lag): at a slow speed, far longer
+    lag = wheelbase / min(speeds)
+    (budget or Budget()).check_generation(
+        episode_seconds / dt + 1, dt, len(CHANNELS),
+        f"road_params['speed']={min(speeds):g} m/s (the rear axle's lag wheelbase/speed = {lag:.3g} s is generated "
+        f"with the road) with episode_seconds={episode_seconds:g}",
+        grid_samples=(episode_seconds + lag) / dt + 1, what="the road",
+        grid="generating the road with the rear axle's lag", sample_bytes=LAGGED_ROAD_SAMPLE_BYTES)
     n_samples = max(_axles_record(c, v, episode_seconds, dt, wheelbase, np.random.default_rng(0)).n_samples
-                    for c in randomize.values("road_params['road_class']", road_class, lambda v: v)
-                    for v in randomize.values("road_params['speed']", speed,
-                                              lambda v: opt.check_scalar("road_params['speed']", v, 0.0,
-                                                                         lo_open=True, unit="m/s")))
+                    for c in classes for v in speeds)
     return Generated(functools.partial(_axles_record, road_class, speed, episode_seconds, dt, wheelbase), CHANNELS,
                      f"ISO 8608 class {randomize.describe(road_class)} at {randomize.describe(speed)} m/s, "
                      f"both axles", max_samples=n_samples)

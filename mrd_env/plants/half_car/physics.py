@@ -65,7 +65,8 @@ class HalfCarParams:
         E[2, 0], E[3, 2] = self.k_tf, self.k_tr
         return LinearPlant(M=np.diag([self.m_s, self.I_y, self.m_uf, self.m_ur]), C=S.T @ Cs @ S,
                            K=S.T @ Ks @ S + Kt, S=S, E=E, input_names=("z_rf", "zdot_rf", "z_rr", "zdot_rr"),
-                           dof_names=("z_s", "theta", "z_uf", "z_ur"))
+                           dof_names=("z_s", "theta", "z_uf", "z_ur"),
+                           mass_names=("m_s", "I_y", "m_uf", "m_ur"))
 
 
 #: A mid-size passenger car in the pitch plane (illustrative values of the vehicle-dynamics literature,

@@ -70,7 +70,7 @@ class IsolatorParams:
         """The stroke x_d as the one coordinate, the base's acceleration (the third input) driving it."""
         return LinearPlant(M=np.array([[self.m]]), C=np.array([[self.c_p]]), K=np.array([[self.k]]),
                            S=np.array([[1.0]]), E=np.array([[0.0, 0.0, -self.m]]),
-                           input_names=("z_b", "zdot_b", "zddot_b"), dof_names=("x_d",))
+                           input_names=("z_b", "zdot_b", "zddot_b"), dof_names=("x_d",), mass_names=("m",))
 
 
 #: The isolator's parameter sets (see the module docstring for the choice).

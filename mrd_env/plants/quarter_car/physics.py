@@ -51,6 +51,7 @@ class QuarterCarParams:
             E=np.array([[0.0, 0.0], [kt, ct]]),
             input_names=("z_r", "zdot_r"),
             dof_names=("z_s", "z_u"),
+            mass_names=("m_s", "m_u"),
         )
 
 

@@ -3,6 +3,9 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import itertools
+import os
+import reprlib
 
 import numpy as np
 
@@ -12,7 +15,7 @@ from ...disturbances import (Record, el_centro, kanai_tajimi, peer_record, read_
 from .metrics import benchmark_criteria, building_metrics
 from ...mechanics import CoupledPlant
 from . import SPEC
-from .physics import ShearBuildingParams, shear_building
+from .physics import MAX_DAMPERS, ShearBuildingParams, shear_building
 from ...mechanics import foh_response
 from ...resources import FLOAT, Budget
 from ...validation import check_scalar
@@ -77,9 +80,10 @@ def _record_length(raw: Record, ts: float, dt: float, episode_seconds, budget: B
 
 
 def _scaled(record: Record, time_scale, amplitude_scale, dt, building_time_scale: float = 1.0, episode_seconds=None,
-            budget: Budget | None = None) -> FixedRecord:
+            budget: Budget | None = None, what: str | None = None) -> FixedRecord:
+    """``what``: how a refusal names the record (a file's path, never its content)."""
     ts, amp = _scales(time_scale, amplitude_scale, building_time_scale)
-    _record_length(record, ts, dt, episode_seconds, budget, repr(record.name or "record"))
+    _record_length(record, ts, dt, episode_seconds, budget, what or repr(record.name or "record"))
     return FixedRecord(scale_record(record, ts, amp, dt, duration=episode_seconds), CHANNELS, UNITS, dt)
 
 
@@ -106,7 +110,8 @@ def _at2(*, dt, episode_seconds, building_time_scale, budget=None, path=None, ti
          amplitude_scale=1.0):
     if path is None:
         raise ValueError("ground_motion 'at2' needs ground_motion_params['path']")
-    return _scaled(read_at2(path), time_scale, amplitude_scale, dt, building_time_scale, episode_seconds, budget)
+    return _scaled(read_at2(path), time_scale, amplitude_scale, dt, building_time_scale, episode_seconds, budget,
+                   what=f"'at2' {os.fspath(path)!r}")
 
 
 def _two_column(*, dt, episode_seconds, building_time_scale, budget=None, path=None, accel_unit=None, time_unit="s",
@@ -114,7 +119,7 @@ def _two_column(*, dt, episode_seconds, building_time_scale, budget=None, path=N
     if path is None:
         raise ValueError("ground_motion 'two_column' needs ground_motion_params['path']")
     return _scaled(read_two_column(path, accel_unit=accel_unit, time_unit=time_unit), time_scale, amplitude_scale,
-                   dt, building_time_scale, episode_seconds, budget)
+                   dt, building_time_scale, episode_seconds, budget, what=f"'two_column' {os.fspath(path)!r}")
 
 
 def _kanai_tajimi(*, dt, episode_seconds, building_time_scale, budget=None, duration=None, omega_g=15.6,
@@ -235,11 +240,18 @@ def _plant_params(plant_preset, plant_params, damper_floors) -> ShearBuildingPar
     params = opt.plant_parameters(ShearBuildingParams, shear_building, plant_preset, plant_params)
     if damper_floors is not None:
         floors = (damper_floors,) if isinstance(damper_floors, (int, np.integer)) else damper_floors
+        try:  # at most one more than allowed is taken, whatever the iterable's length
+            floors = tuple(itertools.islice(floors, MAX_DAMPERS + 1))
+        except TypeError:
+            floors = damper_floors  # named below
+        if isinstance(floors, tuple) and len(floors) > MAX_DAMPERS:
+            raise ValueError(f"damper_floors: more than {MAX_DAMPERS} dampers, at most {MAX_DAMPERS} (the dampers' "
+                             "forces are solved together, a step's time growing with the cube of their number)")
         try:
             params = dataclasses.replace(params, damper_floors=tuple(floors))
         except TypeError:
             raise ValueError(f"damper_floors must be a sequence of floor numbers 1..{params.n_floors}, "
-                             f"got {damper_floors!r}") from None
+                             f"got {reprlib.repr(damper_floors)}") from None
     return params
 
 

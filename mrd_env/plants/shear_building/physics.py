@@ -18,6 +18,16 @@ from ...validation import check_array
 from ...mechanics import LinearPlant, preset_with_overrides
 
 
+#: The most storeys (floors) of a building: the step's matrices are dense over the 2n states (a physics step takes
+#: about 1 ms at 200 storeys and grows with n²) and the uncontrolled response's matrix exponential grows with n³;
+#: the tallest buildings have about 160 storeys.
+MAX_STOREYS = 200
+#: The most dampers of a building: the kernel solves every damper's force and internal states together (a dense
+#: Newton step over n_d·(states + 1) unknowns, time growing with n_d³, memory with n_d²): about 2 ms a physics step at
+#: 100 dampers, 11 ms at 300, minutes for a 1 s episode at 2 000.
+MAX_DAMPERS = 100
+
+
 @dataclass(frozen=True)
 class ShearBuildingParams:
     masses: tuple[float, ...]                     # floor masses, kg (floor 1 first)
@@ -32,9 +42,21 @@ class ShearBuildingParams:
 
     def __post_init__(self) -> None:
         m = check_array("ShearBuildingParams.masses", self.masses, ndim=1)
+        if m.size > MAX_STOREYS:
+            raise ValueError(f"ShearBuildingParams.masses: {m.size} floors, at most {MAX_STOREYS} (MAX_STOREYS: the "
+                             "step's dense matrices grow with the square of the storeys, the uncontrolled response "
+                             "with the cube)")
         if m.size == 0 or np.any(m <= 0):
             raise ValueError(f"ShearBuildingParams.masses must all be > 0 kg, got {m.tolist()}")
         n = m.size
+        try:
+            count = len(self.damper_floors)
+        except TypeError:
+            count = 1
+        if count > MAX_DAMPERS:
+            raise ValueError(f"ShearBuildingParams.damper_floors: {count} dampers, at most {MAX_DAMPERS} (MAX_DAMPERS: "
+                             "the dampers' forces are solved together, a step's time growing with the cube of their "
+                             "number)")
         object.__setattr__(self, "masses", tuple(m.tolist()))
         object.__setattr__(self, "K", check_array("ShearBuildingParams.K", self.K, shape=(n, n)))
         object.__setattr__(self, "C", check_array("ShearBuildingParams.C", self.C, shape=(n, n)))
@@ -74,6 +96,9 @@ class ShearBuildingParams:
     def uniform(cls, n: int, mass: float, storey_stiffness: float, damping_ratio: float = 0.02,
                 damper_floors=(1,), storey_height: float = 3.0) -> "ShearBuildingParams":
         """An n-storey building with equal floors and Rayleigh damping (given ratio in modes 1 and 2)."""
+        if not isinstance(n, (int, np.integer)) or isinstance(n, bool) or not 1 <= n <= MAX_STOREYS:
+            raise ValueError(f"ShearBuildingParams.uniform: n must be a whole number of storeys in 1..{MAX_STOREYS} "
+                             f"(MAX_STOREYS), got {n!r}")
         K = storey_stiffness * (2 * np.eye(n) - np.eye(n, k=1) - np.eye(n, k=-1))
         K[-1, -1] = storey_stiffness
         M = mass * np.eye(n)
@@ -93,7 +118,8 @@ class ShearBuildingParams:
                 S[j, f - 2] = -1.0
         M = np.diag(self.masses)
         return LinearPlant(M=M, C=self.C, K=self.K, S=S, E=-M @ np.ones((n, 1)), input_names=("xg_ddot",),
-                           dof_names=tuple(f"x{i + 1}" for i in range(n)))
+                           dof_names=tuple(f"x{i + 1}" for i in range(n)),
+                           mass_names=tuple(f"masses[{i}]" for i in range(n)))
 
     def drift_matrix(self) -> np.ndarray:
         """D with interstorey drifts d = D x (d_1 = x_1, d_i = x_i − x_{i−1})."""

@@ -9,11 +9,12 @@ on) and Kanai–Tajimi with the nominal parameters (unseen seeds).
 from __future__ import annotations
 
 import dataclasses
+import reprlib
 
 from ...constants import GRAVITY as G
 from ..profile import PlantOption, PlantProfile, TestCase
 from . import BENCHMARK_DAMPER_FLOORS, SPEC
-from .physics import BUILDING_PRESETS, shear_building
+from .physics import BUILDING_PRESETS, MAX_DAMPERS, shear_building
 from .suites import SUITES
 
 
@@ -68,10 +69,13 @@ def _apply_plant_options(options: dict, values: dict) -> dict:
     params = shear_building(out.get("plant_preset", "three_storey"))
     if "damper-storeys" in values:
         text = str(values["damper-storeys"])
-        parts = [t.strip() for t in text.split(",")]
+        parts = [t.strip() for t in text.split(",", MAX_DAMPERS)]
+        if len(parts) > MAX_DAMPERS:
+            raise ValueError(f"--damper-storeys: more than {MAX_DAMPERS} dampers, at most {MAX_DAMPERS} (their forces "
+                             "are solved together, a step's time growing with the cube of their number)")
         if not all(t.isdigit() and 1 <= int(t) <= params.n_floors for t in parts):
             raise ValueError(f"--damper-storeys must be storey numbers in 1..{params.n_floors} separated by commas "
-                             f"(e.g. 1,1,2,2), got {text!r}")
+                             f"(e.g. 1,1,2,2), got {reprlib.repr(text)}")
         out["damper_floors"] = [int(t) for t in parts]
     dataclasses.replace(params, damper_floors=tuple(_damper_floors(out)))  # every storey exists in the building
     return out
