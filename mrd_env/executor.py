@@ -194,12 +194,17 @@ def _pool(tasks, jobs, address, bar, retry):
     workers = min(jobs or default_jobs(), len(tasks))
     results: list = [None] * len(tasks)
     ex = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"), initializer=_worker_init)
+    submitted: list = []  # every future, retries' too: a stop waits for the running ones to return
+
+    def submit(task):
+        submitted.append(ex.submit(_call_in_worker, task))
+        return submitted[-1]
+
     try:
-        futures = {ex.submit(_call_in_worker, t): i for i, t in enumerate(tasks)}
+        futures = {submit(t): i for i, t in enumerate(tasks)}
         for fut in as_completed(futures):
             i = futures[fut]
-            results[i] = _finish(tasks[i], fut.result(),
-                                 (lambda i=i: ex.submit(_call_in_worker, tasks[i]).result()) if retry else None)
+            results[i] = _finish(tasks[i], fut.result(), (lambda i=i: submit(tasks[i]).result()) if retry else None)
             bar.update()
     except Exception:
         # a failed task: the queued tasks are dropped, the running ones end (a training seed saves its agent) — unless
@@ -207,35 +212,33 @@ def _pool(tasks, jobs, address, bar, retry):
         try:
             ex.shutdown(wait=True, cancel_futures=True)
         except BaseException:
-            _stop_workers(ex)
+            _stop_workers(ex, submitted)
             raise
         raise
     except BaseException:  # Ctrl-C, SIGTERM: the running tasks are stopped (shutdown would wait for them all)
-        _stop_workers(ex)
+        _stop_workers(ex, submitted)
         raise
     ex.shutdown(wait=True)
     return results
 
 
-def _stop_workers(ex, grace: float | None = None) -> None:
-    """Stop the pool's workers: SIGTERM (each task's ``KeyboardInterrupt``, for it to save what it has), its queued
-    tasks dropped, then SIGKILL for those still running after ``grace`` s (:data:`STOP_GRACE`); waits until they
-    end. A second interrupt while waiting kills them at once."""
-    import time
+def _stop_workers(ex, futures, grace: float | None = None) -> None:
+    """Stop the pool's workers: its queued tasks dropped, SIGTERM to each worker (its task's ``KeyboardInterrupt``,
+    for it to save what it has), then, once the running tasks have returned or after ``grace`` s
+    (:data:`STOP_GRACE`), SIGKILL to every worker (idle, or still running a task that will not stop: nothing of
+    theirs is left to wait for); waits until they end. A second interrupt while waiting kills them at once."""
+    from concurrent.futures import wait
 
     grace = STOP_GRACE if grace is None else grace
     procs = list((getattr(ex, "_processes", None) or {}).values())  # the pool's own record of its workers
+    ex.shutdown(wait=False, cancel_futures=True)
     for p in procs:
         _signal(p, signal.SIGTERM)
-    ex.shutdown(wait=False, cancel_futures=True)
     try:
-        end = time.monotonic() + grace
+        wait([f for f in futures if not f.done()], timeout=grace)
+    finally:
         for p in procs:
-            p.join(max(0.0, end - time.monotonic()))
-    finally:  # the grace is over, or a second Ctrl-C came: the rest are killed
-        for p in procs:
-            if p.exitcode is None:
-                _signal(p, signal.SIGKILL)
+            _signal(p, signal.SIGKILL)
         for p in procs:
             p.join(1.0)
 
