@@ -231,6 +231,9 @@ def mean_ci(values, confidence: float = 0.95, upper: float = math.inf) -> tuple[
 #: The most scenario panels :func:`grouped_bars` draws (the tables hold every scenario): a figure of hundreds of
 #: panels that share an axis takes minutes to lay out (500 took 134 s) and shows nothing legible.
 MAX_PANELS = 12
+#: The most controllers (bars per panel) :func:`grouped_bars` draws: the first ones, in the order of ``rows`` (the
+#: leaderboard's: best first); 40 bars are still legible, 100 took 10 s to draw and were not.
+MAX_BARS = 40
 
 
 def _plain(text) -> str:
@@ -241,22 +244,29 @@ def _plain(text) -> str:
 
 def grouped_bars(rows: list[dict], value: str, lo: str, hi: str, path: Path, *, xlabel: str, title: str,
                  refs: tuple[float, ...] = (), xlim: tuple[float, float] | None = None,
-                 max_panels: int = MAX_PANELS, metadata: dict | None = None) -> Path:
+                 max_panels: int = MAX_PANELS, max_bars: int = MAX_BARS, metadata: dict | None = None) -> Path:
     """One panel per scenario, a horizontal bar of ``rows[value]`` per controller (one colour per law, its 1 ms row
     hatched) with the interval [lo, hi] where there is one (the axis label names it only where one is drawn);
     vertical lines at ``refs``. With ``xlim``, a bar beyond the axis is drawn to its edge and labelled with its
     value, so that one very poor controller does not squash the others. At most ``max_panels`` panels: beyond, the
     first ``max_panels - 1`` scenarios and the last one (where a pooled row such as "all scenarios" comes), the
-    title saying how many are shown. ``metadata``: the PNG's text entries (:func:`mrd_env.report.save_figure`)."""
+    title saying how many are shown; likewise at most ``max_bars`` controllers, the first ones. ``metadata``: the
+    PNG's text entries (:func:`mrd_env.report.save_figure`)."""
     import matplotlib
 
-    if max_panels < 1:
-        raise ValueError(f"max_panels must be at least 1, got {max_panels}")
+    if max_panels < 1 or max_bars < 1:
+        raise ValueError(f"max_panels and max_bars must be at least 1, got {max_panels} and {max_bars}")
     scen = list(dict.fromkeys(r["scenario"] for r in rows))
     ctrls = list(dict.fromkeys(r["controller"] for r in rows))
+    left_out = []
     if len(scen) > max_panels:
-        title = f"{title}\n({max_panels} of {len(scen)} panels drawn: the first and the last; the tables hold all)"
+        left_out.append(f"{max_panels} of {len(scen)} panels: the first and the last")
         scen = scen[:max_panels - 1] + scen[-1:]
+    if len(ctrls) > max_bars:
+        left_out.append(f"the first {max_bars} of {len(ctrls)} controllers")
+        ctrls = ctrls[:max_bars]
+    if left_out:
+        title = f"{title}\n(drawn: {'; '.join(left_out)}; the tables hold them all)"
     # each bar's row found by a look-up, not a search of every row (quadratic in the scenarios)
     by_key = {}
     for r in rows:

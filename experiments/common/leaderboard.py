@@ -5,7 +5,8 @@ by field, within bounds (a result file comes from anywhere; none may stall or ex
 
 - the file: a regular file (never a FIFO or a device) of at most :data:`MAX_RESULT_BYTES`, and the files of one
   leaderboard :data:`MAX_TOTAL_BYTES` together, at most :data:`MAX_RESULTS` of them;
-- at most :data:`MAX_EPISODES` episodes and :data:`MAX_SCENARIOS` scenarios;
+- at most :data:`MAX_EPISODES` episodes and :data:`MAX_SCENARIOS` scenarios per file, and :data:`MAX_CELLS`
+  cells (controllers × scenarios) per leaderboard;
 - every name shown in a table (the controller's, the suite's, a scenario, an episode label, a criterion, a unit):
   one printable line of at most :data:`MAX_NAME` characters; any other text at most :data:`MAX_TEXT` characters.
 
@@ -29,8 +30,8 @@ from pathlib import Path
 
 from mrd_env import storage
 
-from .evaluation import grouped_bars
-from .scoring import ALL, FORMAT, FORMAT_VERSION, KINDS, SuiteResult, _cell, summary_rows
+from .evaluation import grouped_bars, mean_ci
+from .scoring import ALL, FORMAT, FORMAT_VERSION, KINDS, SuiteResult, _cell
 
 #: The largest result file read: 4 MiB, 206 times the result of the largest shipped suite (car-comfort-v1, 31
 #: episodes: 20 344 bytes), room for about 6 000 episodes of seven criteria.
@@ -41,8 +42,12 @@ MAX_TOTAL_BYTES = 32 * 1024 ** 2
 MAX_RESULTS = 100
 #: The most episodes, and scenarios, a result file holds (the shipped suites: 31 and 4).
 MAX_EPISODES, MAX_SCENARIOS = 5_000, 500
+#: The most cells (controllers × scenarios) of one leaderboard's table: each is an interval to compute.
+MAX_CELLS = 5_000
 #: The longest name shown in a table (a suite's scenario name may have 200 characters, its label 12 more).
 MAX_NAME = 256
+#: The highest suite version (:data:`mrd_env.suites.MAX_VERSION`'s).
+MAX_VERSION = 10 ** 6
 #: The longest other text of a result file (an argument of its command, a path).
 MAX_TEXT = 4096
 #: The leaderboard table's own columns: no scenario may be named so.
@@ -126,7 +131,9 @@ def read_result(path: str | Path, limit: int = MAX_RESULT_BYTES) -> SuiteResult:
             or not re.fullmatch(r"[0-9a-f]{64}", s["digest"]) or s.get("id") != f"{s['name']}-v{s['version']}" \
             or not isinstance(s.get("episodes"), int) or s["episodes"] < 1:
         raise bad("its suite must give name, version, id (name-vN), digest (SHA-256) and episodes")
-    _check_name(s["id"], "its suite's id", bad)
+    _check_name(s["name"], "its suite's name", bad)
+    if not 1 <= s["version"] <= MAX_VERSION:
+        raise bad(f"its suite's version must be a whole number in [1, {MAX_VERSION}]")
     if s["episodes"] > MAX_EPISODES:
         raise bad(f"its suite has {s['episodes']} episodes, a result file at most {MAX_EPISODES}")
     c = data.get("controller")
@@ -210,8 +217,7 @@ class Leaderboard:
         or a kill at any moment finds the previous set or the new one; staging folders of an earlier writer that
         was killed are removed first. ``ValueError`` before anything is written for an ``out`` that holds other
         files."""
-        out = Path(out)
-        out = out.resolve() if out.is_symlink() else out  # the swap replaces the folder, never a link to it
+        out = Path(out).resolve()  # the swap replaces the folder itself (never a link to it) and needs its name
         storage.recover_folder(out)
         check_folder(out)
         _remove_stale_staging(out)
@@ -334,7 +340,10 @@ def leaderboard(paths, out: str | Path | None = None) -> Leaderboard:
     if len(scen) > MAX_SCENARIOS:
         raise ValueError(f"the result files name {len(scen)} scenarios together, at most {MAX_SCENARIOS} (the "
                          "results of one suite name its scenarios)")
-    summaries = [{x["scenario"]: x for x in summary_rows(r.episodes, [])} for r in results]
+    if len(scen) * len(results) > MAX_CELLS:
+        raise ValueError(f"{len(results)} result files on {len(scen)} scenarios: {len(scen) * len(results)} cells of "
+                         f"the table, at most {MAX_CELLS} (e.g. {MAX_CELLS // 100} controllers on 100 scenarios)")
+    summaries = [_share_summary(r.episodes) for r in results]
     # best first by the share over all scenarios (ties: in the order given; no number: last)
     order = sorted(range(len(results)), key=lambda i: -summaries[i][ALL]["share"]
                    if math.isfinite(summaries[i][ALL]["share"]) else math.inf)
@@ -354,6 +363,20 @@ def leaderboard(paths, out: str | Path | None = None) -> Leaderboard:
     if out is not None:
         board.write(out)
     return board
+
+
+def _share_summary(episodes: list[dict]) -> dict[str, dict]:
+    """{scenario (and ``all scenarios``): episodes, share, share lo95, share hi95}: the share rows of
+    :func:`summary_rows` (the same :func:`mean_ci`), the episodes grouped in one pass (linear in the episodes)."""
+    by_scenario: dict[str, list[float]] = {}
+    for e in episodes:
+        by_scenario.setdefault(e["scenario"], []).append(e["share"])
+    by_scenario[ALL] = [e["share"] for e in episodes]
+    out = {}
+    for s, shares in by_scenario.items():
+        m, lo, hi = mean_ci(shares)
+        out[s] = {"scenario": s, "episodes": len(shares), "share": m, "share lo95": lo, "share hi95": hi}
+    return out
 
 
 def _size(path: Path) -> int:
