@@ -11,7 +11,10 @@ exception (a bug) prints one line and exits with 1; ``--traceback`` shows the wh
 Stopping: SIGTERM (what SLURM, ``docker stop`` and ``timeout`` send) is handled as Ctrl-C: the long commands save
 what is done (``train``: the agent so far, loadable; ``tune``: the finished trials, in the study's journal;
 ``yardstick``: every solved episode, in the cache; ``benchmark``: every finished plant's tables), then the command
-exits with 143 (130 for Ctrl-C).
+exits with 143 (130 for Ctrl-C). On a process pool the workers are stopped too: each task is interrupted where it
+is (and saves as above), and a worker still running after :data:`mrd_env.executor.STOP_GRACE` s is killed.
+
+An error line is cut at :data:`MAX_ERROR_LINE` characters (a message quoting a huge value says how many were cut).
 """
 from __future__ import annotations
 
