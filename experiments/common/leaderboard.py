@@ -29,6 +29,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from mrd_env import storage
+from mrd_env.suites import check_shipped_id
 
 from .evaluation import grouped_bars, mean_ci
 from .scoring import ALL, FORMAT, FORMAT_VERSION, KINDS, SuiteResult, _cell
@@ -136,6 +137,7 @@ def read_result(path: str | Path, limit: int = MAX_RESULT_BYTES) -> SuiteResult:
         raise bad(f"its suite's version must be a whole number in [1, {MAX_VERSION}]")
     if s["episodes"] > MAX_EPISODES:
         raise bad(f"its suite has {s['episodes']} episodes, a result file at most {MAX_EPISODES}")
+    check_shipped_id(s["id"], s["digest"], where=where)  # a shipped id means the shipped references
     c = data.get("controller")
     if not isinstance(c, dict) or not isinstance(c.get("name"), str) or not c["name"].strip() \
             or c.get("kind") not in KINDS:

@@ -370,3 +370,27 @@ def test_a_killed_writer_leaves_one_consistent_set_and_the_next_write_no_leftove
     leaderboard(gens[1], out=out)
     assert sorted(f.name for f in out.parent.iterdir()) == ["board"], "the next write removes what a kill left"
     assert sorted(f.name for f in out.iterdir()) == sorted(FILES) and _generation(out) == {"1"}
+
+
+# --------------------------------------------------------------------------------------------- 4: a forged shipped id
+
+
+@pytest.mark.hostile
+def test_a_result_claiming_a_shipped_suite_with_other_references_is_refused(tmp_path, board, capsys):
+    """A result file names its suite's id and digest: one that claims a shipped id (``car-comfort-v1``) with
+    another digest was scored against other references — a forged suite whose shares would pass for the real
+    suite's — and an unshipped version of a shipped suite's name is refused the same way."""
+    from mrd_env.suites import shipped_digest
+
+    real = shipped_digest("car-comfort-v1")
+    assert real is not None
+    forged = result(suite="car-comfort")
+    forged["suite"]["digest"] = "ab" * 32
+    assert_refused([write(tmp_path / "forged.json", forged)], board, capsys, "car-comfort-v1",
+                   "a name of its own")
+    newer = result(suite="car-comfort")
+    newer["suite"].update(id="car-comfort-v9", version=9)
+    assert_refused([write(tmp_path / "newer.json", newer)], board, capsys, "car-comfort-v9", "a name of its own")
+    honest = result(suite="car-comfort")
+    honest["suite"]["digest"] = real
+    assert read_result(write(tmp_path / "honest.json", honest)).suite["id"] == "car-comfort-v1"
