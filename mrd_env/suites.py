@@ -214,6 +214,9 @@ CRITERION = re.compile(r"[A-Za-z_][A-Za-z0-9_]{0,63}")
 MAX_LABEL, MAX_DESCRIPTION, MAX_FILE_NAME = 200, 10_000, 4096
 #: The highest suite version.
 MAX_VERSION = 10 ** 6
+#: The most scenarios, and episodes, a suite holds (the shipped suites: at most 4 and 31); a result file of the
+#: suite is held to the same bounds (:mod:`experiments.common.leaderboard`).
+MAX_SCENARIOS, MAX_EPISODES = 500, 5_000
 
 
 def from_json(data: dict, where: str = "suite", folder: str | Path | None = None, *, shipped: bool = False) -> Suite:
@@ -281,8 +284,9 @@ def check_structure(data, where: str = "suite") -> None:
         fail("control_dt", "a positive finite number of seconds", dt)
 
     scenarios = data["scenarios"]
-    if not isinstance(scenarios, list) or not scenarios:
-        fail("scenarios", "a non-empty list of scenarios", scenarios)
+    if not isinstance(scenarios, list) or not scenarios or len(scenarios) > MAX_SCENARIOS:
+        fail("scenarios", f"a non-empty list of at most {MAX_SCENARIOS} scenarios",
+             scenarios if not isinstance(scenarios, list) else f"{len(scenarios)} scenarios")
     labels: list[str] = []
     for i, sc in enumerate(scenarios):
         at = f"scenarios[{i}]"
@@ -296,6 +300,9 @@ def check_structure(data, where: str = "suite") -> None:
         seeds = sc["seeds"]
         if not isinstance(seeds, list) or not seeds:
             fail(f"{at}.seeds", "a non-empty list of seeds", seeds)
+        if len(labels) + len(seeds) > MAX_EPISODES:
+            fail(f"{at}.seeds", f"at most {MAX_EPISODES} episodes in the whole suite",
+                 f"{len(labels) + len(seeds)} episodes")
         for j, seed in enumerate(seeds):
             if type(seed) is not int or not 0 <= seed <= MAX_SEED:
                 fail(f"{at}.seeds[{j}]", f"a whole number in [0, {MAX_SEED}] (NumPy's seeds)", seed)
@@ -375,22 +382,18 @@ def _check_json(value, where: str, field: str, depth: int) -> None:
 
 def _check_environment(plant: str, env_id: str, where: str) -> None:
     """``ValueError`` unless ``env_id`` is an id mrd_env registers (an id ``"module:Env"`` would make Gymnasium
-    import that module: a suite runs no code) and one of ``plant``'s."""
+    import that module: a suite runs no code) and ``plant`` one of the plants' folders. (That the id is one of that
+    plant's is checked above the plants, where a suite is resolved for scoring:
+    :func:`experiments.common.scoring.resolve_suite`; this module imports no plant.)"""
     import gymnasium as gym
 
-    from .plants import plants
-    from .plants.registry import register_envs
-
-    register_envs()
+    # ``import mrd_env.suites`` ran ``mrd_env/__init__``, which registered every plant's ids
     valid = sorted(k for k in gym.registry if k.startswith("mrd_env/"))
     if env_id not in valid:
         raise ValueError(f"{where}: env_id must be an environment of mrd_env, one of {valid}; got {_shown(env_id)}")
-    every = plants()
+    every = sorted(f.name for f in PLANTS_FOLDER.iterdir() if (f / "__init__.py").is_file())
     if plant not in every:
-        raise ValueError(f"{where}: plant must be one of {sorted(every)}, got {_shown(plant)}")
-    ids = [*every[plant].ids, *every[plant].former_ids]
-    if env_id not in ids:
-        raise ValueError(f"{where}: env_id {env_id!r} is not an environment of the plant {plant!r} (its ids: {ids})")
+        raise ValueError(f"{where}: plant must be one of {every}, got {_shown(plant)}")
 
 
 def named_files(options) -> list[tuple[tuple, object]]:

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from mrd_env import storage
-from mrd_env.suites import check_shipped_id
+from mrd_env.suites import MAX_EPISODES, MAX_SCENARIOS, MAX_VERSION, check_shipped_id
 
 from .evaluation import grouped_bars, mean_ci
 from .scoring import ALL, FORMAT, FORMAT_VERSION, KINDS, SuiteResult, _cell
@@ -41,14 +41,10 @@ MAX_RESULT_BYTES = 4 * 1024 ** 2
 MAX_TOTAL_BYTES = 32 * 1024 ** 2
 #: The most result files (controllers) of one leaderboard.
 MAX_RESULTS = 100
-#: The most episodes, and scenarios, a result file holds (the shipped suites: 31 and 4).
-MAX_EPISODES, MAX_SCENARIOS = 5_000, 500
 #: The most cells (controllers × scenarios) of one leaderboard's table: each is an interval to compute.
 MAX_CELLS = 5_000
 #: The longest name shown in a table (a suite's scenario name may have 200 characters, its label 12 more).
 MAX_NAME = 256
-#: The highest suite version (:data:`mrd_env.suites.MAX_VERSION`'s).
-MAX_VERSION = 10 ** 6
 #: The longest other text of a result file (an argument of its command, a path).
 MAX_TEXT = 4096
 #: The leaderboard table's own columns: no scenario may be named so.

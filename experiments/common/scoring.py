@@ -26,8 +26,6 @@ From Python::
 """
 from __future__ import annotations
 
-import csv
-import io
 import json
 import math
 import re
@@ -40,6 +38,7 @@ from typing import Any
 import numpy as np
 
 from mrd_env import storage
+from mrd_env.report import csv_text
 
 from .evaluation import evaluate_batch, mean_ci
 from .scenarios import Scenario
@@ -72,18 +71,34 @@ def bounded(value) -> str:
 
 def resolve_suite(suite) -> Any:
     """A :class:`mrd_env.suites.Suite`: ``suite`` itself, a shipped suite's name (``car-comfort-v1``; a name without
-    version: its latest) or a suite file's path; ``ValueError`` otherwise."""
+    version: its latest) or a suite file's path, whose environment is one of its plant's; ``ValueError``
+    otherwise."""
     from mrd_env import suites
 
     if isinstance(suite, suites.Suite):
-        return suite
-    if isinstance(suite, Path):
-        return suites.read_suite(suite)
-    if not isinstance(suite, str):
+        found = suite
+    elif isinstance(suite, Path):
+        found = suites.read_suite(suite)
+    elif not isinstance(suite, str):
         raise ValueError(f"a suite is a Suite, its name or its file's path, got a {type(suite).__name__}")
-    if not suite.endswith(".json") and Path(suite).is_file():
-        return suites.read_suite(suite)
-    return suites.suite(suite)  # looked up here, at call time: a shipped suite's name, or a .json file
+    elif not suite.endswith(".json") and Path(suite).is_file():
+        found = suites.read_suite(suite)
+    else:
+        found = suites.suite(suite)  # looked up here, at call time: a shipped suite's name, or a .json file
+    check_plant(found)
+    return found
+
+
+def check_plant(suite) -> None:
+    """``ValueError`` unless the suite's ``env_id`` is one of its ``plant``'s ids (the plant names the units of its
+    criteria and the folder of its shipped files; :mod:`mrd_env.suites` checks each alone, importing no plant)."""
+    from mrd_env.plants import plants
+
+    spec = plants().get(suite.plant)
+    ids = [*spec.ids, *spec.former_ids] if spec is not None else []
+    if suite.env_id not in ids:
+        raise ValueError(f"suite {suite.id}: env_id {suite.env_id!r} is not an environment of the plant "
+                         f"{suite.plant!r} (its ids: {ids})")
 
 
 def check_references(suite) -> None:
@@ -588,16 +603,8 @@ class SuiteResult:
         """The summary as ``<stem>.md`` (mean [interval] per cell) and ``<stem>.csv`` (numbers), together."""
         stem = Path(stem)
         md, csv_path = stem.with_suffix(".md"), stem.with_suffix(".csv")
-        storage.write_texts({md: self.markdown(), csv_path: _csv(self.table_rows())})
+        storage.write_texts({md: self.markdown(), csv_path: csv_text(self.table_rows())})
         return md, csv_path
-
-
-def _csv(rows: list[dict]) -> str:
-    buf = io.StringIO(newline="")
-    w = csv.DictWriter(buf, fieldnames=list(rows[0]), restval="")
-    w.writeheader()
-    w.writerows(rows)
-    return buf.getvalue()
 
 
 def _nulls(v):
