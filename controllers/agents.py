@@ -51,6 +51,9 @@ SHIPPED = Path(__file__).with_name("agents")
 #: The agent folder's metadata and observation statistics files.
 METADATA_FILE = "agent.json"
 NORMALIZATION_FILE = "normalization.npz"
+#: The largest agent.json read (the shipped ones: a few KiB), and the largest policy or statistics file: a network of
+#: the most parameters a description may ask for (controllers.policy_format.MAX_PARAMETERS) in float64, and room.
+METADATA_LIMIT, FILE_LIMIT = 16 * 1024 ** 2, 512 * 1024 ** 2
 #: The policy files: an SB3/sb3-contrib policy's weights, a CMA-ES network; SB3's zip (to resume training).
 POLICY_FILE, MLP_FILE, RESUME_FILE = "policy.safetensors", "policy.npz", "model.zip"
 #: An agent's files in a folder that holds other files too (a run folder): named by their content's digest.
@@ -119,7 +122,13 @@ class ObservationNormalizer:
 
     @classmethod
     def load(cls, path: str | Path) -> "ObservationNormalizer":
-        return cls.from_bytes(Path(path).read_bytes())
+        return cls.from_bytes(_read(Path(path), "observation statistics file"))
+
+
+def _read(path: Path, what: str, limit: int | None = None) -> bytes:
+    """An agent's file, read only if it is a regular file within its size (never a FIFO or a device such as
+    ``/dev/zero``, which a shared folder could hold): ``ValueError`` naming it otherwise."""
+    return storage.read_limited(path, FILE_LIMIT if limit is None else limit, what=what)
 
 
 def _jsonable(v):
@@ -289,8 +298,9 @@ def agent_files(path: str | Path) -> tuple[Path, dict]:
     if not meta_path.exists():
         raise ValueError(f"agent {path}: no agent.json in {folder} (mrd-env train writes it next to the model)")
     try:
-        meta = json.loads(meta_path.read_text(encoding="utf-8"), object_hook=_untag)
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        meta = json.loads(_read(meta_path, f"agent {path}: agent.json", METADATA_LIMIT).decode("utf-8"),
+                          object_hook=_untag)
+    except (json.JSONDecodeError, UnicodeDecodeError, RecursionError) as exc:
         raise ValueError(f"agent {path}: agent.json is not valid JSON ({exc})") from None
     if not isinstance(meta, dict) or meta.get("format") != AGENT_FORMAT:
         raise ValueError(f"agent {path}: agent.json is not an mrd-env agent (missing \"format\": \"{AGENT_FORMAT}\")")
@@ -361,7 +371,7 @@ _algorithm = algorithm_class  # the former name (tests and other sessions' modul
 
 def _read_checked(folder: Path, meta: dict, name: str, where) -> bytes:
     """The bytes of the file ``name`` of an agent, after checking them against the digest agent.json records."""
-    data = storage.inside(folder, name, what=f"agent {where}: agent.json's file").read_bytes()
+    data = _read(storage.inside(folder, name, what=f"agent {where}: agent.json's file"), f"agent {where}: file")
     files = meta.get("files")
     if files is None:
         if meta.get("network") is not None:
@@ -528,9 +538,9 @@ def agent_digest(path: str | Path) -> str:
     folder of the same name (every run's ``best/``, a retrained shipped agent) is never served its result."""
     folder, meta = agent_files(path)
     h = hashlib.sha256()
-    h.update((folder / METADATA_FILE).read_bytes())
+    h.update(_read(folder / METADATA_FILE, f"agent {path}: agent.json", METADATA_LIMIT))
     for name in loaded_files(meta):
-        h.update(storage.inside(folder, name).read_bytes())
+        h.update(_read(storage.inside(folder, name), f"agent {path}: file"))
     return h.hexdigest()[:16]
 
 

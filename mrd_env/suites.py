@@ -397,16 +397,19 @@ def _check_environment(plant: str, env_id: str, where: str) -> None:
 
 
 def named_files(options) -> list[tuple[tuple, object]]:
-    """The files an options object names, as (keys to the value, the value): a measured road's or a ground-motion
-    record's ``path`` at any depth (``road_params``, ``ground_motion_params``, a road or ground-motion object, a
-    mixture's ``sources``) and a ``damper`` that names a preset file (a name ending in .json, as
-    :func:`mrd_env.dampers.is_preset_file`)."""
+    """The files an options object names, as (keys to the value, the value): the environment's file options at any
+    depth (:data:`mrd_env.envs.build.FILE_KEYS`: a measured road's or a ground motion's ``path`` in
+    ``road_params``, ``ground_motion_params``, a mixture's ``sources``; a neural inverse's ``network``) and a
+    ``damper`` that names a preset file (:func:`mrd_env.dampers.is_preset_file`)."""
+    from .dampers import is_preset_file
+    from .envs.build import FILE_KEYS
+
     out = []
 
     def walk(value, keys):
         if isinstance(value, dict):
             for k, v in value.items():
-                if k == "path" or (k == "damper" and isinstance(v, str) and v.lower().endswith(".json")):
+                if k in FILE_KEYS or (k == "damper" and is_preset_file(v)):
                     out.append(((*keys, k), v))
                 else:
                     walk(v, (*keys, k))

@@ -161,6 +161,43 @@ READERS = {
 }
 
 
+def _agent_json(path):
+    """An agent folder whose agent.json is ``path`` (a link to it): what loading a shared agent reads first."""
+    import tempfile
+    from pathlib import Path
+
+    from controllers import load_agent
+
+    folder = Path(tempfile.mkdtemp())
+    (folder / "agent.json").symlink_to(Path(path).resolve())
+    return load_agent(folder)
+
+
+#: Files the project loads that are not options' records: a damper preset, a neural inverse's network, an agent's
+#: metadata and observation statistics — read the same way (regular files only, a size cap).
+LOADERS = {
+    "damper preset": lambda p: __import__("mrd_env.dampers.preset_file", fromlist=["read_preset"]).read_preset(p),
+    "network": lambda p: __import__("mrd_env.inverse.neural", fromlist=["load_network"]).load_network(p),
+    "agent.json": _agent_json,
+    "normalization": lambda p: __import__("controllers.agents", fromlist=["x"]).ObservationNormalizer.load(p),
+}
+
+
+@pytest.mark.parametrize("loader", list(LOADERS))
+def test_a_shared_file_that_is_a_device_or_fifo_is_refused_without_waiting(tmp_path, loader):
+    """A preset, a network, an agent's agent.json or statistics that is /dev/zero was read until memory ran out; a
+    FIFO blocked forever. Both are refused at once, by name."""
+    fifo = tmp_path / "fifo.json"
+    os.mkfifo(fifo)
+    for path in ("/dev/zero", fifo):
+        done = []
+        t = threading.Thread(target=lambda: done.append(pytest.raises(ValueError, LOADERS[loader], path)),
+                             daemon=True)
+        t.start()
+        t.join(10.0)
+        assert done and "not a regular file" in str(done[0].value), (loader, path)
+
+
 @pytest.mark.parametrize("reader", list(READERS))
 def test_a_device_is_refused_without_reading_it(reader):
     """/dev/zero was read until memory ran out."""

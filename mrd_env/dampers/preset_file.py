@@ -42,15 +42,11 @@ def is_preset_file(spec) -> bool:
 
 def _load(path: Path) -> dict:
     """The JSON object of a preset file, checked for the format marker (no structure check)."""
+    from ..storage import read_limited
+
+    data = read_limited(path, MAX_PRESET_BYTES, what="preset file")  # a regular file only: never a FIFO or device
     try:
-        size = path.stat().st_size
-    except OSError:
-        size = 0  # the read below reports a missing file by name
-    if size > MAX_PRESET_BYTES:
-        raise ValueError(f"{path}: {size / 1024 ** 2:.0f} MiB is too large for a preset file (at most "
-                         f"{MAX_PRESET_BYTES // 1024 ** 2} MiB)")
-    try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
+        doc = json.loads(data.decode("utf-8"))
     except json.JSONDecodeError as exc:
         raise ValueError(f"{path}: not a JSON preset ({exc.msg} at line {exc.lineno})") from None
     except UnicodeDecodeError:

@@ -23,6 +23,7 @@ it): ``make_inverse("neural", damper)`` finds the one trained for the damper's m
 """
 from __future__ import annotations
 
+import io
 import json
 import math
 from dataclasses import dataclass
@@ -32,6 +33,7 @@ import numba as nb
 import numpy as np
 
 from .. import storage
+from ..resources import file_limit
 from ..validation import shown
 from .base import Inverse, lag_decay, writable_c
 
@@ -113,11 +115,10 @@ class Network:
 def load_network(path: str | Path) -> Network:
     """A network saved by :meth:`Network.save`; ``ValueError`` for a missing or foreign file."""
     path = Path(path)
-    if not path.is_file():
-        raise ValueError(f"{path}: no such network file")
     foreign = f"{path}: not a neural-inverse network file (mrd-env inverse train writes them)"
+    data = storage.read_limited(path, file_limit(), what="network file")  # regular files only: no FIFO, no device
     try:
-        z = np.load(path, allow_pickle=False)
+        z = np.load(io.BytesIO(data), allow_pickle=False)
     except (OSError, ValueError):  # not an array file at all (numpy's own message speaks of pickles)
         raise ValueError(f"{foreign}: not an .npz archive") from None
     if not isinstance(z, np.lib.npyio.NpzFile):
