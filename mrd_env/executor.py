@@ -77,6 +77,12 @@ class TaskExited(RuntimeError):
     Ctrl-C and the parent stops them), reported as the task's failure rather than exiting the caller."""
 
 
+class WorkerDied(RuntimeError):
+    """A pool's worker process ended while running a task (``os._exit`` in the task's code, a crash, the kernel's
+    out-of-memory killer): the pool is broken, so the sweep stops with the task named, never a bare
+    ``BrokenProcessPool``."""
+
+
 #: Seconds a stopped pool's workers have to end their tasks (a training run saves the agent so far) before they are
 #: killed.
 STOP_GRACE = 5.0
@@ -190,6 +196,7 @@ def _serial(tasks, jobs, address, bar, retry):
 def _pool(tasks, jobs, address, bar, retry):
     import multiprocessing as mp
     from concurrent.futures import ProcessPoolExecutor, as_completed
+    from concurrent.futures.process import BrokenProcessPool
 
     workers = min(jobs or default_jobs(), len(tasks))
     results: list = [None] * len(tasks)
@@ -204,7 +211,12 @@ def _pool(tasks, jobs, address, bar, retry):
         futures = {submit(t): i for i, t in enumerate(tasks)}
         for fut in as_completed(futures):
             i = futures[fut]
-            results[i] = _finish(tasks[i], fut.result(), (lambda i=i: submit(tasks[i]).result()) if retry else None)
+            try:
+                outcome = fut.result()
+            except BrokenProcessPool as exc:  # no retry: the pool is gone with its worker
+                raise TaskFailed(tasks[i], WorkerDied(f"its worker process ended while running it ({exc})"),
+                                 tries=1) from None
+            results[i] = _finish(tasks[i], outcome, (lambda i=i: submit(tasks[i]).result()) if retry else None)
             bar.update()
     except Exception:
         # a failed task: the queued tasks are dropped, the running ones end (a training seed saves its agent) — unless

@@ -256,3 +256,14 @@ def test_a_record_name_from_a_file_is_not_quoted_in_a_refusal(tmp_path, monkeypa
         _make("mrd_env/ShearBuilding-v1", ground_motion="at2", ground_motion_params={"path": str(at2),
                                                                                     "time_scale": 1000})
     assert "SECRET" not in str(info.value) and "r.AT2" in str(info.value)
+
+
+@pytest.mark.parametrize("values, option", [({"storeys": "²"}, "--storeys"), ({"storeys": "٣"}, "--storeys"),
+                                            ({"storeys": "9" * 5000}, "--storeys"),
+                                            ({"damper-storeys": "1,²"}, "--damper-storeys")])
+def test_the_building_options_refuse_unicode_digits_from_python(values, option):
+    """'²'.isdigit() is true and int('²') fails: the plant's own option check (what Python callers and suites reach,
+    not only the CLI's argparse type) names the option, with a bounded quote of the value."""
+    with pytest.raises(ValueError, match=option) as err:
+        BUILDING.with_plant_options(values)
+    assert len(str(err.value)) < 300

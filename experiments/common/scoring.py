@@ -636,7 +636,7 @@ def score(suite, controller, *, name: str | None = None, options: dict | None = 
     import os
 
     import mrd_env
-    from mrd_env.executor import Task, TaskFailed, run_tasks
+    from mrd_env.executor import Task, TaskFailed, WorkerDied, run_tasks
 
     suite = resolve_suite(suite)
     check_references(suite)
@@ -655,6 +655,8 @@ def score(suite, controller, *, name: str | None = None, options: dict | None = 
     except TaskFailed as exc:
         if isinstance(exc.error, ValueError):
             raise ValueError(str(exc.error)) from exc.error
+        if isinstance(exc.error, WorkerDied) and spec.kind == "python":  # os._exit() in the user's code
+            raise ValueError(f"controller {spec.name}: {exc.task.label}: {exc.error}") from None
         raise
     eps = [e for group in per_scenario for e in group]
     criteria = list(dict.fromkeys(k for e in eps for k in e["criteria"]))

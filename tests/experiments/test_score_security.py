@@ -56,6 +56,11 @@ HOSTILE = textwrap.dedent('''
             sys.exit(0)
 
 
+    class Dies(Fine):
+        def predict(self, observation, state=None, episode_start=None, deterministic=True):
+            os._exit(3)
+
+
     class ExitsWhenBuilt:
         def __init__(self, env):
             sys.exit(0)
@@ -200,6 +205,17 @@ def test_a_controller_that_exits_is_its_error_one_line_exit_2_nothing_written(ho
     assert err.count("\n") == 1 and f"controller hostile_laws:{controller}" in err, err
     assert __import__("re").search(what, err), err
     assert not list((folder / "out").glob("*"))  # the folder is made before the episodes run; nothing in it
+
+
+@pytest.mark.hostile
+def test_a_controller_that_kills_its_worker_is_its_error_one_line_exit_2(hostile, capsys):
+    """Was: os._exit() in predict broke the process pool: a BrokenProcessPool, "internal error", exit 1."""
+    folder, suite = hostile
+    code = main(["score", "--suite", str(suite), "--controller", "hostile_laws:Dies", "--backend", "pool",
+                 "--jobs", "2", "--no-progress", "--out", str(folder / "out")])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1, err
+    assert "controller hostile_laws:Dies" in err and "worker process ended" in err, err
 
 
 @pytest.mark.hostile

@@ -54,14 +54,19 @@ _PLANT_OPTIONS = (
                 "storey 2)", "S1,S2,..."))
 
 
+def _whole(text: str) -> bool:
+    """``text`` is a short whole number in ASCII digits (``'²'.isdigit()`` is true, and ``int('²')`` fails)."""
+    return text.isascii() and text.isdigit() and len(text) <= 6
+
+
 def _apply_plant_options(options: dict, values: dict) -> dict:
     """Environment ``options`` with ``--storeys`` (a preset by its storeys; its own damper storeys unless given) and
     ``--damper-storeys`` applied; ``ValueError`` naming the option and its valid values."""
     out = dict(options)
     if "storeys" in values:
         text = str(values["storeys"]).strip()
-        if not text.isdigit() or int(text) not in _BY_STOREYS:
-            raise ValueError(f"--storeys must be one of {sorted(_BY_STOREYS)}, got {values['storeys']!r}")
+        if not _whole(text) or int(text) not in _BY_STOREYS:
+            raise ValueError(f"--storeys must be one of {sorted(_BY_STOREYS)}, got {reprlib.repr(values['storeys'])}")
         preset = _BY_STOREYS[int(text)]
         if preset != out.get("plant_preset", "three_storey"):
             out["plant_preset"] = preset
@@ -73,7 +78,7 @@ def _apply_plant_options(options: dict, values: dict) -> dict:
         if len(parts) > MAX_DAMPERS:
             raise ValueError(f"--damper-storeys: more than {MAX_DAMPERS} dampers, at most {MAX_DAMPERS} (their forces "
                              "are solved together, a step's time growing with the cube of their number)")
-        if not all(t.isdigit() and 1 <= int(t) <= params.n_floors for t in parts):
+        if not all(_whole(t) and 1 <= int(t) <= params.n_floors for t in parts):
             raise ValueError(f"--damper-storeys must be storey numbers in 1..{params.n_floors} separated by commas "
                              f"(e.g. 1,1,2,2), got {reprlib.repr(text)}")
         out["damper_floors"] = [int(t) for t in parts]
