@@ -85,39 +85,41 @@ def evaluate_batch(make, scenario: Scenario, response: str, name: str | None = N
     N = len(scenario.seeds)
     venv = gym.make_vec(scenario.env_id, num_envs=N, vectorization_mode="vector_entry_point",
                         **{**scenario.options, **env_options})
-    ctrl = make(venv)
-    layout = newest_layout(venv)
-    rate = venv.roles.get("damper_velocity", "")
+    try:  # closed whatever happens: a controller's error leaves no environment open
+        ctrl = make(venv)
+        layout = newest_layout(venv)
+        rate = venv.roles.get("damper_velocity", "")
 
-    def first(o, key):
-        sl, k = response_channel(layout, key)
-        return float(o[sl][k]) if sl is not None else float("nan")
+        def first(o, key):
+            sl, k = response_channel(layout, key)
+            return float(o[sl][k]) if sl is not None else float("nan")
 
-    obs, _ = venv.reset(seed=list(scenario.seeds))
-    ctrl.reset()
-    done = np.zeros(N, dtype=bool)
-    returns = np.zeros(N)
-    metrics: list[dict] = [{} for _ in range(N)]
-    t, resp, force, vel = [], [], [], []
-    t0 = time.perf_counter()
-    while not done.all():
-        action, _ = ctrl.predict(obs, deterministic=True)
-        obs, r, term, trunc, info = venv.step(action)
-        returns[~done] += r[~done]
-        if not done[0]:
-            t.append(float(info["t"][0]))
-            resp.append(first(obs[0], response))
-            force.append(first(obs[0], "damper_force"))
-            vel.append(first(obs[0], rate))
-        ended = (term | trunc) & ~done
-        for b in np.flatnonzero(ended):
-            mine = env_info(info, b)  # Gymnasium's batched info: env b's own keys (masks dropped)
-            metrics[b] = {k: float(v) for k, v in mine.get("episode_metrics", {}).items()}
-            if term[b]:
-                metrics[b]["terminated"] = str(mine.get("termination_reason") or "terminated")
-        done |= ended
-    wall = (time.perf_counter() - t0) / N
-    venv.close()
+        obs, _ = venv.reset(seed=list(scenario.seeds))
+        ctrl.reset()
+        done = np.zeros(N, dtype=bool)
+        returns = np.zeros(N)
+        metrics: list[dict] = [{} for _ in range(N)]
+        t, resp, force, vel = [], [], [], []
+        t0 = time.perf_counter()
+        while not done.all():
+            action, _ = ctrl.predict(obs, deterministic=True)
+            obs, r, term, trunc, info = venv.step(action)
+            returns[~done] += r[~done]
+            if not done[0]:
+                t.append(float(info["t"][0]))
+                resp.append(first(obs[0], response))
+                force.append(first(obs[0], "damper_force"))
+                vel.append(first(obs[0], rate))
+            ended = (term | trunc) & ~done
+            for b in np.flatnonzero(ended):
+                mine = env_info(info, b)  # Gymnasium's batched info: env b's own keys (masks dropped)
+                metrics[b] = {k: float(v) for k, v in mine.get("episode_metrics", {}).items()}
+                if term[b]:
+                    metrics[b]["terminated"] = str(mine.get("termination_reason") or "terminated")
+            done |= ended
+        wall = (time.perf_counter() - t0) / N
+    finally:
+        venv.close()
     name = name or getattr(ctrl, "name", type(ctrl).__name__)
     empty = np.zeros(0)
     return [Episode(name, scenario.label(seed), metrics[b], np.array(t) if b == 0 else empty,
