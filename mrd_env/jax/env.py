@@ -182,9 +182,12 @@ def _structure(asm) -> dict:
 
 # --- memory: estimated before anything is allocated (mrd_env.resources) ------------------------------------
 #: Bytes a batched step takes per byte of one environment's arrays (:func:`env_floats`): the state it reads and
-#: the one it returns, the new episode every step prepares for an autoreset, and the compiled step's temporaries
-#: (XLA's ``memory_analysis`` of the vmapped step: 3.5–4.2 for the plants; ``experiments/scripts/bench_jax_memory.py``).
-STEP_FACTOR = 6
+#: the one it returns, the new episode every step prepares for an autoreset, and the compiled step's temporaries;
+#: and per element of the dampers' Newton matrix (m × m, m = dampers × (damper states + 1): the LU of several
+#: dampers works on arrays). Fitted to XLA's ``memory_analysis`` of the vmapped step and the resident memory of
+#: large batches (``experiments/scripts/bench_jax_memory.py``, docs/jax.md).
+STEP_FACTOR = 3
+NEWTON_FACTOR = 24
 
 
 def env_floats(asm) -> int:
@@ -267,9 +270,12 @@ def bank_parts(asm, n_episodes: int, n_samples: int, *, drawn: bool = False, gen
 
 def batch_parts(asm, num_envs: int, *, drawn: bool = False) -> dict:
     """The estimate {what: bytes} of ``num_envs`` environments stepped together (:data:`STEP_FACTOR` × their
-    arrays; ``drawn``: each environment's step also gathers its episode's plant)."""
-    each = 8 * STEP_FACTOR * env_floats(asm) + (plant_bytes(asm) if drawn else 0)
-    return {f"{num_envs} environments' state and step ({format_bytes(each)} each)": num_envs * each}
+    arrays and :data:`NEWTON_FACTOR` × their Newton matrix; ``drawn``: each step also gathers its episode's plant)."""
+    s = asm.coupled.system
+    m = s.nd + (asm.coupled.n - s.nq)  # the Newton unknowns: each damper's force and internal states
+    each = 8 * (STEP_FACTOR * env_floats(asm) + NEWTON_FACTOR * m * m) + (plant_bytes(asm) if drawn else 0)
+    who = f"{num_envs} environments'" if num_envs != 1 else "1 environment's"
+    return {f"{who} state and step ({format_bytes(each)} each)": num_envs * each}
 
 
 def check_bank(asm, *, seeds=None, records=None, num_envs: int = 0, drawn: bool = False) -> float:
@@ -412,7 +418,8 @@ def make_params(env_id: str, *, seeds=range(16), records=None, randomise=None, s
     and delay; its ``seed``), one draw per seed, each episode's environment built with its draw by the plant's own
     code (so the episodes are those of ``gymnasium.make(env_id, **options, **draw)``). ``scheme``: "exact" or
     "differentiable" (with ``substeps``, a power of two up to 8, ``newton_iterations`` and ``jacobian``:
-    :func:`params_of_episodes`). Bad values raise ``ValueError`` naming the option."""
+    :func:`params_of_episodes`). Bad values raise ``ValueError`` naming the option; a bank above
+    ``MRD_ENV_MEMORY_LIMIT`` too, before any record is drawn (:func:`check_bank`)."""
     scheme_options = {"scheme": scheme, "substeps": substeps, "newton_iterations": newton_iterations,
                       "jacobian": jacobian}
     _check_scheme(**scheme_options)

@@ -109,6 +109,8 @@ class JaxVectorEnv(PlantDeclarations, VectorEnv):
     host, by the plant's own code (:func:`mrd_env.jax.env.drawn_episodes`, the ``seed`` of the bands used), and
     each (re)start picks one of those episodes. Either way nothing new is compiled.
     ``max_episode_steps``: episodes end, truncated, after at most that many steps (as the native one).
+    The bank and the batch are estimated before anything is drawn (:func:`mrd_env.jax.env.check_bank`): above
+    ``MRD_ENV_MEMORY_LIMIT`` a ``ValueError`` names ``num_envs`` and ``seeds``/``records``, the estimate and the limit.
     ``autoreset_mode``: ``NEXT_STEP`` only.
 
     ``infos`` as the native vector environment's, each key with its ``_key`` mask: ``t`` (s), ``cost`` and
