@@ -1,5 +1,6 @@
 """The project's cache folders: where generated kernels (:mod:`mrd_env.stepping.codegen`), numba's compilation of
-them, the clairvoyant solver's results and its compiled model (:mod:`mrd_env.optimal.cache`) live.
+them, the clairvoyant solver's results and its compiled model (:mod:`mrd_env.optimal.cache`) and, only with
+``MRD_ENV_JAX_CACHE=1``, JAX's compiled programs (:mod:`mrd_env.jax`: ``jax/``, checked at every read and write) live.
 
 The root is ``$MRD_ENV_CACHE_DIR``, else ``$XDG_CACHE_HOME/mrd-env``, else ``~/.cache/mrd-env``. Generated Python
 modules, numba's pickled compilations and shared libraries are loaded from there, so whoever can write the folder
