@@ -4,6 +4,9 @@ os.environ.setdefault("MPLBACKEND", "Agg")
 # the suite compiles in its own processes (no background compilers, no interpreted steps where tests time or
 # count); tests/stepping/test_first_use.py switches the interpreted first use on where it tests it
 os.environ.setdefault("MRD_ENV_FIRST_USE", "wait")
+# the test workers share JAX's compiled programs through the private, checked cache (mrd_env.jax: not persisted
+# unless asked, since JAX does not authenticate its entries); tests/test_cache_security.py sets its own value
+os.environ.setdefault("MRD_ENV_JAX_CACHE", "1")
 
 
 def pytest_collection_modifyitems(config, items):

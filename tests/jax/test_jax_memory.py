@@ -54,6 +54,20 @@ def test_ten_million_environments_are_refused_at_once_before_any_allocation(noth
 
 
 @pytest.mark.hostile
+def test_the_quarter_cars_road_bank_is_refused_before_a_road_is_drawn(monkeypatch):
+    """The quarter car's own twin (``jax_twin.make_params(n_roads=...)``) drew every road before any check."""
+    from mrd_env.plants.quarter_car import jax_twin
+
+    def drawn(*args, **kwargs):
+        raise AssertionError("a road was drawn before the memory check")
+
+    monkeypatch.setattr(jax_twin, "iso8608_road", drawn)
+    monkeypatch.setenv("MRD_ENV_MEMORY_LIMIT", "1G")
+    with pytest.raises(ValueError, match=r"n_roads=20000 \(20000 episodes of 10 s.* needs about .*the limit is 1 GiB"):
+        jax_twin.make_params(n_roads=20_000)
+
+
+@pytest.mark.hostile
 def test_a_huge_seed_list_is_refused_by_its_memory_and_count(nothing_drawn, monkeypatch):
     """12 000 seeds of 10 s roads (7.9 GB before) are refused by their estimate, naming ``seeds``, for
     ``make_params`` and the vector environment alike; 10¹² seeds by their count, before a list is made."""

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...disturbances import Record, iso8608_road
-from ...jax.env import (DRAWN_BANDS, SCHEMES, EnvParams, EnvState, command, draw_params, drawn_options,  # noqa: F401
+from ...jax.env import (DRAWN_BANDS, SCHEMES, EnvParams, EnvState, check_bank, command, draw_params, drawn_options,  # noqa: F401
                         episode_return, native_records, params_of_assembly, params_of_problem, reset, rollout, step,
                         step_autoreset)
 from ...validation import check_scalar
@@ -44,6 +44,10 @@ def make_params(*, plant_preset: str = "set_a", damper: str = "spencer_dyke", da
                           preview=preview, **options)
     if roads is None:
         n_roads = int(check_scalar("n_roads", n_roads, 1, 100_000))
+        try:  # refused with the estimate before any road is drawn
+            check_bank(asm, seeds=range(n_roads))
+        except ValueError as exc:
+            raise ValueError(str(exc).replace("seeds (", f"n_roads={n_roads} (", 1)) from None
         roads = [iso8608_road(road_class, speed, asm.episode_seconds, asm.dt, rng=seed + i, method="fft")
                  for i in range(n_roads)]
     roads = [r if isinstance(r, Record) else Record(asm.dt, np.asarray(getattr(r, "data", r), np.float64),
