@@ -139,7 +139,35 @@ def _handle_sigterm():
 def _message(exc: BaseException) -> str:
     if isinstance(exc, OSError) and exc.filename is not None:
         return f"{exc.filename}: {exc.strerror or exc}"
+    if isinstance(exc, ModuleNotFoundError) and exc.name:
+        extras = extras_of(exc.name)
+        if extras:
+            return (f"{exc} (it comes with the extra {' or '.join(f'[{e}]' for e in extras)}: "
+                    f"pip install 'mrd-env[{extras[0]}]')")
     return str(exc)
+
+
+#: Import names whose distribution is named otherwise (the rest: the import name with '_' as '-').
+_DISTRIBUTIONS = {"yaml": "pyyaml", "sklearn": "scikit-learn"}
+
+
+def extras_of(module: str) -> list[str]:
+    """The extras of mrd-env (pyproject.toml's optional dependencies, read from the installed package's metadata:
+    one home for the fact) that install the top-level module ``module``; the narrowest first, ``test`` last."""
+    import importlib.metadata as md
+
+    top = module.split(".")[0]
+    want = re.sub(r"[-_.]+", "-", _DISTRIBUTIONS.get(top, top)).lower()
+    try:
+        requires = md.requires("mrd-env") or []
+    except md.PackageNotFoundError:
+        return []
+    found = []
+    for req in requires:
+        m = re.match(r"\s*([A-Za-z0-9][A-Za-z0-9._-]*)[^;]*;.*extra\s*==\s*[\"']([^\"']+)[\"']", req)
+        if m and re.sub(r"[-_.]+", "-", m.group(1)).lower() == want and m.group(2) not in found:
+            found.append(m.group(2))
+    return sorted(found, key=lambda e: (e in ("test", "docs"), e))
 
 
 #: The longest error line printed (characters): a message quoting a huge value (an option, a file's field) is cut.

@@ -342,3 +342,35 @@ def test_interrupted_is_exit_130(monkeypatch, capsys):
     _raising_run(monkeypatch, KeyboardInterrupt())
     assert main(["yardstick", "--quick"]) == 130
     assert capsys.readouterr().err == "mrd-env yardstick: interrupted\n"
+
+
+def test_a_missing_optional_dependency_names_its_extra(monkeypatch, capsys):
+    """'No module named osqp' alone left a user to guess which extra brings it: the line names the extra, read from
+    the installed package's metadata (pyproject.toml's optional dependencies), one line, exit 2."""
+    import sys
+
+    import experiments.commands.warmup as warmup
+    from experiments.cli import extras_of, main
+
+    assert extras_of("osqp")[0] == "optimal" and extras_of("yaml")[-1] == "test" and extras_of("not_a_module") == []
+
+    def run(args):
+        import osqp  # noqa: F401  (blocked below: what a machine without the extra raises)
+
+    monkeypatch.setitem(sys.modules, "osqp", None)
+    monkeypatch.setattr(warmup, "run", run)
+    assert main(["warmup"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "osqp" in err and "pip install 'mrd-env[optimal]'" in err, err
+
+
+def test_the_readme_lists_every_command():
+    """The README's command list is the CLI's (it once missed score and leaderboard)."""
+    import re
+    from pathlib import Path
+
+    from experiments.cli import COMMANDS
+
+    readme = Path(__file__).resolve().parents[2] / "README.md"
+    line = re.search(r"`mrd-env --help` lists every command: (.*?)\.", readme.read_text(), re.S).group(1)
+    assert set(re.findall(r"`([a-z-]+)`", line)) == set(COMMANDS)
