@@ -19,6 +19,8 @@ from mrd_env.dampers import damper_class
 from mrd_env.optimal import cache
 from mrd_env.stepping import codegen, first_use
 
+pytestmark = pytest.mark.hostile  # every case here is a hostile file (a count: pytest -m hostile)
+
 VICTIM = "a file that is not the project's: it must keep this content\n"
 
 

@@ -21,6 +21,8 @@ from controllers.agents import (TrustedCodeWarning, UntrustedAgentError, agent_d
                                 shipped_agents)
 from experiments.cli import main
 
+pytestmark = pytest.mark.hostile  # every case here is a hostile file (a count: pytest -m hostile)
+
 pytest.importorskip("stable_baselines3")
 pytest.importorskip("safetensors")
 SHIPPED = next(f for f in shipped_agents("quarter_car") if f.name == "quarter_car_ppo_residual")

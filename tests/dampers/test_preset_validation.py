@@ -15,6 +15,8 @@ from mrd_env.dampers import damper_class, load_damper_preset, make_damper
 from mrd_env.dampers.preset_file import preset_model, read_preset
 from mrd_env.identification import load_preset, save_preset
 
+pytestmark = pytest.mark.hostile  # every case here is a hostile file (a count: pytest -m hostile)
+
 
 @pytest.fixture
 def folder(tmp_path):
