@@ -6,6 +6,11 @@ the native vector environment of the same id and options (:mod:`mrd_env.envs.vec
 through an autoreset): the step after an episode ends resets that environment and returns its first observation
 with reward 0 and both flags false. ``gymnasium.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point",
 backend="jax", **options)`` makes it for every plant (:mod:`mrd_env.plants.registry`).
+
+Its default scheme is the differentiable one (:data:`DEFAULT_SCHEME`): a fixed amount of work per step, as fast as
+the native vector environment or faster, within 0.5 % NRMSE of the exact scheme (``docs/jax.md``). The
+exact scheme (``scheme="exact"``: the native environment's numbers to 1e-12) waits in every step for the batch's
+slowest Newton solve, a tenth of the native speed on random commands: it is for cross-checks.
 """
 from __future__ import annotations
 
@@ -24,6 +29,12 @@ from ..envs.vector import reset_mask
 from ..stepping.scheme import MAX_SUBSTEPS, OK
 from ..stepping.stepper import diverged_error
 from . import env as je
+
+#: The scheme a JAX vector environment steps with unless given ``scheme=``: its users pick JAX for speed, and a
+#: ``VectorEnv`` hands back NumPy arrays (no gradient goes through it), so the fast scheme, not the exact one.
+DEFAULT_SCHEME = "differentiable"
+#: Seeds are JAX keys' (``jax.random.PRNGKey``: a 64-bit signed integer): environment i's of ``reset(seed=s)`` is s + i.
+SEED_LIMIT = 2 ** 63
 
 
 def bands_of(params: je.EnvParams, randomise: dict | None) -> dict:
@@ -97,12 +108,19 @@ class JaxVectorEnv(PlantDeclarations, VectorEnv):
     """``num_envs`` environments of ``env_id`` (any mrd_env id) with its options (as ``gymnasium.make``), stepped
     in JAX.
 
-    ``seeds``/``records``/``scheme``/``substeps``/``newton_iterations``/``jacobian``: the bank and the stepping,
-    as :func:`mrd_env.jax.env.make_params` (default bank: one record for a fixed disturbance, else the records a
+    ``scheme``: ``"differentiable"`` by default (:data:`DEFAULT_SCHEME`: fixed work per step, about the native
+    vector environment's speed or more, within 0.5 % NRMSE of the exact scheme), or ``"exact"`` (the native
+    environment's numbers to 1e-12, for cross-checks: every step waits for the batch's slowest Newton solve, a
+    tenth of the native speed at N = 256 on random commands).
+    ``seeds``/``records``/``substeps``/``newton_iterations``/``jacobian``: the bank and the stepping, as
+    :func:`mrd_env.jax.env.make_params` (default bank: one record for a fixed disturbance, else the records a
     native environment meets at ``reset(seed=s)`` for s in 0…15). Each (re)starting environment draws its record
-    from the bank, and its sensor noise, from its own JAX key; ``reset(seed=s)`` makes environment i's key of s
-    and i, so a seeded reset replays bit for bit (the records are the bank's, not those the native environment
-    draws from the same seed). ``randomise``: bands in the robustness twins' layout (``ROBUST_BANDS``). With
+    from the bank, and its sensor noise, from its own JAX key. Seeding as the native vector environment:
+    ``reset(seed=s)`` seeds environment i with s + i (its key ``PRNGKey(s + i)``), a list of ``num_envs`` seeds
+    seeds each (``None`` keeps that environment's key), ``reset()`` keeps the keys (the first one draws a seed
+    per environment); ``np_random_seed`` is the tuple of those seeds, so a seeded reset replays bit for bit and
+    environment i of ``reset(seed=s)`` is environment 0 of ``reset(seed=s + i)`` (the records are the bank's,
+    not those the native environment draws from the same seed). ``randomise``: bands in the robustness twins' layout (``ROBUST_BANDS``). With
     ``damper_params`` and ``command.eta`` only, they are drawn for each environment at every reset and autoreset
     inside the step (its ``seed`` unused: the draws come from the environments' keys); with any other band (masses,
     stiffnesses, the command delay, sensor noise and delay) every band is drawn once per seed of the bank, on the
@@ -117,13 +135,15 @@ class JaxVectorEnv(PlantDeclarations, VectorEnv):
     ``cost_terms`` {term: (N,)} (s in violation over the last step, 0 for an environment that (re)started),
     ``disturbance`` (the record's name) for those that (re)start, ``termination_reason`` ("stroke_limit", or
     "diverged: ..." with the end of the failed control period as its time) for those whose episode ended; and
-    ``effective_command`` (N, nd), the dampers' commands after their lag. Not here: ``episode_metrics`` (the
-    native environment's episode statistics are not computed in JAX), rendering, ``reset(seed=[...])``.
+    ``effective_command`` (N, nd), the dampers' commands after their lag. Every array returned is a writable NumPy
+    array of its own (Gymnasium's vector wrappers, ``ClipReward`` and ``NormalizeReward``, write in place). Not
+    here: ``episode_metrics`` (the native environment's episode statistics are not computed in JAX), rendering,
+    ``np_random`` (the draws come from JAX keys, not NumPy generators).
     """
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP}
 
-    def __init__(self, env_id: str, num_envs: int = 1, *, seeds=None, records=None, scheme: str = "exact",
+    def __init__(self, env_id: str, num_envs: int = 1, *, seeds=None, records=None, scheme: str = DEFAULT_SCHEME,
                  substeps: int = 1, newton_iterations: int = 2, jacobian: str = "kernel", randomise: dict | None = None,
                  autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, max_episode_steps: int | None = None,
                  render_mode: str | None = None, **options):
@@ -178,7 +198,7 @@ class JaxVectorEnv(PlantDeclarations, VectorEnv):
         self.nd = params.nd
         self.cost_names = params.cost_names
         self._ashape = (N, self.nd)
-        self._seed: int | None = None
+        self._seeds: list = [None] * N  # each environment's seed (its key's), as the native vector environment's
         self._keys = None  # (N, 2) each environment's JAX key
         self._state = None  # EnvState, batched
         self._obs = None
@@ -190,17 +210,44 @@ class JaxVectorEnv(PlantDeclarations, VectorEnv):
         """The bank's longest episode (control steps), within ``max_episode_steps``."""
         return int(np.max(np.asarray(self.params.steps)))
 
+    @property
+    def np_random_seed(self) -> tuple:
+        """Each environment's seed (the last reset's, or the one drawn for it; ``None`` before a reset), as the
+        native vector environment and ``SyncVectorEnv`` give them."""
+        return tuple(self._seeds)
+
+    def _seed_list(self, seed) -> list:
+        """``reset``'s ``seed`` as one seed or ``None`` per environment (as the native vector environment's)."""
+        N = self.num_envs
+        is_int = lambda s: isinstance(s, (int, np.integer)) and not isinstance(s, bool)  # noqa: E731
+        if seed is None:
+            return [None] * N
+        if is_int(seed):
+            if not 0 <= seed <= SEED_LIMIT - N:
+                raise ValueError(f"seed must be None, an int in [0, 2**63 - num_envs] or {N} seeds, got {seed!r}")
+            return [int(seed) + i for i in range(N)]
+        try:
+            seeds = list(seed)
+        except TypeError:
+            raise ValueError(f"seed must be None, an int >= 0 or a sequence of {N} of them, got {seed!r}") from None
+        if len(seeds) != N or not all(s is None or (is_int(s) and 0 <= s < SEED_LIMIT) for s in seeds):
+            raise ValueError(f"seed must be None, an int or a sequence of {N} seeds (None or ints in [0, 2**63)), "
+                             f"got {seed!r}")
+        return [None if s is None else int(s) for s in seeds]
+
     # --- Gymnasium API -------------------------------------------------------------------------------------------
     def reset(self, *, seed=None, options=None):
         N = self.num_envs
-        if seed is not None and (isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0):
-            raise ValueError(f"seed must be None or an int >= 0 (one seed for the batch), got {seed!r}")
+        seeds = self._seed_list(seed)
         mask = reset_mask(options, self.num_envs, self._state is not None)
-        if seed is not None or self._keys is None:
-            self._seed = int(seed) if seed is not None else int(np.random.SeedSequence().entropy % 2 ** 63)
-            base = jax.random.PRNGKey(self._seed)
-            keys = jax.vmap(lambda i: jax.random.fold_in(base, i))(jnp.arange(N))
-            self._keys = keys if self._keys is None else jnp.where(mask[:, None], keys, self._keys)
+        # a given seed, or a first key (drawn as a scalar environment's), for the masked environments only
+        new = mask & np.array([s is not None or self._keys is None for s in seeds])
+        if new.any():
+            seeds = [int(np.random.SeedSequence().entropy % SEED_LIMIT) if s is None else s for s in seeds]
+            keys = jax.vmap(jax.random.PRNGKey)(jnp.asarray(seeds, jnp.int64))
+            self._keys = keys if self._keys is None else jnp.where(jnp.asarray(new)[:, None], keys, self._keys)
+            for b in np.flatnonzero(new):
+                self._seeds[b] = seeds[b]
         nxt, use = jnp.split(jax.vmap(jax.random.split)(self._keys), 2, axis=1)
         obs, state, P, lag = _start_all(use[:, 0], self.params, self.bands)
         if self._state is None:
@@ -217,8 +264,7 @@ class JaxVectorEnv(PlantDeclarations, VectorEnv):
         infos = {"t": np.zeros(N), "_t": mask.copy()}
         self._add_disturbance(infos, mask, np.asarray(self._state.record))
         self._add_costs(infos, np.zeros((N, 1 + len(self.cost_names))), mask)
-        return np.asarray(obs, np.float32), infos
-
+        return np.array(obs, np.float32), infos
 
     def _add_costs(self, infos: dict, C: np.ndarray, mask: np.ndarray) -> None:
         """``cost`` (N,) and ``cost_terms`` {term: (N,)} from ``C`` (N, 1 + T), with the mask ``mask``."""
@@ -251,7 +297,8 @@ class JaxVectorEnv(PlantDeclarations, VectorEnv):
             (*out, state.k, state.status, state.U, state.record))
         infos = {"t": k * self.control_dt, "_t": np.ones(N, dtype=bool)}
         self._add_costs(infos, np.concatenate([cost[:, None], terms], axis=1), np.ones(N, dtype=bool))
-        infos["effective_command"], infos["_effective_command"] = U, np.ones(N, dtype=bool)
+        # the arrays handed back are NumPy's own, writable (JAX's are read-only views of its buffers)
+        infos["effective_command"], infos["_effective_command"] = np.array(U), np.ones(N, dtype=bool)
         if restart.any():
             self._add_disturbance(infos, restart, record)
         for b in np.flatnonzero(terminated):
@@ -259,7 +306,7 @@ class JaxVectorEnv(PlantDeclarations, VectorEnv):
                 self.damper.name, int(status[b]), float(infos["t"][b]), int(b), MAX_SUBSTEPS)))
             self._add_info(infos, {"termination_reason": why}, b)
         self._ended = terminated | truncated
-        return np.asarray(obs, np.float32), reward, terminated, truncated, infos
+        return np.array(obs, np.float32), np.array(reward), np.array(terminated), np.array(truncated), infos
 
 
-__all__ = ["JaxVectorEnv"]
+__all__ = ["DEFAULT_SCHEME", "JaxVectorEnv"]

@@ -26,15 +26,15 @@ pytestmark = pytest.mark.xdist_group("jax")
 ROAD = iso8608_road("D", 20.0, 0.06, 1e-3, rng=7, method="fft")
 #: the half car's road (front and rear wheel tracks): the one its native environment meets at reset(seed=7)
 AXLES = je.native_records(je.assembly_of("mrd_env/HalfCar-v1", {"episode_seconds": 0.06})[0], [7])[0]
-#: (RL id, options for both backends, the JAX one's own, a policy of (N, nd) actions per step); 2 environments,
+#: (RL id, options for both backends, the JAX one's own: the exact scheme, the native numbers); 2 environments,
 #: limits small enough that costs accrue and an episode ends on its limit
 CASES = {
     "quarter_car": ("mrd_env/QuarterCar-v1", dict(road=ROAD, episode_seconds=0.05, soft_stroke_limit=2e-3,
-                                                  stroke_limit=4e-3), {}),
+                                                  stroke_limit=4e-3), {"scheme": "exact"}),
     "shear_building": ("mrd_env/ShearBuilding-v1", dict(ground_motion="el_centro", episode_seconds=0.3,
-                                                        drift_limit=1e-4, stroke_limit=1e-5), {}),
+                                                        drift_limit=1e-4, stroke_limit=1e-5), {"scheme": "exact"}),
     "half_car": ("mrd_env/HalfCar-v1", dict(road=AXLES, episode_seconds=0.05, soft_stroke_limit=2e-3,
-                                            stroke_limit=4e-3), {}),
+                                            stroke_limit=4e-3), {"scheme": "exact"}),
 }
 EXTRA = ("effective_command", "_effective_command")  # the JAX environment's own info
 NATIVE_ONLY = ("episode_metrics", "_episode_metrics")  # not computed in JAX
@@ -222,7 +222,7 @@ def test_host_drawn_bands_give_each_episode_its_native_draw():
 
     opts = {"episode_seconds": 0.2}
     seeds = [11, 12, 13]
-    env = jv.JaxVectorEnv("mrd_env/QuarterCar-v1", 2, seeds=seeds, randomise=ROBUST_BANDS, **opts)
+    env = jv.JaxVectorEnv("mrd_env/QuarterCar-v1", 2, seeds=seeds, randomise=ROBUST_BANDS, scheme="exact", **opts)
     assert env.params.drawn and env.params.W.shape[0] == 3
     env.reset(seed=5)
     records = np.asarray(env._state.record)
