@@ -236,6 +236,18 @@ MAX_PANELS = 12
 #: The most controllers (bars per panel) :func:`grouped_bars` draws: the first ones, in the order of ``rows`` (the
 #: leaderboard's: best first); 40 bars are still legible, 100 took 10 s to draw and were not.
 MAX_BARS = 40
+#: :func:`grouped_bars`'s sizes, in inches (110 px each at :func:`mrd_env.report.save_figure`'s dpi): a bar's row
+#: (room for an 8-point label, about 0.11 in, and a gap), a panel's width, and the widest figure (1 760 px).
+BAR_PITCH = 0.2
+PANEL_WIDTH = 3.2
+MAX_WIDTH = 16.0
+#: The most characters of a controller's name drawn (the tables hold it whole): beyond, cut with an ellipsis.
+MAX_LABEL = 36
+#: The most characters of a line of a panel's title, and its most lines.
+PANEL_TITLE_CHARS, PANEL_TITLE_LINES = 44, 2
+#: The width (inches) of a character of the figure's 8-point labels and 10-point title, on average and with a
+#: margin (DejaVu Sans): what sizes the label column and wraps the title.
+CHAR_8PT, CHAR_10PT = 0.068, 0.085
 
 
 def _plain(text) -> str:
@@ -244,20 +256,44 @@ def _plain(text) -> str:
     return str(text).replace("$", r"\$")
 
 
+def _ellipsis(text: str, n: int) -> str:
+    """``text`` cut to ``n`` characters, the last an ellipsis where it was longer."""
+    return text if len(text) <= n else text[:n - 1] + "…"
+
+
+def _wrapped(text: str, chars: int, max_lines: int | None = None) -> list[str]:
+    """The lines of ``text`` (its own line breaks kept) wrapped at ``chars`` characters, at most ``max_lines`` (the
+    last cut with an ellipsis)."""
+    import textwrap
+
+    lines = [w for part in str(text).split("\n") for w in (textwrap.wrap(part, chars, break_long_words=True) or [""])]
+    if max_lines is not None and len(lines) > max_lines:
+        lines = lines[:max_lines - 1] + [_ellipsis(" ".join(lines[max_lines - 1:]), chars)]
+    return lines
+
+
 def grouped_bars(rows: list[dict], value: str, lo: str, hi: str, path: Path, *, xlabel: str, title: str,
                  refs: tuple[float, ...] = (), xlim: tuple[float, float] | None = None,
-                 max_panels: int = MAX_PANELS, max_bars: int = MAX_BARS, metadata: dict | None = None) -> Path:
+                 max_panels: int = MAX_PANELS, max_bars: int = MAX_BARS, metadata: dict | None = None,
+                 apart: dict[str, str] | None = None) -> Path:
     """One panel per scenario, a horizontal bar of ``rows[value]`` per controller (one colour per law, its 1 ms row
     hatched) with the interval [lo, hi] where there is one (the axis label names it only where one is drawn);
     vertical lines at ``refs``. With ``xlim``, a bar beyond the axis is drawn to its edge and labelled with its
     value, so that one very poor controller does not squash the others. At most ``max_panels`` panels: beyond, the
     first ``max_panels - 1`` scenarios and the last one (where a pooled row such as "all scenarios" comes), the
-    title saying how many are shown; likewise at most ``max_bars`` controllers, the first ones. ``metadata``: the
-    PNG's text entries (:func:`mrd_env.report.save_figure`)."""
+    title saying how many are shown; likewise at most ``max_bars`` controllers, the first ones. ``apart``:
+    {controller: note} drawn below a dotted line, pale, their label followed by the note (the leaderboard's partial
+    results, never ranked). ``metadata``: the PNG's text entries (:func:`mrd_env.report.save_figure`).
+
+    Sized from what it draws, so that nothing overlaps: :data:`BAR_PITCH` per bar (the height grows with the bars),
+    room for each panel's title (wrapped, at most two lines) and axis label, the figure's title wrapped to its
+    width; the width at most :data:`MAX_WIDTH` (fewer columns of panels where the labels are long), a controller's
+    name cut at :data:`MAX_LABEL` characters with an ellipsis (in the figure only)."""
     import matplotlib
 
     if max_panels < 1 or max_bars < 1:
         raise ValueError(f"max_panels and max_bars must be at least 1, got {max_panels} and {max_bars}")
+    apart = dict(apart or {})
     scen = list(dict.fromkeys(r["scenario"] for r in rows))
     ctrls = list(dict.fromkeys(r["controller"] for r in rows))
     left_out = []
@@ -273,14 +309,30 @@ def grouped_bars(rows: list[dict], value: str, lo: str, hi: str, path: Path, *, 
     by_key = {}
     for r in rows:
         by_key.setdefault((r["scenario"], r["controller"]), r)
-    ncol = min(len(scen), 4)
+    ranked = [c for c in ctrls if c not in apart]
+    below = [c for c in ctrls if c in apart]
+    ctrls = ranked + below
+    # top to bottom: the ranked bars, a free row where the two groups meet, the bars drawn apart
+    slots = list(range(len(ranked))) + [len(ranked) + (1 if ranked else 0) + i for i in range(len(below))]
+    n_slots = (slots[-1] + 1) if slots else 1
+    y = (n_slots - 1 - np.array(slots, dtype=float)) if slots else np.zeros(0)
+    labels = [_plain(_ellipsis(c, MAX_LABEL) + (f" · {apart[c]}" if c in apart else "")) for c in ctrls]
+    # the sizes: a label column as wide as the longest label, panels of PANEL_WIDTH, at most MAX_WIDTH in all
+    label_width = max((len(t) for t in labels), default=1) * CHAR_8PT + 0.3
+    ncol = max(1, min(len(scen), 4, int((MAX_WIDTH - label_width - 0.2) // PANEL_WIDTH)))
     nrow = -(-len(scen) // ncol)
-    # each row of panels: its bars and room for its title and axis label (one row: the height it always had)
-    fig, axes = figure(nrow, ncol, figsize=(3.6 * ncol + 1.6, nrow * (0.22 * len(ctrls) + 0.9) + 0.5), sharey=True,
-                       squeeze=False)
+    width = label_width + ncol * PANEL_WIDTH + 0.2
+    title_lines = [_plain(t) for t in _wrapped(title, max(20, int(width / CHAR_10PT)))]
+    panel_titles = ["\n".join(map(_plain, _wrapped(s, PANEL_TITLE_CHARS, PANEL_TITLE_LINES))) for s in scen]
+    lines = [max(t.count("\n") + 1 for t in panel_titles[i * ncol:(i + 1) * ncol]) for i in range(nrow)]
+    # a row of panels: its title's lines, its bars, its tick labels and two lines of axis label, and gaps
+    heights = [0.17 * k + 0.1 + n_slots * BAR_PITCH + 0.25 + 0.35 + 0.15 for k in lines]
+    height = sum(heights) + 0.19 * len(title_lines) + 0.15
+    fig, axes = figure(nrow, ncol, figsize=(width, height), sharey=True, squeeze=False,
+                       gridspec_kw={"height_ratios": heights})
+    fig.get_layout_engine().set(w_pad=4 / 72, h_pad=4 / 72, wspace=0.06, hspace=0.02)  # tick labels of neighbours
     bases = {b: i for i, b in enumerate(dict.fromkeys(c.split(" @ ")[0] for c in ctrls))}
     cmap = matplotlib.colormaps["tab20"]
-    y = np.arange(len(ctrls))[::-1]
     for k, s in enumerate(scen):
         ax = axes[k // ncol][k % ncol]
         intervals = False
@@ -290,7 +342,7 @@ def grouped_bars(rows: list[dict], value: str, lo: str, hi: str, path: Path, *, 
                 continue
             m = r[value]
             shown = m if xlim is None else min(max(m, xlim[0]), xlim[1])
-            ax.barh(y[i], shown, 0.8, color=cmap(bases[c.split(" @ ")[0]] % 20),
+            ax.barh(y[i], shown, 0.8, color=cmap(bases[c.split(" @ ")[0]] % 20), alpha=0.45 if c in apart else 1.0,
                     hatch="//" if c.endswith("@ 1 ms") else None, edgecolor="white", lw=0.3)
             if shown != m:
                 ax.text(shown, y[i], f" {m:.2g} ", va="center", ha="left" if m < shown else "right", fontsize=7)
@@ -299,16 +351,20 @@ def grouped_bars(rows: list[dict], value: str, lo: str, hi: str, path: Path, *, 
                 intervals = True
         for j, ref in enumerate(refs):
             ax.axvline(ref, color="k", lw=0.8, ls="--" if j else "-")
+        if ranked and below:
+            ax.axhline(len(below), color="0.5", lw=0.8, ls=":")  # the free row between the groups
         if xlim is not None:
             ax.set_xlim(*xlim)
-        ax.set_title(_plain(s), fontsize=9)
+        ax.set_ylim(-0.6, n_slots - 0.4)
+        ax.set_title(panel_titles[k], fontsize=9)
         # an interval is named only in a panel that draws one (one episode draws none)
         ax.set_xlabel(f"{xlabel}\n(mean; lines: 95 % interval)" if intervals else xlabel, fontsize=8)
+        ax.tick_params(axis="x", labelsize=8)
         ax.grid(axis="x", alpha=0.3)
     for ax in axes.flat[len(scen):]:
         ax.set_visible(False)
-    axes[0][0].set_yticks(y, [_plain(c) for c in ctrls], fontsize=8)
+    axes[0][0].set_yticks(y, labels, fontsize=8)
     for row in axes:  # the shared labels repeat on every row of panels, at the same size
         row[0].tick_params(axis="y", labelsize=8)
-    fig.suptitle(_plain(title), fontsize=10)
+    fig.suptitle("\n".join(title_lines), fontsize=10)
     return save_figure(fig, path, metadata=metadata)

@@ -11,11 +11,24 @@ by field, within bounds (a result file comes from anywhere; none may stall or ex
   one printable line of at most :data:`MAX_NAME` characters; any other text at most :data:`MAX_TEXT` characters.
 
 A file beyond a bound is refused with one line naming the file and the field, before anything is written.
-:func:`leaderboard` refuses a file of another suite, version or digest than the first file's (their shares are
-against other references, or other episodes) and merges the rest into one table (controllers × scenarios, the
-share with its interval) and one figure. :meth:`Leaderboard.write` writes its five files as one set: into a
-staging folder beside ``out``, swapped in whole (:func:`mrd_env.storage.replace_folder`), so that a reader or a
-kill at any moment finds the previous set or the new one.
+
+:func:`leaderboards` groups result files by suite (its id) and makes one :class:`Leaderboard` per suite, each written
+to ``<out>/<suite id>/`` (what ``mrd-env leaderboard`` runs); :func:`leaderboard` merges the files of one suite and
+refuses a file of another suite, version or digest than the first file's. Both refuse files of one id with
+different digests (their shares are against other references), a file given twice and two files of the same result
+(the same controller description and the same return in every episode: :func:`_check_distinct`), and check every
+result against its suite (:func:`check_against_suite`): its episodes are the suite's and every share is the one its
+return gives with the suite's stored references, (R − R_p) / (R_c − R_p) — the file holds the return, the suite the
+references, so a share edited by hand is refused naming the file and the episode. The suite is the shipped one of
+the result's id (whose digest :func:`read_result` checked), or one given (``--suite``); :func:`leaderboards` refuses
+a result of any other suite, :func:`leaderboard` merges it unchecked and its tables say so. Complete results are
+ranked, best first; a partial one (``score --episodes``) is shown apart, never ranked: its own section of the
+Markdown, below the ranked rows of the CSV with no rank, below a dotted line in the figure, each marked
+"partial: n of N episodes".
+
+:meth:`Leaderboard.write` writes its five files as one set: into a staging folder beside ``out``, swapped in whole
+(:func:`mrd_env.storage.replace_folder`), so that a reader or a kill at any moment finds the previous set or the new
+one. :func:`write_leaderboards` does so for each suite's folder, leaving other suites' folders as they are.
 """
 from __future__ import annotations
 
@@ -25,11 +38,12 @@ import os
 import re
 import shutil
 import tempfile
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from mrd_env import storage
 from mrd_env.suites import MAX_EPISODES, MAX_SCENARIOS, MAX_VERSION, check_shipped_id
+from mrd_env.suites import NAME as SUITE_NAME
 
 from .evaluation import grouped_bars, mean_ci
 from .scoring import ALL, FORMAT, FORMAT_VERSION, KINDS, SuiteResult, _cell
@@ -186,26 +200,48 @@ def _suite_key(r: SuiteResult) -> tuple:
     return r.suite["name"], r.suite["version"], r.suite["digest"]
 
 
+def _partial_note(r: SuiteResult) -> str:
+    return f"partial: {len(r.episodes)} of {r.suite['episodes']} episodes"
+
+
 @dataclass
 class Leaderboard:
     """Results of one suite merged (:func:`leaderboard`): ``rows`` (per controller and scenario: episodes, share and
-    its interval), ``table`` (one row per controller, best first by the share over all scenarios: one column per
-    scenario, the share and its interval as text)."""
+    its interval, and whether the result is complete), ``table`` (one row per complete result, best first by the
+    share over all scenarios: one column per scenario, the share and its interval as text), ``partial`` (the same
+    for each partial result, never ranked). ``checked``: whether every share was recomputed from its return and the
+    suite's references."""
 
     suite: dict
     results: list[SuiteResult]
     rows: list[dict]
     table: list[dict]
+    partial: list[dict] = field(default_factory=list)
+    checked: bool = True
 
     def title(self) -> str:
+        unchecked = "" if self.checked else ("; shares as the result files state them, not checked against the "
+                                             "suite's references (give the suite to check them)")
         return (f"{self.suite['id']}: share of the achievable gain (R − R_p) / (R_c − R_p) per controller and "
                 "scenario (mean [95 % interval over episodes]; 0: the best constant command, 1: the clairvoyant "
-                "optimum)")
+                f"optimum; complete results only{unchecked})")
+
+    def partial_title(self) -> str:
+        return (f"{self.suite['id']}: partial results, not ranked (each share over the episodes it scored only, "
+                "mean [95 % interval])")
 
     def markdown(self) -> str:
-        from mrd_env.report import markdown_table
+        from mrd_env.report import markdown_table, markdown_text
 
-        return markdown_table(self.table, title=self.title())  # every cell made safe to show there
+        # every cell made safe to show there
+        if self.table:
+            text = markdown_table(self.table, title=self.title())
+        else:
+            text = f"### {markdown_text(self.title())}\n\nno complete result: nothing is ranked\n"
+        if self.partial:
+            text += "\n" + markdown_table([{k: v for k, v in r.items() if k != "rank"} for r in self.partial],
+                                          title=self.partial_title())
+        return text
 
     def write(self, out: str | Path) -> dict[str, Path]:
         """``<out>/leaderboard.md`` and ``.csv`` (the table), ``leaderboard_rows.md``/``.csv`` (the numbers) and
@@ -240,16 +276,19 @@ class Leaderboard:
         from mrd_env.report import csv_text, markdown_table
 
         rows_title = self.title().replace("mean [95 % interval over episodes]", "mean, 95 % interval over episodes")
-        texts = {FILES[0]: self.markdown(), FILES[1]: csv_text(self.table),
+        rows_title = rows_title.replace("; complete results only", "; partial results marked")
+        texts = {FILES[0]: self.markdown(), FILES[1]: csv_text(self.table + self.partial),
                  FILES[2]: markdown_table(self.rows, title=rows_title, floatfmt=".4g"),
                  FILES[3]: csv_text(self.rows)}
         for name, text in texts.items():
             (folder / name).write_bytes(text.encode("utf-8"))
+        apart = {r["controller"]: r["episodes"] for r in self.partial}
         grouped_bars(self.rows, "share", "share lo95", "share hi95", folder / FILES[4],
                      xlabel="share of the achievable gain (dimensionless)", refs=(0.0, 1.0), xlim=(-1.0, 1.05),
                      title=f"{self.suite['id']}: share of the achievable gain, (R − R_p) / (R_c − R_p); 0: best "
-                           "constant command, dashed 1: clairvoyant optimum",
-                     metadata={"Title": self.title(), "Software": "mrd-env leaderboard"})
+                           "constant command, dashed 1: clairvoyant optimum"
+                           + ("; below the dotted line: partial results, not ranked" if apart and self.table else ""),
+                     metadata={"Title": self.title(), "Software": "mrd-env leaderboard"}, apart=apart)
 
 
 def check_folder(out: str | Path) -> None:
@@ -308,10 +347,9 @@ def _remove_empty(folders: list[Path]) -> None:
             pass
 
 
-def leaderboard(paths, out: str | Path | None = None) -> Leaderboard:
-    """Merge the result files ``paths`` (of :meth:`SuiteResult.write`) into one :class:`Leaderboard`, written to
-    ``out`` when given. Every file must be of the first file's suite, version and digest: ``ValueError`` (one line)
-    for one that is not, or that is not a result."""
+def _read_all(paths) -> tuple[list[Path], list[SuiteResult]]:
+    """Every result file of ``paths`` read (:func:`read_result`), within the bounds of one call together
+    (:data:`MAX_RESULTS`, :data:`MAX_TOTAL_BYTES`)."""
     paths = [Path(p) for p in paths]
     if not paths:
         raise ValueError("leaderboard needs at least one result file")
@@ -325,15 +363,210 @@ def leaderboard(paths, out: str | Path | None = None) -> Leaderboard:
                              "the most one leaderboard reads: refused")
         results.append(read_result(p, limit=MAX_RESULT_BYTES if size > MAX_RESULT_BYTES else left))
         left -= size
+    return paths, results
+
+
+def _check_distinct(paths: list[Path], results: list[SuiteResult]) -> None:
+    """``ValueError`` (one line) for a file given twice, or two files of the same result: the same suite, the same
+    controller description (every field: name, kind, what was given, its options, an agent's or a source file's
+    digest) and the same return for every episode — the same controller scored again, whenever, is one result, and
+    would be two rows of it. Two controllers that return the same (two names of one law) are two results."""
+    seen_paths, seen = {}, {}
+    for p, r in zip(paths, results):
+        where = p.resolve()
+        if where in seen_paths:
+            raise ValueError(f"result file {p} is given twice (also as {seen_paths[where]}): each result counts once")
+        seen_paths[where] = p
+        key = (_suite_key(r), json.dumps(r.controller, sort_keys=True),
+               tuple((e["label"], e["return"]) for e in r.episodes))
+        if key in seen:
+            raise ValueError(f"result file {p} holds the same result as {seen[key]} (the same controller and the same "
+                             "return in every episode): each result counts once, give one of them")
+        seen[key] = p
+
+
+#: How far a result's share may differ from the one recomputed from its return, relative (and 1e-12 absolute, for a
+#: share of about 0): the recomputation is the scorer's own arithmetic on the same numbers, so only an edit differs.
+SHARE_TOLERANCE = 1e-9
+
+
+def check_against_suite(result: SuiteResult, suite, path) -> None:
+    """``ValueError`` (one line naming the file ``path`` and the episode) unless ``result`` was scored on ``suite``
+    (a :class:`mrd_env.suites.Suite`): its digest, its count of episodes, each episode's label, scenario and seed
+    one of the suite's, and each share the one its return gives with the suite's references,
+    (R − R_p) / (R_c − R_p) (within :data:`SHARE_TOLERANCE`). The file holds the return and the suite holds the
+    references: a share edited by hand is refused."""
+    where = f"result file {path}"
+    if result.suite["digest"] != suite.digest:
+        raise ValueError(f"{where}: scored on suite {result.suite['id']} of digest {result.suite['digest'][:12]}, "
+                         f"not on the suite given ({suite.id}, digest {suite.digest[:12]}): other references")
+    episodes = {sc.label(seed): (sc.name, int(seed)) for sc, seed in suite.episodes()}
+    if result.suite["episodes"] != len(episodes):
+        raise ValueError(f"{where}: its suite has {result.suite['episodes']} episodes, suite {suite.id} has "
+                         f"{len(episodes)}")
+    for e in result.episodes:
+        label = e["label"]
+        if label not in episodes:
+            raise ValueError(f"{where}: its episode {_shown(label)} is not an episode of suite {suite.id}")
+        if (e["scenario"], e["seed"]) != episodes[label]:
+            raise ValueError(f"{where}: its episode {_shown(label)} gives scenario {_shown(e['scenario'])} and seed "
+                             f"{e['seed']}, suite {suite.id} {episodes[label][0]!r} and seed {episodes[label][1]}")
+        ref = suite.references.get(label)
+        if ref is None:
+            raise ValueError(f"{where}: suite {suite.id} has no reference for episode {_shown(label)}")
+        want, got = ref.share(e["return"]), e["share"]
+        same = (math.isnan(want) and math.isnan(got)) or \
+            math.isclose(got, want, rel_tol=SHARE_TOLERANCE, abs_tol=1e-12)
+        if not same:
+            raise ValueError(f"{where}: episode {_shown(label)}: its share {got!r} is not the one its return "
+                             f"{e['return']!r} gives with suite {suite.id}'s references, (R − R_p) / (R_c − R_p) = "
+                             f"{want!r} (R_p {ref.passive!r}, R_c {ref.clairvoyant!r}): edited by hand, or scored "
+                             "against other references: refused")
+
+
+def _shipped_suite(suite_id: str):
+    """The shipped suite ``suite_id``, or None (a result of it has its digest: :func:`read_result`)."""
+    from mrd_env import suites
+
+    return suites.suite(suite_id) if suites.shipped_digest(suite_id) is not None else None
+
+
+def _given_suites(given) -> dict:
+    """{id: Suite} of the suites ``given`` (each a Suite, a shipped suite's name or a suite file's path)."""
+    from .scoring import resolve_suite
+
+    out = {}
+    for g in given or ():
+        s = resolve_suite(g)
+        if s.id in out:
+            raise ValueError(f"suite {s.id} is given twice: give each suite once")
+        out[s.id] = s
+    return out
+
+
+def _not_merged(p, r: SuiteResult, p0, r0: SuiteResult) -> ValueError:
+    return ValueError(f"result file {p} was scored on suite {r.suite['id']} (digest {r.suite['digest'][:12]}), {p0} "
+                      f"on {r0.suite['id']} (digest {r0.suite['digest'][:12]}): results of another suite, version or "
+                      "reference values are not merged")
+
+
+def leaderboard(paths, out: str | Path | None = None, *, suite=None) -> Leaderboard:
+    """Merge the result files ``paths`` (of :meth:`SuiteResult.write`) into one :class:`Leaderboard`, written to
+    ``out`` when given (the five files in ``out`` itself). Every file must be of the first file's suite, version and
+    digest, and no two of the same result (:func:`_check_distinct`). Every share is checked against its return and
+    the suite's references (:func:`check_against_suite`): a shipped suite's, or ``suite`` (a Suite, or its name or
+    file); a result of another suite without ``suite`` is merged unchecked, and its tables say so (``mrd-env
+    leaderboard`` and :func:`leaderboards` refuse it). ``ValueError`` (one line) otherwise."""
+    paths, results = _read_all(paths)
     first = results[0]
     for p, r in zip(paths[1:], results[1:]):
         if _suite_key(r) != _suite_key(first):
-            raise ValueError(f"result file {p} was scored on suite {r.suite['id']} (digest {r.suite['digest'][:12]}), "
-                             f"{paths[0]} on {first.suite['id']} (digest {first.suite['digest'][:12]}): results of "
-                             "another suite, version or reference values are not merged")
-    names = [r.name for r in results]
-    labels = [n if names.count(n) == 1 else f"{n} ({p.stem})" for n, p in zip(names, paths)]
-    labels = [x if labels.count(x) == 1 else f"{x} ({i + 1})" for i, x in enumerate(labels)]
+            raise _not_merged(p, r, paths[0], first)
+    _check_distinct(paths, results)
+    _check_cells(results)
+    ref = _shipped_suite(first.suite["id"])
+    if suite is not None:
+        given = _given_suites([suite])
+        if first.suite["id"] not in given:
+            raise ValueError(f"result file {paths[0]} was scored on suite {first.suite['id']}, not on the suite given "
+                             f"({next(iter(given))})")
+        ref = given[first.suite["id"]]
+    if ref is not None:
+        for p, r in zip(paths, results):
+            check_against_suite(r, ref, p)
+    board = _board(paths, results, checked=ref is not None)
+    if out is not None:
+        board.write(out)
+    return board
+
+
+def leaderboards(paths, out: str | Path | None = None, *, suites=()) -> dict[str, Leaderboard]:
+    """The result files ``paths`` grouped by suite: {suite id: :class:`Leaderboard`}, in the order the suites first
+    appear, written to ``<out>/<suite id>/`` when ``out`` is given (:func:`write_leaderboards`). Every share is
+    checked against its return and its suite's references (:func:`check_against_suite`): a shipped suite's, or one
+    of ``suites`` (Suites, or their names or files); a result of any other suite is refused, as are files of one id
+    with different digests, a result given twice and a suite given for no result. Everything is read and checked
+    before anything is written: ``ValueError`` (one line) otherwise."""
+    if out is not None:
+        check_out_folder(out)
+    paths, results = _read_all(paths)
+    groups: dict[str, list[int]] = {}
+    for i, r in enumerate(results):
+        groups.setdefault(r.suite["id"], []).append(i)
+    for members in groups.values():
+        i0 = members[0]
+        for i in members[1:]:
+            if _suite_key(results[i]) != _suite_key(results[i0]):
+                raise _not_merged(paths[i], results[i], paths[i0], results[i0])
+    _check_distinct(paths, results)
+    for members in groups.values():
+        _check_cells([results[i] for i in members])
+    given = _given_suites(suites)
+    unused = [sid for sid in given if sid not in groups]
+    if unused:
+        raise ValueError(f"suite {unused[0]} is given (--suite), but no result file was scored on it: no result to "
+                         "check against it")
+    for sid, members in groups.items():
+        ref = given.get(sid) or _shipped_suite(sid)
+        if ref is None:
+            raise ValueError(f"result file {paths[members[0]]} was scored on suite {sid}, which is not shipped: its "
+                             "shares are checked against its references, so give its suite file (mrd-env leaderboard "
+                             "--suite FILE.json; suites= from Python)")
+        for i in members:
+            check_against_suite(results[i], ref, paths[i])
+    boards = {sid: _board([paths[i] for i in m], [results[i] for i in m]) for sid, m in groups.items()}
+    if out is not None:
+        write_leaderboards(boards, out)
+    return boards
+
+
+def write_leaderboards(boards: dict[str, Leaderboard], out: str | Path) -> dict[str, dict[str, Path]]:
+    """Each leaderboard into ``<out>/<suite id>/`` (:meth:`Leaderboard.write`: its five files one set, swapped in
+    whole); the folders of other suites in ``out`` are left as they are, and the five files of a leaderboard of the
+    earlier layout (in ``out`` itself) removed once every suite's folder is written. ``ValueError`` before anything
+    is written for an ``out`` that holds anything else (:func:`check_out_folder`). {suite id: the files written}."""
+    out = Path(out)
+    check_out_folder(out)
+    for sid in boards:
+        if not re.fullmatch(rf"{SUITE_NAME.pattern}-v[0-9]+", sid):  # a folder name: a suite's id only
+            raise ValueError(f"suite id {_shown(sid)} cannot name a folder")
+        check_folder(out / sid)
+    written = {sid: board.write(out / sid) for sid, board in boards.items()}
+    for f in out.iterdir():  # the earlier layout's set, now replaced by the suites' folders
+        if f.is_file() and not f.is_symlink() and (f.name in FILES or f.name.startswith(".leaderboard")):
+            f.unlink()
+    return written
+
+
+def check_out_folder(out: str | Path) -> None:
+    """``ValueError`` (one line) unless ``out`` can hold the leaderboards of :func:`leaderboards`: absent, or a
+    folder that holds only leaderboard folders (each of :data:`FILES` only, see :func:`check_folder`), the staging
+    and set-aside folders of their writes, and the five files of a leaderboard of the earlier layout."""
+    out = Path(out)
+    if not out.exists():
+        return
+    if not out.is_dir():
+        raise ValueError(f"leaderboard folder {out} is a file, not a folder: refused")
+    others = []
+    for f in sorted(out.iterdir()):
+        if f.is_symlink():
+            others.append(f.name)
+        elif f.is_file():
+            if f.name not in FILES and not f.name.startswith(".leaderboard"):
+                others.append(f.name)
+        elif f.is_dir():
+            if not (f.name.startswith(".") and f.name.endswith(".staging")) and not f.name.endswith(storage.ASIDE):
+                check_folder(f)
+        else:
+            others.append(f.name)
+    if others:
+        raise ValueError(f"leaderboard folder {out} holds {len(others)} file(s) that are not a leaderboard's "
+                         f"(e.g. {_shown(others[0])}): refused, since it holds one leaderboard folder per suite, "
+                         "each replaced as a whole; choose a new or empty folder, or one that holds only leaderboard "
+                         "folders")
+
+
+def _check_cells(results: list[SuiteResult]) -> None:
     scen = list(dict.fromkeys(e["scenario"] for r in results for e in r.episodes))
     if len(scen) > MAX_SCENARIOS:
         raise ValueError(f"the result files name {len(scen)} scenarios together, at most {MAX_SCENARIOS} (the "
@@ -341,26 +574,36 @@ def leaderboard(paths, out: str | Path | None = None) -> Leaderboard:
     if len(scen) * len(results) > MAX_CELLS:
         raise ValueError(f"{len(results)} result files on {len(scen)} scenarios: {len(scen) * len(results)} cells of "
                          f"the table, at most {MAX_CELLS} (e.g. {MAX_CELLS // 100} controllers on 100 scenarios)")
+
+
+def _board(paths: list[Path], results: list[SuiteResult], checked: bool = True) -> Leaderboard:
+    """The :class:`Leaderboard` of the checked ``results`` of one suite: the complete ones ranked, best first by the
+    share over all scenarios (ties: in the order given; no number: last), the partial ones apart in the order
+    given (a share over 4 of 31 episodes is not comparable with one over all 31)."""
+    names = [r.name for r in results]
+    labels = [n if names.count(n) == 1 else f"{n} ({p.stem})" for n, p in zip(names, paths)]
+    labels = [x if labels.count(x) == 1 else f"{x} ({i + 1})" for i, x in enumerate(labels)]
+    scen = list(dict.fromkeys(e["scenario"] for r in results for e in r.episodes))
     summaries = [_share_summary(r.episodes) for r in results]
-    # best first by the share over all scenarios (ties: in the order given; no number: last)
-    order = sorted(range(len(results)), key=lambda i: -summaries[i][ALL]["share"]
+    complete = [i for i, r in enumerate(results) if r.complete]
+    order = sorted(complete, key=lambda i: -summaries[i][ALL]["share"]
                    if math.isfinite(summaries[i][ALL]["share"]) else math.inf)
-    rows, table = [], []
-    for i in order:
+    rows, table, partial = [], [], []
+    for i in order + [i for i in range(len(results)) if i not in complete]:
         r, summ, label = results[i], summaries[i], labels[i]
         kind = r.controller["kind"]
-        table.append({"rank": len(table) + 1, "controller": label, "kind": kind,
-                      "episodes": f"{len(r.episodes)}/{r.suite['episodes']}", ALL: _cell(*_share(summ[ALL])),
-                      **{s: _cell(*_share(summ[s])) if s in summ else "" for s in scen}})
+        status = "complete" if r.complete else _partial_note(r)
+        n = r.suite["episodes"]
+        row = {"rank": len(table) + 1 if r.complete else "", "controller": label, "kind": kind,
+               "episodes": f"{len(r.episodes)}/{n}" if r.complete else status, ALL: _cell(*_share(summ[ALL])),
+               **{s: _cell(*_share(summ[s])) if s in summ else "" for s in scen}}
+        (table if r.complete else partial).append(row)
         for s in [*scen, ALL] if len(scen) > 1 else scen:
             if s in summ:
-                rows.append({"scenario": s, "controller": label, "kind": kind, "episodes": summ[s]["episodes"],
-                             "share": summ[s]["share"], "share lo95": summ[s]["share lo95"],
-                             "share hi95": summ[s]["share hi95"]})
-    board = Leaderboard(first.suite, results, rows, table)
-    if out is not None:
-        board.write(out)
-    return board
+                rows.append({"scenario": s, "controller": label, "kind": kind, "result": status,
+                             "episodes": summ[s]["episodes"], "share": summ[s]["share"],
+                             "share lo95": summ[s]["share lo95"], "share hi95": summ[s]["share hi95"]})
+    return Leaderboard(results[0].suite, results, rows, table, partial, checked)
 
 
 def _share_summary(episodes: list[dict]) -> dict[str, dict]:
