@@ -273,11 +273,16 @@ def test_leaderboard_refuses_another_suite_version_and_another_digest(scored, su
     data["suite"]["digest"] = "0" * 64
     forged = tmp_path / "forged.json"
     forged.write_text(json.dumps(data))
-    for bad in (other, forged):
-        code = main(["leaderboard", str(paths["law"]), str(bad), "--out", str(tmp_path / "out")])
-        _, err = capsys.readouterr()
-        assert code == 2 and err.startswith("mrd-env leaderboard: error: result file ") and err.count("\n") == 1, err
-        assert "not merged" in err
+    # the command line groups the files by suite: one leaderboard per suite version, each checked against its file
+    code = main(["leaderboard", str(paths["law"]), str(other), "--suite", str(suite_file), "--suite", str(v2),
+                 "--out", str(tmp_path / "both")])
+    capsys.readouterr()
+    assert code == 0 and sorted(f.name for f in (tmp_path / "both").iterdir()) == ["tiny-car-v1", "tiny-car-v2"]
+    code = main(["leaderboard", str(paths["law"]), str(forged), "--suite", str(suite_file), "--out",
+                 str(tmp_path / "out")])
+    _, err = capsys.readouterr()
+    assert code == 2 and err.startswith("mrd-env leaderboard: error: result file ") and err.count("\n") == 1, err
+    assert "not merged" in err
     assert not (tmp_path / "out").exists()      # refused before anything is written
     # not a result, another format version, a malformed episode
     for edit, message in ((lambda d: d.update(format="x"), "not a result"),
@@ -304,10 +309,11 @@ def test_the_command_line_scores_and_merges(suite_file, user_laws, tmp_path, cap
     assert [f.name for f in files] == ["tiny-car-v1__passive_off.json", "tiny-car-v1__score_user_laws_myskyhook.json"]
     assert "partial: 2 of 3 episodes" in text and (out / "tiny-car-v1__passive_off.md").exists()
     assert read_result(files[0]).command[:2] == ["mrd-env", "score"]
-    code = main(["leaderboard", *map(str, files), "--out", str(tmp_path / "board")])
+    code = main(["leaderboard", *map(str, files), "--suite", str(suite_file), "--out", str(tmp_path / "board")])
     text, err = capsys.readouterr()
     assert code == 0, err
-    assert "| 1 |" in text and "1/3" not in text and "2/3" in text
+    # partial results (--episodes 1) are shown apart, never ranked
+    assert "nothing is ranked" in text and "| 1 |" not in text and text.count("| partial: 2 of 3 episodes |") == 2
 
 
 def test_a_law_takes_its_options_from_python_and_the_command_line(suite_file, tmp_path, capsys):
