@@ -221,6 +221,10 @@ def check_before_training(algo: str, hyper: dict, env_id: str, env_kwargs: dict)
     """What an SB3 entry must pass before any training starts (its keys and values are checked when it is read):
     the residual's and the paired baseline's laws apply to the plant, and SB3 builds the model."""
     if algo not in ("cmaes", "shac"):
+        import torch
+
+        # this command's own process: one torch thread, as in training (none spins against the environments)
+        torch.set_num_threads(1)
         full_kwargs = {**env_kwargs, **(hyper.get("env_kwargs") or {})}
         check_laws(hyper, env_id, full_kwargs)
         check_with_sb3(algo, hyper, env_id, full_kwargs)

@@ -19,8 +19,8 @@ import numpy as np
 from .actor_warmup import actor_options, with_actor_warmup
 from .plants import PlantProfile
 from .scenarios import Scenario
-from .trainers import (TRAINERS, agent_name, plot_learning_curve, residual_spec, run_name, say_validation,
-                       validation_split, write_csv)
+from .trainers import (TRAINERS, agent_name, passive_reference, plot_learning_curve, residual_spec, run_name,
+                       say_validation, validation_split, write_csv)
 
 #: Keys of a hyperparameter entry that are not the algorithm's keyword arguments: RL Zoo's, and ours —
 #: ``residual`` (a law's name, or {law, scale, boundary, hold}: the agent learns a correction to it, held for
@@ -94,6 +94,9 @@ def check_with_sb3(algo: str, hyper: dict, env_id: str, env_kwargs: dict) -> Non
 
     from mrd_env.envs.sb3 import make_sb3_vec_env
 
+    import torch
+
+    torch.set_num_threads(1)  # this command's own process, as train_sb3's: no thread spins against the environment
     label = TRAINERS[algo].label
     cls = algorithm_class(label)
     venv = make_sb3_vec_env(env_id, n_envs=1, seed=0, **env_kwargs)
@@ -189,6 +192,8 @@ def _callbacks(run_dir: Path, model_saver, vecnorm, scenarios: list[Scenario], o
             self.rows = []
             self.next_eval = eval_freq
             self.next_ckpt = checkpoint_freq
+            # R_p on the validation episodes, for the console lines: whether the agent beats a passive damper
+            self.passive = passive_reference(scenarios[0], obs_kwargs) if eval_freq and progress else None
 
         def _evaluate(self):
             live = _Live(self.model, vecnorm)
@@ -203,7 +208,7 @@ def _callbacks(run_dir: Path, model_saver, vecnorm, scenarios: list[Scenario], o
             if mean > self.best:
                 self.best = mean
                 model_saver(run_dir / "best", {"validation_return": mean, "timesteps": self.num_timesteps})
-            say_validation(run_dir.name, self.num_timesteps, mean, self.best, progress)
+            say_validation(run_dir.name, self.num_timesteps, mean, self.best, progress, self.passive)
             return report is None or report(self.num_timesteps, mean)
 
         def _on_training_start(self) -> None:

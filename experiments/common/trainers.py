@@ -226,12 +226,51 @@ def validation_split(plant: PlantProfile, env_kwargs: dict, episodes: int) -> tu
     return Scenario("validation", plant.env_id, disturbance, validation(plant, episodes)[0].seeds), obs_kwargs
 
 
-def say_validation(run: str, steps: int, value: float, best: float, progress: bool) -> None:
-    """One console line per validation (above the progress bar): the return now and the best so far."""
+#: The constant commands R_p is the best of: 9 from the lowest command to the highest (the yardstick's grid).
+PASSIVE_GRID = np.linspace(0.0, 1.0, 9)
+
+
+class _ConstantCommands:
+    """A controller on a vector environment of ``len(fractions)`` blocks of ``n`` environments: block k holds the
+    command at ``fractions[k]`` of the action space, every damper alike."""
+
+    def __init__(self, venv, fractions, n: int):
+        box = venv.single_action_space
+        f = np.repeat(np.asarray(fractions, dtype=float), n)[:, None]
+        self.action = (box.low + f * (box.high - box.low)).astype(box.dtype)
+
+    def reset(self, mask=None) -> None:
+        pass
+
+    def predict(self, obs, state=None, episode_start=None, deterministic=True):
+        return self.action, state
+
+
+def passive_reference(episodes: Scenario, obs_kwargs: dict) -> float:
+    """R_p on the validation ``episodes``: the best mean return of a constant command (:data:`PASSIVE_GRID` across
+    the action space), what an agent must beat to do better than a passive damper tuned to these episodes. All
+    commands run in one vector environment (each episode once per command)."""
+    from dataclasses import replace
+
+    from .evaluation import evaluate_batch
+
+    k, n = len(PASSIVE_GRID), len(episodes.seeds)
+    grid = replace(episodes, seeds=tuple(episodes.seeds) * k)
+    eps = evaluate_batch(lambda v: _ConstantCommands(v, PASSIVE_GRID, n), grid, "", **obs_kwargs)
+    return float(np.array([e.episode_return for e in eps]).reshape(k, n).mean(axis=1).max())
+
+
+def say_validation(run: str, steps: int, value: float, best: float, progress: bool,
+                   passive: float | None = None) -> None:
+    """One console line per validation (above the progress bar): the return now, the best so far and, given
+    ``passive`` (R_p, :func:`passive_reference`), whether it beats the best constant command."""
     if progress:
         from tqdm.auto import tqdm
 
-        tqdm.write(f"{run}: validation return {value:.4g} at {steps} steps (best so far {best:.4g})")
+        ref = "" if passive is None else \
+            (f"; best constant command R_p {passive:.4g}: {value - passive:+.3g}, "
+             f"{'above' if value > passive else 'not above'} passive")
+        tqdm.write(f"{run}: validation return {value:.4g} at {steps} steps (best so far {best:.4g}{ref})")
 
 
 def write_csv(path: Path, rows: list[dict]) -> None:
@@ -260,6 +299,7 @@ class NetworkValidation:
                                                                                   save, progress)
         self.rows: list[dict] = []
         self.best = -np.inf
+        self.passive = None  # R_p, computed at the first validation that is shown
 
     def __call__(self, live, theta, steps: int, **columns) -> None:
         from controllers.base import AgentController
@@ -274,7 +314,9 @@ class NetworkValidation:
         if r.mean() > self.best:
             self.best = float(r.mean())
             self.save(self.run_dir / "best", theta, {"validation_return": self.best, "timesteps": steps})
-        say_validation(self.run_dir.name, steps, float(r.mean()), self.best, self.progress)
+        if self.progress and self.passive is None:
+            self.passive = passive_reference(self.episodes, self.obs_kwargs)
+        say_validation(self.run_dir.name, steps, float(r.mean()), self.best, self.progress, self.passive)
 
 
 def steps_label(run_dir: Path) -> str:

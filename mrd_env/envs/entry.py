@@ -17,6 +17,9 @@ registration would fix one length too and forbid the native vector env (``vector
 from __future__ import annotations
 
 import importlib
+import os
+import sys
+import warnings
 from typing import Any
 
 from gymnasium.wrappers import TimeLimit
@@ -54,6 +57,7 @@ class TimeLimitedEntryPoint:
         return self.env_class.metadata
 
     def __call__(self, **options):
+        warn_torch_threads()
         env = self.env_class(**options)
         n = env.max_episode_steps
         return env if n is None else EpisodeTimeLimit(env, int(n))
@@ -76,3 +80,52 @@ class FormerIdEntryPoint(TimeLimitedEntryPoint):
         warnings.warn(f"{self.former} is the former name of {self.now} (the same physics-level set-up): use "
                       f"{self.now}", DeprecationWarning, stacklevel=2)
         return super().__call__(**options)
+
+
+# --- torch's threads (issue 49) ------------------------------------------------------------------------------------
+
+#: Set to ``0`` to silence :class:`TorchThreadsWarning` (a process that chose its torch threads, a test suite).
+TORCH_THREADS_VARIABLE = "MRD_ENV_TORCH_THREADS_WARNING"
+
+
+class TorchThreadsWarning(UserWarning):
+    """torch runs on several intra-op threads in a process that makes an mrd_env environment."""
+
+
+_torch_threads_checked = False
+
+
+def warn_torch_threads() -> None:
+    """Warn once per process when an environment is made while torch is imported with more than one intra-op
+    thread (the caller's process is not changed: ``torch.set_num_threads`` is process-wide and theirs to call).
+
+    Why: Stable-Baselines3 trains networks of 64×64 units on batches of 64, too small for a second thread to help;
+    torch's OpenMP threads spin while they wait, and on a machine whose cores are busy (the environment's own
+    stepping, other processes) the spinning threads take the cores from the one doing the work. PPO's updates ran
+    18 times slower on 2 shared cores (``python -m experiments.scripts.bench_sb3_direct``: Pendulum-v1 alike,
+    ``OMP_WAIT_POLICY=PASSIVE`` recovers most of it). A process without torch, or with one thread, is not told."""
+    global _torch_threads_checked
+    if _torch_threads_checked:
+        return
+    torch = sys.modules.get("torch")
+    if torch is None or not hasattr(torch, "get_num_threads"):  # not imported (yet), or half-imported
+        return
+    _torch_threads_checked = True
+    threads = torch.get_num_threads()
+    if threads <= 1 or os.environ.get(TORCH_THREADS_VARIABLE, "1") == "0":
+        return
+    warnings.warn(f"torch runs on {threads} intra-op threads: training small networks (Stable-Baselines3's "
+                  "defaults) next to this environment can be 10-30x slower than on one, as its idle threads spin "
+                  "for the cores. Call torch.set_num_threads(1) before training (docs/training.md); silence this "
+                  f"with {TORCH_THREADS_VARIABLE}=0 or a warnings filter on mrd_env.envs.entry.TorchThreadsWarning",
+                  TorchThreadsWarning, stacklevel=_caller_level())
+
+
+def _caller_level() -> int:
+    """The ``stacklevel`` that names the first frame outside mrd_env, Gymnasium and SB3 (the user's ``gym.make``
+    or ``make_vec_env`` line), counted from :func:`warn_torch_threads`'s caller."""
+    inside = ("mrd_env", "gymnasium", "stable_baselines3", "sb3_contrib", "importlib")
+    frame, level = sys._getframe(2), 2
+    while frame is not None and any(f"{os.sep}{p}{os.sep}" in frame.f_code.co_filename for p in inside):
+        frame, level = frame.f_back, level + 1
+    return level

@@ -25,6 +25,7 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv
 
+from .entry import warn_torch_threads
 from .vector import env_info
 
 
@@ -135,6 +136,7 @@ def make_sb3_vec_env(env_id: str, n_envs: int = 1, seed: int | None = None, **en
     """SB3's VecEnv over ``n_envs`` environments of ``env_id`` in one compiled call (env i seeded seed + i)."""
     import mrd_env  # noqa: F401  (registers the environments)
 
+    warn_torch_threads()  # SB3 has imported torch: its threads against these environments' (once per process)
     venv = gym.make_vec(env_id, num_envs=n_envs, vectorization_mode="vector_entry_point",
                         autoreset_mode=AutoresetMode.SAME_STEP, **env_kwargs)
     out = SB3VecEnv(venv)

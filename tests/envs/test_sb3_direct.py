@@ -1,0 +1,104 @@
+"""Stable-Baselines3 used directly (issue 49, item 1): a process that made an environment while torch ran on several
+intra-op threads is told once, with the fix; with one thread, or silenced, it is not. Each case is a fresh process:
+torch's threads and the warning's once-per-process state are process-wide."""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import pytest
+
+pytest.importorskip("torch")
+pytest.importorskip("stable_baselines3")
+
+MAKE = """
+import warnings
+warnings.simplefilter("always")  # every warning raised is shown: "once" must come from the library
+import torch
+torch.set_num_threads({threads})
+import gymnasium as gym
+import mrd_env
+from mrd_env.envs.sb3 import make_sb3_vec_env
+from stable_baselines3.common.env_util import make_vec_env
+gym.make("mrd_env/QuarterCar-v1").close()
+gym.make("mrd_env/QuarterCarPhysical-v0").close()
+make_vec_env("mrd_env/QuarterCar-v1", n_envs=2).close()
+make_sb3_vec_env("mrd_env/QuarterCar-v1", n_envs=2).close()
+print("made")
+"""
+
+
+def _run(threads: int, **env) -> subprocess.CompletedProcess:
+    full = {k: v for k, v in os.environ.items() if k not in ("MRD_ENV_TORCH_THREADS_WARNING", "PYTHONWARNINGS")}
+    full.update(env)
+    out = subprocess.run([sys.executable, "-c", MAKE.format(threads=threads)], capture_output=True, text=True,
+                         env=full, timeout=300)
+    assert out.returncode == 0 and "made" in out.stdout, out.stderr[-2000:]
+    return out
+
+
+def test_several_threads_warned_once_with_the_fix():
+    err = _run(2).stderr
+    assert err.count(": TorchThreadsWarning:") == 1, err
+    assert "torch.set_num_threads(1)" in err and "MRD_ENV_TORCH_THREADS_WARNING=0" in err
+    # attributed to the caller's line (the script's first gym.make), not to the library's
+    assert "<string>:10: TorchThreadsWarning" in err, err
+
+
+@pytest.mark.parametrize("threads, env", [(1, {}), (2, {"MRD_ENV_TORCH_THREADS_WARNING": "0"})],
+                         ids=["one-thread", "silenced"])
+def test_one_thread_or_silenced_not_warned(threads, env):
+    err = _run(threads, **env).stderr
+    assert "TorchThreadsWarning" not in err, err
+
+
+def test_without_torch_not_imported():
+    """A process without torch is not told, and the check imports no torch."""
+    code = ("import warnings, sys; warnings.simplefilter('error'); import gymnasium as gym, mrd_env; "
+            "gym.make('mrd_env/QuarterCar-v1').close(); print('torch' in sys.modules)")
+    full = {k: v for k, v in os.environ.items() if k != "MRD_ENV_TORCH_THREADS_WARNING"}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=full, timeout=300)
+    assert out.returncode == 0 and out.stdout.strip() == "False", out.stderr[-2000:]
+
+
+# docs/training.md's block "Stable-Baselines3 called directly", run as a user pastes it: each learn() runs one
+# rollout and one update, and records its budget and rollout size
+DOCS_PRELUDE = """
+import json, warnings
+warnings.simplefilter("always")
+from stable_baselines3 import PPO
+_learn, LEARNS = PPO.learn, []
+def _one_rollout(self, total_timesteps, **kw):
+    LEARNS.append({"budget": int(total_timesteps), "rollout": int(self.n_steps * self.n_envs)})
+    return _learn(self, total_timesteps=1, **kw)   # SB3 collects one whole rollout, then updates once
+PPO.learn = _one_rollout
+"""
+
+
+def _docs_block() -> str:
+    import re
+    from pathlib import Path
+
+    page = (Path(__file__).resolve().parents[2] / "docs" / "training.md").read_text(encoding="utf-8")
+    section = page.split("## Stable-Baselines3 called directly", 1)[1].split("\n## ", 1)[0]
+    blocks = re.findall(r"```python\n(.*?)```", section, flags=re.S)
+    assert len(blocks) == 1
+    return blocks[0]
+
+
+def test_the_docs_example_runs_fast_with_sensible_rollouts():
+    """The docs' SB3 block runs without the warning (it sets one thread first), and every PPO in it collects
+    its budget in at least 10 rollouts (n_steps is per environment: PPO's default with 64 environments would
+    collect more than the budget in one)."""
+    code = DOCS_PRELUDE + _docs_block() + "\nprint(json.dumps(LEARNS))\n"
+    full = {k: v for k, v in os.environ.items() if k not in ("MRD_ENV_TORCH_THREADS_WARNING", "PYTHONWARNINGS")}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=full, timeout=600)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert ": TorchThreadsWarning:" not in out.stderr, out.stderr[-2000:]
+    import json
+
+    learns = json.loads(out.stdout.strip().splitlines()[-1])
+    assert len(learns) >= 2  # SB3's make_vec_env and make_sb3_vec_env
+    for run in learns:
+        assert run["budget"] >= 10 * run["rollout"], run
