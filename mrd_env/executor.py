@@ -12,6 +12,10 @@ workers, spawned processes so that numba's and torch's threads are never forked)
 ``address``, a running cluster, or a local instance when ``address`` is None; the ``ray`` extra). ``"auto"``:
 the pool when there is more than one task and more than one core, else serial.
 
+The pool's workers are spawned: each imports the caller's main script again, so a script that starts a pool must do it
+under ``if __name__ == "__main__":``; a pool asked for from a script's unguarded top level is refused before any
+worker starts (:class:`UnguardedMain`, a ``ValueError``; ``"auto"`` is serial there).
+
 Stopping: a task that fails for good drops the queued tasks; the running ones end first. On Ctrl-C or SIGTERM (as
 ``mrd-env`` routes it: a ``KeyboardInterrupt`` in the main process) the workers are stopped, not waited for
 (``ProcessPoolExecutor`` only cancels the tasks not started and waits for the running ones: a task blocked in a
@@ -75,6 +79,60 @@ def _short(v: Any, n: int = 60) -> str:
 class TaskExited(RuntimeError):
     """A task raised ``SystemExit`` or ``KeyboardInterrupt`` in a pool's worker: its own doing (the workers ignore
     Ctrl-C and the parent stops them), reported as the task's failure rather than exiting the caller."""
+
+
+class UnguardedMain(ValueError):
+    """The pool asked for from a script whose calls are not under ``if __name__ == "__main__":``: each spawned worker
+    would run the script again (multiprocessing imports it), start its own pool, and die in its bootstrapping."""
+
+
+def unguarded_main() -> str | None:
+    """``file:line`` of the call into this sweep from the main script's top level, outside an ``if __name__ ==
+    "__main__":`` block (what a spawned worker re-runs when it imports the script); None when the call is guarded,
+    or there is no script file to re-run (an interactive session, a notebook, ``python -c``)."""
+    import ast
+    import inspect
+
+    main = sys.modules.get("__main__")
+    path = getattr(main, "__file__", None)
+    if not path or not os.path.isfile(path):
+        return None
+    frame = inspect.currentframe()
+    while frame is not None and not (frame.f_code.co_name == "<module>" and frame.f_globals is vars(main)):
+        frame = frame.f_back
+    if frame is None:  # the main script's top level is not on the stack (a thread, a callback)
+        return None
+    line = frame.f_lineno
+    try:
+        with open(path, "rb") as f:
+            tree = ast.parse(f.read(1 << 24))  # a script, read once and bounded (16 MiB)
+    except (OSError, SyntaxError, ValueError):
+        return None
+
+    def is_guard(node) -> bool:
+        t = node.test
+        if not (isinstance(t, ast.Compare) and len(t.ops) == 1 and isinstance(t.ops[0], ast.Eq)):
+            return False
+        sides = [t.left, t.comparators[0]]
+        return any(isinstance(a, ast.Name) and a.id == "__name__" for a in sides) and \
+            any(isinstance(a, ast.Constant) and a.value == "__main__" for a in sides)
+
+    for node in ast.walk(tree):
+        if isinstance(node, ast.If) and is_guard(node) and node.body:
+            if node.body[0].lineno <= line <= (node.body[-1].end_lineno or node.body[-1].lineno):
+                return None
+    return f"{path}:{line}"
+
+
+def check_main_guard() -> None:
+    """:class:`UnguardedMain` (one line) where :func:`unguarded_main` finds the call unguarded: refused before any
+    worker starts, rather than ending in a ``BrokenProcessPool`` after every worker re-ran the script."""
+    where = unguarded_main()
+    if where is not None:
+        raise UnguardedMain(
+            f"backend 'pool' called from the top level of the script {where}, outside an `if __name__ == "
+            f"\"__main__\":` block: each worker process would run the script again (multiprocessing's spawn imports "
+            "it). Put the script's calls under `if __name__ == \"__main__\":`, or use backend=\"serial\"")
 
 
 class WorkerDied(RuntimeError):
@@ -149,7 +207,8 @@ def resolve_backend(backend: str, n_tasks: int, jobs: int | None) -> str:
         raise ValueError(f"jobs must be an integer >= 1, got {jobs!r}")
     if backend == "auto":
         workers = jobs if jobs is not None else default_jobs()
-        return "pool" if n_tasks > 1 and workers > 1 else "serial"
+        # from an unguarded script the pool cannot start (check_main_guard): auto is serial there
+        return "pool" if n_tasks > 1 and workers > 1 and unguarded_main() is None else "serial"
     return backend
 
 
@@ -161,6 +220,8 @@ def run_tasks(tasks: Sequence[Task], *, backend: str = "auto", jobs: int | None 
     backend = resolve_backend(backend, len(tasks), jobs)
     if not tasks:
         return []
+    if backend == "pool":
+        check_main_guard()
     from tqdm.auto import tqdm
 
     bar = tqdm(total=len(tasks), desc=desc, disable=not progress or len(tasks) < 2)  # one task: its own bar

@@ -53,28 +53,53 @@ def _bounded(value) -> str:
     return r.repr(value)
 
 
+def out_folder(path: Path) -> Path:
+    """``--out`` made and probed (:func:`mrd_env.storage.writable_folder`), after a one-line ``ValueError`` where it,
+    or a folder above it, is a file (``--out results/score.json``: the option takes a folder, not a result file)."""
+    for p in (path, *path.parents):
+        if p.exists() or p.is_symlink():
+            if not p.is_dir():
+                where = "" if p == path else f" ({p} is a file)"
+                raise ValueError(f"--out {_bounded(str(path))} is not a folder{where}: --out takes the folder into which "
+                                 "each controller's <suite>__<controller>.json/.md/.csv are written")
+            break
+    return storage.writable_folder(path)
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
+    from controllers import available_controllers
+
+    from ..common.scoring import POOL_MIN_SECONDS
+
     p.add_argument("--suite", required=True,
                    help="a shipped suite (name-vN, e.g. car-comfort-v1; a name without version: its latest) or a "
                         "suite file (.json)")
     p.add_argument("--controller", action="append", required=True, metavar="CONTROLLER",
-                   help="a registered law (e.g. skyhook_continuous), an agent folder, or package.module:attribute "
-                        "(a class or factory taking the environment, or an object with predict; IMPORTING IT RUNS "
-                        "ITS CODE: name only code you mean to run); repeat for several")
+                   help="a registered law (" + ", ".join(available_controllers()) + "), an agent folder (a "
+                        "plain SB3 model.zip with --trust-agent), or package.module:attribute (a class or factory "
+                        "taking the environment, or an object with predict; IMPORTING IT RUNS ITS CODE: name only "
+                        "code you mean to run); repeat for several")
     p.add_argument("--law-options", default=None, metavar="JSON",
                    help="the options of the registered law given as the one --controller, as a JSON object (e.g. an "
                         "MPC's: '{\"weights\": \"reward\", \"horizon\": 10}'); recorded in the result file")
     p.add_argument("--name", default=None,
                    help="the row's and result file's name of the one --controller (default: the law's name, with its "
                         "options; agent <name>; the import spec)")
-    p.add_argument("--out", type=Path, default=Path("results/score"))
+    p.add_argument("--out", type=Path, default=Path("results/score"), metavar="FOLDER",
+                   help="the folder of the result files (default results/score)")
     p.add_argument("--episodes", type=_whole("--episodes", 1), default=None, metavar="K",
                    help="only the first K episodes of each scenario (a smoke run: the result is marked partial)")
     p.add_argument("--trust-agent", action="store_true",
-                   help="also load agents that only have SB3's model.zip (pickles: they can run any code; only from a "
-                        "source you trust; converted once into <out>/converted-agents/)")
+                   help="also load agents that only have SB3's model.zip, and a plain SB3 model.zip (scored in the "
+                        "suite's environment, its spaces checked against it) — pickles: they can run any code; only "
+                        "from a source you trust; converted once into <out>/converted-agents/")
     p.add_argument("--no-progress", action="store_true")
     sweep.add_arguments(p)
+    for action in p._actions:  # score's auto is its own (experiments.common.scoring.score)
+        if action.dest == "backend":
+            action.help = ("serial, a local process pool, or Ray (default auto: in this process, unless the first "
+                           "scenario's time says the others are worth a pool's start-up: over "
+                           f"{POOL_MIN_SECONDS:g} s of work)")
     add_plant_options(p)  # a suite fixes its plant: they may only name it (check_suite_plant)
 
 
@@ -112,12 +137,12 @@ def run(args: argparse.Namespace) -> int:
     specs = []
     for c in args.controller:
         spec = controller_spec(c, name=args.name, options=options, trust_agent=args.trust_agent,
-                               converted=args.out / "converted-agents")
+                               converted=args.out / "converted-agents", suite=suite)
         check_controller(spec, suite)
         if any(s.name == spec.name for s in specs):
             raise ValueError(f"--controller {_bounded(c)}: {_bounded(spec.name)} is given twice")
         specs.append(spec)
-    storage.writable_folder(args.out)
+    out_folder(args.out)
     for spec in specs:
         one_torch_thread(spec)  # this process is the command's own (an SB3 policy: 10× faster on 2 cores)
     files = [args.out / result_filename(suite.id, s.name) for s in specs]

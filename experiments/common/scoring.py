@@ -143,13 +143,14 @@ def _source_digest(obj) -> str | None:
 
 
 def controller_spec(controller, *, name: str | None = None, options: dict | None = None, trust_agent: bool = False,
-                    converted: str | Path | None = None) -> ControllerSpec:
+                    converted: str | Path | None = None, suite=None) -> ControllerSpec:
     """What ``controller`` is: a registered law's name (``controllers.available_controllers()``; ``options``: its
     options, plain JSON, e.g. an MPC's ``{"weights": "reward", "horizon": 10}``, recorded in the result), an agent
     folder (a path; an agent that only has SB3's pickled ``model.zip`` needs ``trust_agent`` and is converted once
-    into ``converted``), ``package.module:attribute`` (**imported: its code runs**) or a Python object — a class or
-    factory taking the environment, or an object with ``predict`` (:mod:`controllers.protocol`). ``ValueError`` (one
-    line) otherwise."""
+    into ``converted``), a plain Stable-Baselines3 ``model.zip`` (``trust_agent`` too; its environment is ``suite``'s:
+    :func:`sb3_zip_agent`), ``package.module:attribute`` (**imported: its code runs**) or a Python object — a class
+    or factory taking the environment, or an object with ``predict`` (:mod:`controllers.protocol`). ``ValueError``
+    (one line) otherwise."""
     from controllers import available_controllers
     from controllers.protocol import import_object, is_import_spec
 
@@ -172,8 +173,9 @@ def controller_spec(controller, *, name: str | None = None, options: dict | None
     if isinstance(controller, (str, Path)):
         path = Path(controller)
         if not path.exists():
-            raise ValueError(f"controller {bounded(str(controller))} is none of: a registered law "
-                             f"({', '.join(available_controllers())}), an agent folder, package.module:attribute")
+            raise ValueError(_not_found(controller, available_controllers()))
+        if _plain_sb3_zip(path) is not None:
+            return _sb3_zip_spec(_plain_sb3_zip(path), name, trust_agent, converted, suite)
         return _agent_spec(path, name, trust_agent, converted)
     from controllers.protocol import ControllerProtocol
 
@@ -189,6 +191,45 @@ def controller_spec(controller, *, name: str | None = None, options: dict | None
     if digest:
         desc["source_sha256"] = digest
     return ControllerSpec("python", controller, label, desc)
+
+
+#: A dotted name: ``mylaws.MySkyhook`` written for ``mylaws:MySkyhook``.
+_DOTTED = re.compile(r"[A-Za-z_]\w*(\.[A-Za-z_]\w*)+")
+
+
+def _not_found(controller, laws: list[str]) -> str:
+    """Why ``controller`` (a string or path naming nothing that exists) is no controller, on one line: a path-like
+    text is a missing agent folder; ``mylaws.MySkyhook`` whose top-level module exists means ``mylaws:MySkyhook``
+    (looked up with ``importlib.util.find_spec`` on the top-level name only, which imports nothing)."""
+    import importlib.util
+    import os
+
+    text = str(controller)
+    quoted = bounded(text)
+    if isinstance(controller, Path) or os.sep in text or "/" in text or text.startswith(("~", ".")) or \
+            text.endswith((".zip", ".json")):
+        return (f"controller {quoted}: no such folder (an agent folder holds the agent.json that mrd-env train "
+                "writes; a plain SB3 model.zip is scored with --trust-agent)")
+    hint = ""
+    if _DOTTED.fullmatch(text):
+        module, _, attr = text.rpartition(".")
+        top = module.split(".")[0]
+        try:
+            found = importlib.util.find_spec(top) is not None or Path(f"{top}.py").is_file() or \
+                Path(top, "__init__.py").is_file()
+        except (ImportError, ValueError):
+            found = False
+        if found:
+            return (f"controller {quoted}: did you mean {module}:{attr}? (package.module:attribute takes a colon "
+                    f"before the attribute; {top} is a module here)")
+        hint = "; package.module:attribute takes a colon before the attribute"
+    else:
+        import difflib
+
+        close = difflib.get_close_matches(text, laws, n=1)
+        hint = f"; did you mean {close[0]}?" if close else ""
+    return (f"controller {quoted} is none of: a registered law ({', '.join(laws)}), an agent folder, "
+            f"package.module:attribute{hint}")
 
 
 def law_options(options, law: str = "the law") -> dict:
@@ -217,6 +258,123 @@ def _agent_spec(path: Path, name: str | None, trust: bool, converted) -> Control
             "algo": agent.meta.get("algo"), "env_id": agent.env_id,
             "action_options": {k: agent.env_kwargs[k] for k in AGENT_ACTION_OPTIONS if k in agent.env_kwargs}}
     return ControllerSpec("agent", str(folder), label, _plain(desc))
+
+
+def _plain_sb3_zip(path: Path) -> Path | None:
+    """The SB3 zip ``path`` names where it is not part of an mrd-env agent: a ``.zip`` file, or a folder holding
+    ``model.zip`` but no ``agent.json``; else None."""
+    from controllers.agents import METADATA_FILE, RESUME_FILE
+
+    folder = path if path.is_dir() else path.parent
+    if (folder / METADATA_FILE).exists():
+        return None
+    if path.is_dir():
+        return path / RESUME_FILE if (path / RESUME_FILE).is_file() else None
+    return path if path.suffix.lower() == ".zip" else None
+
+
+#: The algorithm of an SB3 zip, from its policy's class (and, for the actor-critic policy, the algorithm's own data).
+_SB3_POLICY_ALGORITHMS = {"SACPolicy": "SAC", "TD3Policy": "TD3", "TQCPolicy": "TQC",
+                          "RecurrentActorCriticPolicy": "RecurrentPPO", "ARSPolicy": "ARS", "ARSLinearPolicy": "ARS"}
+
+
+def sb3_zip_agent(zip_path: str | Path, suite, folder: str | Path) -> Path:
+    """An agent folder (``folder/<zip>-<digest>/``: a copy of the zip and an ``agent.json``) for a plain
+    Stable-Baselines3 ``model.zip`` trained on an mrd_env environment, to be scored on ``suite``. SB3's zip holds the
+    policy, its algorithm's data and the observation and action spaces, not the environment's id or options: the
+    agent's environment is the suite's (its id, sensors and control step), and the zip's spaces are checked against
+    it — the observation's shape, and the action space, which says the action mode (``[-1, 1]``: normalised; the
+    suite's command range: physical). **Reading the zip unpickles it (runs any code): trusted zips only.**
+    ``ValueError`` (one line) for a zip that is not an SB3 model of a known algorithm or does not fit the suite."""
+    import hashlib
+
+    import gymnasium as gym
+
+    import mrd_env  # noqa: F401  (registers the environments)
+    from controllers.agents import METADATA_FILE, OBSERVATION_OPTIONS, RESUME_FILE, SB3_ALGORITHMS, write_agent
+    from mrd_env.storage import read_limited
+
+    zip_path = Path(zip_path)
+    where = f"controller {bounded(str(zip_path))}"
+    raw = read_limited(zip_path, 512 * 1024 ** 2, what=f"{where}: the zip")
+    try:
+        from stable_baselines3.common.save_util import load_from_zip_file
+
+        data, _, _ = load_from_zip_file(zip_path, device="cpu", print_system_info=False)
+    except ImportError:
+        raise ImportError(f"{where}: reading an SB3 zip needs stable-baselines3 (pip install 'mrd-env[rl]')") from None
+    except Exception as exc:  # noqa: BLE001 — not a zip, not SB3's, a pickle that fails: one line
+        raise ValueError(f"{where}: not a Stable-Baselines3 model zip ({type(exc).__name__}: {exc})") from None
+    if not isinstance(data, dict) or "observation_space" not in data or "action_space" not in data:
+        raise ValueError(f"{where}: not a Stable-Baselines3 model zip (no observation and action spaces in it)")
+    policy = getattr(data.get("policy_class"), "__name__", "")
+    algo = _SB3_POLICY_ALGORITHMS.get(policy) or \
+        ("PPO" if "clip_range" in data else "TRPO" if "cg_max_steps" in data else "A2C"
+         if policy == "ActorCriticPolicy" else None)
+    if algo not in SB3_ALGORITHMS:
+        raise ValueError(f"{where}: a model of the policy {policy or '?'}, which is none of the algorithms a zip is "
+                         f"scored with ({', '.join(SB3_ALGORITHMS)})")
+    venv = gym.make_vec(suite.env_id, num_envs=1, vectorization_mode="vector_entry_point",
+                        **{**suite.options, "control_dt": suite.control_dt})
+    try:
+        obs_shape = tuple(venv.single_observation_space.shape)
+        space, n_dampers, spec = venv.single_action_space, int(venv.n_dampers), venv.command_spec
+        sensors = [n for n, *_ in venv.sensor_layout]
+    finally:
+        venv.close()
+    zobs, zact = data["observation_space"], data["action_space"]
+    if tuple(getattr(zobs, "shape", ()) or ()) != obs_shape:
+        raise ValueError(f"{where}: trained on observations of shape {tuple(getattr(zobs, 'shape', ()) or ())}; the "
+                         f"suite {suite.id} gives {obs_shape} (its sensors {sensors}, in {suite.env_id})")
+    if not isinstance(zact, gym.spaces.Box) or tuple(zact.shape) != (n_dampers,):
+        raise ValueError(f"{where}: its action space is {zact}; the suite {suite.id} takes one command per damper, "
+                         f"shape ({n_dampers},)")
+    lo, hi = np.asarray(zact.low, dtype=np.float64), np.asarray(zact.high, dtype=np.float64)
+    if np.allclose(lo, -1.0) and np.allclose(hi, 1.0):
+        mode = "normalized"
+    elif np.allclose(lo, space.low) and np.allclose(hi, space.high):
+        mode = "physical"
+    else:
+        raise ValueError(f"{where}: it acts in [{_span(lo)}, {_span(hi)}]; the suite {suite.id} takes [-1, 1] "
+                         f"(action_mode normalized) or its command's range [{spec.v_min:g}, {spec.v_max:g}] {spec.unit} "
+                         "(physical)")
+    digest = hashlib.sha256(raw).hexdigest()
+    stem = zip_path.stem if zip_path.stem != "model" else zip_path.resolve().parent.name or "model"
+    dst = Path(folder) / f"{re.sub(r'[^A-Za-z0-9_.-]+', '_', stem)}-{digest[:12]}-{suite.id}"
+    if not (dst / METADATA_FILE).exists():
+        dst.mkdir(parents=True, exist_ok=True)
+        storage.write_bytes(dst / RESUME_FILE, raw)
+        env_kwargs = {k: v for k, v in suite.options.items() if k in OBSERVATION_OPTIONS}
+        env_kwargs.update(control_dt=suite.control_dt, action_mode=mode)
+        write_agent(dst, {"plant": suite.plant, "env_id": suite.env_id, "algo": algo, "name": stem,
+                          "env_kwargs": env_kwargs, "model": RESUME_FILE,
+                          "converted_from": {"file": str(zip_path), "sha256": digest,
+                                             "environment": f"inferred from the suite {suite.id}"}})
+    return dst
+
+
+def _sb3_zip_spec(zip_path: Path, name, trust: bool, converted, suite) -> ControllerSpec:
+    """:func:`sb3_zip_agent` of the zip, then the agent's spec (:func:`_agent_spec`: converted once into the code-free
+    format, the pickles read here only); the description names the zip."""
+    import tempfile
+    from dataclasses import replace
+
+    from controllers.agents import agent_files
+
+    where = f"controller {bounded(str(zip_path))}"
+    if not trust:
+        raise ValueError(f"{where} is a Stable-Baselines3 zip, whose loading runs the Python objects pickled in it "
+                         "(any code): refused. Score it only if you trust where it comes from: --trust-agent "
+                         "(score(..., trust_agent=True))")
+    if suite is None:
+        raise ValueError(f"{where}: a plain SB3 zip is scored in a suite's environment, which it is checked against: "
+                         "give the suite (controller_spec(..., suite=...))")
+    if converted is None:
+        converted = tempfile.mkdtemp(prefix="mrd-env-converted-agents-")
+    folder = sb3_zip_agent(zip_path, suite, converted)
+    spec = _agent_spec(folder, name, True, converted)
+    desc = {**spec.description, "spec": str(zip_path), "sb3_zip_sha256": agent_files(folder)[1]["converted_from"]["sha256"]}
+    return replace(spec, description=desc)
 
 
 def _plain(v):
@@ -382,6 +540,11 @@ class _Driven:
         self.space = venv.single_action_space
         self.n = int(venv.num_envs)
         self._state, self._start = None, True
+        self.low = np.asarray(self.space.low, dtype=np.float64)
+        self.high = np.asarray(self.space.high, dtype=np.float64)
+        # float32 bounds and a law's own arithmetic (v_max · 1.0, a mapped −1) may land a hair outside: not an error
+        self.tol = ACTION_TOLERANCE * np.maximum(self.high - self.low, np.finfo(np.float32).tiny)
+        self.unit = action_unit(venv)
 
     def _call(self, what: str, fn, *args, **kwargs):
         try:
@@ -423,7 +586,36 @@ class _Driven:
                              f"environment takes {want} (one row per episode, one command per damper)")
         if not np.all(np.isfinite(a)):
             raise ValueError(f"controller {self.name}: predict returned a non-finite action")
-        return a.reshape(want).astype(self.space.dtype), self._state
+        a = a.reshape(want)
+        if np.any(a < self.low - self.tol) or np.any(a > self.high + self.tol):
+            # clipped silently, forces in N or [−1, 1] on a 0–2 V suite scored as a (bad) command: refused instead
+            raise ValueError(f"controller {self.name}: predict returned actions from {a.min():.6g} to {a.max():.6g}; "
+                             f"the suite's environment takes {_span(self.low)} to {_span(self.high)} {self.unit} "
+                             "(env.single_action_space): scale the actions into it (nothing is clipped for you)")
+        return a.astype(self.space.dtype), self._state
+
+
+#: How far beyond the action space (a fraction of its range) an action may be and still count as inside it (the
+#: environment clips it): float32 bounds and rounding, never a unit mistake.
+ACTION_TOLERANCE = 1e-6
+
+
+def _span(bound: np.ndarray) -> str:
+    """An action bound as a number when it is the same for every damper, else the list."""
+    flat = np.unique(bound)
+    return f"{flat[0]:.6g}" if flat.size == 1 else "[" + ", ".join(f"{b:.6g}" for b in bound.ravel()) + "]"
+
+
+def action_unit(env) -> str:
+    """What the actions of ``env`` are: the command's unit (V or A) in the physical mode, ``N`` (desired force) in the
+    force mode, ``(normalised: −1 is v_min, +1 v_max)`` in the normalised one."""
+    mode = getattr(env, "action_mode", "physical")
+    if mode == "normalized":
+        return "(normalised: -1 is the command's v_min, +1 its v_max)"
+    if mode == "force":
+        return "N (desired damper force)"
+    spec = getattr(env, "command_spec", None)
+    return f"{getattr(spec, 'unit', '')} (the damper's command)".strip()
 
 
 def one_torch_thread(spec: ControllerSpec) -> None:
@@ -621,7 +813,7 @@ def _nulls(v):
 
 
 def score(suite, controller, *, name: str | None = None, options: dict | None = None, episodes: int | None = None,
-          backend: str = "serial", jobs: int | None = None, address: str | None = None, trust_agent: bool = False,
+          backend: str = "auto", jobs: int | None = None, address: str | None = None, trust_agent: bool = False,
           converted: str | Path | None = None, progress: bool = False, command: list | None = None) -> SuiteResult:
     """Score ``controller`` on ``suite`` (see the module docstring).
 
@@ -631,27 +823,36 @@ def score(suite, controller, *, name: str | None = None, options: dict | None = 
     the object's ``name``/class name). ``options``: a registered law's options (plain JSON: an MPC's settings, say;
     recorded in the result). ``episodes``: only the first ``episodes`` seeds of each scenario (a smoke run; the result
     says it is partial). ``backend``/``jobs``/``address``: one task per scenario on
-    :mod:`mrd_env.executor` (a Python object of the caller's runs in this process). ``trust_agent``: also load an
+    :mod:`mrd_env.executor` (a Python object of the caller's runs in this process); ``"auto"`` (the default) runs
+    in this process unless the first scenario's time says the rest is worth a process pool (:func:`_auto`,
+    :data:`POOL_MIN_SECONDS`); ``"pool"`` from a script needs its calls under ``if __name__ == "__main__":``
+    (:class:`mrd_env.executor.UnguardedMain` otherwise). ``trust_agent``: also load an
     agent that only has SB3's pickled ``model.zip`` (converted once into ``converted``)."""
     import os
 
     import mrd_env
-    from mrd_env.executor import Task, TaskFailed, WorkerDied, run_tasks
+    from mrd_env.executor import Task, TaskFailed, WorkerDied, resolve_backend, run_tasks
 
     suite = resolve_suite(suite)
     check_references(suite)
     if episodes is not None and (isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1):
         raise ValueError(f"episodes must be a whole number >= 1 (per scenario), got {bounded(episodes)}")
     spec = controller if isinstance(controller, ControllerSpec) else \
-        controller_spec(controller, name=name, options=options, trust_agent=trust_agent, converted=converted)
+        controller_spec(controller, name=name, options=options, trust_agent=trust_agent, converted=converted,
+                        suite=suite)
     check_controller(spec, suite)
     tasks = [Task(scenario_episodes, (suite, i, sc.seeds[:episodes]), {"spec": spec, "caller": os.getpid()},
                   label=f"{spec.name} / {sc.name}") for i, sc in enumerate(suite.scenarios)]
     if not spec.picklable:
         backend = "serial"  # the caller's own object stays in the caller's process
+    resolve_backend(backend, len(tasks), jobs)  # a wrong backend or jobs: refused before any episode runs
+    desc = f"score {spec.name}"
     try:
-        per_scenario = run_tasks(tasks, backend=backend, jobs=jobs, address=address, progress=progress,
-                                 desc=f"score {spec.name}", retry=False)
+        if backend == "auto":
+            per_scenario = _auto(tasks, [len(sc.seeds[:episodes]) for sc in suite.scenarios], jobs, progress, desc)
+        else:
+            per_scenario = run_tasks(tasks, backend=backend, jobs=jobs, address=address, progress=progress,
+                                     desc=desc, retry=False)
     except TaskFailed as exc:
         if isinstance(exc.error, ValueError):
             raise ValueError(str(exc.error)) from exc.error
@@ -669,6 +870,33 @@ def score(suite, controller, *, name: str | None = None, options: dict | None = 
         controller=spec.description, episodes=_nulls(eps), criteria=criteria, units=units,
         created=datetime.now(timezone.utc).isoformat(timespec="seconds"), mrd_env_version=mrd_env.__version__,
         command=None if command is None else [str(a) for a in command])
+
+
+#: The estimated in-process seconds of a score's remaining scenarios above which ``backend="auto"`` runs them on the
+#: process pool: each spawned worker imports the project and loads its kernels first (3-10 s), which a score of a
+#: law's few dozen episodes never earns back — ``mrd-env score`` on car-comfort-v1 and building-seismic-v1 took
+#: 2.5-3x longer on the pool than in process (experiments/scripts/bench_score_backends.py; docs/your-controller.md).
+POOL_MIN_SECONDS = 30.0
+
+
+def _auto(tasks: list, episodes: list[int], jobs: int | None, progress: bool, desc: str) -> list:
+    """``backend="auto"``: the first scenario in this process, timed; the others on the process pool only where their
+    estimated time in process (the first's per episode, times their episodes) exceeds :data:`POOL_MIN_SECONDS` and
+    there are at least two workers for them — else in this process too."""
+    import time
+
+    from mrd_env.executor import default_jobs, run_tasks, unguarded_main
+
+    t0 = time.perf_counter()
+    out = run_tasks(tasks[:1], backend="serial", progress=progress, desc=desc, retry=False)
+    rest = tasks[1:]
+    if not rest:
+        return out
+    estimate = (time.perf_counter() - t0) / max(episodes[0], 1) * sum(episodes[1:])
+    workers = min(jobs or default_jobs(), len(rest))
+    pool = workers > 1 and estimate > POOL_MIN_SECONDS and unguarded_main() is None
+    return out + run_tasks(rest, backend="pool" if pool else "serial", jobs=jobs, progress=progress, desc=desc,
+                           retry=False)
 
 
 def _cell(m: float, lo: float, hi: float, fmt: str = ".3f") -> str:
