@@ -287,7 +287,7 @@ def test_the_docs_sb3_recipe_trains_saves_and_scores_a_model_zip(tmp_path):
     with ``--episodes 1``. Without ``--trust-agent`` the zip is refused in one line, nothing written."""
     pytest.importorskip("stable_baselines3")
     heading = "## Score your own Stable-Baselines3 model"
-    code = _doc_block("python", heading)
+    code = _doc_block("py", heading)  # "py": the page's one "python" block is test_score.py's
     assert "torch.set_num_threads(1)" in code and 'model.save("model.zip")' in code
     code = re.sub(r"total_timesteps=[\d_]+", "total_timesteps=256", code)
     code = code.replace('PPO("MlpPolicy", env,', 'PPO("MlpPolicy", env, n_steps=128, batch_size=64, n_epochs=1,')
