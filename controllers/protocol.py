@@ -9,7 +9,8 @@ control step. From that environment it may read what the environment *declares*:
   observation stacks measurements, oldest first: :func:`mrd_env.envs.sensors.newest_layout` gives the newest's
   slices), ``observation_labels``, ``single_observation_space``;
 * ``roles`` (which sensor is the body velocity, the damper velocity, the damper stroke, ...: read signals by role,
-  not by a plant's sensor names, and a controller serves every plant that declares those roles);
+  not by a plant's sensor names, and a controller serves every plant that declares those roles; every plant's roles:
+  docs/your-controller.md, "The roles a controller reads");
 * ``command_spec`` (the command's unit and range ``v_min``..``v_max``, V or A), ``n_dampers``, ``action_mode``,
   ``single_action_space``;
 * ``control_dt`` (the step at which ``predict`` is called, s), ``dt`` (the physics step), ``preview_times``;
@@ -39,9 +40,10 @@ as any benchmark figure is.
 ``observation`` of shape ``(N, n_obs)`` (float32; the suite's sensors, noise, delay and history), and returning
 ``action`` of shape ``(N, n_dampers)`` (``(N,)`` is taken when there is one damper) in the environment's action space:
 the command in V or A (``action_mode="physical"``), or mapped to [−1, 1] (``"normalized"``: −1 is ``v_min``, +1
-``v_max``), as the suite's ``action_mode`` says (``env.single_action_space`` holds the bounds either way). Values
-outside the space are clipped, as the environment clips them; a non-finite value or a wrong shape stops the scoring
-with a one-line error. ``state`` is returned to the next call (None for a memoryless law; a recurrent policy's
+``v_max``), as the suite's ``action_mode`` says (``env.single_action_space`` holds the bounds either way). An action
+outside the space (by more than 10⁻⁶ of its range) stops the scoring with a one-line error naming the range, its unit
+and the actions' min and max — a force in N or a [−1, 1] action on a 0–2 V suite is not clipped into a wrong score;
+a law that can overshoot clips its own actions. A non-finite value or a wrong shape stops it too. ``state`` is returned to the next call (None for a memoryless law; a recurrent policy's
 hidden state); ``episode_start`` is a boolean per row, True at the first step of that row's episode (the rows the
 controller must forget). ``deterministic`` is always True.
 
