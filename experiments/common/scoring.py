@@ -873,9 +873,11 @@ def score(suite, controller, *, name: str | None = None, options: dict | None = 
 
 
 #: The estimated in-process seconds of a score's remaining scenarios above which ``backend="auto"`` runs them on the
-#: process pool: each spawned worker imports the project and loads its kernels first (3-10 s), which a score of a
-#: law's few dozen episodes never earns back — ``mrd-env score`` on car-comfort-v1 and building-seismic-v1 took
-#: 2.5-3x longer on the pool than in process (experiments/scripts/bench_score_backends.py; docs/your-controller.md).
+#: process pool: each spawned worker imports the project and loads its kernels first (4.5-7.5 s on 2 cores at load 3,
+#: 10-30 s at load 6-9), which a score of a law's few dozen episodes never earns back — ``mrd-env score`` on
+#: car-comfort-v1 and building-seismic-v1 took 2.4-3.3x longer on the pool than in process
+#: (experiments/scripts/bench_score_backends.py; docs/your-controller.md). Two workers repay the start-up once they
+#: share more than twice its time.
 POOL_MIN_SECONDS = 30.0
 
 
