@@ -101,9 +101,11 @@ def warn_torch_threads() -> None:
 
     Why: Stable-Baselines3 trains networks of 64×64 units on batches of 64, too small for a second thread to help;
     torch's OpenMP threads spin while they wait, and on a machine whose cores are busy (the environment's own
-    stepping, other processes) the spinning threads take the cores from the one doing the work. PPO's updates ran
-    18 times slower on 2 shared cores (``python -m experiments.scripts.bench_sb3_direct``: Pendulum-v1 alike,
-    ``OMP_WAIT_POLICY=PASSIVE`` recovers most of it). A process without torch, or with one thread, is not told."""
+    stepping, other processes) the spinning threads take the cores from the one doing the work: SB3's PPO ran 7 to
+    10 times slower on 2 shared cores, all of it in the updates (``python -m experiments.scripts.bench_sb3_direct``;
+    Gymnasium's Pendulum-v1 alike; ``OMP_WAIT_POLICY=PASSIVE`` recovers most of it). Whether the cores are busy
+    changes from moment to moment, so the rule is the thread count alone. A process without torch, or with one
+    thread, is not told."""
     global _torch_threads_checked
     if _torch_threads_checked:
         return
@@ -115,8 +117,9 @@ def warn_torch_threads() -> None:
     if threads <= 1 or os.environ.get(TORCH_THREADS_VARIABLE, "1") == "0":
         return
     warnings.warn(f"torch runs on {threads} intra-op threads: training small networks (Stable-Baselines3's "
-                  "defaults) next to this environment can be 10-30x slower than on one, as its idle threads spin "
-                  "for the cores. Call torch.set_num_threads(1) before training (docs/training.md); silence this "
+                  "defaults) next to this environment runs up to 30x slower than on one thread when the cores are "
+                  "busy, as its idle threads spin for them. Call torch.set_num_threads(1) before training "
+                  "(docs/training.md, 'Stable-Baselines3 called directly'); silence this "
                   f"with {TORCH_THREADS_VARIABLE}=0 or a warnings filter on mrd_env.envs.entry.TorchThreadsWarning",
                   TorchThreadsWarning, stacklevel=_caller_level())
 

@@ -102,3 +102,39 @@ def test_the_docs_example_runs_fast_with_sensible_rollouts():
     assert len(learns) >= 2  # SB3's make_vec_env and make_sb3_vec_env
     for run in learns:
         assert run["budget"] >= 10 * run["rollout"], run
+
+
+def test_train_validation_lines_state_the_best_constant_command(tmp_path, capsys):
+    """Each validation line of ``mrd-env train`` names R_p, the best constant command's return on the same
+    validation episode, recomputed here with the scalar environment, and says whether the agent is above it."""
+    import re
+
+    import gymnasium as gym
+    import numpy as np
+
+    from experiments.cli import main
+    from experiments.common.plants import profile
+    from experiments.common.scenarios import validation
+    from experiments.common.trainers import PASSIVE_GRID, env_options
+
+    assert main(["train", "--plant", "quarter_car", "--algo", "ppo", "--timesteps", "64", "--set", "n_steps=32",
+                 "batch_size=32", "n_envs=1", "--eval-freq", "64", "--eval-episodes", "1",
+                 "--out", str(tmp_path)]) == 0
+    lines = [ln for ln in capsys.readouterr().out.splitlines() if "validation return" in ln]
+    assert len(lines) >= 2
+    plant = profile("quarter_car")
+    seed = int(validation(plant, 1)[0].seeds[0])
+    env = gym.make(plant.env_id, **env_options(plant))
+    best = -np.inf
+    for f in PASSIVE_GRID:  # the constant commands, one episode each
+        a = env.action_space.low + f * (env.action_space.high - env.action_space.low)
+        env.reset(seed=seed)
+        total, done = 0.0, False
+        while not done:
+            _, r, term, trunc, _ = env.step(a)
+            total, done = total + float(r), term or trunc
+        best = max(best, total)
+    for line in lines:
+        value, rp = re.search(r"validation return (\S+) .*R_p (\S+?):", line).groups()
+        assert rp == f"{best:.4g}", line  # as printed
+        assert ("not above passive" in line) == (float(value) <= best), line
