@@ -7,6 +7,10 @@ os.environ.setdefault("MRD_ENV_FIRST_USE", "wait")
 # the test workers share JAX's compiled programs through the private, checked cache (mrd_env.jax: not persisted
 # unless asked, since JAX does not authenticate its entries); tests/test_cache_security.py sets its own value
 os.environ.setdefault("MRD_ENV_JAX_CACHE", "1")
+# torch is imported by some test modules at collection: the once-per-process TorchThreadsWarning (for users calling
+# SB3 themselves) would land in whichever test makes the worker's first environment; tests/envs/test_sb3_direct.py
+# checks the warning in subprocesses without this
+os.environ.setdefault("MRD_ENV_TORCH_THREADS_WARNING", "0")
 
 
 def pytest_collection_modifyitems(config, items):

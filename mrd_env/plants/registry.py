@@ -20,7 +20,7 @@ exact scheme, at or above the native speed); pass ``scheme="exact"`` for the nat
 from __future__ import annotations
 
 from ..envs import RL_DEFAULTS
-from ..envs.entry import FormerIdEntryPoint, TimeLimitedEntryPoint
+from ..envs.entry import FormerIdEntryPoint, TimeLimitedEntryPoint, warn_torch_threads
 from . import plants
 
 
@@ -87,6 +87,7 @@ class VectorEntryPoint:
         self.spec = spec
 
     def __call__(self, num_envs: int = 1, backend: str = "native", **kwargs):
+        warn_torch_threads()  # SB3 over make_vec's environments: the same once-per-process advice as gym.make's
         if backend == "native":
             return self.spec.vector_env(num_envs=num_envs, **kwargs)
         if backend != "jax":

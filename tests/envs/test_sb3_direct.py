@@ -46,6 +46,17 @@ def test_several_threads_warned_once_with_the_fix():
     assert "<string>:10: TorchThreadsWarning" in err, err
 
 
+def test_the_native_vector_entry_point_warns_too():
+    """gym.make_vec(..., vectorization_mode="vector_entry_point") makes no scalar environment: its entry point warns."""
+    code = ("import warnings; warnings.simplefilter('always'); import torch; torch.set_num_threads(2); "
+            "import gymnasium as gym, mrd_env; gym.make_vec('mrd_env/QuarterCar-v1', num_envs=2, "
+            "vectorization_mode='vector_entry_point').close(); print('made')")
+    full = {k: v for k, v in os.environ.items() if k not in ("MRD_ENV_TORCH_THREADS_WARNING", "PYTHONWARNINGS")}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=full, timeout=300)
+    assert out.returncode == 0 and "made" in out.stdout, out.stderr[-2000:]
+    assert out.stderr.count(": TorchThreadsWarning:") == 1, out.stderr
+
+
 @pytest.mark.parametrize("threads, env", [(1, {}), (2, {"MRD_ENV_TORCH_THREADS_WARNING": "0"})],
                          ids=["one-thread", "silenced"])
 def test_one_thread_or_silenced_not_warned(threads, env):
