@@ -8,14 +8,13 @@ import copy
 import hashlib
 import json
 import os
-import signal
 import sys
-from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
 
 from mrd_env import suites as S
+from tests.deadline import deadline
 
 pytestmark = pytest.mark.hostile
 
@@ -47,20 +46,6 @@ def _write(folder: Path, data: dict, name: str = "their-suite.json") -> Path:
     path = folder / name
     path.write_text(json.dumps(data), encoding="utf-8")
     return path
-
-
-@contextmanager
-def _deadline(seconds: int = 20):
-    """A hang (a FIFO opened for reading) fails the test instead of blocking the run."""
-    def stop(*_):
-        raise TimeoutError(f"still running after {seconds} s")
-    previous = signal.signal(signal.SIGALRM, stop)
-    signal.alarm(seconds)
-    try:
-        yield
-    finally:
-        signal.alarm(0)
-        signal.signal(signal.SIGALRM, previous)
 
 
 @pytest.fixture(scope="module")
@@ -342,7 +327,7 @@ def test_the_size_cap_leaves_room_for_the_shipped_suites():
 
 
 def test_a_device_a_fifo_or_a_huge_file_is_refused(tmp_path):
-    with _deadline():
+    with deadline():
         with pytest.raises(ValueError, match="suite file /dev/zero: not a regular file"):
             S.read_suite("/dev/zero")
         fifo = tmp_path / "fifo.json"
@@ -410,7 +395,7 @@ def test_a_link_leaving_the_folder_and_a_fifo_inside_it_are_refused(base, tmp_pa
         S.read_suite(_write(folder, _own(_with_road_path(base, "scenario", "road.csv"))))
     (folder / "road.csv").unlink()
     os.mkfifo(folder / "road.csv")
-    with _deadline(), pytest.raises(ValueError, match="road.csv' in .*: not a regular file"):
+    with deadline(), pytest.raises(ValueError, match="road.csv' in .*: not a regular file"):
         S.read_suite(_write(folder, _own(_with_road_path(base, "scenario", "road.csv"))))
     (folder / "road.csv").unlink()
     with pytest.raises(ValueError, match="road.csv' in .*: cannot be read"):

@@ -12,7 +12,6 @@ import os
 import re
 import signal
 import time
-from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
@@ -21,6 +20,7 @@ from experiments.cli import main
 from experiments.common import leaderboard as lb
 from experiments.common.leaderboard import FILES, leaderboard, read_result
 from mrd_env.report import csv_text, markdown_table
+from tests.deadline import deadline
 
 
 def result(name: str = "ctrl", suite: str = "tiny", scenarios=("ISO-C", "ISO-D"), seeds=(1, 2),
@@ -52,21 +52,6 @@ def run_cli(argv, capsys) -> tuple[int, str]:
 
 def snapshot(folder: Path) -> dict:
     return {f.name: f.read_bytes() for f in sorted(folder.iterdir())} if folder.exists() else {}
-
-
-@contextmanager
-def deadline(seconds: int):
-    """A read that blocks (a FIFO) fails the test instead of hanging it."""
-    def expired(*_):
-        raise TimeoutError(f"still running after {seconds} s")
-
-    previous = signal.signal(signal.SIGALRM, expired)
-    signal.alarm(seconds)
-    try:
-        yield
-    finally:
-        signal.alarm(0)
-        signal.signal(signal.SIGALRM, previous)
 
 
 @pytest.fixture
