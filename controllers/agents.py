@@ -175,6 +175,7 @@ def save_agent(folder: str | Path, meta: dict, *, policy, normalizer: Observatio
     missing = [k for k in _REQUIRED[:-1] if k not in meta]
     if missing:
         raise ValueError(f"an agent's metadata needs {missing}")
+    meta, bundled = _bundle_files(meta, folder)
     data, network, suffix = _policy_data(policy)
 
     def name(stem: str, ext: str, content: bytes) -> str:
@@ -192,10 +193,37 @@ def save_agent(folder: str | Path, meta: dict, *, policy, normalizer: Observatio
         meta["resume"] = RESUME_FILE
     text = json.dumps(tag_tuples(meta), indent=2, default=_jsonable)
     if in_place:
+        for n, content in bundled.items():  # named by their content: written before the agent.json naming them
+            storage.write_bytes(folder / n, content)
         _save_in_place(folder, files, text, sb3_model)
     else:
-        _save_swapped(folder, {**(extra_files or {}), **files}, text, sb3_model)
+        _save_swapped(folder, {**(extra_files or {}), **bundled, **files}, text, sb3_model)
     return folder
+
+
+def _bundle_files(meta: dict, folder: Path) -> tuple[dict, dict[str, bytes]]:
+    """``meta`` with every file its ``env_kwargs`` name (a damper preset, a measured road or record) replaced by a
+    copy's name inside the agent's folder, and those copies {name: bytes}: an agent is loaded with its files confined
+    to its folder (a shared agent reads nothing outside it), so a file it was trained on travels with it, named by
+    its content (``data-<digest>-<name>``). A name already inside the folder is kept."""
+    from mrd_env.envs.build import map_files
+    from mrd_env.resources import file_limit
+
+    bundled: dict[str, bytes] = {}
+
+    def copy(value: str, label: str) -> str:
+        path = Path(value)
+        if not path.is_absolute() and ".." not in path.parts and (folder / path).is_file():
+            return value  # already a file of the folder (an exported agent's copy)
+        content = storage.read_limited(path, file_limit(), what=f"agent env_kwargs {label}")
+        name = f"data-{_sha256(content)[:12]}-{re.sub(r'[^A-Za-z0-9_.-]+', '_', path.name)[-80:]}"
+        bundled[name] = content
+        return name
+
+    env_kwargs = meta.get("env_kwargs")
+    if not isinstance(env_kwargs, dict):
+        return meta, bundled
+    return {**meta, "env_kwargs": map_files(env_kwargs, copy, "agent env_kwargs")}, bundled
 
 
 def _save_in_place(folder: Path, files: dict[str, bytes], text: str, sb3_model) -> None:

@@ -46,7 +46,7 @@ from mrd_env.suites import MAX_EPISODES, MAX_SCENARIOS, MAX_VERSION, check_shipp
 from mrd_env.suites import NAME as SUITE_NAME
 
 from .evaluation import grouped_bars, mean_ci
-from .scoring import ALL, FORMAT, FORMAT_VERSION, KINDS, SuiteResult, _cell
+from .scoring import ALL, FORMAT, FORMAT_VERSION, KINDS, SuiteResult, interval_cell
 
 #: The largest result file read: 4 MiB, 206 times the result of the largest shipped suite (car-comfort-v1, 31
 #: episodes: 20 344 bytes), room for about 6 000 episodes of seven criteria.
@@ -595,8 +595,8 @@ def _board(paths: list[Path], results: list[SuiteResult], checked: bool = True) 
         status = "complete" if r.complete else _partial_note(r)
         n = r.suite["episodes"]
         row = {"rank": len(table) + 1 if r.complete else "", "controller": label, "kind": kind,
-               "episodes": f"{len(r.episodes)}/{n}" if r.complete else status, ALL: _cell(*_share(summ[ALL])),
-               **{s: _cell(*_share(summ[s])) if s in summ else "" for s in scen}}
+               "episodes": f"{len(r.episodes)}/{n}" if r.complete else status, ALL: interval_cell(*_share(summ[ALL])),
+               **{s: interval_cell(*_share(summ[s])) if s in summ else "" for s in scen}}
         (table if r.complete else partial).append(row)
         for s in [*scen, ALL] if len(scen) > 1 else scen:
             if s in summ:

@@ -766,7 +766,7 @@ class SuiteResult:
         for r in rows:
             row = {"scenario": r["scenario"], "episodes": r["episodes"]}
             for k in ("share", "return", *self.criteria):
-                row[header(k)] = _cell(r[k], r[f"{k} lo95"], r[f"{k} hi95"], ".3f" if k == "share" else ".4g")
+                row[header(k)] = interval_cell(r[k], r[f"{k} lo95"], r[f"{k} hi95"], ".3f" if k == "share" else ".4g")
             row["terminated"] = r["terminated"]
             out.append(row)
         return out
@@ -901,7 +901,7 @@ def _auto(tasks: list, episodes: list[int], jobs: int | None, progress: bool, de
                            retry=False)
 
 
-def _cell(m: float, lo: float, hi: float, fmt: str = ".3f") -> str:
+def interval_cell(m: float, lo: float, hi: float, fmt: str = ".3f") -> str:
     """``mean [lo, hi]``, or the mean alone where there is no interval (one episode); ``n/a`` for no number."""
     if not math.isfinite(m):
         return "n/a"

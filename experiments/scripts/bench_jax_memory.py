@@ -23,9 +23,13 @@ import os
 import subprocess
 import sys
 
-PLANTS = {"quarter_car": "mrd_env/QuarterCar-v1", "half_car": "mrd_env/HalfCar-v1",
-          "full_car": "mrd_env/FullCar-v1", "shear_building": "mrd_env/ShearBuilding-v1",
-          "isolator": "mrd_env/Isolator-v1"}
+
+
+def _plants() -> dict[str, str]:
+    """Every plant's RL id by its name (the registry's: no plant named here)."""
+    from mrd_env.plants import plants
+
+    return {name: s.rl_id for name, s in plants().items()}
 
 
 def _rss_mark() -> int:
@@ -93,7 +97,7 @@ def _run(kind, env_id, size, randomise) -> dict:
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--plants", default=",".join(PLANTS))
+    ap.add_argument("--plants", default=",".join(_plants()))
     ap.add_argument("--seeds", default="100,500", help="two bank sizes (seeds)")
     ap.add_argument("--envs", default="30000,150000", help="two batch sizes (num_envs)")
     ap.add_argument("--randomised", action="store_true", help="also the quarter car's robustness bank (drawn plants)")
@@ -108,9 +112,11 @@ def main(argv=None) -> None:
     print("| plant | what | estimate per unit | measured per unit (peak RSS slope) | estimate / measured | "
           "XLA step per env (args + out + temp) | estimate / XLA | live arrays per env |")
     print("|---|---|---|---|---|---|---|---|")
-    cases = [(p, False) for p in args.plants.split(",")] + ([("quarter_car", True)] if args.randomised else [])
+    from mrd_env.plants.quarter_car import SPEC as ROBUST  # the plant whose robustness bands the bank draws
+
+    cases = [(p, False) for p in args.plants.split(",")] + ([(ROBUST.name, True)] if args.randomised else [])
     for plant, randomise in cases:
-        env_id = PLANTS[plant]
+        env_id = _plants()[plant]
         label = plant + (" (randomised bank)" if randomise else "")
         a, b = _run("bank", env_id, s1, randomise), _run("bank", env_id, s2, randomise)
         est, meas = (b["estimate"] - a["estimate"]) / (s2 - s1), (b["peak"] - a["peak"]) / (s2 - s1)

@@ -62,29 +62,31 @@ FILE_KEYS = ("path", "network")
 MAX_OPTION_DEPTH = 16
 
 
-def confine_files(options: Mapping, folder, where: str) -> dict:
-    """``options`` with every file they name (:data:`FILE_KEYS`, a preset-file ``damper``) resolved inside
-    ``folder`` by :func:`mrd_env.storage.inside` (a relative name only: no absolute path, no ``..``, no link
-    leaving the folder), for options read from a file in that folder (an agent's ``env_kwargs``, a suite's
-    options); ``ValueError`` naming ``where``, the option and the name otherwise. The options are not changed."""
-    from .. import storage
+def map_files(options: Mapping, fn, where: str) -> dict:
+    """``options`` with every file they name (:data:`FILE_KEYS` at any depth, a preset-file ``damper``) replaced by
+    ``fn(value, label)`` (``label``: the option's place, for messages); options nested deeper than
+    :data:`MAX_OPTION_DEPTH` are refused naming ``where``. The options are not changed."""
     from ..dampers import is_preset_file
 
     def walk(value, key: str, depth: int):
         if depth > MAX_OPTION_DEPTH:
             raise ValueError(f"{where}: options nested deeper than {MAX_OPTION_DEPTH} levels at {key}")
         if isinstance(value, Mapping):
-            return {k: (str(storage.inside(folder, v, what=f"{where}: {key}[{k!r}]"))
-                        if k in FILE_KEYS and isinstance(v, str) else walk(v, f"{key}[{k!r}]", depth + 1))
-                    for k, v in value.items()}
+            return {k: (fn(v, f"{key}[{k!r}]") if k in FILE_KEYS and isinstance(v, str)
+                        else walk(v, f"{key}[{k!r}]", depth + 1)) for k, v in value.items()}
         if isinstance(value, (list, tuple)):
             return type(value)(walk(v, f"{key}[{i}]", depth + 1) for i, v in enumerate(value))
         return value
 
-    out = {}
-    for k, v in options.items():
-        if k == "damper" and is_preset_file(v):
-            out[k] = str(storage.inside(folder, str(v), what=f"{where}: damper"))
-        else:
-            out[k] = walk(v, str(k), 1)
-    return out
+    return {k: fn(str(v), str(k)) if k == "damper" and is_preset_file(v) else walk(v, str(k), 1)
+            for k, v in options.items()}
+
+
+def confine_files(options: Mapping, folder, where: str) -> dict:
+    """``options`` with every file they name (:func:`map_files`) resolved inside ``folder`` by
+    :func:`mrd_env.storage.inside` (a relative name only: no absolute path, no ``..``, no link leaving the folder),
+    for options read from a file in that folder (an agent's ``env_kwargs``, a suite's options); ``ValueError``
+    naming ``where``, the option and the name otherwise. The options are not changed."""
+    from .. import storage
+
+    return map_files(options, lambda v, label: str(storage.inside(folder, v, what=f"{where}: {label}")), where)

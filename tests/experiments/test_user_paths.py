@@ -49,7 +49,9 @@ def test_identify_then_rig_environments_benchmark_train_and_evaluate_on_the_pres
                  "--out", str(d / "agents")]) == 0
     agent = d / "agents" / "shear_building_ppo_s0"
     meta = json.loads((agent / "agent.json").read_text())
-    assert meta["env_kwargs"]["damper"] == str(preset.resolve())
+    # the preset travels with the agent (a shared agent reads nothing outside its folder): a copy, named by content
+    copy = agent / meta["env_kwargs"]["damper"]
+    assert copy.parent == agent and copy.read_bytes() == preset.read_bytes()
     assert main(["evaluate", "--plant", "shear_building", "--agents", str(agent), "--laws", "passive_off", "--quick",
                  "--seeds", "1", "--no-mpc", "--no-1ms", "--yardstick", "off", "--out", str(d / "eval"),
                  "--no-progress"]) == 0

@@ -150,7 +150,7 @@ def _set(row, col, value):
     ({"columns": {k: c for k, c in NEES_LIKE_COLUMNS.items() if k != "command"},
       "units": {k: u for k, u in NEES_LIKE_UNITS.items() if k != "command"}}, None, r"roles \['command'\]"),
     ({"columns": {**NEES_LIKE_COLUMNS, "a": "A"}}, None, r"unknown roles \['a'\]"),
-    ({}, _set(10, 6, "abc"), r"column 'F' \(force\) has the non-numeric value 'abc' at data row 10 \(file line 12\)"),
+    ({}, _set(10, 6, "abc"), r"column 'F' \(force\) has a value that is not a number at data row 10 \(file line 12\)"),  # no content quoted
     ({}, _set(7, 2, ""), r"column 'D' \(x\) has an empty cell at data row 7 \(file line 9\)"),
     ({}, _set(5, 5, "nan"), r"column 'V' \(v\) has a non-finite value \(nan\) at data row 5"),
     ({}, _set(20, 0, "0.001"), r"column 't' \(t\) is not strictly increasing at data row 20"),

@@ -306,7 +306,7 @@ def test_neural_refuses_a_network_for_another_step_or_model(bw, sd):
         make_inverse("neural", bw, dt=2e-3, network=net)
     with pytest.raises(ValueError, match="model"):
         make_inverse("neural", sd, network=net)
-    with pytest.raises(ValueError, match="no such network"):
+    with pytest.raises(ValueError, match="cannot be read"):
         make_inverse("neural", bw, network="missing.npz")
 
 
