@@ -203,7 +203,9 @@ class MRDamperEnv(PlantDeclarations, gym.Env):
         cost = self._cost0[0]  # no constraint violated (the common step): every term's cost is 0 too
         info = {"t": t, "cost": cost, "cost_terms": self._no_cost.copy() if cost == 0.0 else
                 dict(zip(self._cost_names, self._cost0.tolist()[1:]))}
-        if status != DIVERGED and not (math.isfinite(reward) and np.isfinite(obs).all()):
+        # a sum of Python floats is not finite iff a value is not (float64: float32 values cannot overflow it); 6x
+        # cheaper than np.isfinite(obs).all() on the 1 kHz scalar step
+        if status != DIVERGED and not (math.isfinite(reward) and math.isfinite(sum(obs.ravel().tolist()))):
             status = _NON_FINITE  # never handed on as a step that went well
         if status == RUNNING:
             if self.render_mode == "human" and t - self._last_frame_t >= 1.0 / HUMAN_FPS:
