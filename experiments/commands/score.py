@@ -2,7 +2,8 @@
 references — the share of the achievable gain (R − R_p) / (R_c − R_p) and the suite's criteria, per scenario, with
 95 % intervals over the episodes (:mod:`experiments.common.scoring`; nothing is solved).
 
-``--controller`` (repeatable) takes a registered law's name, an agent folder, or ``package.module:attribute``: a class
+``--controller`` (repeatable) takes a registered law's name, a shipped agent's name (``quarter_car_cmaes``), an agent
+folder, or ``package.module:attribute``: a class
 or factory taking the environment, or an object with ``predict`` (the protocol: :mod:`controllers.protocol`).
 ``--law-options JSON`` gives a single registered law its options (an MPC's settings: the plants' MPC rows, e.g.
 ``--controller mpc --law-options '{"weights": "reward", "f_max": 1e5, "force_ref": 200, "horizon": 10}' --name
@@ -69,13 +70,14 @@ def out_folder(path: Path) -> Path:
 def add_arguments(p: argparse.ArgumentParser) -> None:
     from controllers import available_controllers
 
-    from ..common.scoring import POOL_MIN_SECONDS
+    from ..common.scoring import POOL_MIN_SECONDS, shipped_agent_names
 
     p.add_argument("--suite", required=True,
                    help="a shipped suite (name-vN, e.g. car-comfort-v1; a name without version: its latest) or a "
                         "suite file (.json)")
     p.add_argument("--controller", action="append", required=True, metavar="CONTROLLER",
-                   help="a registered law (" + ", ".join(available_controllers()) + "), an agent folder (a "
+                   help="a registered law (" + ", ".join(available_controllers()) + "), a shipped agent ("
+                        + ", ".join(shipped_agent_names()) + "), an agent folder (a "
                         "plain SB3 model.zip with --trust-agent), or package.module:attribute (a class or factory "
                         "taking the environment, or an object with predict; IMPORTING IT RUNS ITS CODE: name only "
                         "code you mean to run); repeat for several")

@@ -170,13 +170,16 @@ def controller_spec(controller, *, name: str | None = None, options: dict | None
         if digest:
             desc["source_sha256"] = digest
         return ControllerSpec("python", controller, name or controller, desc)
+    if isinstance(controller, str) and not Path(controller).exists() and shipped_agent(controller) is not None:
+        # a shipped agent by its folder's name (``quarter_car_cmaes``), wherever the package is installed
+        return _agent_spec(shipped_agent(controller), name or controller, trust_agent, converted)
     if isinstance(controller, (str, Path)):
         path = Path(controller)
         if not path.exists():
             raise ValueError(_not_found(controller, available_controllers()))
         if _plain_sb3_zip(path) is not None:
             return _sb3_zip_spec(_plain_sb3_zip(path), name, trust_agent, converted, suite)
-        return _agent_spec(path, name, trust_agent, converted)
+        return _agent_spec(path, name or str(controller), trust_agent, converted)
     from controllers.protocol import ControllerProtocol
 
     if not callable(controller) and not isinstance(controller, ControllerProtocol):
@@ -226,10 +229,10 @@ def _not_found(controller, laws: list[str]) -> str:
     else:
         import difflib
 
-        close = difflib.get_close_matches(text, laws, n=1)
+        close = difflib.get_close_matches(text, [*laws, *shipped_agent_names()], n=1)
         hint = f"; did you mean {close[0]}?" if close else ""
-    return (f"controller {quoted} is none of: a registered law ({', '.join(laws)}), an agent folder, "
-            f"package.module:attribute{hint}")
+    return (f"controller {quoted} is none of: a registered law ({', '.join(laws)}), a shipped agent "
+            f"({', '.join(shipped_agent_names())}), an agent folder, package.module:attribute{hint}")
 
 
 def law_options(options, law: str = "the law") -> dict:
@@ -243,7 +246,26 @@ def law_options(options, law: str = "the law") -> dict:
         raise ValueError(f"options of {law} must be plain JSON (numbers, strings, lists, dicts): {exc}") from None
 
 
-def _agent_spec(path: Path, name: str | None, trust: bool, converted) -> ControllerSpec:
+def shipped_agent_names() -> list[str]:
+    """The shipped agents' names (their folders under ``controllers/agents/``), as ``--controller`` takes them."""
+    from controllers.agents import shipped_agents
+
+    return [f.name for f in shipped_agents()]
+
+
+def shipped_agent(name: str) -> Path | None:
+    """The folder of the shipped agent ``name`` (a folder name of ``controllers/agents/``), or None."""
+    from controllers.agents import METADATA_FILE, SHIPPED
+
+    if not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9_.-]*", name):
+        return None
+    folder = SHIPPED / name
+    return folder if (folder / METADATA_FILE).is_file() else None
+
+
+def _agent_spec(path: Path, name: str, trust: bool, converted) -> ControllerSpec:
+    """An agent folder's spec; ``name``: the row's name, the one the user gave (the shipped agent's folder name, the
+    folder as given, or ``name=``), beside the agent's kind and digest."""
     import tempfile
 
     from controllers.agents import agent_digest, agent_files, code_free_agent, load_agent
@@ -253,7 +275,7 @@ def _agent_spec(path: Path, name: str | None, trust: bool, converted) -> Control
         converted = tempfile.mkdtemp(prefix="mrd-env-converted-agents-")
     folder = code_free_agent(path, converted or ".", trust=trust)  # an SB3 zip: refused, or converted once here
     agent = load_agent(folder)
-    label = name or f"agent {agent.name}"
+    label = name
     desc = {"name": label, "kind": "agent", "spec": str(path), "agent_digest": agent_digest(folder),
             "algo": agent.meta.get("algo"), "env_id": agent.env_id,
             "action_options": {k: agent.env_kwargs[k] for k in AGENT_ACTION_OPTIONS if k in agent.env_kwargs}}
@@ -372,7 +394,7 @@ def _sb3_zip_spec(zip_path: Path, name, trust: bool, converted, suite) -> Contro
     if converted is None:
         converted = tempfile.mkdtemp(prefix="mrd-env-converted-agents-")
     folder = sb3_zip_agent(zip_path, suite, converted)
-    spec = _agent_spec(folder, name, True, converted)
+    spec = _agent_spec(folder, name or str(zip_path), True, converted)
     desc = {**spec.description, "spec": str(zip_path), "sb3_zip_sha256": agent_files(folder)[1]["converted_from"]["sha256"]}
     return replace(spec, description=desc)
 

@@ -325,3 +325,22 @@ def test_a_zip_that_does_not_fit_the_suite_is_refused_in_one_line(tmp_path, caps
     err = _one_line_error(["score", "--suite", "building-seismic-v1", "--controller", str(tmp_path / "car.zip"),
                            "--trust-agent", "--out", str(tmp_path / "out")], capsys)
     assert "trained on observations of shape (8,)" in err and "building-seismic-v1" in err
+
+
+def test_a_shipped_agent_is_named_by_its_folder_name_and_rows_carry_the_name_given(tmp_path, monkeypatch):
+    """Issue 50, names: ``--controller quarter_car_cmaes`` was refused (the user had to find the folder under
+    site-packages), and rows were named from agent.json's free text (``agent CMA-ES s0``). A shipped agent is named
+    by its folder's name from any working folder; a row carries the name the user gave, beside kind and digest."""
+    from controllers.agents import SHIPPED
+    from experiments.common.scoring import controller_spec, result_filename
+
+    monkeypatch.chdir(tmp_path)  # not the repository: the name resolves inside the package
+    spec = controller_spec("quarter_car_cmaes")
+    assert spec.kind == "agent" and spec.name == "quarter_car_cmaes"
+    assert spec.description["spec"] == str(SHIPPED / "quarter_car_cmaes") and len(spec.description["agent_digest"]) == 16
+    assert result_filename("car-comfort-v1", spec.name) == "car-comfort-v1__quarter_car_cmaes.json"
+    given = str(SHIPPED / "quarter_car_cmaes")
+    assert controller_spec(given).name == given
+    assert controller_spec("quarter_car_cmaes", name="mine").name == "mine"
+    with pytest.raises(ValueError, match="did you mean quarter_car_cmaes"):
+        controller_spec("quarter_car_cmae")
