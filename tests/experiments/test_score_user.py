@@ -344,3 +344,20 @@ def test_a_shipped_agent_is_named_by_its_folder_name_and_rows_carry_the_name_giv
     assert controller_spec("quarter_car_cmaes", name="mine").name == "mine"
     with pytest.raises(ValueError, match="did you mean quarter_car_cmaes"):
         controller_spec("quarter_car_cmae")
+
+
+def test_the_benchmarks_public_api_is_one_module_the_docs_use():
+    """Issue 50, one public API: ``experiments.benchmark`` holds suite reading, scoring, results and leaderboards;
+    the README and docs/your-controller.md import it, not the internal modules."""
+    from pathlib import Path
+
+    import experiments.benchmark as api
+    from experiments.common import leaderboard, scoring
+    from mrd_env import suites
+
+    assert api.score is scoring.score and api.leaderboards is leaderboard.leaderboards and api.suite is suites.suite
+    assert all(hasattr(api, name) for name in api.__all__)
+    root = Path(__file__).resolve().parents[2]
+    for page in ("README.md", "docs/your-controller.md"):
+        text = (root / page).read_text(encoding="utf-8")
+        assert "experiments.benchmark" in text and "from experiments.common." not in text, page
