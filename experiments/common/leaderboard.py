@@ -591,7 +591,7 @@ def _board(paths: list[Path], results: list[SuiteResult], checked: bool = True) 
     rows, table, partial = [], [], []
     for i in order + [i for i in range(len(results)) if i not in complete]:
         r, summ, label = results[i], summaries[i], labels[i]
-        kind = r.controller["kind"]
+        kind = _kind(r.controller)
         status = "complete" if r.complete else _partial_note(r)
         n = r.suite["episodes"]
         row = {"rank": len(table) + 1 if r.complete else "", "controller": label, "kind": kind,
@@ -604,6 +604,15 @@ def _board(paths: list[Path], results: list[SuiteResult], checked: bool = True) 
                              "episodes": summ[s]["episodes"], "share": summ[s]["share"],
                              "share lo95": summ[s]["share lo95"], "share hi95": summ[s]["share hi95"]})
     return Leaderboard(results[0].suite, results, rows, table, partial, checked)
+
+
+def _kind(controller: dict) -> str:
+    """The row's kind and, where the result records one, the digest of what was scored (an agent's files, a Python
+    controller's source): ``agent ae0ee6c317fd``. Two rows of one name are told apart by it."""
+    digest = controller.get("agent_digest") or controller.get("source_sha256")
+    if isinstance(digest, str) and re.fullmatch(r"[0-9a-f]{12,64}", digest):
+        return f"{controller['kind']} {digest[:12]}"
+    return controller["kind"]
 
 
 def _share_summary(episodes: list[dict]) -> dict[str, dict]:

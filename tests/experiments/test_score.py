@@ -252,7 +252,11 @@ def test_leaderboard_merges_three_results_into_a_table_and_a_figure(scored, tmp_
     _, paths, _ = scored
     board = leaderboard([paths["law"], paths["python"], paths["agent"]], out=tmp_path / "board")
     assert [r["rank"] for r in board.table] == [1, 2, 3]
-    assert {r["kind"] for r in board.table} == {"law", "python", "agent"}
+    # the kind, with the digest of what was scored where the result records one (issue 50: name, kind and digest)
+    assert {r["kind"].split()[0] for r in board.table} == {"law", "python", "agent"}
+    assert {r["kind"] for r in board.table if r["kind"] != "law"} == {
+        f"agent {read_result(paths['agent']).controller['agent_digest'][:12]}",
+        f"python {read_result(paths['python']).controller['source_sha256'][:12]}"}
     shares = [read_result(p).shares()["all scenarios"][0] for p in paths.values()]
     assert [r["all scenarios"].split()[0] for r in board.table] == [f"{s:.3f}" for s in sorted(shares, reverse=True)]
     assert set(board.table[0]) >= {"controller", "episodes", "all scenarios", "ISO-C", "ISO-D"}
