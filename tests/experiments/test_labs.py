@@ -22,10 +22,14 @@ FIGURES = {
     "lab4_building": ["poles.png", "j_criteria.png"],
     "lab5_inverse": ["tracking.png", "mismatch.png"],
     "lab6_rl": ["agents/quarter_car_ppo_s0/learning_curve.png", "agent_vs_laws.png"],
+    "lab7_benchmark": ["gain_captured.png", "leaderboard/leaderboard.png"],
 }
 #: lab script → checks its output must show passed (the ones that keep a lab honest)
 REQUIRED_CHECKS = {
     "lab6_rl": ["[PASS] the lab's agent beats doing nothing: the agent started at skyhook scores above passive-off"],
+    "lab7_benchmark": ["[PASS] no controller's mean share exceeds 1 (the clairvoyant knows the whole road)",
+                       "[PASS] the leaderboard ranks the complete results in the order of their mean shares, and shows "
+                       "the smoke run apart, unranked"],
 }
 SECTIONS = ("Learning objectives", "Equations (recap", "## Task 1", "## Questions", "## Instructor's check")
 
