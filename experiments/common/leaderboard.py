@@ -218,6 +218,7 @@ class Leaderboard:
     table: list[dict]
     partial: list[dict] = field(default_factory=list)
     checked: bool = True
+    verdicts: list[dict] = field(default_factory=list)  #: each ranked row against the next (:func:`paired_verdicts`)
 
     def title(self) -> str:
         unchecked = "" if self.checked else ("; shares as the result files state them, not checked against the "
@@ -238,6 +239,8 @@ class Leaderboard:
             text = markdown_table(self.table, title=self.title())
         else:
             text = f"### {markdown_text(self.title())}\n\nno complete result: nothing is ranked\n"
+        if self.verdicts:
+            text += "\n" + markdown_table(self.verdicts, title=VERDICTS_TITLE)
         if self.partial:
             text += "\n" + markdown_table([{k: v for k, v in r.items() if k != "rank"} for r in self.partial],
                                           title=self.partial_title())
@@ -603,7 +606,32 @@ def _board(paths: list[Path], results: list[SuiteResult], checked: bool = True) 
                 rows.append({"scenario": s, "controller": label, "kind": kind, "result": status,
                              "episodes": summ[s]["episodes"], "share": summ[s]["share"],
                              "share lo95": summ[s]["share lo95"], "share hi95": summ[s]["share hi95"]})
-    return Leaderboard(results[0].suite, results, rows, table, partial, checked)
+    ranked = [(labels[i], results[i]) for i in order]
+    return Leaderboard(results[0].suite, results, rows, table, partial, checked, paired_verdicts(ranked))
+
+
+#: The heading of the paired verdicts' table.
+VERDICTS_TITLE = ("paired verdicts: each ranked controller against the next, the difference of their shares on the "
+                  "same episodes (mean [95 % interval]); ahead where the interval excludes 0, else a tie")
+
+
+def paired_verdicts(ranked: list[tuple[str, SuiteResult]]) -> list[dict]:
+    """Each ranked result (best first) against the next on the episodes both scored: the mean difference of their
+    shares with its 95 % interval (:func:`mean_ci` of the per-episode differences: a paired comparison, so that
+    what every controller finds hard is not counted against either), how many episodes the higher one is ahead on,
+    and the verdict: ``ahead`` where the interval excludes 0, ``tie`` where it does not (one episode: no interval,
+    no verdict). Unpaired intervals of two rows often overlap where the paired one separates them."""
+    out = []
+    for (name_a, a), (name_b, b) in zip(ranked, ranked[1:]):
+        sa = {e["label"]: e["share"] for e in a.episodes}
+        sb = {e["label"]: e["share"] for e in b.episodes}
+        diffs = [sa[k] - sb[k] for k in sa if k in sb and math.isfinite(sa[k]) and math.isfinite(sb[k])]
+        m, lo, hi = mean_ci(diffs)
+        verdict = "n/a" if not (math.isfinite(lo) and math.isfinite(hi)) else \
+            "ahead" if lo > 0 else "behind" if hi < 0 else "tie"
+        out.append({"controller": name_a, "against": name_b, "share difference": interval_cell(m, lo, hi),
+                    "episodes ahead": f"{sum(d > 0 for d in diffs)}/{len(diffs)}", "verdict": verdict})
+    return out
 
 
 def _kind(controller: dict) -> str:
