@@ -450,7 +450,7 @@ class TrainedAgent:
             self.model = algorithm_class(meta["algo"]).load(folder / meta["model"], device="cpu")
         else:
             data = _read_checked(folder, meta, meta["model"], folder)
-            if kind == "mlp":  # a NumPy policy network (experiments/common/evolution.py)
+            if kind == "mlp":  # a NumPy policy network (experiments/training/evolution.py)
                 from .mlp_policy import MLPPolicy
                 try:
                     self.model = MLPPolicy.from_bytes(data)

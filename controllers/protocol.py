@@ -1,4 +1,4 @@
-"""What a controller must be to be scored on a benchmark suite (``mrd-env score``, :mod:`experiments.common.scoring`):
+"""What a controller must be to be scored on a benchmark suite (``mrd-env score``, :mod:`experiments.benchmark.scoring`):
 the :class:`ControllerProtocol`, and how a user's ``module:attribute`` becomes one.
 
 **What it is given.** A controller is built once per scenario of the suite from the environment it will drive — a

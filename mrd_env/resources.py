@@ -38,7 +38,7 @@ GENERATED_SAMPLE_BYTES = 160
 
 #: Bytes per sample of an FFT grid while a road is generated on it (the spectrum's lines, their amplitudes and
 #: phases, the complex half-spectrum and the inverse transform's output; measured 17 with tracemalloc, 24–33
-#: with the FFT's own buffers in the resident memory: ``experiments/scripts/bench_memory_estimate.py``).
+#: with the FFT's own buffers in the resident memory: ``experiments/measurements/memory/estimate.py``).
 FFT_SAMPLE_BYTES = 32
 #: Bytes of memory per byte of a text file while it is parsed into numbers (the text, its lines, the rows of
 #: Python floats and the array: measured 10–14 on CSV and AT2 files): the file-size cap is the limit over this.

@@ -73,7 +73,7 @@ SENSOR_OPTIONS = ("sensors", "sensor_noise", "sensor_delay", "history", "preview
 @dataclass(frozen=True)
 class SuiteDefinition:
     """What a plant's profile declares of a suite (:attr:`mrd_env.plants.profile.PlantProfile.suites`): everything
-    but the references, which ``python -m experiments.scripts.suite_references --suite <name>`` computes once and
+    but the references, which ``python -m experiments.benchmark.references --suite <name>`` computes once and
     ships in ``mrd_env/plants/<plant>/suites/<name>-v<version>.json``.
 
     ``options``: the environment options of every episode (damper, damper floors, sensors — ``road_preview``
@@ -215,7 +215,7 @@ MAX_LABEL, MAX_DESCRIPTION, MAX_FILE_NAME = 200, 10_000, 4096
 #: The highest suite version.
 MAX_VERSION = 10 ** 6
 #: The most scenarios, and episodes, a suite holds (the shipped suites: at most 4 and 31); a result file of the
-#: suite is held to the same bounds (:mod:`experiments.common.leaderboard`).
+#: suite is held to the same bounds (:mod:`experiments.benchmark.ranking`).
 MAX_SCENARIOS, MAX_EPISODES = 500, 5_000
 
 
@@ -384,7 +384,7 @@ def _check_environment(plant: str, env_id: str, where: str) -> None:
     """``ValueError`` unless ``env_id`` is an id mrd_env registers (an id ``"module:Env"`` would make Gymnasium
     import that module: a suite runs no code) and ``plant`` one of the plants' folders. (That the id is one of that
     plant's is checked above the plants, where a suite is resolved for scoring:
-    :func:`experiments.common.scoring.resolve_suite`; this module imports no plant.)"""
+    :func:`experiments.benchmark.scoring.resolve_suite`; this module imports no plant.)"""
     import gymnasium as gym
 
     # ``import mrd_env.suites`` ran ``mrd_env/__init__``, which registered every plant's ids
@@ -614,7 +614,7 @@ def check_shipped_id(suite_id: str, digest: str, where: str = "suite") -> None:
 
 def write_shipped_digests(path: str | Path | None = None) -> Path:
     """Write {id: digest} of every shipped suite to ``path`` (default :data:`SHIPPED_DIGESTS`), from the shipped
-    files: what ``experiments.scripts.suite_references`` runs after it writes a suite into a plant's folder."""
+    files: what ``experiments.benchmark.references`` runs after it writes a suite into a plant's folder."""
     digests = {sid: s.digest for sid, s in sorted(suites().items())}
     out = write_json(path or SHIPPED_DIGESTS, {"format": DIGESTS_FORMAT, "digests": digests}, indent=1)
     _shipped_digests.cache_clear()

@@ -145,7 +145,7 @@ def test_a_resumed_study_draws_new_trials(tmp_path, monkeypatch):
     """Rerunning `mrd-env tune` adds trials the first run did not propose (the same sampler seed would repeat
     them), and a new study with the same seed proposes the same ones (reproducible)."""
     pytest.importorskip("optuna")
-    import experiments.common.trainers as trainers
+    import experiments.training.trainers as trainers
     from experiments.commands.tune import tune
 
     monkeypatch.setattr(trainers, "train_one", _fake_train_one({}))
@@ -172,7 +172,7 @@ def test_tune_prunes_a_trial_below_the_median_after_the_warm_up(tmp_path, monkey
     trial's (until 2026-11-27 it was: a residual trial below its law was pruned only where the earlier trials'
     median stood above the law)."""
     pytest.importorskip("optuna")
-    import experiments.common.trainers as trainers
+    import experiments.training.trainers as trainers
     from experiments.commands.tune import tune
 
     stopped_at = {}

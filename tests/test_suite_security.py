@@ -179,7 +179,7 @@ def test_a_malformed_suite_names_the_field(base, corrupt, field, tmp_path):
 def test_an_env_id_of_another_plant_is_refused_where_the_suite_is_resolved(base, tmp_path):
     """The suite module checks the id and the plant each alone (it imports no plant); their pairing is checked where
     a suite is resolved for scoring, so a building suite cannot run the quarter car under the building's units."""
-    from experiments.common.scoring import resolve_suite
+    from experiments.benchmark.scoring import resolve_suite
 
     data = copy.deepcopy(base)
     data["env_id"] = "mrd_env/QuarterCarPhysical-v0"
@@ -257,7 +257,7 @@ def evil_suite(base, tmp_path, monkeypatch):
 
 
 def test_a_suite_whose_env_id_names_a_module_runs_no_code(evil_suite, capsys):
-    from experiments.common.scoring import resolve_suite
+    from experiments.benchmark.scoring import resolve_suite
 
     for load in (S.read_suite, lambda p: S.suite(str(p)), resolve_suite, lambda p: resolve_suite(str(p))):
         with pytest.raises(ValueError, match=r"env_id must be an environment of mrd_env, one of \[.*"
@@ -271,7 +271,7 @@ def test_a_suite_whose_env_id_names_a_module_runs_no_code(evil_suite, capsys):
 
 def test_a_suite_file_without_json_ending_takes_the_same_checks(evil_suite):
     """``resolve_suite`` reads an existing file of any name: the same reader, the same checks."""
-    from experiments.common.scoring import resolve_suite
+    from experiments.benchmark.scoring import resolve_suite
 
     other = evil_suite.with_name("their-suite")
     other.write_bytes(evil_suite.read_bytes())

@@ -21,7 +21,8 @@ import numpy as np
 from mrd_env import storage
 from mrd_env.report import markdown_table, write_table
 
-from ..common import sweep, yardstick
+from ..benchmark import yardstick
+from ..common import sweep
 from ..common.evaluation import Episode, applicable_laws, check_laws, controller_episodes
 from ..common.plants import (PlantProfile, add_plant_options, check_agent_plant, chosen_plants, plant_choices,
                              plant_name, with_plant_options)

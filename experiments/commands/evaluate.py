@@ -20,7 +20,8 @@ import numpy as np
 
 from mrd_env.report import write_table
 
-from ..common import sweep, yardstick
+from ..benchmark import yardstick
+from ..common import sweep
 from ..common.comparison import comparison_damper, evaluate
 from ..common.evaluation import Episode, check_laws, episode_means, grouped_bars, mean_ci
 from ..common.plants import (PlantProfile, add_plant_options, check_agent_plant, chosen_plants, plant_choices,

@@ -14,7 +14,7 @@ numbers) and ``leaderboard.png`` as one set: each suite's folder is replaced as 
 previous set or the new one); the folders of suites not given are left as they are. ``--out`` must be new, empty or
 hold only such folders (or a leaderboard of the earlier layout, whose five files the suites' folders replace); a
 folder that holds other files is refused. Every file is read and checked, and the folders checked, before anything
-is written; the bounds on result files are :mod:`experiments.common.leaderboard`'s.
+is written; the bounds on result files are :mod:`experiments.benchmark.ranking`'s.
 """
 from __future__ import annotations
 
@@ -34,7 +34,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..common.leaderboard import check_out_folder, leaderboards, write_leaderboards
+    from experiments.benchmark.ranking import check_out_folder, leaderboards, write_leaderboards
 
     check_out_folder(args.out)  # a folder that would lose the user's files: refused before the files are read
     suites = [Path(s) if s.endswith(".json") or Path(s).is_file() else s for s in args.suite]

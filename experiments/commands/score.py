@@ -1,6 +1,6 @@
 """``mrd-env score``: controllers scored on a frozen benchmark suite (:mod:`mrd_env.suites`) against its stored
 references — the share of the achievable gain (R − R_p) / (R_c − R_p) and the suite's criteria, per scenario, with
-95 % intervals over the episodes (:mod:`experiments.common.scoring`; nothing is solved).
+95 % intervals over the episodes (:mod:`experiments.benchmark.scoring`; nothing is solved).
 
 ``--controller`` (repeatable) takes a registered law's name, a shipped agent's name (``quarter_car_cmaes``), an agent
 folder, or ``package.module:attribute``: a class
@@ -70,7 +70,7 @@ def out_folder(path: Path) -> Path:
 def add_arguments(p: argparse.ArgumentParser) -> None:
     from controllers import available_controllers
 
-    from ..common.scoring import POOL_MIN_SECONDS, shipped_agent_names
+    from experiments.benchmark.scoring import POOL_MIN_SECONDS, shipped_agent_names
 
     p.add_argument("--suite", required=True,
                    help="a shipped suite (name-vN, e.g. car-comfort-v1; a name without version: its latest) or a "
@@ -97,7 +97,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "from a source you trust; converted once into <out>/converted-agents/")
     p.add_argument("--no-progress", action="store_true")
     sweep.add_arguments(p)
-    for action in p._actions:  # score's auto is its own (experiments.common.scoring.score)
+    for action in p._actions:  # score's auto is its own (experiments.benchmark.scoring.score)
         if action.dest == "backend":
             action.help = ("serial, a local process pool, or Ray (default auto: in this process, unless the first "
                            "scenario's time says the others are worth a pool's start-up: over "
@@ -108,7 +108,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from controllers.protocol import is_import_spec
 
-    from ..common.scoring import (check_controller, check_references, controller_spec, one_torch_thread,
+    from experiments.benchmark.scoring import (check_controller, check_references, controller_spec, one_torch_thread,
                                   resolve_suite, result_filename, score)
 
     if args.episodes is not None and args.episodes < 1:

@@ -36,8 +36,8 @@ from mrd_env.envs import RL_DEFAULTS
 from ..common import sweep
 from ..common.plants import (PlantProfile, add_plant_options, default_plant, plant_choices, plant_name, profile,
                              with_plant_options)
-from ..common.sb3_trainer import check_laws, check_with_sb3
-from ..common.trainers import (ALGOS, available_algos, env_options, hyperparameters, residual_spec, run_name,
+from experiments.training.sb3_trainer import check_laws, check_with_sb3
+from experiments.training.trainers import (ALGOS, available_algos, env_options, hyperparameters, residual_spec, run_name,
                                steps_label, train_one, validation_split)
 
 

@@ -24,7 +24,7 @@ from mrd_env import storage
 
 from ..common import sweep
 from ..common.plants import PlantProfile, default_plant, plant_choices, plant_name, profile
-from ..common.trainers import ALGOS, env_options, hyperparameters
+from experiments.training.trainers import ALGOS, env_options, hyperparameters
 
 
 SEARCHABLE = ("ppo", "recurrentppo", "sac", "tqc", "td3")
@@ -187,7 +187,7 @@ def worker(plant: PlantProfile, algo: str, study: str, out: Path, n_trials: int,
     with ``seed``, the sampler draws with ``tpe_seed`` (default ``seed``)."""
     import optuna
 
-    from ..common.trainers import train_one
+    from experiments.training.trainers import train_one
 
     base = hyperparameters(algo, plant.env_id, hyperparams)
     st = optuna.load_study(study_name=study, storage=_storage(out / f"{study}.log"),

@@ -1,5 +1,5 @@
 """``mrd-env yardstick``: solve (or load from the cache) the yardstick of every held-out test episode, evaluate every
-controller on the same episodes and write the shares of the achievable gain (:mod:`experiments.common.yardstick`
+controller on the same episodes and write the shares of the achievable gain (:mod:`experiments.benchmark.yardstick`
 computes them). The yardstick table gives per episode R_p, R_c, the active bound R_b and the passivity-aware bound
 R_d, each with its bracket."""
 from __future__ import annotations
@@ -11,7 +11,7 @@ from pathlib import Path
 from ..common.plants import (add_plant_options, chosen_plants, plant_choices, plant_name, shipped_agents_of,
                              with_plant_options)
 from ..common.scenarios import held_out_scenarios
-from ..common.yardstick import check_plant, write_report, yardsticks
+from experiments.benchmark.yardstick import check_plant, write_report, yardsticks
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     from ..common import sweep

@@ -1,3 +1,2 @@
-"""What the commands, scripts and labs share: plant profiles, scenarios, the evaluation loop, the trainers, the
-yardstick, the command-line options several commands take. It imports the library and itself, never a command, a
-script or a lab."""
+"""What the commands, the benchmark, the trainers and the labs share: plant profiles, scenarios, the evaluation
+loop, record files, fitting, the command-line options of the executor. It imports the library and itself only."""

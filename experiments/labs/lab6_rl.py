@@ -66,7 +66,7 @@ import mrd_env  # noqa: F401  (registers the environments)
 from controllers import shipped_agents
 from experiments.commands.evaluate import summarise
 from experiments.common.comparison import evaluate
-from experiments.common.trainers import env_options, hyperparameters, train_one
+from experiments.training.trainers import env_options, hyperparameters, train_one
 from experiments.labs.labkit import Lab, full_length
 from mrd_env.plants.quarter_car.profile import PROFILE as QUARTER_CAR
 from mrd_env.report import figure

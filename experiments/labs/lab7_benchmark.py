@@ -58,9 +58,9 @@ import numpy as np
 import mrd_env  # noqa: F401  (registers the environments)
 from controllers.protocol import DeclarationsOnly, declarations
 from experiments.common.evaluation import evaluate_batch
-from experiments.common.leaderboard import leaderboard, read_result
+from experiments.benchmark.ranking import leaderboard, read_result
 from experiments.common.scenarios import Scenario
-from experiments.common.scoring import result_filename, score
+from experiments.benchmark.scoring import result_filename, score
 from experiments.labs.labkit import Lab, in_notebook
 from mrd_env.envs.sensors import newest_layout
 from mrd_env.report import figure

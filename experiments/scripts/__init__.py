@@ -1,2 +1,3 @@
-"""Scripts run as ``python -m experiments.scripts.<name>``: benchmarks of speed and accuracy (``bench_*``), probes,
-derivations and the agent export. They stand above the commands and the common modules and may import both."""
+"""Maintenance tools run as ``python -m experiments.scripts.<name>``: the fingerprint a refactor must not move, the
+agent export, a preset's derivation and probes. Measurements of speed and accuracy are in
+:mod:`experiments.measurements`."""

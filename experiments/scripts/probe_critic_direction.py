@@ -116,7 +116,7 @@ def direction_rows(agent, eps: list[float], episodes: int, seed: int) -> list[di
     from controllers.agents import agent_controller
     from experiments.common.evaluation import controller_episodes, evaluate_batch, mean_ci
     from experiments.common.plants import profile
-    from experiments.common.trainers import validation_split
+    from experiments.training.trainers import validation_split
 
     scenario, obs_kwargs = validation_split(profile(agent.plant), agent.env_kwargs, episodes)
     residual = agent.meta["residual"]

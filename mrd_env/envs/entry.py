@@ -102,7 +102,7 @@ def warn_torch_threads() -> None:
     Why: Stable-Baselines3 trains networks of 64×64 units on batches of 64, too small for a second thread to help;
     torch's OpenMP threads spin while they wait, and on a machine whose cores are busy (the environment's own
     stepping, other processes) the spinning threads take the cores from the one doing the work: SB3's PPO ran 7 to
-    10 times slower on 2 shared cores, all of it in the updates (``python -m experiments.scripts.bench_sb3_direct``;
+    10 times slower on 2 shared cores, all of it in the updates (``python -m experiments.measurements.speed.sb3_direct``;
     Gymnasium's Pendulum-v1 alike; ``OMP_WAIT_POLICY=PASSIVE`` recovers most of it). Whether the cores are busy
     changes from moment to moment, so the rule is the thread count alone. A process without torch, or with one
     thread, is not told."""

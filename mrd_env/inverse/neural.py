@@ -17,7 +17,7 @@ not buried under the levels (:func:`_features`)::
 Networks are trained with torch (:func:`mrd_env.inverse.training.train_neural_inverse`) and stored as one
 ``.npz`` file of float64 weights with their metadata (JSON); inference runs in compiled numpy code
 (:func:`_mlp`), not torch, so that a call costs microseconds (torch's per-call overhead is measured in
-``experiments/scripts/bench_inverse.py``) and a reloaded network gives bit-identical commands. Networks for the
+``experiments/measurements/speed/inverse.py``) and a reloaded network gives bit-identical commands. Networks for the
 default presets ship in ``mrd_env/inverse/networks/`` (each file's metadata holds the command that reproduces
 it): ``make_inverse("neural", damper)`` finds the one trained for the damper's model and preset.
 """

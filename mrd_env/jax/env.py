@@ -185,7 +185,7 @@ def _structure(asm) -> dict:
 #: the one it returns, the new episode every step prepares for an autoreset, and the compiled step's temporaries;
 #: and per element of the dampers' Newton matrix (m × m, m = dampers × (damper states + 1): the LU of several
 #: dampers works on arrays). Fitted to XLA's ``memory_analysis`` of the vmapped step and the resident memory of
-#: large batches (``experiments/scripts/bench_jax_memory.py``, docs/jax.md).
+#: large batches (``experiments/measurements/memory/jax_bank.py``, docs/jax.md).
 STEP_FACTOR = 3
 NEWTON_FACTOR = 24
 

@@ -20,7 +20,7 @@ range, and a spring whose stiffness is switched can be pumped (soft while it ext
 most ~Δα·z_max²/(2A) per cycle (17 mJ for the automotive preset, 11 mJ for the prototype). Measured: passive-on,
 passive-off, every law of the yardstick at 1 ms, random and bang-bang commands and the clairvoyant optimum have
 absorbed ≥ 0 J (to rounding) at every row of every episode checked (:func:`absorbed_energy` on the environment's forces;
-``experiments/scripts/bench_bound_bracket.py``, ``tests/optimal/test_bound.py``); ``storage`` > 0 widens the class
+``experiments/measurements/accuracy/bound_bracket.py``, ``tests/optimal/test_bound.py``); ``storage`` > 0 widens the class
 to cover a store explicitly (the bound grows with it, to the active bound).
 
 **How.** The plant seen from the damper's port is passive: with M, K, C recovered from the problem's matrices

@@ -27,7 +27,7 @@ a whole episode. Measured alternatives (README, issue 20): direct transcription 
 stalled far from convergence (−0.909 after 300 iterations and 126 s, where single shooting reaches −0.811 in 28 s).
 
 The search starts from warm starts — command sequences: the laws' and agents' own commands on the episode, which the
-caller supplies (``mrd_env`` does not import ``controllers``; ``experiments.common.yardstick.warm_starts`` builds them),
+caller supplies (``mrd_env`` does not import ``controllers``; ``experiments.benchmark.yardstick.warm_starts`` builds them),
 plus passive-off and passive-on — from the ``n_starts`` best of them by their environment return. Every result and every
 warm start is re-simulated in the environment (:meth:`EpisodeProblem.replay`) and the best is kept: the figure reported
 is always the environment's return, and no warm start scores more on that episode, by construction. A failed solve says
@@ -341,7 +341,7 @@ def _as_warm_starts(problem, warm_starts) -> dict[str, np.ndarray]:
     for name in warm_starts:
         if name not in base:
             raise ValueError(f"warm start {name!r}: give warm starts as {{name: commands (n_steps, nd)}} "
-                             "(experiments.common.yardstick.warm_starts builds them from the laws and agents); by name "
+                             "(experiments.benchmark.yardstick.warm_starts builds them from the laws and agents); by name "
                              f"only {sorted(base)}")
         out[name] = base[name]
     return out

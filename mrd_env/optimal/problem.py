@@ -19,7 +19,7 @@ facts about one seeded episode, taken from the environment itself so that they c
 yardstick reports is the one the environment gives.
 
 Layering: ``mrd_env`` never imports ``controllers`` or ``experiments``. A solver here takes its warm starts as
-command arrays, ``{name: (n_steps, nd)}``; the caller (``experiments.common.yardstick``) gets them from the laws and
+command arrays, ``{name: (n_steps, nd)}``; the caller (``experiments.benchmark.yardstick``) gets them from the laws and
 agents with :meth:`EpisodeProblem.commands_of` and a factory ``env → controller``.
 """
 from __future__ import annotations

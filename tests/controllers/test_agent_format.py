@@ -13,7 +13,7 @@ import pytest
 import mrd_env  # noqa: F401
 from controllers.agents import (AgentDigestError, ObservationNormalizer, TrustedCodeWarning, agent_digest,
                                 export_agent, load_agent, same_actions, save_agent, shipped_agents, write_agent)
-from experiments.scripts.bench_agent_kill import stub_env
+from experiments.scripts.probe_agent_kill import stub_env
 from experiments.common.plants import profile
 
 sb3 = pytest.importorskip("stable_baselines3")
@@ -211,7 +211,7 @@ def test_a_residual_agent_on_a_raw_observation_says_to_bind_it():
 
 def test_the_trainers_saves_load_code_free(tmp_path):
     """mrd-env train's run folder, best/ and checkpoints: code-free agents (model.zip beside them, to resume)."""
-    from experiments.common.trainers import train_one
+    from experiments.training.trainers import train_one
 
     kw = {"episode_seconds": 0.2, "control_dt": 0.01}
     run = train_one(profile("quarter_car"), "ppo", 0, out=tmp_path, timesteps=64, env_kwargs=kw, eval_freq=32,

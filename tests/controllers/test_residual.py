@@ -10,7 +10,7 @@ from controllers import load_agent, make_controller
 from controllers.residual import Residual, ResidualController
 from controllers.training_wrappers import PairedBaselineVecEnv, ResidualVecEnv
 from experiments.cli import main
-from experiments.common.trainers import env_options, train_one
+from experiments.training.trainers import env_options, train_one
 from mrd_env.envs.sb3 import make_sb3_vec_env
 from experiments.common.plants import profile
 
@@ -89,7 +89,7 @@ def test_a_bad_boundary_is_refused_by_name():
     env = gym.make(CAR, **_kw())
     with pytest.raises(ValueError, match=r"residual boundary must be one of \['reflect', 'clip'\], got 'wrap'"):
         Residual(env, "passive_on", boundary="wrap")
-    from experiments.common.trainers import residual_spec
+    from experiments.training.trainers import residual_spec
     with pytest.raises(ValueError, match="boundary must be one of"):
         residual_spec({"law": "passive_on", "boundary": "wrap"})
     assert residual_spec({"law": "passive_on", "boundary": "clip"})["boundary"] == "clip"
@@ -151,7 +151,7 @@ def test_a_residual_agent_trains_starts_at_its_law_and_loads(tmp_path):
 def test_off_policy_residual_agents_start_at_their_law(algo):
     from controllers.agents import _algorithm
     from controllers.residual import zero_policy_output
-    from experiments.common.trainers import ALGOS
+    from experiments.training.trainers import ALGOS
 
     venv = ResidualVecEnv(make_sb3_vec_env(CAR, n_envs=1, seed=0, **_kw()), "skyhook_continuous")
     model = _algorithm(ALGOS[algo])("MlpPolicy", venv, device="cpu", learning_starts=10)
@@ -401,7 +401,7 @@ def test_held_the_twin_meets_the_agents_next_road_whoever_ends_first():
 
 
 def test_a_bad_hold_is_refused_by_name(capsys, tmp_path):
-    from experiments.common.trainers import residual_spec
+    from experiments.training.trainers import residual_spec
 
     for bad in (0, 2.5, True):
         with pytest.raises(ValueError, match="hold must be an int >= 1"):

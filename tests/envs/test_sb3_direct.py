@@ -126,7 +126,7 @@ def test_train_validation_lines_state_the_best_constant_command(tmp_path, capsys
     from experiments.cli import main
     from experiments.common.plants import profile
     from experiments.common.scenarios import validation
-    from experiments.common.trainers import PASSIVE_GRID, env_options
+    from experiments.training.trainers import PASSIVE_GRID, env_options
 
     assert main(["train", "--plant", "quarter_car", "--algo", "ppo", "--timesteps", "64", "--set", "n_steps=32",
                  "batch_size=32", "n_envs=1", "--eval-freq", "64", "--eval-episodes", "1",

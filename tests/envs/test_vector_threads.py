@@ -1,6 +1,6 @@
 """The native vector environment's default thread count (issue 36): one thread below 64 environments, from 64 the
 faster of one and every numba thread, timed while stepping; the results never depend on it. Timings themselves:
-``experiments/scripts/bench_vector_threads.py`` (docs/speed.md)."""
+``experiments/measurements/speed/vector_threads.py`` (docs/speed.md)."""
 import copy
 from types import SimpleNamespace
 

@@ -13,9 +13,9 @@ import mrd_env  # noqa: F401
 from controllers.agents import algorithm_class
 from controllers.residual import zero_policy_output
 from controllers.training_wrappers import ResidualVecEnv
-from experiments.common.actor_warmup import with_actor_warmup
+from experiments.training.actor_warmup import with_actor_warmup
 from experiments.cli import main
-from experiments.common.trainers import env_options, train_one
+from experiments.training.trainers import env_options, train_one
 from mrd_env.envs.sb3 import make_sb3_vec_env
 from experiments.common.plants import profile
 
@@ -127,7 +127,7 @@ def test_bad_warm_up_values_are_one_line_before_training(args, message, capsys, 
 
 
 def test_a_warm_up_of_a_float_integer_is_accepted():
-    from experiments.common.actor_warmup import actor_options, check_actor_warmup
+    from experiments.training.actor_warmup import actor_options, check_actor_warmup
 
     assert check_actor_warmup("td3", {"actor_warmup_steps": 2e4}) == 20_000
     assert check_actor_warmup("ppo", {}) == 0

@@ -7,7 +7,7 @@ import pytest
 pytest.importorskip("jax")
 
 import mrd_env.jax  # noqa: E402,F401  (float64)
-from experiments.scripts import bench_jax_plants as b  # noqa: E402
+from experiments.measurements.speed import jax_plants as b  # noqa: E402
 
 pytestmark = pytest.mark.xdist_group("jax")
 

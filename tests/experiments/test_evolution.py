@@ -15,9 +15,9 @@ from controllers import load_agent, make_controller
 from controllers.mlp_policy import MLPPolicy
 from experiments.cli import main
 from experiments.common.evaluation import evaluate_batch
-from experiments.common.evolution import NormalizedPolicy, _returns, check
+from experiments.training.evolution import NormalizedPolicy, _returns, check
 from experiments.common.scenarios import HELD_OUT_SEED, held_out_scenarios, validation
-from experiments.common.warm_start import fit_policy
+from experiments.training.warm_start import fit_policy
 from experiments.common.plants import profile
 
 TINY = ["--algo", "cmaes", "--timesteps", "1500", "--eval-freq", "500", "--eval-episodes", "2", "--no-progress",
@@ -194,7 +194,7 @@ def test_an_agents_seeds_count_once_per_episode_in_the_summary_and_the_shares():
     from experiments.commands.evaluate import summarise
     from experiments.common.evaluation import Episode, mean_ci
     from experiments.common.scenarios import base_scenario
-    from experiments.common.yardstick import EpisodeYardstick, share_rows
+    from experiments.benchmark.yardstick import EpisodeYardstick, share_rows
 
     def ep(ctrl, label, r):
         z = np.zeros(1)

@@ -17,8 +17,8 @@ from pathlib import Path
 import pytest
 
 from experiments.cli import main
-from experiments.common import leaderboard as lb
-from experiments.common.leaderboard import FILES, leaderboard, read_result
+from experiments.benchmark import ranking as lb
+from experiments.benchmark.ranking import FILES, leaderboard, read_result
 from mrd_env.report import csv_text, markdown_table
 from tests.deadline import deadline
 

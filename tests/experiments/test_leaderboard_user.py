@@ -19,7 +19,7 @@ import pytest
 
 from experiments.cli import main
 from experiments.common import evaluation
-from experiments.common.leaderboard import FILES, leaderboard, leaderboards, read_result
+from experiments.benchmark.ranking import FILES, leaderboard, leaderboards, read_result
 from mrd_env.suites import Reference, Suite, SuiteScenario, suite, write_suite
 
 CAR, BUILDING = "car-comfort-v1", "building-six-storey-v1"

@@ -6,7 +6,7 @@ import csv
 import pytest
 
 from experiments.scripts.probe_critic_direction import main
-from experiments.common.trainers import env_options, train_one
+from experiments.training.trainers import env_options, train_one
 from experiments.common.plants import profile
 
 

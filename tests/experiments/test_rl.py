@@ -189,8 +189,8 @@ def test_training_distributions_draw_new_episodes():
 
 
 def test_linear_schedules_follow_rl_zoo():
-    from experiments.common.sb3_trainer import schedule
-    from experiments.common.trainers import check_hyperparameters
+    from experiments.training.sb3_trainer import schedule
+    from experiments.training.trainers import check_hyperparameters
 
     lr = schedule("lin_3e-4")
     assert lr(1.0) == pytest.approx(3e-4) and lr(0.5) == pytest.approx(1.5e-4) and lr(0.0) == 0.0

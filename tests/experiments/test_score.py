@@ -18,8 +18,8 @@ import pytest
 
 from controllers.protocol import ControllerProtocol, build_controller, import_object
 from experiments.cli import main
-from experiments.common.leaderboard import leaderboard, read_result
-from experiments.common.scoring import score
+from experiments.benchmark.ranking import leaderboard, read_result
+from experiments.benchmark.scoring import score
 from mrd_env.suites import Reference, Suite, SuiteScenario, read_suite, write_suite
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -82,7 +82,7 @@ def suite_file(tmp_path_factory) -> Path:
     """The tiny suite: the ISO-D episode's references computed by the yardstick (best constant command, clairvoyant;
     no bound), the ISO-C ones set by hand."""
     from experiments.common.scenarios import Scenario
-    from experiments.common.yardstick import episode_yardstick
+    from experiments.benchmark.yardstick import episode_yardstick
 
     sc = tiny({}).scenarios[1]
     y = episode_yardstick(Scenario(sc.name, CAR, {"episode_seconds": 0.2, **sc.options}, sc.seeds), sc.seeds[0],
@@ -351,7 +351,7 @@ def test_torch_runs_on_one_thread_only_in_the_projects_own_processes(suite_file,
 
     import torch
 
-    from experiments.common.scoring import controller_spec, scenario_episodes
+    from experiments.benchmark.scoring import controller_spec, scenario_episodes
 
     calls = []
     monkeypatch.setattr(torch, "set_num_threads", lambda n: calls.append(n))

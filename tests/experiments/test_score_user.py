@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from experiments.cli import main
-from experiments.common.scoring import score
+from experiments.benchmark.scoring import score
 from mrd_env.suites import Reference, Suite, SuiteScenario, write_suite
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -53,7 +53,7 @@ def test_the_pool_from_an_unguarded_script_is_one_clear_error_and_starts_no_work
     script.write_text(textwrap.dedent(f"""
         print("RAN", flush=True)
         from mrd_env.executor import Task, run_tasks
-        from experiments.common.scoring import score
+        from experiments.benchmark.scoring import score
         print("AUTO", run_tasks([Task(abs, (-1,)), Task(abs, (-2,))], backend="auto", jobs=2, progress=False))
         score({str(suite_file)!r}, "skyhook_on_off", backend="pool", jobs=2)
         print("SCORED")
@@ -72,7 +72,7 @@ def test_the_pool_from_an_unguarded_script_is_one_clear_error_and_starts_no_work
 def test_the_pool_from_a_guarded_script_scores(suite_file, tmp_path):
     script = tmp_path / "guarded.py"
     script.write_text(textwrap.dedent(f"""
-        from experiments.common.scoring import score
+        from experiments.benchmark.scoring import score
 
         if __name__ == "__main__":
             r = score({str(suite_file)!r}, "skyhook_on_off", backend="pool", jobs=2)
@@ -101,7 +101,7 @@ def test_auto_scores_in_process_what_a_pool_would_not_earn_back(suite_file, monk
     serial = score(suite_file, "skyhook_on_off")
     assert used == ["serial", "serial"]
     used.clear()
-    monkeypatch.setattr("experiments.common.scoring.POOL_MIN_SECONDS", 0.0)
+    monkeypatch.setattr("experiments.benchmark.scoring.POOL_MIN_SECONDS", 0.0)
     assert score(suite_file, "skyhook_on_off", jobs=2).episodes == serial.episodes
     assert used == ["serial", "pool"]
 
@@ -181,7 +181,7 @@ def test_normalised_and_force_modes_name_their_units():
     import gymnasium as gym
 
     import mrd_env  # noqa: F401
-    from experiments.common.scoring import action_unit
+    from experiments.benchmark.scoring import action_unit
 
     for mode, unit in (("physical", "V"), ("normalized", "normalised"), ("force", "N")):
         env = gym.make_vec(CAR, num_envs=1, vectorization_mode="vector_entry_point", action_mode=mode)
@@ -332,7 +332,7 @@ def test_a_shipped_agent_is_named_by_its_folder_name_and_rows_carry_the_name_giv
     site-packages), and rows were named from agent.json's free text (``agent CMA-ES s0``). A shipped agent is named
     by its folder's name from any working folder; a row carries the name the user gave, beside kind and digest."""
     from controllers.agents import SHIPPED
-    from experiments.common.scoring import controller_spec, result_filename
+    from experiments.benchmark.scoring import controller_spec, result_filename
 
     monkeypatch.chdir(tmp_path)  # not the repository: the name resolves inside the package
     spec = controller_spec("quarter_car_cmaes")
@@ -352,7 +352,7 @@ def test_the_benchmarks_public_api_is_one_module_the_docs_use():
     from pathlib import Path
 
     import experiments.benchmark as api
-    from experiments.common import leaderboard, scoring
+    from experiments.benchmark import ranking as leaderboard, scoring
     from mrd_env import suites
 
     assert api.score is scoring.score and api.leaderboards is leaderboard.leaderboards and api.suite is suites.suite

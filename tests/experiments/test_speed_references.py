@@ -1,9 +1,9 @@
 """The speed benchmarks' references compute what they claim (issue 25): the explicit step of
-``experiments.scripts.bench_physics_step`` integrates the same equations as the accurate step. (The interpreted kernel's
+``experiments.measurements.speed.physics_step`` integrates the same equations as the accurate step. (The interpreted kernel's
 bit-for-bit agreement with the compiled one is tested in test_first_use.py.)"""
 import numpy as np
 
-from experiments.scripts.bench_physics_step import explicit_kernel, quarter_car_case
+from experiments.measurements.speed.physics_step import explicit_kernel, quarter_car_case
 
 
 def test_explicit_reference_integrates_the_same_quarter_car():

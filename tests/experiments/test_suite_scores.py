@@ -1,5 +1,5 @@
 """The shares docs/suites.md and the README publish (issue 39, "must show"): they are the figures of
-``docs/suites-scores.json``, which ``python -m experiments.scripts.score_suites`` wrote, and ``mrd-env score``'s code
+``docs/suites-scores.json``, which ``python -m experiments.benchmark.shipped`` wrote, and ``mrd-env score``'s code
 path reproduces them to the stored tolerance (±0.005) — re-scored here on a few controllers of each kind (a law on a
 whole suite, MPC with its options, an agent, a robustness twin), each in seconds."""
 from __future__ import annotations
@@ -10,8 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from experiments.common.scoring import score
-from experiments.scripts import score_suites
+from experiments.benchmark.scoring import score
+from experiments.benchmark import shipped as score_suites
 from mrd_env.suites import suites
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -34,7 +34,7 @@ def test_the_stored_figures_are_of_the_shipped_suites_and_every_one_is_scored(st
     """Every shipped suite has its figures, of its current digest (a suite whose references changed is a new version:
     its old figures would be stale), and every candidate controller is either scored or listed with the reason."""
     shipped = suites()
-    redo = "run python -m experiments.scripts.score_suites --suite {} --update-docs (a minute or two)"
+    redo = "run python -m experiments.benchmark.shipped --suite {} --update-docs (a minute or two)"
     for sid in shipped:
         assert sid in stored["suites"], f"suite {sid} has no scores in {SCORES.name}: " + redo.format(sid)
     assert set(stored["suites"]) <= set(shipped), "scores of a suite no longer shipped: rerun the script"

@@ -5,8 +5,8 @@ import json
 import pytest
 
 from experiments.cli import main
-from experiments.common.trainers import available_algos, env_options, train_one
-from experiments.common.trainers import HYPERPARAMS
+from experiments.training.trainers import available_algos, env_options, train_one
+from experiments.training.trainers import HYPERPARAMS
 from experiments.common.plants import profile
 
 
@@ -58,7 +58,7 @@ def test_every_shipped_hyperparameter_file_passes_the_checks_made_before_trainin
 
     from experiments.common.plants import by_env_id
     from experiments.commands.train import check_before_training
-    from experiments.common.trainers import TRAINERS, hyperparameters
+    from experiments.training.trainers import TRAINERS, hyperparameters
 
     algo = path.stem.split("-")[0]
     assert algo in TRAINERS, f"{path.name}: no algorithm {algo!r}"

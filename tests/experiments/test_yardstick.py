@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from experiments.common.evaluation import Episode
-from experiments.common.yardstick import EpisodeYardstick, share_rows
+from experiments.benchmark.yardstick import EpisodeYardstick, share_rows
 from mrd_env.optimal import cache
 from experiments.common.plants import profile
 
@@ -53,7 +53,7 @@ def test_cache_returns_only_the_exact_key(tmp_path, monkeypatch):
 
 def test_report_without_a_cached_yardstick_says_how_to_get_one(tmp_path, monkeypatch):
     from experiments.common.scenarios import held_out_scenarios
-    from experiments.common.yardstick import report
+    from experiments.benchmark.yardstick import report
 
     monkeypatch.setattr("mrd_env.optimal.cache.cache_dir", lambda: tmp_path / "optimal")  # kernels stay cached
     scen = held_out_scenarios(profile("quarter_car"), quick=True)[:1]
@@ -79,7 +79,7 @@ def test_the_yardstick_brackets_every_controller_on_an_episode(tmp_path, monkeyp
     from controllers import shipped_agents
     from experiments.common.evaluation import controller_episodes
     from experiments.common.scenarios import Scenario, preview_options
-    from experiments.common.yardstick import episode_yardstick
+    from experiments.benchmark.yardstick import episode_yardstick
 
     monkeypatch.setattr("mrd_env.optimal.cache.cache_dir", lambda: tmp_path / "optimal")  # kernels stay cached
     sc = Scenario("ISO-C 1 s", "mrd_env/QuarterCarPhysical-v0",
@@ -106,7 +106,7 @@ def test_the_yardstick_brackets_every_controller_on_an_episode(tmp_path, monkeyp
     assert again.dissipative == y.dissipative
     # a yardstick cached before R_d was reported gets R_d alone (the clairvoyant is not solved again), then keeps it
     from mrd_env.optimal import cache, episode_problem
-    from experiments.common.yardstick import YARDSTICK_DT, yardstick_key
+    from experiments.benchmark.yardstick import YARDSTICK_DT, yardstick_key
 
     problem = episode_problem(sc.env_id, seed=1_000_000, control_dt=YARDSTICK_DT, **sc.options)
     key = yardstick_key(problem, sc.label(1_000_000), profile("quarter_car").warm_laws, agents)
@@ -146,7 +146,7 @@ def test_report_writes_the_yardstick_and_shares_tables_and_figure(tmp_path):
     and controller (the share computed from the returns), the figure, and a note for episodes without a yardstick."""
     import csv
 
-    from experiments.common.yardstick import write_report
+    from experiments.benchmark.yardstick import write_report
 
     ys = [EpisodeYardstick(f"ISO-C s{i}", i, -10.0, 2.0, -6.0, "optimiser", 1.0, bound=-4.0, f_max=3000.0,
                            bound_seconds=0.5, dissipative=-5.0, dissipative_seconds=0.7) for i in (1, 2)]
@@ -171,7 +171,7 @@ def test_the_yardstick_is_of_the_damper_the_controllers_ran_on():
     """Another damper's returns are scored against yardsticks solved on that damper (their own cache keys); the
     plant's own damper, named or not, keeps the scenarios (and the cached yardsticks) as they are."""
     from experiments.common.scenarios import held_out_scenarios
-    from experiments.common.yardstick import on_damper
+    from experiments.benchmark.yardstick import on_damper
     from mrd_env.optimal import episode_problem
 
     car = profile("quarter_car")
@@ -188,7 +188,7 @@ def test_the_yardstick_key_changes_with_what_the_result_depends_on(monkeypatch):
     """A default the options do not name (the car's reward weights) changes the key: a cached yardstick of the
     old problem is not served for the new one."""
     from experiments.common.scenarios import held_out_scenarios
-    from experiments.common.yardstick import YARDSTICK_DT, yardstick_key
+    from experiments.benchmark.yardstick import YARDSTICK_DT, yardstick_key
     from mrd_env.plants.quarter_car import env as quarter_car
     from mrd_env.optimal import episode_problem
 

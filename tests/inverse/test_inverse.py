@@ -661,7 +661,7 @@ def test_the_building_inverse_benchmark_puts_the_damper_in_the_storey_asked():
     """`bench_inverse_building --damper-floors 1` reproduces the storey-1 figures of docs/inverse.md: the row says
     where the damper is, and a damper in storey 1 (where the peak inter-storey drift is) holds J1 lower than one in
     the benchmark's storey 2."""
-    from experiments.scripts.bench_inverse_building import run_episode
+    from experiments.measurements.accuracy.inverse_building import run_episode
 
     two = run_episode(None, "NS")
     one = run_episode(None, "NS", damper_floors=(1,))

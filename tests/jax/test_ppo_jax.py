@@ -1,4 +1,4 @@
-"""PPO inside one jit on the JAX quarter car (``experiments.scripts.ppo_jax``, issue 41 item 3c): reproducible
+"""PPO inside one jit on the JAX quarter car (``experiments.training.ppo_jax``, issue 41 item 3c): reproducible
 per seed, finite losses, GAE against a plain reference, the saved agent acting as the trained mean policy, bad
 command lines refused."""
 from __future__ import annotations
@@ -14,7 +14,7 @@ pytest.importorskip("jax")
 import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 
-from experiments.scripts import ppo_jax as pj  # noqa: E402
+from experiments.training import ppo_jax as pj  # noqa: E402
 
 pytestmark = pytest.mark.xdist_group("jax")
 
@@ -128,6 +128,6 @@ def test_bad_arguments_exit_2_with_one_line(argv, word, capsys):
 
 
 def test_bad_argument_exit_code_of_the_module():
-    p = subprocess.run([sys.executable, "-m", "experiments.scripts.ppo_jax", "--num-steps", "x"],
+    p = subprocess.run([sys.executable, "-m", "experiments.training.ppo_jax", "--num-steps", "x"],
                        capture_output=True, text=True, timeout=60)
     assert p.returncode == 2 and p.stderr.count("\n") == 1 and "--num-steps" in p.stderr

@@ -16,10 +16,10 @@ import jax.numpy as jnp  # noqa: E402
 
 import mrd_env  # noqa: E402,F401
 import mrd_env.jax  # noqa: E402,F401  (float64)
-from experiments.common import shac  # noqa: E402
+from experiments.training import shac  # noqa: E402
 from experiments.common.plants import profile  # noqa: E402
 from experiments.common.scenarios import preview_options  # noqa: E402
-from experiments.common.trainers import env_options  # noqa: E402
+from experiments.training.trainers import env_options  # noqa: E402
 from mrd_env.jax import env as je  # noqa: E402
 
 pytestmark = pytest.mark.xdist_group("jax")

@@ -156,7 +156,7 @@ def test_passive_bound_lies_between_the_laws_and_the_active_bound(problem, runs,
     """The laws (and the best constant command, the yardstick's R_p) absorb energy from the first row on — they lie
     in the passive bound's class — and score below it; the passive bound is never above the active bound, and its
     own optimum lies in its class."""
-    from experiments.common.yardstick import best_passive
+    from experiments.benchmark.yardstick import best_passive
 
     p = problem
     f_max, act, pas = covering

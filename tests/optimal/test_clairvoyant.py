@@ -17,7 +17,7 @@ SEED = 1_000_000
 
 @pytest.fixture(scope="module")
 def car():
-    from experiments.common.yardstick import warm_starts
+    from experiments.benchmark.yardstick import warm_starts
 
     p = episode_problem("mrd_env/QuarterCarPhysical-v0", seed=SEED, control_dt=0.01, **CAR)
     return p, warm_starts(p, profile("quarter_car").warm_laws)
@@ -47,7 +47,7 @@ def test_result_re_simulates_to_the_same_return_bit_for_bit(car, car_result):
 
 
 def test_building_optimum_is_at_least_every_warm_start():
-    from experiments.common.yardstick import warm_starts
+    from experiments.benchmark.yardstick import warm_starts
 
     p = episode_problem("mrd_env/ShearBuildingPhysical-v0", seed=SEED, control_dt=0.01, **BUILDING)
     r = cv.clairvoyant(p, warm_starts=warm_starts(p, profile("shear_building").warm_laws), cache=False, progress=False)

@@ -671,7 +671,7 @@ def test_the_full_cars_suites_grant_the_preview_that_mpc_uses():
     """car-full and its preview twin are the full car's (the twin shares its references: the same episodes and
     plant), and the twin's sensors give MPC every wheel's road ahead; the yardstick accepts the plant."""
     from controllers.mpc import MPC
-    from experiments.common.yardstick import check_plant
+    from experiments.benchmark.yardstick import check_plant
     from mrd_env.plants import suite_definition
 
     plain, twin = suite_definition("car-full"), suite_definition("car-full-preview")

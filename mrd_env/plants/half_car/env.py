@@ -31,7 +31,7 @@ DEFAULT_REWARD_WEIGHTS = {"comfort": 1.0, "travel": 0.5, "tyre": 0.5, "terminati
 X_REF = 0.05  # m, suspension travel
 #: Bytes per sample while the road under both axles is generated with the rear axle's lag (the ISO 8608 FFT road,
 #: its two channels and the four columns of the record: measured 58 with tracemalloc,
-#: ``experiments/scripts/bench_memory_estimate.py``).
+#: ``experiments/measurements/memory/estimate.py``).
 LAGGED_ROAD_SAMPLE_BYTES = 96
 
 

@@ -1,6 +1,6 @@
 """The full car's frozen benchmark suites (:class:`~mrd_env.suites.SuiteDefinition`; docs/suites.md). Their
 reference values ship beside this file (``<name>-v<version>.json``), computed by
-``python -m experiments.scripts.suite_references --suite <name>``.
+``python -m experiments.benchmark.references --suite <name>``.
 
 Short and few episodes, said plainly: every episode is 1 s long and each random-road scenario has 3 seeds, not the
 quarter car's 3 s and 10 seeds. The references' clairvoyant optimises four command sequences: one solve of a 1 s

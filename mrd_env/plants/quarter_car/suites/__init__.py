@@ -1,6 +1,6 @@
 """The quarter car's frozen benchmark suites (:class:`~mrd_env.suites.SuiteDefinition`; docs/suites.md). Their
 reference values ship beside this file (``<name>-v<version>.json``), computed by
-``python -m experiments.scripts.suite_references --suite <name>``.
+``python -m experiments.benchmark.references --suite <name>``.
 
 Every episode is 3 s long (a clairvoyant solve of a 3 s car episode takes 15–40 s on the 2 shared cores of the
 machine that computed the references; a 10 s episode would cost three times as much): ISO 8608 class C and D

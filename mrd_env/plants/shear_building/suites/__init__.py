@@ -1,6 +1,6 @@
 """The shear building's frozen benchmark suites (:class:`~mrd_env.suites.SuiteDefinition`; docs/suites.md). Their
 reference values ship beside this file (``<name>-v<version>.json``), computed by
-``python -m experiments.scripts.suite_references --suite <name>``.
+``python -m experiments.benchmark.references --suite <name>``.
 
 The benchmark building — the three-storey lab model with its damper in storey 2 (the profile's options) —
 controlled at 10 ms: El Centro 1940 N-S and E-W replayed 5× faster (one episode each) and Kanai–Tajimi ground

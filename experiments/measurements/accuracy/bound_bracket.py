@@ -1,0 +1,314 @@
+"""The yardstick's bracket with the active bound and with the passivity-aware bound (a script, not a test).
+
+    python -m experiments.measurements.accuracy.bound_bracket [--scenario NAME ...] [--seeds N | --seed S ...] [--seconds S] \\
+        [--no-clairvoyant] [--oracle] [--storage J] [--out results/bench/bound_bracket]
+    python -m experiments.measurements.accuracy.bound_bracket --suite ID [ID ...] [--out results/bench/suite_bracket]
+
+``--suite`` (``all``: every shipped suite with its own references; a suite that copies another's, ``car-preview``,
+has that one's brackets): on **every episode of the suite**, the stored references R_p, R_c, R_b and f_max
+(:mod:`mrd_env.suites`: nothing is re-solved but R_d) beside R_d, the passivity-aware bound with the stored f_max on
+the episode's plant (:meth:`~mrd_env.suites.Suite.reference_options`), both brackets, whether R_c ≤ R_d ≤ R_b, and
+how far R_d's optimum is from semi-active (the share of its rows giving energy back: 0 would make it tight); then
+per scenario the brackets' mean, least and largest, and the wall times.
+
+For each episode (default: the first seed of the held-out scenarios "ISO-C 20 m/s" and "bump 5 cm" of the quarter
+car and "El Centro NS (×0.2 time)" of the building; ``--scenario all`` for every held-out scenario of both plants,
+``--seeds 3`` for all their seeds, ``--seconds`` to shorten an episode) it prints
+
+* R_p, the best constant command (9 from v_min to v_max, as the yardstick);
+* R_c, the clairvoyant optimum warm-started from the plant's laws at 1 ms (:func:`mrd_env.optimal.clairvoyant`,
+  cached), or with ``--no-clairvoyant`` the best law's return;
+* f_max, the largest |F − F_static| of passive-on, the laws and the clairvoyant (the yardstick's rule);
+* R_b, the active-actuator bound (:func:`mrd_env.optimal.active_bound`), and R_d, the passivity-aware bound
+  (:func:`mrd_env.optimal.dissipative_bound`), both with that f_max, and each one's bracket (R − R_c)/(R − R_p);
+* whether every law and the clairvoyant lie in R_d's class (the least energy any of them has absorbed at any row,
+  ≥ −storage) and below it, and how far R_d's optimum is from semi-active: the share of rows where it pushes
+  energy in ((F − F_static)·ẋ_d < 0) and the energy it gives back there (0 and 0 would make the relaxation tight);
+* the wall times of each part and the machine's load average.
+
+``--oracle`` adds a diagnostic that is **not a bound**: the active QP with the convex hull of
+{(F − F_static)·ẋ_d ≥ 0, |F − F_static| ≤ f_max, ẋ_d ∈ [v_lo, v_hi]} at every row (the McCormick envelope where the
+interval straddles 0, the sign of the force where it does not), with [v_lo, v_hi] the envelope of the stroke
+velocities of the laws and the clairvoyant themselves, widened by 1 % of their peak: valid velocity bounds could
+hardly be narrower, so its value says how much any per-row envelope could gain.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import time
+
+import numpy as np
+
+#: the default episodes: scenarios of the published benchmark's plants, by name
+DEFAULT = ("ISO-C 20 m/s", "bump 5 cm", "El Centro NS (×0.2 time)")
+
+
+def episodes(names, seeds: int, seconds: float | None, only=None):
+    """[(plant, env_id, label, seed, options)] of the held-out scenarios named (``("all",)``: every one), their
+    first ``seeds`` seeds or those of them in ``only``."""
+    from experiments.common.plants import chosen_plants
+    from experiments.common.scenarios import held_out_scenarios
+
+    out = []
+    for plant in chosen_plants("both"):
+        for sc in held_out_scenarios(plant):
+            if names != ("all",) and sc.name not in names:
+                continue
+            opts = dict(sc.options)
+            if seconds is not None:
+                opts["episode_seconds"] = float(seconds)
+            chosen = [s_ for s_ in sc.seeds if s_ in only] if only else sc.seeds[:seeds]
+            for seed in chosen:
+                out.append((plant, sc.env_id, sc.label(seed), int(seed), opts))
+    return out
+
+
+def bracket(bound: float, clairvoyant: float, passive: float) -> float:
+    span = bound - passive
+    return (bound - clairvoyant) / span if span > 0 else math.nan
+
+
+def oracle_envelope(problem, f_max: float, v_lo: np.ndarray, v_hi: np.ndarray) -> float:
+    """The active QP with the per-row convex hull of the semi-active set on [v_lo, v_hi] (see the module docstring;
+    a diagnostic, not a bound). Its return (−primal objective)."""
+    import scipy.sparse as sp
+
+    from mrd_env.optimal.bound import clarabel_solve, normalise_rows, Rows, program
+
+    p = problem
+    prog = program(p, f_max, True)
+    L = prog.L
+    N = L.N
+    r1 = np.arange(1, N + 1)
+    Fs = p.F_static
+    cv = p.Cv[0]
+    jv = np.nonzero(cv)[0]
+    lo_, hi_ = v_lo[1:], v_hi[1:]
+    cuts, lo, hi = Rows(), [], []
+
+    def row(rr, vcoef, low, high):   # low ≤ F_r + vcoef·ẋ_d,r ≤ high on rows rr
+        st = cuts.new(rr.size)
+        ri = st + np.arange(rr.size)
+        cuts.i.append(ri)
+        cuts.j.append(L.F(rr))
+        cuts.v.append(np.ones(rr.size))
+        for j in jv:
+            cuts.i.append(ri)
+            cuts.j.append(L.x(rr) + j)
+            cuts.v.append(vcoef * cv[j])
+        lo.append(low)
+        hi.append(high)
+
+    big = 1e12
+    pos, neg = lo_ >= 0, hi_ <= 0
+    mid = ~(pos | neg)
+    z = np.zeros
+    row(r1[pos], z(pos.sum()), np.full(pos.sum(), Fs), np.full(pos.sum(), big))
+    row(r1[neg], z(neg.sum()), np.full(neg.sum(), -big), np.full(neg.sum(), Fs))
+    m = mid.sum()
+    row(r1[mid], -f_max / np.abs(lo_[mid]), np.full(m, -big), np.full(m, Fs + f_max))   # F ≤ f(1 + v/|v_lo|)
+    row(r1[mid], -f_max / hi_[mid], np.full(m, Fs - f_max), np.full(m, big))           # F ≥ −f(1 − v/v_hi)
+    st = cuts.new(N)   # the velocity interval itself
+    for j in jv:
+        cuts.i.append(st + np.arange(N))
+        cuts.j.append(L.x(r1) + j)
+        cuts.v.append(np.full(N, cv[j]))
+    lo.append(lo_)
+    hi.append(hi_)
+    A_in = sp.vstack([prog.A_in, cuts.matrix(L.n)]).tocsc()
+    Dm = sp.diags(prog.scale)
+    A_eq_s, b_eq = normalise_rows((prog.A_eq @ Dm).tocsc(), prog.b_eq)
+    A_in_s, lo_s, hi_s = normalise_rows((A_in @ Dm).tocsc(), np.concatenate([prog.lo, *lo]),
+                                         np.concatenate([prog.hi, *hi]))
+    Pd = np.zeros(L.n)
+    Pd[prog.iy] = 2.0 * prog.scale[prog.iy] ** 2
+    _, primal, _, _, _ = clarabel_solve(sp.diags(Pd).tocsc(), np.zeros(L.n), A_eq_s, b_eq, A_in_s, lo_s, hi_s, 1e-7,
+                                   who="oracle envelope")
+    return -primal
+
+
+def run(plant, env_id, label, seed, options, *, clairvoyant: bool, oracle: bool, storage: float) -> dict:
+    from experiments.common.plants import profile
+    from experiments.benchmark.yardstick import best_passive, warm_starts
+    from mrd_env.optimal import active_bound, dissipative_bound, episode_problem
+    from mrd_env.optimal.dissipative import absorbed_energy
+
+    t0 = time.perf_counter()
+    p = episode_problem(env_id, seed=seed, control_dt=1e-3, **options)
+    rp, _ = best_passive(p)
+    starts = warm_starts(p, profile(plant).warm_laws)
+    starts["passive_on"] = np.full((p.n_steps, p.nd), p.v_max)
+    t_ref = time.perf_counter() - t0
+    t_cv = math.nan
+    if clairvoyant:
+        from mrd_env.optimal import clairvoyant as solve
+
+        cv = solve(p, warm_starts=starts, progress=False)
+        t_cv = float(cv.wall_time)   # the solve's own wall time (also when the result comes from the cache)
+        rc, source = float(cv.ret), f"clairvoyant ({cv.source})"
+        starts["clairvoyant"] = cv.commands
+    runs = {name: p.replay(U, states=True) for name, U in starts.items()}
+    if not clairvoyant:   # the best return known: a law's or the best constant command's
+        rc, source = max([(tr.ret, f"best law ({k})") for k, tr in runs.items()] + [(rp, "best constant")])
+    f_max = max(float(np.nanmax(np.abs(tr.F - p.F_static))) for tr in runs.values())
+    a = active_bound(p, f_max=f_max)
+    t2 = time.perf_counter()
+    d = dissipative_bound(p, f_max=f_max, storage=storage)
+    t_d = time.perf_counter() - t2
+    least = min(float(absorbed_energy(p, tr.F).min()) for tr in runs.values())
+    best_run = max(tr.ret for tr in runs.values())
+    v = d.X @ p.Cv.T
+    power = np.sum((d.F - p.F_static) * v, axis=1)
+    tolp = 1e-6 * np.max(np.abs(power))
+    row = {"episode": f"{plant.name}: {label}", "seconds": p.duration, "R_p": rp, "R_c": rc, "R_c from": source,
+           "f_max (N)": f_max, "R_b active": a.bound, "R_d passive": d.bound,
+           "bracket active": bracket(a.bound, rc, rp), "bracket passive": bracket(d.bound, rc, rp),
+           "least absorbed (J)": least, "all below R_d": bool(best_run <= d.bound and rc <= d.bound),
+           "R_d rows giving energy": float(np.mean(power < -tolp)),
+           "R_d energy given (J)": float(-np.sum(np.minimum(power, 0.0)) * p.dt),
+           "R_d store used (J)": float(-d.absorbed.min()), "R_d status": d.status,
+           "references (s)": t_ref, "clairvoyant (s)": t_cv, "active (s)": a.setup_seconds + a.solve_seconds,
+           "passive (s)": t_d}
+    if oracle:
+        V = np.array([tr.X @ p.Cv[0] for tr in runs.values()])
+        pad = 0.01 * np.max(np.abs(V))   # an interior for the solver where every run has the same velocity
+        t3 = time.perf_counter()
+        try:
+            row["oracle envelope (not a bound)"] = oracle_envelope(p, f_max, V.min(axis=0) - pad, V.max(axis=0) + pad)
+        except RuntimeError as e:
+            print(e)
+            row["oracle envelope (not a bound)"] = math.nan
+        row["oracle (s)"] = time.perf_counter() - t3
+    return row
+
+
+def suite_rows(suite, storage: float = 0.0) -> list[dict]:
+    """One row per episode of ``suite`` (see the module docstring, ``--suite``)."""
+    from mrd_env.optimal import dissipative_bound, episode_problem
+
+    rows = []
+    for sc, seed in suite.episodes():
+        label = sc.label(seed)
+        ref = suite.reference(label)
+        t0 = time.perf_counter()
+        p = episode_problem(suite.env_id, seed=int(seed), control_dt=1e-3, **suite.reference_options(sc, seed))
+        d, tol = None, None
+        for tol in (1e-8, 1e-6):   # the default tolerance, then a looser one where Clarabel stalls (still a bound:
+            try:                   # R_d is the dual objective, certified by the solver)
+                d = dissipative_bound(p, f_max=ref.f_max, storage=storage, tol=tol)
+                break
+            except RuntimeError as exc:
+                print(f"{suite.id} {label}: tol {tol:g}: {exc}", flush=True)
+        rd, share_back, status = math.nan, math.nan, "failed"
+        if d is not None:
+            v = d.X @ p.Cv.T
+            power = np.sum((d.F - p.F_static) * v, axis=1)
+            tolp = 1e-6 * np.max(np.abs(power))
+            rd, share_back, status = d.bound, float(np.mean(power < -tolp)), f"{d.status} (tol {tol:g})"
+        rows.append({"suite": suite.id, "scenario": sc.name, "episode": label, "R_p": ref.passive,
+                     "R_c": ref.clairvoyant, "R_b active": ref.bound, "R_d passive": rd, "f_max (N)": ref.f_max,
+                     "bracket active": bracket(ref.bound, ref.clairvoyant, ref.passive),
+                     "bracket passive": bracket(rd, ref.clairvoyant, ref.passive),
+                     # R_d ≤ R_b up to the solvers' tolerance (1e-6 of |R_b|)
+                     "R_c <= R_d <= R_b": bool(ref.clairvoyant <= rd <= ref.bound + 1e-6 * abs(ref.bound)),
+                     "R_d rows giving energy": share_back, "R_d status": status,
+                     "passive (s)": time.perf_counter() - t0})
+        r = rows[-1]
+        print(f"{suite.id} {label}: R_p {r['R_p']:.4g}  R_c {r['R_c']:.4g}  R_b {r['R_b active']:.4g} "
+              f"({r['bracket active']:.0%})  R_d {r['R_d passive']:.4g} ({r['bracket passive']:.0%})  "
+              f"rows giving energy {r['R_d rows giving energy']:.0%}  [{r['passive (s)']:.1f} s]", flush=True)
+    return rows
+
+
+def suite_summary(rows: list[dict]) -> list[dict]:
+    """Per suite and scenario: the episodes, each bracket's mean, least and largest, whether every episode has
+    R_c ≤ R_d ≤ R_b, the least share of R_d's rows giving energy back, and R_d's mean wall time."""
+    out = []
+    for key in dict.fromkeys((r["suite"], r["scenario"]) for r in rows):
+        mine = [r for r in rows if (r["suite"], r["scenario"]) == key]
+        ba = np.array([r["bracket active"] for r in mine])
+        solved = [r for r in mine if math.isfinite(r["R_d passive"])]
+        bp = np.array([r["bracket passive"] for r in solved]) if solved else np.array([math.nan])
+        out.append({"suite": key[0], "scenario": key[1], "episodes": len(mine),
+                    "bracket R_b mean (min–max)": f"{ba.mean():.0%} ({ba.min():.0%}–{ba.max():.0%})",
+                    "bracket R_d mean (min–max)": f"{bp.mean():.0%} ({bp.min():.0%}–{bp.max():.0%})",
+                    "R_d solved": f"{len(solved)}/{len(mine)}",
+                    "episodes under 10 %": int(np.sum(bp < 0.10)),
+                    "R_c ≤ R_d ≤ R_b": f"{sum(r['R_c <= R_d <= R_b'] for r in solved)}/{len(solved)}",
+                    "R_d rows giving energy (least)":
+                        f"{min(r['R_d rows giving energy'] for r in solved):.0%}" if solved else "n/a",
+                    "R_d s (mean)": float(np.mean([r["passive (s)"] for r in mine]))})
+    return out
+
+
+def main_suites(args) -> None:
+    from mrd_env.report import markdown_table, write_table
+    from mrd_env.suites import suites
+
+    shipped = suites()
+    ids = [k for k, s in shipped.items() if not s.procedure.get("references_of")] if args.suite == ["all"] \
+        else args.suite
+    unknown = [k for k in ids if k not in shipped]
+    if unknown:
+        raise SystemExit(f"--suite: unknown {unknown}; shipped: {sorted(shipped)}")
+    load0, t0 = os.getloadavg(), time.perf_counter()
+    rows = [r for k in ids for r in suite_rows(shipped[k], args.storage)]
+    load1 = os.getloadavg()
+    title = (f"bound bracket on every suite episode ({', '.join(ids)}): {len(rows)} episodes, "
+             f"{time.perf_counter() - t0:.0f} s, {os.cpu_count()} cores, load average {load0[0]:.1f} → {load1[0]:.1f}")
+    summary = suite_summary(rows)
+    print(markdown_table(summary, title=title))
+    if args.out:
+        for path in [*write_table(rows, args.out, title=title),
+                     *write_table(summary, f"{args.out}_summary", title=title)]:
+            print("wrote", path)
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--scenario", nargs="+", default=None,
+                    help="held-out scenario names (default: ISO-C 20 m/s, bump 5 cm, El Centro NS); 'all': every one")
+    ap.add_argument("--seeds", type=int, default=1, help="seeds per scenario (default 1: the first)")
+    ap.add_argument("--seed", type=int, nargs="+", default=None, help="only these seeds of the scenarios")
+    ap.add_argument("--seconds", type=float, default=None, help="episode length (default: the scenario's)")
+    ap.add_argument("--no-clairvoyant", action="store_true", help="R_c = the best law's return (no optimiser)")
+    ap.add_argument("--oracle", action="store_true", help="add the per-row envelope diagnostic (not a bound)")
+    ap.add_argument("--storage", type=float, default=0.0, help="the passive bound's initial store E0 (J)")
+    ap.add_argument("--suite", nargs="+", default=None,
+                    help="every episode of these shipped suites, against their stored references ('all': every one)")
+    ap.add_argument("--out", default=None, help="write <out>.md and <out>.csv")
+    args = ap.parse_args(argv)
+
+    import mrd_env  # noqa: F401
+
+    if args.suite:
+        return main_suites(args)
+    from mrd_env.report import markdown_table, write_table
+
+    names = DEFAULT if args.scenario is None else tuple(args.scenario)
+    eps = episodes(names, args.seeds, args.seconds, args.seed)
+    if not eps:
+        raise SystemExit(f"no held-out scenario named {list(names)}")
+    load0 = os.getloadavg()
+    t0 = time.perf_counter()
+    rows = []
+    for plant, env_id, label, seed, opts in eps:
+        rows.append(run(plant, env_id, label, seed, opts, clairvoyant=not args.no_clairvoyant, oracle=args.oracle,
+                        storage=args.storage))
+        r = rows[-1]
+        print(f"{r['episode']}: R_p {r['R_p']:.4g}  R_c {r['R_c']:.4g}  R_b {r['R_b active']:.4g} "
+              f"({r['bracket active']:.0%})  R_d {r['R_d passive']:.4g} ({r['bracket passive']:.0%})  "
+              f"[{r['passive (s)']:.1f} s]", flush=True)
+    load1 = os.getloadavg()
+    title = (f"bound bracket, {len(rows)} episodes, {time.perf_counter() - t0:.0f} s, {os.cpu_count()} cores, load "
+             f"average {load0[0]:.1f} → {load1[0]:.1f}")
+    print(markdown_table(rows, title=title))
+    if args.out:
+        for path in write_table(rows, args.out, title=title):
+            print("wrote", path)
+
+
+if __name__ == "__main__":
+    main()

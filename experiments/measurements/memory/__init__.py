@@ -1,0 +1,1 @@
+"""Memory: the estimates that refuse an option against what it takes."""
