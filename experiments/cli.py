@@ -10,7 +10,7 @@ exception (a bug) prints one line and exits with 1; ``--traceback`` shows the wh
 
 Stopping: SIGTERM (what SLURM, ``docker stop`` and ``timeout`` send) is handled as Ctrl-C: the long commands save
 what is done (``train``: the agent so far, loadable; ``tune``: the finished trials, in the study's journal;
-``yardstick``: every solved episode, in the cache; ``benchmark``: every finished plant's tables), then the command
+``suite build``: every solved episode, kept for the next run; ``benchmark``: every finished result file), then the command
 exits with 143 (130 for Ctrl-C). On a process pool the workers are stopped too: each task is interrupted where it
 is (and saves as above), and a worker still running after :data:`mrd_env.executor.STOP_GRACE` s is killed.
 
@@ -27,14 +27,14 @@ import sys
 COMMANDS = {
     "rig": ("experiments.commands.rig", "virtual damper test rig: loops (PNG), records (CSV), peak/energy table"),
     "benchmark": ("experiments.commands.benchmark",
-                  "controller × scenario benchmark: Markdown/CSV tables and figures"),
+                  "the benchmark: every controller that fits (laws, MPC, shipped agents, yours) scored on the "
+                  "suites, one result file each, one leaderboard and figure per suite"),
+    "suite": ("experiments.commands.suite",
+              "your own benchmark suite: build one from a small JSON definition (references, digest, procedure, "
+              "cost) on a process pool or Ray, resumable; show one"),
     "train": ("experiments.commands.train",
               "train agents (Stable-Baselines3, RL Zoo conventions): curves, best agent, checkpoints"),
     "warmup": ("experiments.commands.warmup", "compile every damper model's kernels into the disk cache now (once)"),
-    "yardstick": ("experiments.commands.yardstick",
-                  "the best any controller could do on each test episode (clairvoyant optimum, active bound) and "
-                  "every controller's share of it"),
-    "evaluate": ("experiments.commands.evaluate", "agents and classical laws side by side on the held-out scenarios"),
     "tune": ("experiments.commands.tune", "hyperparameter search for train (Optuna; pool or Ray workers)"),
     "identify": ("experiments.commands.identify",
                  "fit a damper model to a measured record: errors table, figure, JSON preset"),
@@ -47,6 +47,17 @@ COMMANDS = {
               "gain and criteria with 95-percent intervals, one result file each"),
     "leaderboard": ("experiments.commands.leaderboard",
                     "merge result files of mrd-env score on one suite version into one table and one figure"),
+}
+
+
+#: Commands folded into ``benchmark`` and ``suite`` (issue 50), each with what replaces it. They answer with one line
+#: and exit code 2 instead of running: the project had made no release, and an alias would have kept alive a second
+#: benchmark on other episodes with other references, the confusion their removal ends.
+REMOVED = {
+    "evaluate": "agents and laws side by side are now scored on the suites: mrd-env benchmark --controller AGENT "
+                "(or mrd-env score --suite ID --controller AGENT)",
+    "yardstick": "the clairvoyant optimum and the active bound are each suite's stored references: mrd-env benchmark "
+                 "scores every controller against them; mrd-env suite build SPEC computes them for your own episodes",
 }
 
 
@@ -97,6 +108,9 @@ def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     command = _command_of(argv)
     prog = f"mrd-env {command}" if command in COMMANDS else "mrd-env"
+    if command in REMOVED:
+        return _fail(f"mrd-env {command}", f"mrd-env {command} was folded into the suites' benchmark: "
+                                          f"{REMOVED[command]}", 2)
     previous = _handle_sigterm()
     try:
         args = build_parser(command if command in COMMANDS else None).parse_args(argv)
