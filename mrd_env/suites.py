@@ -92,19 +92,48 @@ class SuiteDefinition:
     criteria: tuple[str, ...]
     references_of: str = ""
     randomise: dict = field(default_factory=dict)
+    #: the plant's folder name and the environment id a spec names ("": the plant's physics id, resolved by
+    #: :func:`mrd_env.plants.suite_spec`)
+    plant: str = ""
+    env_id: str = ""
+    #: the folder of the spec file it was read from, where the record files its options name are; "" otherwise
+    folder: str = field(default="", compare=False, repr=False)
 
     @property
     def id(self) -> str:
         return f"{self.name}-v{self.version}"
 
-    def suite(self, plant: str, env_id: str, draws: dict | None = None) -> "Suite":
-        """The suite without references (``draws``: a twin's per-episode draws, :func:`draws`)."""
+    def suite(self, plant: str | None = None, env_id: str | None = None, draws: dict | None = None) -> "Suite":
+        """The suite without references (``plant``, ``env_id``: the definition's by default; ``draws``: a twin's
+        per-episode draws, :func:`draws`). A record file its options name is resolved in the spec's folder."""
         randomised = _json_options({"bands": self.randomise, "draws": draws or {}}) if self.randomise else {}
-        return Suite(name=self.name, version=self.version, plant=plant, env_id=env_id, description=self.description,
-                     options=_json_options(self.options), control_dt=float(self.control_dt),
+        return Suite(name=self.name, version=self.version, plant=plant or self.plant, env_id=env_id or self.env_id,
+                     description=self.description, options=_json_options(self.options),
+                     control_dt=float(self.control_dt),
                      scenarios=tuple(SuiteScenario(sc.name, _json_options(sc.options), tuple(int(x) for x in sc.seeds))
                                      for sc in self.scenarios),
-                     criteria=tuple(self.criteria), randomised=randomised)
+                     criteria=tuple(self.criteria), randomised=randomised, folder=self.folder)
+
+    def to_spec(self) -> dict:
+        """The definition as a spec file's content (:func:`read_spec`), seeds that run on written compactly."""
+        def seeds(s):
+            s = [int(x) for x in s]
+            if len(s) > 2 and s == list(range(s[0], s[0] + len(s))):
+                return {"first": s[0], "count": len(s)}
+            return s
+
+        out = {"format": SPEC_FORMAT, "format_version": SPEC_FORMAT_VERSION, "name": self.name,
+               "version": self.version, "plant": self.plant, **({"env_id": self.env_id} if self.env_id else {}),
+               "description": self.description, "options": _json_options(self.options),
+               "control_dt": float(self.control_dt),
+               "scenarios": [{"name": sc.name, "options": _json_options(sc.options), "seeds": seeds(sc.seeds)}
+                             for sc in self.scenarios],
+               "criteria": list(self.criteria)}
+        if self.references_of:
+            out["references_of"] = self.references_of
+        if self.randomise:
+            out["randomise"] = _json_options(self.randomise)
+        return out
 
 
 @dataclass(frozen=True)
@@ -505,9 +534,9 @@ def read_suite(path: str | Path) -> Suite:
     return from_json(_load(path), where=f"suite file {path}", folder=path.parent, shipped=shipped)
 
 
-def _load(path: Path):
+def _load(path: Path, what: str = "suite file"):
     """The JSON content of the suite file ``path``; ``ValueError`` naming it otherwise."""
-    raw = read_limited(path, MAX_SUITE_BYTES, what="suite file")
+    raw = read_limited(path, MAX_SUITE_BYTES, what=what)
 
     def constant(name):  # NaN and Infinity are not JSON (and not a suite's)
         raise ValueError(f"{name} is not a JSON number")
@@ -515,14 +544,144 @@ def _load(path: Path):
     try:
         return json.loads(raw.decode("utf-8"), parse_constant=constant)
     except UnicodeDecodeError as exc:
-        raise ValueError(f"suite file {path}: cannot be read (byte {exc.start} is not UTF-8 text)") from None
+        raise ValueError(f"{what} {path}: cannot be read (byte {exc.start} is not UTF-8 text)") from None
     except json.JSONDecodeError as exc:
-        raise ValueError(f"suite file {path}: cannot be read (not JSON: {exc.msg} at line {exc.lineno})") from None
+        raise ValueError(f"{what} {path}: cannot be read (not JSON: {exc.msg} at line {exc.lineno})") from None
     except RecursionError:
-        raise ValueError(f"suite file {path}: cannot be read (nested too deeply; a suite file nests at most "
+        raise ValueError(f"{what} {path}: cannot be read (nested too deeply; a {what} nests at most "
                          f"{MAX_NESTING} levels)") from None
     except ValueError as exc:
-        raise ValueError(f"suite file {path}: cannot be read ({exc})") from None
+        raise ValueError(f"{what} {path}: cannot be read ({exc})") from None
+
+
+# ------------------------------------------------------------------------------------------- suite specs
+
+#: A suite spec's format: the definition of a suite (everything but its references), which ``mrd-env suite build``
+#: turns into a suite file; the shipped suites' specs are ``mrd_env/plants/<plant>/suites/specs/<id>.json``.
+SPEC_FORMAT = "mrd-env-suite-spec"
+SPEC_FORMAT_VERSION = 1
+SPEC_FIELDS = ("format", "format_version", "name", "version", "plant", "description", "options", "control_dt",
+               "scenarios", "criteria")
+SPEC_OPTIONAL_FIELDS = ("env_id", "references_of", "randomise")
+#: A robustness twin's bands (:func:`draw_episode`): ``seed`` and the bands of these groups.
+BAND_GROUPS = ("damper_params", "command", "plant_params", "sensor_noise")
+
+
+def spec_definition(data, where: str = "suite spec", folder: str | Path | None = None) -> SuiteDefinition:
+    """The :class:`SuiteDefinition` of a spec's JSON content (docs/suites.md, "Your own suite"), checked whole: the
+    fields of :data:`SPEC_FIELDS` (and optionally :data:`SPEC_OPTIONAL_FIELDS`) and no other; each scenario
+    {name, options, seeds}, its seeds a list or ``{"first": N, "count": K}`` (N, N + 1, ..., N + K − 1); the rest as
+    in a suite file (:func:`check_structure`: names, versions, seeds, at most :data:`MAX_SCENARIOS` scenarios and
+    :data:`MAX_EPISODES` episodes); ``randomise`` a twin's bands; a plant among the plants' folders; every file the
+    options name a regular file inside ``folder``, the spec's (a spec given without a folder names no file). One
+    ``ValueError`` naming ``where`` and the field otherwise. ``env_id`` is checked against the plant by
+    :func:`mrd_env.plants.suite_spec` (this module imports no plant)."""
+    if not isinstance(data, dict) or data.get("format") != SPEC_FORMAT:
+        raise ValueError(f"{where} is not an mrd-env suite spec (format must be {SPEC_FORMAT!r})")
+    version = data.get("format_version")
+    if type(version) is not int or version != SPEC_FORMAT_VERSION:
+        raise ValueError(f"{where}: format_version must be {SPEC_FORMAT_VERSION}, got {_shown(version)}")
+    missing = [k for k in SPEC_FIELDS if k not in data]
+    unknown = [k for k in data if k not in SPEC_FIELDS + SPEC_OPTIONAL_FIELDS]
+    if missing or unknown:
+        what = f"lacks the field(s) {missing}" if missing else f"has unknown field(s) {[_shown(k) for k in unknown[:5]]}"
+        raise ValueError(f"{where}: {what}; a suite spec has {list(SPEC_FIELDS)} and optionally "
+                         f"{list(SPEC_OPTIONAL_FIELDS)}")
+
+    def fail(field: str, want: str, got) -> None:
+        raise ValueError(f"{where}: {field} must be {want}, got {_shown(got)}")
+
+    scenarios = data["scenarios"]
+    if not isinstance(scenarios, list) or not scenarios or len(scenarios) > MAX_SCENARIOS:
+        fail("scenarios", f"a non-empty list of at most {MAX_SCENARIOS} scenarios",
+             scenarios if not isinstance(scenarios, list) else f"{len(scenarios)} scenarios")
+    expanded = []
+    for i, sc in enumerate(scenarios):
+        if not isinstance(sc, dict) or set(sc) != {"name", "options", "seeds"}:
+            fail(f"scenarios[{i}]", "an object of name, options and seeds",
+                 sc if not isinstance(sc, dict) else sorted(sc, key=str))
+        expanded.append({**sc, "seeds": _spec_seeds(sc["seeds"], f"scenarios[{i}].seeds", fail)})
+    env_id = data.get("env_id", "")
+    if not isinstance(env_id, str):
+        fail("env_id", "an environment id of the plant (text; left out: the plant's physics id)", env_id)
+    references_of = data.get("references_of", "")
+    if not isinstance(references_of, str) or (references_of and not NAME.fullmatch(references_of)):
+        fail("references_of", "the name of a shipped suite with the same episodes", references_of)
+    randomise = data.get("randomise", {})
+    _check_bands(randomise, fail)
+    body = {"format": FORMAT, "format_version": FORMAT_VERSION,
+            **{k: data[k] for k in SPEC_FIELDS if k not in ("format", "format_version", "scenarios")},
+            "env_id": env_id, "scenarios": expanded, "references": {}, "digest": "0" * 64,
+            "randomised": {"bands": randomise} if randomise else {}}
+    check_structure(body, where)
+    plants = sorted(f.name for f in PLANTS_FOLDER.iterdir() if (f / "__init__.py").is_file())
+    if data["plant"] not in plants:
+        fail("plant", f"one of {plants}", data["plant"])
+    for keys, name in _files_named(body):
+        if folder is None:
+            raise ValueError(f"{where}: {_field(keys)} names the file {_shown(name)}: only a spec read from its "
+                             "file names files (in that file's folder)")
+        _confined(folder, name, f"{where}: {_field(keys)}")
+    return SuiteDefinition(name=data["name"], version=data["version"], description=data["description"],
+                           options=data["options"], control_dt=float(data["control_dt"]),
+                           scenarios=tuple(SuiteScenario(s["name"], s["options"], tuple(s["seeds"]))
+                                           for s in expanded),
+                           criteria=tuple(data["criteria"]), references_of=references_of, randomise=randomise,
+                           plant=data["plant"], env_id=env_id,
+                           folder=str(Path(folder).resolve()) if folder is not None else "")
+
+
+def _spec_seeds(seeds, field: str, fail) -> list:
+    """A scenario's seeds: a list (checked by :func:`check_structure`) or ``{"first": N, "count": K}``."""
+    if isinstance(seeds, list):
+        return seeds
+    if not isinstance(seeds, dict) or set(seeds) != {"first", "count"}:
+        fail(field, 'a list of seeds or {"first": N, "count": K}', seeds)
+    first, count = seeds["first"], seeds["count"]
+    if type(first) is not int or not 0 <= first <= MAX_SEED:
+        fail(f"{field}.first", f"a whole number in [0, {MAX_SEED}] (NumPy's seeds)", first)
+    if type(count) is not int or not 1 <= count <= min(MAX_EPISODES, MAX_SEED - first + 1):
+        fail(f"{field}.count", f"a whole number in [1, {min(MAX_EPISODES, MAX_SEED - first + 1)}]", count)
+    return list(range(first, first + count))
+
+
+def _check_bands(bands, fail) -> None:
+    """A robustness twin's ``randomise`` (:func:`draw_episode`): {} or ``seed`` and bands (lo <= hi, finite)."""
+    if not isinstance(bands, dict):
+        fail("randomise", "an object of a twin's bands (or left out)", bands)
+    if not bands:
+        return
+    known = ("seed", *BAND_GROUPS, "sensor_delay")
+    unknown = [k for k in bands if k not in known]
+    if unknown:
+        fail("randomise", f"an object of {list(known)}", f"the unknown field(s) {[_shown(k) for k in unknown[:5]]}")
+    seed = bands.get("seed")
+    if type(seed) is not int or not 0 <= seed <= MAX_SEED:
+        fail("randomise.seed", f"a whole number in [0, {MAX_SEED}]", seed)
+    for group in BAND_GROUPS:
+        entries = bands.get(group, {})
+        if not isinstance(entries, dict):
+            fail(f"randomise.{group}", "an object {name: [lo, hi]}", entries)
+        for name, band in entries.items():
+            if not (isinstance(band, list) and len(band) == 2 and all(map(_finite, band)) and band[0] <= band[1]):
+                fail(f"randomise.{group}.{name}", "[lo, hi], finite numbers with lo <= hi", band)
+    delays = bands.get("sensor_delay", [0])
+    if not isinstance(delays, list) or not delays or not all(type(k) is int and 0 <= k <= 1000 for k in delays):
+        fail("randomise.sensor_delay", "a non-empty list of delays in control steps (whole numbers in [0, 1000])",
+             delays)
+
+
+def read_spec(path: str | Path) -> SuiteDefinition:
+    """The :class:`SuiteDefinition` in the spec file ``path`` (:func:`spec_definition`; its record files are in the
+    file's folder), read as a suite file is (a regular file of at most :data:`MAX_SUITE_BYTES`)."""
+    path = Path(path)
+    return spec_definition(_load(path, "suite spec"), where=f"suite spec {path}", folder=path.parent)
+
+
+def read_specs(folder: str | Path) -> tuple[SuiteDefinition, ...]:
+    """The definitions of a plant's shipped suites: every spec file of ``folder`` (``suites/specs/``), by name."""
+    folder = Path(folder)
+    return tuple(read_spec(inside(folder, p.name, what="suite spec")) for p in sorted(folder.glob("*.json")))
 
 
 #: The plants' folders, where each ships its suites (``<plant>/suites/*.json``): found by path, so that this
@@ -535,6 +694,8 @@ def suites() -> dict[str, Suite]:
     out = {}
     for folder in sorted(PLANTS_FOLDER.glob("*/suites")):
         for path in sorted(folder.glob("*.json")):
+            if path.name.endswith(BUILD_RECORD_SUFFIX):  # a build's record (wall times, machine), not a suite
+                continue
             s = read_suite(inside(folder, path.name, what="suite file"))
             if s.plant != folder.parent.name:
                 raise ValueError(f"suite file {path}: its plant is {s.plant!r}, not the folder's "
@@ -626,6 +787,18 @@ def _json_options(options: dict) -> dict:
     return json.loads(json.dumps(options))
 
 
+#: The name of a suite file's build record ends so (``<id>.build.json`` beside ``<id>.json``): what a build cost
+#: (wall times, load, machine, backend), which differs from run to run, apart from the suite file, which does not.
+BUILD_RECORD_SUFFIX = ".build.json"
+
+
+def build_record_path(path: str | Path) -> Path:
+    """The build record beside the suite file ``path``: ``car-comfort-v1.json`` → ``car-comfort-v1.build.json``."""
+    path = Path(path)
+    stem = path.name[:-len(".json")] if path.name.endswith(".json") else path.name
+    return path.with_name(stem + BUILD_RECORD_SUFFIX)
+
+
 def suite_path(plant: str, suite: "Suite | SuiteDefinition") -> Path:
     """Where the plant's folder ships the suite: ``mrd_env/plants/<plant>/suites/<name>-v<version>.json``."""
     return PLANTS_FOLDER / plant / "suites" / f"{suite.id}.json"
@@ -705,7 +878,12 @@ def draws(definition: SuiteDefinition, env_id: str) -> dict:
         return {}
     out = {}
     for i, sc in enumerate(definition.scenarios):
-        nominal = nominal_values(env_id, {**definition.options, **sc.options})
+        options = {**definition.options, **sc.options}
+        if definition.folder:  # a spec's record files are in its folder
+            from .envs.build import confine_files
+
+            options = confine_files(options, definition.folder, f"suite {definition.id}")
+        nominal = nominal_values(env_id, options)
         for seed in sc.seeds:
             out[sc.label(seed)] = draw_episode(definition.randomise, nominal, i, seed)
     return out

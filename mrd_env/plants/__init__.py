@@ -66,18 +66,44 @@ def plant_of_id(env_id: str) -> PlantSpec | None:
 
 
 def suite_definitions() -> dict[str, tuple]:
-    """Every suite definition of the plants' profiles by its id: {id: (plant's name, env id, definition)};
-    ``ValueError`` if two plants declare the same suite name."""
+    """Every suite definition of the plants' profiles (their specs, ``<plant>/suites/specs/``) by its id: {id:
+    (plant's name, env id, definition)}; ``ValueError`` if two plants declare the same suite name, or a plant's
+    spec names another plant."""
     out, names = {}, {}
     for spec in plants().values():
         for d in spec.profile.suites:
+            if d.plant and d.plant != spec.name:
+                raise ValueError(f"suite {d.id} is declared by the {spec.name}'s profile but names the plant "
+                                 f"{d.plant!r}")
             if d.name in names and names[d.name] != spec.name:
                 raise ValueError(f"suite {d.name!r} is declared by two plants ({names[d.name]}, {spec.name})")
             names[d.name] = spec.name
             if d.id in out:
                 raise ValueError(f"suite {d.id} is declared twice")
-            out[d.id] = (spec.name, spec.physics_id, d)
+            out[d.id] = (spec.name, _suite_env_id(spec, d, f"suite {d.id}"), d)
     return out
+
+
+def suite_spec(path) -> tuple:
+    """(plant's name, env id, :class:`~mrd_env.suites.SuiteDefinition`) of the suite spec file ``path``
+    (:func:`mrd_env.suites.read_spec`): its ``env_id`` one of its plant's ids (left out: the plant's physics id).
+    One ``ValueError`` naming the file and the field otherwise."""
+    from ..suites import read_spec
+
+    d = read_spec(path)
+    spec = plant(d.plant)
+    return spec.name, _suite_env_id(spec, d, f"suite spec {path}"), d
+
+
+def _suite_env_id(spec: PlantSpec, d, where: str) -> str:
+    """The environment of the suite ``d`` on the plant ``spec``: its ``env_id`` if one of the plant's, else (none
+    given) the plant's physics id (commands in V or A, the references' environment)."""
+    if not d.env_id:
+        return spec.physics_id
+    if d.env_id not in spec.ids:
+        raise ValueError(f"{where}: env_id must be one of the {spec.name}'s environments {list(spec.ids)} (or left "
+                         f"out: {spec.physics_id}), got {d.env_id[:80]!r}")
+    return d.env_id
 
 
 def suite_definition(name: str) -> tuple:
@@ -105,5 +131,5 @@ def __getattr__(name: str):
 
 
 __all__ = ["PLANT_FOLDERS", "PlantSpec", "plants", "plant", "plant_of_env", "plant_of_id", "suite_definitions",
-           "suite_definition", "CoupledPlant",
+           "suite_definition", "suite_spec", "CoupledPlant",
            "LinearPlant"]
