@@ -4,17 +4,14 @@ test): the suites' tables, the robustness table and the constraint-cost totals o
     python -m experiments.benchmark.shipped [--suite ID ...] [--out results/score_suites] \\
         [--scores docs/suites-scores.json] [--update-docs] [--backend serial|pool --jobs N]
 
-For each shipped suite (:func:`mrd_env.suites.suites`; ``--suite`` for some) it scores, through
-:func:`experiments.benchmark.scoring.score` — the code path of ``mrd-env score``, against the suite's stored references,
-solving nothing —
+For each shipped suite (:func:`mrd_env.suites.suites`; ``--suite`` for some) it runs
+:func:`experiments.benchmark.run.run_benchmark` — the code path of ``mrd-env benchmark``: every law of the suite's
+plant, its MPC rows at the suite's control step and every shipped agent trained on the suite's environment, each
+scored by :func:`experiments.benchmark.scoring.score` against the suite's stored references (solving nothing); one
+that does not fit the suite is listed as not applicable, with the reason.
 
-* every law of the suite's plant (its profile's ``laws`` and ``benchmark_laws``);
-* the plant's MPC rows at the suite's control step (its profile's ``mpc``: label, step, options, preview), a row with
-  preview only on a suite that grants the road-preview sensor and a row without only on one that does not;
-* every shipped agent (``controllers/agents/*``) trained on the suite's environment; one whose sensors, preview or
-  control step are not the suite's is listed as not applicable, with the reason ``mrd-env score`` gives.
-
-It writes, under ``--out``, each suite's result files and leaderboard (``<suite id>/``), ``score_suites.md`` (the
+It writes, under ``--out``, the result files (``results/``) and each suite's leaderboard (``leaderboards/<suite
+id>/``), ``score_suites.md`` (the
 tables: shares with 95 % intervals per scenario, the robustness table — each controller's share on a nominal suite
 and on its randomised twin ``<name>-robust`` and the drop —, the cost totals, the wall times) and
 ``score_suites.json``; and it updates ``--scores`` (default ``docs/suites-scores.json``: the figures docs/suites.md
@@ -47,89 +44,38 @@ def _load() -> list[float]:
     return [round(x, 2) for x in os.getloadavg()]
 
 
-def agent_folders() -> list[Path]:
-    """The shipped agents' folders (``controllers/agents/*/agent.json``), in name order."""
-    import controllers
-
-    root = Path(controllers.__file__).resolve().parent / "agents"
-    return sorted(p for p in root.iterdir() if (p / "agent.json").is_file())
-
-
-def has_preview(suite) -> bool:
-    """Whether the suite grants the road-preview sensor."""
-    return "road_preview" in suite.options.get("sensors", ())
-
-
-def candidates(suite) -> list[dict]:
-    """[{name, kind, controller, options}] of the controllers to score on ``suite`` (see the module docstring)."""
-    from experiments.common.plants import profile
-
-    prof = profile(suite.plant)
-    out = [{"name": law, "kind": "law", "controller": law, "options": None}
-           for law in dict.fromkeys((*prof.laws, *prof.benchmark_laws))]
-    dt = suite.control_dt
-    for label, step, options, preview in prof.mpc:
-        if bool(preview) != has_preview(suite):
-            continue
-        if step is not None and abs(step - dt) > 1e-12:
-            continue  # a row tuned for another control step
-        if step is None and any(other == label and s is not None and abs(s - dt) < 1e-12
-                                for other, s, _, _ in prof.mpc):
-            continue  # the row tuned for this very step stands for it
-        out.append({"name": label, "kind": "law", "controller": "mpc", "options": dict(options) or None})
-    for folder in agent_folders():   # agent.json read as data: which environment the agent was trained on
-        if json.loads((folder / "agent.json").read_text(encoding="utf-8")).get("env_id") == suite.env_id:
-            out.append({"name": folder.name, "kind": "agent", "controller": str(folder), "options": None})
-    return out
-
-
 def score_suite(suite, out: Path, executor: dict) -> dict:
-    """Score every candidate on ``suite``; the suite's entry of ``score_suites.json``."""
-    from experiments.benchmark.ranking import leaderboard
-    from experiments.benchmark.scoring import check_controller, controller_spec, one_torch_thread, result_filename, score
+    """Score every shipped controller that fits ``suite`` (:func:`experiments.benchmark.run.run_benchmark`, the code
+    path of ``mrd-env benchmark``); the suite's entry of ``score_suites.json``."""
+    from experiments.benchmark.run import run_benchmark
 
-    folder = out / suite.id
-    folder.mkdir(parents=True, exist_ok=True)
     entry = {"id": suite.id, "digest": suite.digest, "plant": suite.plant, "episodes": len(suite.episodes()),
              "scenarios": [sc.name for sc in suite.scenarios], "controllers": [], "not_applicable": [],
              "load_start": _load()}
     t_suite = time.perf_counter()
-    files = []
-    for c in candidates(suite):
-        try:
-            spec = controller_spec(c["controller"], name=c["name"], options=c["options"])
-            check_controller(spec, suite)
-        except ValueError as exc:
-            entry["not_applicable"].append({"name": c["name"], "reason": str(exc)})
-            print(f"{suite.id}: {c['name']}: not applicable ({exc})", flush=True)
-            continue
-        one_torch_thread(spec)  # as mrd-env score does in its own process
-        load0, t0 = _load(), time.perf_counter()
-        result = score(suite, spec, **executor)
-        wall = time.perf_counter() - t0
-        path = folder / result_filename(suite.id, spec.name)
-        result.write(path)
-        files.append(path)
+    part = run_benchmark([suite], out=out, **executor).suites[0]
+    entry["not_applicable"] = [{"name": n, "reason": why} for n, why in part.not_applicable]
+    for n, why in part.not_applicable:
+        print(f"{suite.id}: {n}: not applicable ({why})", flush=True)
+    for s in part.scored:
+        result, spec = s.result, s.spec
         summ = {r["scenario"]: r for r in result.summary()}
         costs = {k: float(sum(e["criteria"][k] for e in result.episodes if math.isfinite(e["criteria"].get(k, 0))))
                  for k in result.criteria if k == "cost" or k.startswith("cost_")}
         entry["controllers"].append({
             "name": spec.name, "kind": spec.kind,
             # an agent's folder relative to the repository (controllers/agents/<name>), the same on every machine
-            "spec": _relative(c["controller"]) if spec.kind == "agent" else spec.description.get("spec"),
+            "spec": _relative(spec.description["spec"]) if spec.kind == "agent" else spec.description.get("spec"),
             "options": spec.description.get("options"),
-            "shares": {s: [_r(r["share"]), _r(r["share lo95"]), _r(r["share hi95"])] for s, r in summ.items()},
+            "shares": {sc: [_r(r["share"]), _r(r["share lo95"]), _r(r["share hi95"])] for sc, r in summ.items()},
             "episode_shares": {e["label"]: _r(e["share"]) for e in result.episodes},
             "terminated": sum(1 for e in result.episodes if e.get("terminated")),
             "cost_totals": {k: _r(v) for k, v in costs.items()},
-            "wall_s": round(wall, 2), "load": [load0, _load()]})
-        share = summ["all scenarios"]["share"]
-        print(f"{suite.id}: {spec.name}: share {share:.3f} over {len(result.episodes)} episodes, {wall:.1f} s "
-              f"(load {os.getloadavg()[0]:.2f})", flush=True)
+            "wall_s": round(s.wall_s, 2), "load": s.load})
+        print(f"{suite.id}: {spec.name}: share {summ['all scenarios']['share']:.3f} over {len(result.episodes)} "
+              f"episodes, {s.wall_s:.1f} s (load {s.load[1][0]:.2f})", flush=True)
     entry["wall_s"] = round(time.perf_counter() - t_suite, 2)
     entry["load_end"] = _load()
-    if files:
-        leaderboard(files, out=folder / "leaderboard")
     return entry
 
 

@@ -22,65 +22,20 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import sys
 from pathlib import Path
-
-from mrd_env import storage
 
 from ..common import sweep
 from ..common.plants import add_plant_options, check_suite_plant
-
-
-def _whole(option: str, low: int):
-    """argparse's ``type`` of a whole-number option >= ``low``: its error names the option's range (``int()`` takes
-    '²'-free Unicode digits such as '٣' and 5 000-digit numbers; the option takes ASCII digits, at most 18)."""
-    def parse(text: str) -> int:
-        digits = text.strip()
-        if not (digits.isascii() and digits.isdigit() and len(digits) <= 18) or int(digits) < low:
-            raise argparse.ArgumentTypeError(f"must be a whole number >= {low}, got {_bounded(text)}")
-        return int(digits)
-
-    parse.__name__ = option.lstrip("-")
-    return parse
-
-
-def _bounded(value) -> str:
-    """``repr(value)`` cut to about 120 characters (an error message's quote of what the user typed)."""
-    import reprlib
-
-    r = reprlib.Repr()
-    r.maxstring = r.maxother = 120
-    return r.repr(value)
-
-
-def out_folder(path: Path) -> Path:
-    """``--out`` made and probed (:func:`mrd_env.storage.writable_folder`), after a one-line ``ValueError`` where it,
-    or a folder above it, is a file (``--out results/score.json``: the option takes a folder, not a result file)."""
-    for p in (path, *path.parents):
-        if p.exists() or p.is_symlink():
-            if not p.is_dir():
-                where = "" if p == path else f" ({p} is a file)"
-                raise ValueError(f"--out {_bounded(str(path))} is not a folder{where}: --out takes the folder into which "
-                                 "each controller's <suite>__<controller>.json/.md/.csv are written")
-            break
-    return storage.writable_folder(path)
+from ..common.scoring_options import add_controller_arguments, importable, out_folder
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    from controllers import available_controllers
-
-    from experiments.benchmark.scoring import POOL_MIN_SECONDS, shipped_agent_names
+    from experiments.benchmark.scoring import POOL_MIN_SECONDS
 
     p.add_argument("--suite", required=True,
                    help="a shipped suite (name-vN, e.g. car-comfort-v1; a name without version: its latest) or a "
                         "suite file (.json)")
-    p.add_argument("--controller", action="append", required=True, metavar="CONTROLLER",
-                   help="a registered law (" + ", ".join(available_controllers()) + "), a shipped agent ("
-                        + ", ".join(shipped_agent_names()) + "), an agent folder (a "
-                        "plain SB3 model.zip with --trust-agent), or package.module:attribute (a class or factory "
-                        "taking the environment, or an object with predict; IMPORTING IT RUNS ITS CODE: name only "
-                        "code you mean to run); repeat for several")
+    add_controller_arguments(p, required=True)
     p.add_argument("--law-options", default=None, metavar="JSON",
                    help="the options of the registered law given as the one --controller, as a JSON object (e.g. an "
                         "MPC's: '{\"weights\": \"reward\", \"horizon\": 10}'); recorded in the result file")
@@ -89,12 +44,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "options; agent <name>; the import spec)")
     p.add_argument("--out", type=Path, default=Path("results/score"), metavar="FOLDER",
                    help="the folder of the result files (default results/score)")
-    p.add_argument("--episodes", type=_whole("--episodes", 1), default=None, metavar="K",
-                   help="only the first K episodes of each scenario (a smoke run: the result is marked partial)")
-    p.add_argument("--trust-agent", action="store_true",
-                   help="also load agents that only have SB3's model.zip, and a plain SB3 model.zip (scored in the "
-                        "suite's environment, its spaces checked against it) — pickles: they can run any code; only "
-                        "from a source you trust; converted once into <out>/converted-agents/")
     p.add_argument("--no-progress", action="store_true")
     sweep.add_arguments(p)
     for action in p._actions:  # score's auto is its own (experiments.benchmark.scoring.score)
@@ -106,10 +55,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from controllers.protocol import is_import_spec
-
-    from experiments.benchmark.scoring import (check_controller, check_references, controller_spec, one_torch_thread,
-                                  resolve_suite, result_filename, score)
+    from experiments.benchmark.scoring import (bounded, check_controller, check_references, controller_spec,
+                                               one_torch_thread, resolve_suite, result_filename, score)
 
     if args.episodes is not None and args.episodes < 1:
         raise ValueError(f"--episodes must be >= 1, got {args.episodes}")
@@ -119,18 +66,16 @@ def run(args: argparse.Namespace) -> int:
             options = json.loads(args.law_options)
         except (json.JSONDecodeError, RecursionError) as exc:
             why = "nested too deeply" if isinstance(exc, RecursionError) else str(exc)
-            raise ValueError(f"--law-options must be a JSON object, got {_bounded(args.law_options)} ({why})") \
+            raise ValueError(f"--law-options must be a JSON object, got {bounded(args.law_options)} ({why})") \
                 from None
         if not isinstance(options, dict):
-            raise ValueError(f"--law-options must be a JSON object ({{...}}), got {_bounded(args.law_options)}")
+            raise ValueError(f"--law-options must be a JSON object ({{...}}), got {bounded(args.law_options)}")
     for flag, given in (("--law-options", args.law_options), ("--name", args.name)):
         if given is not None and len(args.controller) != 1:
             raise ValueError(f"{flag} applies to one --controller; {len(args.controller)} were given (score them one "
                              "command each)")
     executor = sweep.options(args)
-    if any(is_import_spec(c) for c in args.controller) and not {"", os.getcwd()} & set(sys.path):
-        # module:attribute looked up in the installed packages, then the current folder (last: it shadows nothing)
-        sys.path.append(os.getcwd())
+    importable(args.controller)
     suite = resolve_suite(args.suite)
     check_suite_plant(suite, args)
     check_references(suite)
@@ -142,9 +87,9 @@ def run(args: argparse.Namespace) -> int:
                                converted=args.out / "converted-agents", suite=suite)
         check_controller(spec, suite)
         if any(s.name == spec.name for s in specs):
-            raise ValueError(f"--controller {_bounded(c)}: {_bounded(spec.name)} is given twice")
+            raise ValueError(f"--controller {bounded(c)}: {bounded(spec.name)} is given twice")
         specs.append(spec)
-    out_folder(args.out)
+    out_folder(args.out, "each controller's <suite>__<controller>.json/.md/.csv are written")
     for spec in specs:
         one_torch_thread(spec)  # this process is the command's own (an SB3 policy: 10× faster on 2 cores)
     files = [args.out / result_filename(suite.id, s.name) for s in specs]

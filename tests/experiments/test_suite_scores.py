@@ -1,6 +1,6 @@
 """The shares docs/suites.md and the README publish (issue 39, "must show"): they are the figures of
 ``docs/suites-scores.json``, which ``python -m experiments.benchmark.shipped`` wrote, and ``mrd-env score``'s code
-path reproduces them to the stored tolerance (±0.005) — re-scored here on a few controllers of each kind (a law on a
+path (``mrd-env benchmark``'s too) reproduces them to the stored tolerance (±0.005) — re-scored here on a few controllers of each kind (a law on a
 whole suite, MPC with its options, an agent, a robustness twin), each in seconds."""
 from __future__ import annotations
 
@@ -12,6 +12,7 @@ import pytest
 
 from experiments.benchmark.scoring import score
 from experiments.benchmark import shipped as score_suites
+from experiments.benchmark.run import shipped_controllers
 from mrd_env.suites import suites
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -41,7 +42,7 @@ def test_the_stored_figures_are_of_the_shipped_suites_and_every_one_is_scored(st
     for sid, entry in stored["suites"].items():
         assert entry["digest"] == shipped[sid].digest, f"{sid}'s references changed: " + redo.format(sid)
         names = {c["name"] for c in entry["controllers"]} | {c["name"] for c in entry["not_applicable"]}
-        assert names == {c["name"] for c in score_suites.candidates(shipped[sid])}, sid
+        assert names == {c["name"] for c in shipped_controllers(shipped[sid])}, sid
         assert entry["controllers"], sid
 
 
