@@ -1,10 +1,13 @@
-"""The reference values of a benchmark suite (:mod:`mrd_env.suites`; docs/suites.md), computed once by a fixed
-procedure and shipped in the plant's folder.
+"""The reference values of a benchmark suite (:mod:`mrd_env.suites`; docs/suites.md): the fixed procedure
+(:data:`PROCEDURE`) and the builder that runs it over a suite's episodes, :func:`build_suite` — what
+``mrd-env suite build SPEC`` runs for a user's suite and for the shipped ones alike.
 
-``python -m experiments.benchmark.references --suite car-comfort-v1 [--jobs N] [--episodes K] [--out FILE]``
+``python -m experiments.benchmark.references --suite car-comfort-v1 [--backend pool --jobs N] [--episodes K --out F]``
+builds a shipped suite from its spec (``mrd_env/plants/<plant>/suites/specs/<id>.json``) into its plant's folder:
+the same :func:`build_suite` as ``mrd-env suite build mrd_env/plants/<plant>/suites/specs/<id>.json``.
 
-The procedure (:data:`PROCEDURE`), per episode, on the episode's plant (the suite's options, the scenario's and a
-robustness twin's draw, without the sensor options, which do not change an open-loop command sequence's return):
+The procedure, per episode, on the episode's plant (the suite's options, the scenario's and a robustness twin's
+draw, without the sensor options, which do not change an open-loop command sequence's return):
 
 * **R_p**, the best constant command: a grid of 17 commands from v_min to v_max (a user's yardstick tries 9), each
   re-simulated in the environment;
@@ -14,24 +17,40 @@ robustness twin's draw, without the sensor options, which do not change an open-
   best warm starts and the better kept (a user's yardstick runs from the best one only), and from the four best
   when both runs fail (a user's: three); re-simulated in the environment;
 * **R_b**, the active bound (:func:`mrd_env.optimal.active_bound`) with the force limit the yardstick uses: the
-  largest damper force of passive-on, every warm start and the clairvoyant on the episode.
+  largest damper force of passive-on, every warm start and the clairvoyant on the episode; null (not computed)
+  where the conic solver does not solve the problem, the reason recorded with the episode.
 
-Each episode is cached (``suite_reference`` in :mod:`mrd_env.optimal.cache`), so an interrupted run resumes. The
-suite file is written (atomically, with its digest, :func:`mrd_env.suites.write_suite`) only when every episode
-has its references; ``--episodes K`` computes the first K episodes and writes only with ``--out`` (a trial, never
-the shipped file). A shipped file is never overwritten: a suite whose definition or references change gets a new
-version (``--overwrite`` replaces a file of the same definition, before it is shipped). A suite with
-``references_of`` (the same episodes, other sensors) copies that suite's shipped references.
+The build (:func:`build_suite`): the episodes run on :func:`mrd_env.executor.run_tasks` (serial, a process pool
+or Ray), one task each, with one progress bar. **Resumable**: each solved episode is kept at once, by the worker
+that solved it, in ``<out>.partial/`` beside the output (one small JSON file per episode, keyed by the episode's
+options, the record files' contents, the warm laws, the procedure and mrd-env's version); an interrupted build
+(Ctrl-C, SIGTERM) run again solves only the episodes not kept; the folder is removed once the suite is written.
+**Deterministic**: the suite file holds only what the procedure computes — references, per episode the optimiser
+runs' statuses, iterations, function evaluations and returns, and the totals of iterations and evaluations as the
+build's machine-independent cost — so that a suite built serially, on a pool or on Ray is the same file, byte for
+byte; what the run cost in time (wall times per episode and in all, load averages, machine, backend, jobs, git
+commit, the command line) goes to the build record beside it (``<id>.build.json``,
+:func:`mrd_env.suites.build_record_path`), which differs from run to run. Both files are written atomically. A
+record file a scenario names is copied beside the suite file, named by its content (``data-<sha256[:12]>-<name>``),
+and the suite names the copy (a suite reads files from its own folder only); its full SHA-256 is in the procedure.
+
+A shipped file is never overwritten: a suite whose definition or references change gets a new version
+(``--overwrite`` replaces a file of the same definition, before it is shipped). A suite with ``references_of``
+(the same episodes, other sensors) copies that shipped suite's references.
 """
 from __future__ import annotations
 
 import argparse
+import hashlib
+import json
 import math
 import os
 import platform
+import shutil
 import subprocess
 import sys
 import time
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -54,7 +73,8 @@ PROCEDURE = {
                    f"command (no agent); the optimiser run from the {N_STARTS} best warm starts, the best kept; from "
                    f"the {FALLBACK_STARTS} best if all {N_STARTS} fail; re-simulated",
     "bound": "mrd_env.optimal.active_bound with f_max the largest damper force of passive-on, every warm start "
-             "and the clairvoyant on the episode",
+             "and the clairvoyant on the episode; null where its conic solver does not solve the problem (the "
+             "reason in the episode's record)",
     "sensors": "the references are computed without the sensor options (sensors, sensor_noise, sensor_delay, "
                "history, preview), which do not change an open-loop command sequence's return",
 }
@@ -78,21 +98,18 @@ def episode_problem(env_id: str, options: dict, seed: int):
     return build(env_id, seed=int(seed), control_dt=STEP, **options)
 
 
-def episode_references(env_id: str, options: dict, label: str, seed: int, warm_laws, *, cache: bool = True) -> dict:
+def episode_references(env_id: str, options: dict, label: str, seed: int, warm_laws, *, cache: bool = False,
+                       keep: str | None = None, key: dict | None = None) -> dict:
     """The references of one episode by the fixed procedure (see the module docstring): {"reference": {passive,
-    passive_command, clairvoyant, bound, f_max}, "wall": {...}, "source": ...}. A plain function of picklable
-    inputs (the executor's workers run it)."""
+    passive_command, clairvoyant, bound, f_max}, "source", "solves": [{start, status, success, iterations,
+    evaluations, return, seconds}], "wall": {...}, "load_average": [...]}. A plain function of picklable inputs (the
+    executor's workers run it). ``cache``: the clairvoyant's solve cache (:mod:`mrd_env.optimal.cache`; a build
+    does not use it: its runs are timed); ``keep``, ``key``: the build's folder of kept episodes, where the result is
+    written at once under ``key`` (:func:`keep_episode`)."""
     from experiments.benchmark.yardstick import force_peak, warm_starts
     from mrd_env.optimal import active_bound, clairvoyant
-    from mrd_env.optimal import cache as store
-    from mrd_env.optimal.full_knowledge import problem_digest
 
     problem = episode_problem(env_id, options, seed)
-    key = {**problem.key(), "problem_digest": problem_digest(problem), "label": label,
-           "warm_laws": list(warm_laws), "procedure": PROCEDURE}
-    hit = store.load("suite_reference", key) if cache else None
-    if hit is not None:
-        return hit
     t0 = time.perf_counter()
     rp, vp = best_constant(problem)
     starts = warm_starts(problem, warm_laws, agents=())
@@ -104,19 +121,101 @@ def episode_references(env_id: str, options: dict, label: str, seed: int, warm_l
     t2 = time.perf_counter()
     on = np.full((problem.n_steps, problem.nd), problem.v_max)
     f_max = max(force_peak(problem, U) for U in [on, *starts.values(), cv.commands])
-    b = active_bound(problem, f_max=f_max)
+    try:
+        bound, bound_status = float(active_bound(problem, f_max=f_max).bound), "solved"
+    except RuntimeError as exc:  # the conic solver's failure on this episode: no bound, said so (R_b is optional)
+        bound, bound_status = math.nan, f"not solved: {exc}"
     t3 = time.perf_counter()
     out = {"reference": {"passive": float(rp), "passive_command": float(vp), "clairvoyant": float(cv.ret),
-                         "bound": float(b.bound), "f_max": float(f_max)},
-           "source": str(cv.source), "solves": [{"start": s.start, "status": s.status, "success": bool(s.success),
-                                                 "seconds": round(float(s.seconds), 2), "return": float(s.ret)}
-                                                for s in cv.solves],
+                         "bound": bound, "f_max": float(f_max)},
+           "source": str(cv.source), "bound": bound_status,
+           "solves": [{"start": s.start, "status": s.status, "success": bool(s.success),
+                       "iterations": int(s.iterations), "evaluations": int(s.evaluations), "return": float(s.ret),
+                       "seconds": round(float(s.seconds), 2)} for s in cv.solves],
            "wall": {"passive_and_warm_starts_s": round(t1 - t0, 2), "clairvoyant_s": round(t2 - t1, 2),
                     "bound_s": round(t3 - t2, 2), "total_s": round(t3 - t0, 2)},
            "load_average": [round(x, 2) for x in os.getloadavg()]}
-    if cache:
-        store.store("suite_reference", key, out)
+    if keep is not None:
+        keep_episode(keep, key, out)
     return out
+
+
+# ------------------------------------------------------------------------------------------ kept episodes
+
+#: The kept episodes' files (``<out>.partial/episode-<hash>.json``): what a build run again does not solve again.
+KEPT_FORMAT = "mrd-env-suite-episode"
+
+
+def partial_folder(out: str | Path) -> Path:
+    """Where a build of the suite file ``out`` keeps its solved episodes: ``<out>.partial/`` beside it."""
+    out = Path(out)
+    return out.with_name(out.name + ".partial")
+
+
+def episode_key(env_id: str, options: dict, label: str, seed: int, warm_laws) -> dict:
+    """What a kept episode must match to be used again: the environment, the episode's options (each file they
+    name by its content's SHA-256, not its place), label and seed, the warm laws, the procedure and mrd-env's
+    version."""
+    from mrd_env.envs.build import map_files
+    from mrd_env.resources import file_limit
+    from mrd_env.storage import read_limited
+
+    def content(value: str, where: str) -> str:
+        return "sha256:" + hashlib.sha256(read_limited(value, file_limit(), what=where)).hexdigest()
+
+    return {"env_id": env_id, "options": json.loads(json.dumps(map_files(options, content, label))),
+            "label": label, "seed": int(seed), "warm_laws": list(warm_laws), "procedure": PROCEDURE,
+            "mrd_env": _version()}
+
+
+def _kept_path(folder: str | Path, key: dict) -> Path:
+    text = json.dumps(key, sort_keys=True, separators=(",", ":"))
+    return Path(folder) / f"episode-{hashlib.sha256(text.encode()).hexdigest()[:24]}.json"
+
+
+def _kept_digest(key: dict, result: dict) -> str:
+    text = json.dumps({"key": key, "result": result}, sort_keys=True, separators=(",", ":"), allow_nan=True)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def keep_episode(folder: str | Path, key: dict, result: dict) -> Path:
+    """Write an episode's result into the build's folder of kept episodes (atomically, with a digest)."""
+    from mrd_env.storage import write_json
+
+    Path(folder).mkdir(parents=True, exist_ok=True)
+    record = json.loads(json.dumps({"key": key, "result": result}))  # as a reader will see them
+    return write_json(_kept_path(folder, key), {"format": KEPT_FORMAT, **record,
+                                                 "digest": _kept_digest(record["key"], record["result"])})
+
+
+def kept_episode(folder: str | Path, key: dict) -> dict | None:
+    """The kept result of the episode ``key``, or None (not kept, a file of another key, or damaged: its content
+    does not match its digest — then it is solved again)."""
+    from mrd_env.storage import read_limited
+
+    path = _kept_path(folder, key)
+    if not path.is_file():
+        return None
+    try:
+        data = json.loads(read_limited(path, 1 << 22, what="kept episode").decode("utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not isinstance(data, dict) or data.get("format") != KEPT_FORMAT or not {"key", "result", "digest"} <= set(data):
+        return None
+    if json.dumps(data["key"], sort_keys=True) != json.dumps(json.loads(json.dumps(key)), sort_keys=True):
+        return None
+    if data["digest"] != _kept_digest(data["key"], data["result"]):
+        return None
+    return data["result"]
+
+
+def _version() -> str:
+    import importlib.metadata
+
+    try:
+        return importlib.metadata.version("mrd-env")
+    except importlib.metadata.PackageNotFoundError:
+        return "unknown"
 
 
 def _git_commit() -> str:
@@ -129,43 +228,46 @@ def _git_commit() -> str:
         return "unknown"
 
 
-def _shipped_check(path: Path, new, overwrite: bool) -> None:
-    """``SystemExit`` (one line) if ``path`` holds a suite this run must not replace."""
-    from mrd_env.suites import read_suite
+def _check_out(path: Path, new, overwrite: bool) -> None:
+    """``ValueError`` (one line) if ``path`` holds a file this build must not replace: a shipped suite (in a plant's
+    folder: the same definition and ``overwrite`` only, before it ships), or any existing file without
+    ``overwrite``."""
+    from mrd_env.suites import PLANTS_FOLDER, read_suite
 
-    if not path.exists():
+    if not path.exists() and not path.is_symlink():
         return
-    try:
-        old = read_suite(path)
-    except ValueError as exc:  # a trial file under a shipped id, or a damaged one: say so, one line
-        raise SystemExit(f"{path}: {exc}") from None
+    if not path.is_file():
+        raise ValueError(f"{path} exists and is not a file: refused")
+    if PLANTS_FOLDER not in path.resolve().parents:
+        if not overwrite:
+            raise ValueError(f"{path} exists: --overwrite replaces it")
+        return
+    old = read_suite(path)  # a damaged file or a trial under a shipped id: one line naming it
     if old.definition_json() != new.definition_json():
-        raise SystemExit(f"{path} holds suite {old.id} with another definition: a changed suite is a new version "
-                         f"(bump the version of {new.name} in the plant's suites/)")
+        raise ValueError(f"{path} holds suite {old.id} with another definition: a changed suite is a new version "
+                         f"(bump the version in its spec, {new.name}-v<N>.json in the plant's suites/specs/)")
     if not overwrite:
-        raise SystemExit(f"{path} exists: its references are frozen (recomputed references are a new version; "
+        raise ValueError(f"{path} exists: its references are frozen (recomputed references are a new version; "
                          "--overwrite replaces a file that was never shipped)")
 
 
 def copy_references(plant: str, env_id: str, definition, command: str):
     """The suite of ``definition`` with the shipped references of the suite it shares them with
     (``references_of``): the same plant and episodes, checked."""
-    from dataclasses import replace
-
     from mrd_env.suites import draws, suites
 
     sources = sorted((s.version, s) for s in suites().values() if s.name == definition.references_of)
     if not sources:
-        raise SystemExit(f"suite {definition.id} takes the references of {definition.references_of}, which has no "
-                         "shipped file yet: compute it first")
+        raise ValueError(f"suite {definition.id}: references_of must name a shipped suite (one of "
+                         f"{sorted({s.name for s in suites().values()})}), got {definition.references_of!r}")
     src = sources[-1][1]
     new = definition.suite(plant, env_id, draws(definition, env_id))  # a twin's episodes include its draws
     for (a, sa), (b, sb) in zip(new.episodes(), src.episodes()):
         if a.label(sa) != b.label(sb) or new.reference_options(a, sa) != src.reference_options(b, sb):
-            raise SystemExit(f"suite {definition.id}: episode {a.label(sa)} is not {src.id}'s {b.label(sb)} on the "
+            raise ValueError(f"suite {definition.id}: episode {a.label(sa)} is not {src.id}'s {b.label(sb)} on the "
                              "same plant: it cannot share its references")
     if len(new.episodes()) != len(src.episodes()) or not src.complete():
-        raise SystemExit(f"suite {definition.id}: {src.id} does not have the same episodes, or lacks references")
+        raise ValueError(f"suite {definition.id}: {src.id} does not have the same episodes, or lacks references")
     return replace(new, references=dict(src.references),
                    procedure={"references_of": src.id, "references_of_digest": src.digest,
                               "note": f"the same episodes on the same plant as {src.id}: its references, "
@@ -173,17 +275,199 @@ def copy_references(plant: str, env_id: str, definition, command: str):
                               "command": command})
 
 
-def table(s) -> str:
-    """Markdown: per scenario of the shipped suite ``s``, the mean over its episodes of R_p, R_c, R_b, the bracket
-    (R_b − R_c)/(R_b − R_p) and the wall times of the procedure (mean and largest clairvoyant, mean total)."""
+def spec_command(spec_path: str | Path) -> str:
+    """The command that builds a spec, as the suite file records it: the same whoever runs it, from wherever (a
+    shipped spec by its place in the package, a user's by its file name), so that it never makes two builds
+    differ."""
+    from mrd_env.suites import PLANTS_FOLDER
+
+    path = Path(spec_path).resolve()
+    root = PLANTS_FOLDER.parents[1]
+    shown = path.relative_to(root).as_posix() if PLANTS_FOLDER in path.parents else path.name
+    return f"mrd-env suite build {shown}"
+
+
+def check_episodes(suite) -> None:
+    """Make each scenario's environment once (its first episode, with every option a controller gets), so that a
+    bad option is refused — one ``ValueError`` naming the scenario — before anything is solved."""
+    import gymnasium as gym
+
+    import mrd_env  # noqa: F401  (registers the environments)
+
+    for i, sc in enumerate(suite.scenarios):
+        seed = sc.seeds[0]
+        try:
+            env = gym.make(suite.env_id, **suite.episode_options(sc, seed), control_dt=suite.control_dt)
+            try:
+                env.reset(seed=int(seed))
+            finally:
+                env.close()
+        except (TypeError, ValueError, KeyError, OSError) as exc:
+            raise ValueError(f"suite {suite.id}: scenarios[{i}] ({sc.name!r}): {exc}") from None
+
+
+@dataclass(frozen=True)
+class Build:
+    """A finished build: the suite written, where, its build record and where."""
+
+    suite: object
+    path: Path
+    record: dict
+    record_path: Path
+
+
+def build_suite(definition, plant: str, env_id: str, out: str | Path, *, backend: str = "serial",
+                jobs: int | None = None, address: str | None = None, resume: bool = True, progress: bool = True,
+                overwrite: bool = False, command: str = "", episodes: int | None = None, say=print) -> Build:
+    """Build the suite of ``definition`` (a :class:`~mrd_env.suites.SuiteDefinition` on ``plant``'s ``env_id``)
+    into the file ``out``, with its build record beside it (see the module docstring): every episode's references by
+    :data:`PROCEDURE` on :func:`mrd_env.executor.run_tasks` (``backend``, ``jobs``, ``address``; ``progress``: one
+    bar), the episodes already kept in ``<out>.partial/`` used again (``resume``; False: solved again), the suite
+    written atomically once every episode has its references. ``command``: the command recorded in the suite file
+    (:func:`spec_command`: the same for every backend); ``episodes``: only the first K (a trial); ``say``: where
+    the lines on what is done go. A ``ValueError`` (one line) for a definition or output refused before anything
+    is solved."""
+    from mrd_env.executor import Task, resolve_backend, run_tasks
+    from mrd_env.plants import plant as plant_spec
+    from mrd_env.suites import Reference, build_record_path, draws, write_suite
+    from mrd_env.storage import write_json
+
+    out = Path(out)
+    t0, load0, started = time.perf_counter(), [round(x, 2) for x in os.getloadavg()], time.time()
+    if definition.references_of:
+        new = copy_references(plant, env_id, definition, command)
+        _check_out(out, new, overwrite)
+        written = write_suite(new, out)
+        record = _record(written, new, command, backend, jobs, {}, t0, load0, started, 0, 0)
+        return Build(new, written, record, write_json(build_record_path(written), record, indent=1))
+    profile = plant_spec(plant).profile
+    if not profile.warm_laws:
+        raise ValueError(f"suite {definition.id}: the {profile.title} has no warm_laws (the clairvoyant's warm "
+                         "starts): no suite can be built on it")
+    new = definition.suite(plant, env_id, draws(definition, env_id))
+    _check_out(out, new, overwrite)
+    check_episodes(new)
+    chosen = new.episodes()[:episodes]
+    keep = partial_folder(out)
+    if not resume and keep.is_dir():
+        _remove_kept(keep)
+    warm = tuple(profile.warm_laws)
+    results, tasks, slots = {}, [], []
+    for sc, seed in chosen:
+        label, options = sc.label(seed), new.reference_options(sc, seed)
+        key = episode_key(env_id, options, label, seed, warm)
+        hit = kept_episode(keep, key) if resume else None
+        if hit is not None:
+            results[label] = {**hit, "kept": True}
+        else:
+            tasks.append(Task(episode_references, (env_id, options, label, seed, warm),
+                              {"keep": str(keep), "key": key}, label=label))
+            slots.append(label)
+    used = resolve_backend(backend, len(tasks), jobs) if tasks else "none"
+    say(f"{new.id}: {len(chosen)} episodes, {len(results)} kept in {keep}, {len(tasks)} to solve on {used}"
+        + (f" ({jobs} jobs)" if jobs and used in ("pool", "ray") else "") + f"; load average {load0}")
+    solved = run_tasks(tasks, backend=backend, jobs=jobs, address=address, progress=progress, desc=new.id)
+    results.update(zip(slots, solved))
+    refs, episodes_json, costs = {}, {}, {}
+    for sc, seed in chosen:
+        label = sc.label(seed)
+        r = results[label]
+        refs[label] = Reference(**r["reference"])
+        episodes_json[label] = {"source": r["source"],
+                                "solves": [{k: v for k, v in x.items() if k != "seconds"} for x in r["solves"]],
+                                "bound": r["bound"]}
+        costs[label] = {"wall": r["wall"], "load_average": r["load_average"],
+                        "solves_s": [x["seconds"] for x in r["solves"]], "kept": bool(r.get("kept", False))}
+    iterations = sum(x["iterations"] for e in episodes_json.values() for x in e["solves"])
+    evaluations = sum(x["evaluations"] for e in episodes_json.values() for x in e["solves"])
+    suite, files = _bundle_files(new, out.parent)
+    procedure = {**PROCEDURE, "warm_laws": list(warm), "command": command, "mrd_env": _version(),
+                 "cost": {"solver_iterations": iterations, "function_evaluations": evaluations,
+                          "note": "the optimiser's iterations and model evaluations (each a simulation with its "
+                                  "gradient) over every episode: the build's cost independent of the machine; the "
+                                  "wall times are in the build record"},
+                 **({"files": files} if files else {}), "episodes": episodes_json}
+    suite = replace(suite, references=refs, procedure=procedure)
+    if episodes is None and not suite.complete():
+        raise ValueError(f"{new.id}: references missing for {sorted(set(suite.labels()) - set(refs))}")
+    written = write_suite(suite, out)
+    record = _record(written, suite, command, used, jobs, costs, t0, load0, started, len(tasks), len(chosen) - len(tasks))
+    record_path = write_json(build_record_path(written), record, indent=1)
+    _remove_kept(keep)
+    return Build(suite, written, record, record_path)
+
+
+def _record(path: Path, suite, command: str, backend: str, jobs, costs: dict, t0: float, load0, started: float,
+            solved: int, kept: int) -> dict:
+    """The build record: what this run cost (see the module docstring)."""
+    import datetime
+
+    from mrd_env.suites import content_digest
+
+    return {"format": "mrd-env-suite-build", "suite": suite.id, "suite_file": path.name,
+            "digest": content_digest(suite.to_json()), "command_line": " ".join(sys.argv), "command": command,
+            "backend": backend, "jobs": jobs, "git_commit": _git_commit(), "mrd_env": _version(),
+            "machine": {"cpus": os.cpu_count(), "python": platform.python_version(), "platform": platform.platform()},
+            "started": datetime.datetime.fromtimestamp(started, datetime.timezone.utc).isoformat(timespec="seconds"),
+            "wall_s": round(time.perf_counter() - t0, 1),
+            "load_average": {"start": load0, "end": [round(x, 2) for x in os.getloadavg()]},
+            "episodes_solved": solved, "episodes_kept": kept, "episodes": costs}
+
+
+def _bundle_files(suite, folder: Path):
+    """``suite`` with every record file its options name copied into ``folder`` (the suite file's), named by its
+    content (``data-<sha256[:12]>-<name>``; an existing copy is the same content), and {copy's name: SHA-256}."""
+    import re
+
+    from mrd_env.envs.build import map_files
+    from mrd_env.resources import file_limit
+    from mrd_env.storage import read_limited, write_bytes
+    from mrd_env.suites import _confined
+
+    files: dict[str, str] = {}
+
+    def copy(value: str, label: str) -> str:
+        source = _confined(suite.folder, value, f"suite {suite.id}: {label}") if suite.folder else Path(value)
+        content = read_limited(source, file_limit(), what=f"suite {suite.id}: {label}")
+        digest = hashlib.sha256(content).hexdigest()
+        name = f"data-{digest[:12]}-{re.sub(r'[^A-Za-z0-9_.-]+', '_', Path(value).name)[-80:]}"
+        target = folder / name
+        if not (target.is_file() and hashlib.sha256(target.read_bytes()).hexdigest() == digest):
+            write_bytes(target, content)
+        files[name] = digest
+        return name
+
+    options = map_files(suite.options, copy, "options")
+    scenarios = tuple(replace(sc, options=map_files(sc.options, copy, f"scenarios ({sc.name!r}).options"))
+                      for sc in suite.scenarios)
+    return replace(suite, options=options, scenarios=scenarios, folder=""), dict(sorted(files.items()))
+
+
+def _remove_kept(folder: Path) -> None:
+    """Remove a build's folder of kept episodes (only its own files: a folder holding others is left)."""
+    if not folder.is_dir():
+        return
+    for f in folder.iterdir():
+        if f.name.startswith("episode-") and f.suffix == ".json" and f.is_file():
+            f.unlink(missing_ok=True)
+    try:
+        folder.rmdir()
+    except OSError:
+        pass  # something else is in it: not ours to remove
+
+
+def table(s, record: dict | None = None) -> str:
+    """Markdown: per scenario of the suite ``s``, the mean over its episodes of R_p, R_c, R_b, the bracket
+    (R_b − R_c)/(R_b − R_p) and the wall times of the procedure (mean and largest clairvoyant, mean total): from
+    the build record ``record`` (:func:`read_record`), or from the procedure of a suite built before the records."""
     from statistics import mean
 
     rows = ["| scenario | episodes | R_p best constant | R_c clairvoyant | R_b active bound | bracket | "
             "clairvoyant s (mean / max) | episode s (mean) |", "|---|---|---|---|---|---|---|---|"]
-    eps = s.procedure.get("source_procedure", s.procedure).get("episodes", {})
+    eps = (record or {}).get("episodes") or s.procedure.get("source_procedure", s.procedure).get("episodes", {})
     for sc in s.scenarios:
         refs = [s.reference(sc.label(seed)) for seed in sc.seeds]
-        walls = [eps[sc.label(seed)]["wall"] for seed in sc.seeds if sc.label(seed) in eps]
+        walls = [eps[sc.label(seed)]["wall"] for seed in sc.seeds if "wall" in eps.get(sc.label(seed), {})]
         br = [(r.bound - r.clairvoyant) / (r.bound - r.passive) for r in refs if r.bound > r.passive]
         cw = [w["clairvoyant_s"] for w in walls]
         rows.append(f"| {sc.name} | {len(refs)} | {mean(r.passive for r in refs):.4f} | "
@@ -194,74 +478,56 @@ def table(s) -> str:
     return "\n".join(rows)
 
 
+def read_record(suite_path: str | Path) -> dict | None:
+    """The build record beside the suite file ``suite_path`` (None if there is none, or it is not one)."""
+    from mrd_env.storage import read_limited
+    from mrd_env.suites import build_record_path
+
+    path = build_record_path(suite_path)
+    if not path.is_file():
+        return None
+    try:
+        data = json.loads(read_limited(path, 1 << 24, what="build record").decode("utf-8"))
+    except (OSError, ValueError):
+        return None
+    return data if isinstance(data, dict) and data.get("format") == "mrd-env-suite-build" else None
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(prog="python -m experiments.benchmark.references", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--suite", required=True, help="a suite's id (car-comfort-v1) or name (its latest version)")
-    p.add_argument("--jobs", type=int, default=1, help="episodes solved at once (process pool; default 1)")
+    p.add_argument("--suite", required=True, help="a shipped suite's id (car-comfort-v1) or name (its latest version)")
+    p.add_argument("--backend", choices=("serial", "pool", "ray"), default="serial",
+                   help="where the episodes are solved (mrd_env.executor; default serial)")
+    p.add_argument("--jobs", type=int, default=None, help="workers of the pool or Ray (default: the cores)")
+    p.add_argument("--address", default=None, help="a Ray cluster's address (default: a local Ray instance)")
     p.add_argument("--episodes", type=int, default=None, help="only the first K episodes (a trial: needs --out)")
     p.add_argument("--out", type=Path, default=None, help="write here instead of the plant's suites/ folder")
     p.add_argument("--overwrite", action="store_true", help="replace a file of the same definition (not shipped)")
-    p.add_argument("--no-cache", action="store_true", help="neither read nor write the per-episode cache")
+    p.add_argument("--no-resume", action="store_true", help="solve again the episodes an interrupted build kept")
     p.add_argument("--table", action="store_true", help="print the shipped suite's references per scenario")
     args = p.parse_args(argv)
-    if args.table:
-        from mrd_env.suites import suite
+    try:
+        if args.table:
+            from mrd_env.suites import suite, suite_path
 
-        print(table(suite(args.suite)))
-        return 0
+            s = suite(args.suite)
+            print(table(s, read_record(suite_path(s.plant, s))))
+            return 0
+        from mrd_env.plants import suite_definition
+        from mrd_env.suites import suite_path
 
-    from dataclasses import replace
-
-    from mrd_env.executor import Task, run_tasks
-    from mrd_env.plants import plant as plant_spec
-    from mrd_env.plants import suite_definition
-    from mrd_env.suites import Reference, draws, suite_path, write_suite
-
-    plant, env_id, d = suite_definition(args.suite)
-    command = f"python -m experiments.benchmark.references --suite {d.id}"
-    path = args.out or suite_path(plant, d)
-    if args.episodes is not None and args.out is None:
-        raise SystemExit("--episodes computes a trial of a suite: give --out (a suite file is shipped complete)")
-    if d.references_of:
-        new = copy_references(plant, env_id, d, command)
-        _shipped_check(path, new, args.overwrite)
-        print(f"{d.id}: {len(new.references)} references of {new.procedure['references_of']} -> "
-              f"{write_suite(new, path)}")
-        _list_shipped(args.out)
-        return 0
-    profile = plant_spec(plant).profile
-    if not profile.warm_laws:
-        raise SystemExit(f"suite {d.id}: the {profile.title} has no warm_laws (no yardstick)")
-    new = d.suite(plant, env_id, draws(d, env_id))
-    _shipped_check(path, new, args.overwrite)
-    episodes = new.episodes()[: args.episodes]
-    tasks = [Task(episode_references, (env_id, new.reference_options(sc, seed), sc.label(seed), seed,
-                                       tuple(profile.warm_laws)), {"cache": not args.no_cache},
-                  label=sc.label(seed)) for sc, seed in episodes]
-    t0 = time.perf_counter()
-    print(f"{d.id}: {len(tasks)} episodes on {args.jobs} job(s); load average {os.getloadavg()}", flush=True)
-    results = run_tasks(tasks, backend="serial" if args.jobs <= 1 else "pool", jobs=args.jobs, progress=True,
-                        desc=d.id)
-    wall = time.perf_counter() - t0
-    refs, per_episode = {}, {}
-    for (sc, seed), r in zip(episodes, results):
-        label = sc.label(seed)
-        refs[label] = Reference(**r["reference"])
-        per_episode[label] = {"source": r["source"], "solves": r["solves"], "wall": r["wall"],
-                              "load_average": r["load_average"]}
-        ref = refs[label]
-        print(f"  {label}: R_p {ref.passive:.6g} (v = {ref.passive_command:.4g}), R_c {ref.clairvoyant:.6g}, "
-              f"R_b {ref.bound:.6g}; clairvoyant {r['wall']['clairvoyant_s']:.1f} s, total "
-              f"{r['wall']['total_s']:.1f} s", flush=True)
-    procedure = {**PROCEDURE, "warm_laws": list(profile.warm_laws), "command": command, "git_commit": _git_commit(),
-                 "machine": {"cpus": os.cpu_count(), "python": platform.python_version(),
-                             "platform": platform.platform()},
-                 "jobs": args.jobs, "run_wall_s": round(wall, 1), "episodes": per_episode}
-    out = replace(new, references=refs, procedure=procedure)
-    if args.episodes is None and not out.complete():
-        raise SystemExit(f"{d.id}: references missing for {sorted(set(out.labels()) - set(refs))}")
-    print(f"{d.id}: {len(refs)} episodes in {wall:.0f} s -> {write_suite(out, path)}")
+        plant, env_id, d = suite_definition(args.suite)
+        if args.episodes is not None and args.out is None:
+            raise ValueError("--episodes computes a trial of a suite: give --out (a suite file is shipped complete)")
+        spec = Path(d.folder) / f"{d.id}.json"
+        b = build_suite(d, plant, env_id, args.out or suite_path(plant, d), backend=args.backend, jobs=args.jobs,
+                        address=args.address, resume=not args.no_resume, overwrite=args.overwrite,
+                        command=spec_command(spec), episodes=args.episodes)
+    except ValueError as exc:
+        raise SystemExit(str(exc)) from None
+    print(f"{d.id}: {len(b.suite.references)} episodes in {b.record['wall_s']:.0f} s -> {b.path} (build record "
+          f"{b.record_path})")
     _list_shipped(args.out)
     return 0
 
