@@ -1,5 +1,7 @@
-"""The yardstick (``mrd-env yardstick``: :mod:`experiments.commands.yardstick`): the best any controller could do on
-each held-out test episode, and every controller scored by the share of that achievable gain it captures.
+"""The yardstick of one episode, computed on the spot: the best any controller could do on it, and bounds from above
+— what the learning curves draw against (:mod:`experiments.training.learning_curves`), what the tests and the
+accuracy measurements check the optimisers with. The benchmark's suites store their references instead, computed
+once by :mod:`experiments.benchmark.references` (which builds on :func:`warm_starts` and :func:`force_peak`).
 
 Per episode (a scenario and a seed):
 
@@ -24,17 +26,14 @@ is the customary ideal-actuator reference of the structural literature (Dyke et 
 """
 from __future__ import annotations
 
-import argparse
 import math
 import time
-from dataclasses import asdict, dataclass, field, replace
-from pathlib import Path
+from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from experiments.common.evaluation import Episode, episode_means, grouped_bars, mean_ci
 from experiments.common.plants import PlantProfile
-from experiments.common.scenarios import Scenario, base_scenario
+from experiments.common.scenarios import Scenario
 
 #: The clairvoyant's control step: every controller's rate (1 ms, 10 ms) is a multiple of it, so its command
 #: sequences are candidate solutions and the optimum at 1 ms dominates them all.
@@ -221,108 +220,3 @@ def yardsticks(plant: PlantProfile, scenarios: list[Scenario], *, agents=(), bou
     out = run_tasks(tasks, backend=backend, jobs=jobs, address=address, progress=progress and solve,
                     desc=f"yardstick {plant.name}")
     return [y for y in out if y is not None]
-
-
-def yardstick_rows(ys: list[EpisodeYardstick]) -> list[dict]:
-    """One row per episode: the reference returns, both bounds and their brackets, and the wall times."""
-    return [{"episode": y.label, "best passive return": y.passive,
-             "best passive command": y.passive_command, "clairvoyant return": y.clairvoyant,
-             "clairvoyant from": y.source, "active bound": y.bound, "bound f_max (N)": y.f_max,
-             "bracket (share of bound − passive)": y.bracket, "passivity-aware bound": y.dissipative,
-             "bracket with it": y.dissipative_bracket, "clairvoyant solve (s)": y.clairvoyant_seconds,
-             "bound solve (s)": y.bound_seconds, "passivity-aware bound solve (s)": y.dissipative_seconds}
-            for y in ys]
-
-
-def share_rows(results: dict[str, list[Episode]], ys: list[EpisodeYardstick], scenario_of) -> list[dict]:
-    """Per scenario (and over all), per controller: the mean share of the achievable gain and its 95 % interval
-    over the episodes (an interval only where there are at least two episodes; an agent trained on several seeds
-    with its seeds' mean share on each episode). ``scenario_of(label)`` maps an episode label to its scenario."""
-    by_label = {y.label: y for y in ys}
-    rows = []
-    scen = list(dict.fromkeys(scenario_of(y.label) for y in ys))
-    for s in scen + ["all test scenarios"]:
-        for ctrl, eps in results.items():
-            scored = [e for e in eps
-                      if e.scenario in by_label and (s == "all test scenarios" or scenario_of(e.scenario) == s)]
-            shares = list(episode_means(scored, lambda e: by_label[e.scenario].share(e.episode_return)).values())
-            if not shares:
-                continue
-            m, lo, hi = mean_ci(shares)
-            rows.append({"scenario": s, "controller": ctrl, "episodes": len(shares), "share of achievable gain": m,
-                         "share lo95": lo, "share hi95": hi})
-    return rows
-
-
-def plot_shares(plant: PlantProfile, rows: list[dict], path: Path) -> Path:
-    """Bars of the share of the achievable gain per controller, one group per scenario (intervals where there
-    are repeats); 0: the best passive setting, dashed 1: the clairvoyant optimum."""
-
-    return grouped_bars(rows, "share of achievable gain", "share lo95", "share hi95", path,
-                        xlabel="share of the achievable gain (dimensionless)", refs=(0.0, 1.0), xlim=(-1.0, 1.05),
-                        title=f"{plant.name}: share of the achievable gain, (R − R_best passive) / "
-                              "(R_clairvoyant − R_best passive); 0: best constant command, dashed 1: clairvoyant "
-                              "optimum")
-
-
-def on_damper(plant: PlantProfile, scenarios: list[Scenario], damper: str | None) -> list[Scenario]:
-    """``scenarios`` on ``damper`` (a model's name or a preset file), so that their yardsticks are of the plant the
-    controllers were scored on; unchanged where it is the plant's own damper (whose cached yardsticks keep their
-    keys)."""
-    if damper is None:
-        return scenarios
-    import gymnasium as gym
-
-    import mrd_env  # noqa: F401
-
-    own, asked = (gym.make(plant.env_id, **plant.options, **kw).unwrapped.damper
-                  for kw in ({}, {"damper": damper}))
-    if type(own) is type(asked) and vars(own.params) == vars(asked.params) and vars(own.command) == vars(asked.command):
-        return scenarios
-    return [replace(sc, options={**sc.options, "damper": damper}) for sc in scenarios]
-
-
-def report(plant: PlantProfile, results: dict[str, list[Episode]], scenarios: list[Scenario], out: Path, mode: str,
-           *, damper: str | None = None, progress: bool = True, **executor) -> str:
-    """Score ``results`` ({controller: episodes}, run on ``damper``: None for the plant's own) against the
-    yardstick of their episodes on the same damper and write ``<plant>_yardstick.md/.csv`` (the references per
-    episode), ``<plant>_shares.md/.csv`` and ``<plant>_shares.png``. ``mode``: "auto" (cached yardsticks only),
-    "solve" (solve the missing ones) or "off". Returns the text to print."""
-    from controllers import shipped_agents
-
-    if mode == "off":
-        return ""
-    if not plant.warm_laws:
-        return f"{plant.name}: no yardstick ({plant.no_yardstick})"
-    scenarios = on_damper(plant, scenarios, damper)
-    ys = yardsticks(plant, scenarios, agents=shipped_agents(plant), solve=mode == "solve", progress=progress,
-                    **executor)
-    n_eps = sum(len(sc.seeds) for sc in scenarios)
-    if not ys:
-        return (f"{plant.name}: no yardstick cached for these {n_eps} test episodes: run `mrd-env yardstick "
-                f"--plant {plant.name}` (or add --yardstick solve) to score every controller against the "
-                "clairvoyant optimum")
-    return write_report(plant, results, ys, out, n_eps)
-
-
-def write_report(plant: PlantProfile, results: dict[str, list[Episode]], ys: list[EpisodeYardstick], out: Path,
-                 n_eps: int) -> str:
-    """Write the yardstick table, the shares table and their figure (see :func:`report`); the text to print."""
-    from mrd_env.report import write_table
-
-    name = plant.name
-    md, _ = write_table(yardstick_rows(ys), out / f"{name}_yardstick", floatfmt=".4g",
-                        title=f"{name}: the yardstick per test episode (returns; solve times in s)")
-    rows = share_rows(results, ys, base_scenario)
-    smd, _ = write_table(rows, out / f"{name}_shares", floatfmt=".3g",
-                         title=f"{name}: share of the achievable gain, (R − R_best passive) / (R_clairvoyant − "
-                               "R_best passive) (mean; 95 % interval over episodes where there are several)")
-    plot_shares(plant, [r for r in rows if r["scenario"] != "all test scenarios"], out / f"{name}_shares.png")
-    missing = f"\n({n_eps - len(ys)} of {n_eps} episodes without a yardstick)\n" if len(ys) < n_eps else ""
-    return md.read_text() + "\n" + smd.read_text() + missing
-
-
-def add_mode_argument(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--yardstick", choices=["auto", "solve", "off"], default="auto",
-                   help="score every controller against the clairvoyant optimum: auto (cached yardsticks, see "
-                        "mrd-env yardstick), solve (solve the missing ones: minutes per episode), off")

@@ -1,8 +1,12 @@
-"""The scenarios of every experiment, built from a plant's profile (:class:`.plants.PlantProfile`, where each
-plant's environment options, training distribution and test scenarios are written): what agents train on
-(``profile.training``), what selects the best agent during training (:func:`validation`: the training distribution
-on seeds training never draws), and what everything is scored on (:func:`held_out_scenarios`: the held-out test
-scenarios, never trained on).
+"""The scenarios of the training and teaching experiments, built from a plant's profile (:class:`.plants.PlantProfile`,
+where each plant's environment options, training distribution and test scenarios are written): what agents train on
+(``profile.training``), what selects the best agent during training (:func:`validation`: the training distribution on
+seeds training never draws), and the fixed held-out scenarios the labs (3-5) and two accuracy measurements
+(``reward_separation``, ``bound_bracket``) run on (:func:`held_out_scenarios`).
+
+The held-out scenarios are the labs' scenarios, **not a benchmark**: no command scores on them. Controllers are scored
+on the frozen suites (:mod:`mrd_env.suites`, ``mrd-env benchmark`` and ``mrd-env score``), whose episodes and
+references are stored with them.
 """
 from __future__ import annotations
 
@@ -48,8 +52,8 @@ def validation(plant: PlantProfile, episodes: int = 8) -> list[Scenario]:
 
 def held_out_scenarios(plant: PlantProfile, seeds: int = 3, quick: bool = False,
                        plant_options: dict | None = None) -> list[Scenario]:
-    """The held-out scenarios every controller and agent is scored on (:attr:`.plants.PlantProfile.tests`), on the
-    plant of every experiment (``plant.options``; e.g. the building's damper in storey 2) or on the environment
+    """The labs' held-out scenarios (:attr:`.plants.PlantProfile.tests`; not a benchmark: see the module docstring),
+    on the plant of every experiment (``plant.options``; e.g. the building's damper in storey 2) or on the environment
     options ``plant_options`` (``{}`` is the environment's default plant, e.g. the lab building with its damper in
     storey 1 as Dyke et al. built it)."""
     env_plant = dict(plant.options if plant_options is None else plant_options)

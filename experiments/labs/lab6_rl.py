@@ -19,8 +19,8 @@
 # small PPO agent (Stable-Baselines3) with the project's training machinery (`mrd-env train`: RL Zoo
 # hyperparameters, the native vector environment, validation on unseen roads, the best agent kept), see how far a
 # short training from scratch gets, then give an agent a better start — a policy network that begins as a classical
-# law and is improved by an evolution strategy — and compare both with the classical laws of Lab 3 on held-out
-# roads they never saw.
+# law and is improved by an evolution strategy — and score both on a benchmark suite, next to the classical laws of
+# Lab 3, on held-out roads they never saw.
 #
 # **Learning objectives.** After this lab you can
 # 1. state the quarter-car control problem as a Markov decision process: observation, action, reward, episode;
@@ -28,7 +28,8 @@
 # 3. read a learning curve and judge an agent against the right baseline: not random commands but doing nothing
 #    (passive-off, the damper switched off), which any useful controller must beat;
 # 4. start an agent from a classical law (behaviour cloning) instead of from scratch;
-# 5. compare agents with the classical laws on equal terms (same sensors, same control step, same roads).
+# 5. compare agents with the classical laws on equal terms (same sensors, same control step, same roads): on a
+#    benchmark suite, by the share of the achievable gain each captures.
 #
 # **Equations (recap).**
 # - Observation: the default sensors (body and wheel accelerations, travel and its rate, body and wheel
@@ -48,24 +49,22 @@
 #
 # **Budget and what it buys (measured).** For CI this lab trains PPO for 40 000 environment steps (about 15 s once
 # the environment is compiled) and CMA-ES for 128 000 (one generation of 16 policies × 8 ten-second roads, about
-# 7 s). That is far too short for PPO: on the held-out roads it ends at −14.3, *worse than doing nothing*
-# (passive-off, −10.45), though above random commands (−15.6) and still improving (validation −15.1 → −13.8); the
-# project's full run from scratch, 3·10⁶ steps, plateaus at −9.5 to −9.8 on validation. The agent started at
-# skyhook is at skyhook's level from its first step (validation −9.29; held-out −8.63 against skyhook's −8.51 and
-# passive-off's −10.45); one generation barely moves it. The shipped CMA-ES agent, trained 2·10⁷ steps from the
-# same start, beats skyhook (−8.33). `MRD_LAB_FULL=1` trains 10⁶ PPO steps and 2·10⁶ CMA-ES steps. The full-length
-# runs are `mrd-env train --plant quarter_car --algo ppo --seeds 0 1 2` (3·10⁶ steps per seed,
-# `experiments/hyperparams/ppo.yml`) and `--algo cmaes` (2·10⁷, `cmaes.yml`). Agents shipped with the project are
-# listed by `controllers.shipped_agents()` and loaded with `controllers.load_agent(folder)`;
-# this lab evaluates the first quarter-car one next to yours.
+# 7 s). That is far too short for PPO: on the benchmark suite `car-comfort-v1` it captures a share of −2.29 of the
+# achievable gain, *worse than doing nothing* (passive-off, −0.49), though above random commands (−2.93), and is
+# still improving (validation −15.1 → −13.8); the project's full run from scratch, 3·10⁶ steps, plateaus at −9.5 to
+# −9.8 on validation. The agent started at skyhook is at skyhook's level from its first step (validation −9.29;
+# share 0.19 against skyhook's 0.21 and passive-off's −0.49); one generation barely moves it. The shipped CMA-ES
+# agent, trained 2·10⁷ steps from the same start, beats skyhook (0.28). `MRD_LAB_FULL=1` trains 10⁶ PPO steps and
+# 2·10⁶ CMA-ES steps. The full-length runs are `mrd-env train --plant quarter_car --algo ppo --seeds 0 1 2` (3·10⁶
+# steps per seed, `experiments/hyperparams/ppo.yml`) and `--algo cmaes` (2·10⁷, `cmaes.yml`). Agents shipped with the
+# project are listed by `controllers.shipped_agents()` and loaded with `controllers.load_agent(folder)`; this lab
+# scores one of them next to yours.
 
 # %%
 import numpy as np
 
 import mrd_env  # noqa: F401  (registers the environments)
-from controllers import shipped_agents
-from experiments.commands.evaluate import summarise
-from experiments.common.comparison import evaluate
+from experiments.benchmark import run_benchmark
 from experiments.training.trainers import env_options, hyperparameters, train_one
 from experiments.labs.labkit import Lab, full_length
 from mrd_env.plants.quarter_car.profile import PROFILE as QUARTER_CAR
@@ -111,45 +110,51 @@ print("validation returns:", ", ".join(f"{int(s)}: {r:.2f}" for s, r in
                                         zip(warm_validation["timesteps"], warm_validation["validation_return"])))
 
 # %% [markdown]
-# ## Task 3 — Compare on the held-out test roads
-# Score both agents, a random-command baseline and the classical laws on the test scenarios (ISO 8608 class C and
-# D at 20 m/s on unseen seeds, class A at 30 m/s — a class never trained on — and a 5 cm bump), all at the
-# agents' 10 ms control step and sensors (`experiments.commands.evaluate.evaluate`, what `mrd-env evaluate` runs).
+# ## Task 3 — Enter the benchmark
+# Score both agents next to the shipped controllers of the quarter car — random commands, the passive settings,
+# continuous skyhook and groundhook, and the CMA-ES agent the project ships — on the benchmark suite
+# `car-comfort-v1`: held-out roads (ISO 8608 class C and D at 20 m/s on unseen seeds, class A at 30 m/s — a class
+# never trained on — and a 5 cm bump) at the agents' 10 ms control step and sensors, each episode scored by its
+# share of the achievable gain (R − R_p) / (R_c − R_p) against the suite's stored references: 0 is the best
+# constant command, 1 the clairvoyant optimum (`experiments.benchmark.run_benchmark`, what `mrd-env benchmark`
+# runs). Only the controllers that fit the suite are scored; the others are listed with the reason.
 
 # %%
-laws = ("random", "passive_off", "passive_on", "skyhook_continuous", "groundhook")
-results = evaluate(QUARTER_CAR, agents=[run_dir, warm_dir], laws=laws, seeds=2, laws_at_1ms=False, mpc=False,
-                   progress=False)
-for shipped in shipped_agents(QUARTER_CAR)[:1]:  # an agent shipped with the project, in a row of its own
-    for name, episodes in evaluate(QUARTER_CAR, agents=[shipped], laws=(), seeds=2, mpc=False,
-                                   progress=False).items():
-        results[f"shipped {name}"] = episodes
-rows = summarise(QUARTER_CAR, results)
-overall = {r["controller"]: r for r in rows if r["scenario"] == "all test scenarios"}
+SHIPPED = ("random", "passive_off", "passive_on", "skyhook_continuous", "groundhook", "quarter_car_cmaes")
+bench = run_benchmark(["car-comfort-v1"], {"PPO (this lab)": run_dir, "CMA-ES from skyhook (this lab)": warm_dir},
+                      only=SHIPPED, out=lab.out / "benchmark", backend="serial")
+part = bench.suites[0]
+print("not applicable:", part.not_applicable or "none")
+results = {s.name: s.result for s in part.scored}
+overall = {name: {r["scenario"]: r for r in res.summary()}["all scenarios"] for name, res in results.items()}
 for name, r in overall.items():
-    print(f"{name:30s} return {r['return']:8.2f}  a_w {r['acc_weighted_rms']:.3f} m/s²  "
-          f"travel peak {1e3 * r['travel_peak']:.1f} mm  tyre load ratio {r['tyre_load_ratio']:.3f}")
+    print(f"{name:32s} share {r['share']:7.3f} [{r['share lo95']:.3f}, {r['share hi95']:.3f}]  "
+          f"a_w {r['acc_weighted_rms']:.3f} m/s²  travel peak {1e3 * r['travel_peak']:.1f} mm  "
+          f"tyre load {r['tyre_load_rms']:.0f} N  ended early {r['terminated']}")
+print(f"leaderboard: {part.leaderboard}")
 
-scenarios = list(dict.fromkeys(r["scenario"] for r in rows if r["scenario"] != "all test scenarios"))
+scenarios = [sc.name for sc in part.suite.scenarios]
 names = list(overall)
 fig, (ax_r, ax_c) = figure(1, 2, figsize=(13, 4.4), gridspec_kw={"width_ratios": [1.6, 1]})
 width = 0.8 / len(names)
 for i, name in enumerate(names):
-    mine = [next(r for r in rows if r["scenario"] == s and r["controller"] == name) for s in scenarios]
-    # means only: two road seeds per class (one bump) and one training seed per agent support no interval
-    ax_r.bar(np.arange(len(scenarios)) + (i - (len(names) - 1) / 2) * width, [r["return"] for r in mine], width,
-             label=name)
-    ax_c.plot(overall[name]["acc_weighted_rms"], overall[name]["tyre_load_ratio"], "o", ms=8, label=name)
+    shares = results[name].shares()
+    ax_r.bar(np.arange(len(scenarios)) + (i - (len(names) - 1) / 2) * width, [shares[s][0] for s in scenarios],
+             width, label=name)
+    ax_c.plot(overall[name]["acc_weighted_rms"], overall[name]["tyre_load_rms"], "o", ms=8, label=name)
 ax_r.set_xticks(np.arange(len(scenarios)), scenarios, fontsize=8)
-ax_r.set_ylabel("episode return, mean of the scenario's episodes (dimensionless)")
+ax_r.set_ylabel("share of the achievable gain, scenario mean (dimensionless)")
+ax_r.set_ylim(max(ax_r.get_ylim()[0], -3.0), 1.05)  # passive-on and random far below: cut, their numbers printed
+ax_r.axhline(0.0, color="k", lw=0.8)
+ax_r.axhline(1.0, color="k", lw=0.8, ls="--")
 ax_r.grid(alpha=0.3, axis="y")
 ax_r.legend(fontsize=7, ncol=2)
 ax_r.set_title(f"PPO after {TIMESTEPS:,} steps, CMA-ES from skyhook after {CMAES_TIMESTEPS:,}, the laws\n"
-               "(held-out roads, 10 ms control; 2 roads per class, 1 bump)")
+               f"({part.suite.id}: 0 best constant command, dashed 1 clairvoyant optimum)")
 ax_c.set_xlabel("Wk-weighted r.m.s. acceleration (m/s²)")
-ax_c.set_ylabel("r.m.s. tyre load / static load")
+ax_c.set_ylabel("r.m.s. dynamic tyre load (N)")
 ax_c.grid(alpha=0.3)
-ax_c.set_title("mean over the test episodes (bump included)")
+ax_c.set_title("mean over the suite's episodes (bump included)")
 ax_c.legend(fontsize=7)
 lab.save(fig, "agent_vs_laws.png")
 
@@ -161,8 +166,9 @@ lab.save(fig, "agent_vs_laws.png")
 # 3. What does the PPO agent do with its command after this short training (look at its comfort and travel)?
 #    Why is it worse than leaving the damper off, and what does that say about judging it against random commands?
 #    Which classical law does it resemble?
-# 4. The agent acts every 10 ms, the laws of Lab 3 every 1 ms. Is this comparison fair to the laws? Run the laws
-#    at 1 ms too (`laws_at_1ms=True`).
+# 4. The suite fixes one control step, 10 ms, for every controller; the laws of Lab 3 acted every 1 ms. Is this
+#    comparison fair to the laws? What would a suite at 1 ms (`mrd-env suite build`) change for them, and for the
+#    agents trained at 10 ms?
 # 5. The agent started at skyhook is good from its first step. What does the evolution strategy still have to
 #    learn, and why does it compare whole episodes on the same roads instead of estimating advantages?
 # 6. What would you change first to get a better PPO agent: more steps, more seeds, a start at a law, a history of
@@ -173,9 +179,12 @@ lab.save(fig, "agent_vs_laws.png")
 # ## Instructor's check
 
 # %%
-ppo, warm, off = overall["agent PPO"], overall["agent CMA-ES"], overall["passive_off @ 10 ms"]
-lab.check("the lab's agent beats doing nothing: the agent started at skyhook scores above passive-off on the "
-          "held-out roads", warm["return"] > off["return"], f"{warm['return']:.2f} vs {off['return']:.2f}")
+warm, off, on = overall["CMA-ES from skyhook (this lab)"], overall["passive_off"], overall["passive_on"]
+lab.check("the lab's agent beats doing nothing: the agent started at skyhook captures a larger share of the "
+          "achievable gain than passive-off on the suite's held-out roads", warm["share"] > off["share"],
+          f"{warm['share']:.3f} vs {off['share']:.3f}")
+lab.check("both agents of the lab fit the suite (its sensors and control step are theirs) and are scored",
+          {"PPO (this lab)", "CMA-ES from skyhook (this lab)"} <= set(results))
 lab.check("PPO learnt: its last validation return is above its first",
           validation["validation_return"][-1] > validation["validation_return"][0],
           f"{validation['validation_return'][0]:.2f} → {validation['validation_return'][-1]:.2f}")
@@ -183,9 +192,10 @@ lab.check("a start at a law is worth more than the short training from scratch: 
           "validation return is above PPO's last", warm_validation["validation_return"][0]
           > validation["validation_return"][-1],
           f"{warm_validation['validation_return'][0]:.2f} vs {validation['validation_return'][-1]:.2f}")
-lab.check("the reward ranks comfort like ISO 2631: passive-off scores above passive-on",
-          overall["passive_off @ 10 ms"]["return"] > overall["passive_on @ 10 ms"]["return"]
-          and overall["passive_off @ 10 ms"]["acc_weighted_rms"] < overall["passive_on @ 10 ms"]["acc_weighted_rms"])
+lab.check("the reward ranks comfort like ISO 2631: passive-off scores above passive-on, with less acceleration",
+          off["share"] > on["share"] and off["acc_weighted_rms"] < on["acc_weighted_rms"])
+lab.check("no controller captures more than the clairvoyant optimum, on average over the suite",
+          all(r["share"] <= 1.0 for r in overall.values()))
 lab.check("no controller ended an episode early (stroke limit) on the test roads",
           all(r["terminated"] == 0 for r in overall.values()))
 lab.finish()

@@ -1,5 +1,7 @@
-"""The benchmark: one evaluation loop over controllers and scenarios, well-formed reproducible reports."""
-import csv
+"""The benchmark (``mrd-env benchmark``, :func:`experiments.benchmark.run_benchmark`): every controller that fits a
+suite scored on it, the result files and leaderboards it writes, what does not fit listed with the reason, the
+user's errors refused in one line before anything runs or is written; and the evaluation loop under it."""
+import json
 
 import gymnasium as gym
 import numpy as np
@@ -7,16 +9,164 @@ import pytest
 
 import mrd_env  # noqa: F401  (registers the environments)
 from controllers import AgentController, ClippedOptimal, SkyhookOnOff, make_controller
-from experiments.commands.benchmark import run_benchmark
-from experiments.common.evaluation import evaluate
-from experiments.common.scenarios import Scenario
+from experiments.benchmark import run_benchmark, score, shipped_controllers, suite
 from experiments.cli import main
+from experiments.common.evaluation import evaluate, evaluate_batch
 from experiments.common.plants import profile
+from experiments.common.scenarios import Scenario
+
+CAR = "car-comfort-v1"
+LAWS = ["passive_off", "skyhook_continuous"]
+
+
+def _smoke(tmp_path, *extra) -> list[str]:
+    """The command line of a smoke run: one episode per scenario, serially, no progress bar."""
+    return ["benchmark", "--episodes", "1", "--backend", "serial", "--no-progress", "--out", str(tmp_path), *extra]
+
+
+def test_a_smoke_run_writes_a_result_per_controller_a_leaderboard_and_the_summary(tmp_path, capsys):
+    assert main(_smoke(tmp_path / "b", "--suite", CAR, "--only", *LAWS)) == 0
+    out = capsys.readouterr().out
+    results = sorted((tmp_path / "b" / "results").iterdir())
+    assert [p.name for p in results] == [f"{CAR}__{law}.json" for law in LAWS]
+    board = tmp_path / "b" / "leaderboards" / CAR
+    assert sorted(p.name for p in board.iterdir()) == sorted(
+        ["leaderboard.md", "leaderboard.csv", "leaderboard_rows.md", "leaderboard_rows.csv", "leaderboard.png"])
+    assert (board / "leaderboard.png").stat().st_size > 10_000
+    # the summary: one row per suite, the best law (partial: one episode per scenario, 4 of the suite's 31)
+    assert f"| {CAR} | 31 | 2 (0) | skyhook_continuous:" in out and "(partial: 4 episodes)" in out
+    assert (tmp_path / "b" / "benchmark.md").read_text() in out
+    data = json.loads(results[1].read_text())
+    assert data["controller"]["name"] == "skyhook_continuous" and data["complete"] is False
+    assert len(data["episodes"]) == len(suite(CAR).scenarios)
+
+
+def test_the_benchmark_scores_as_score_does_and_reproducibly(tmp_path):
+    """Each share is the one ``score`` gives on the same episodes, against the suite's stored references, and a
+    second run gives the same shares bit for bit."""
+    a = run_benchmark([CAR], only=LAWS, episodes=1, backend="serial", out=tmp_path / "a")
+    b = run_benchmark([CAR], only=LAWS, episodes=1, backend="serial")
+    direct = score(CAR, "skyhook_continuous", episodes=1)
+    got = {s.name: s.result for s in a.suites[0].scored}
+    assert [e["share"] for e in got["skyhook_continuous"].episodes] == [e["share"] for e in direct.episodes]
+    assert [[e["share"] for e in s.result.episodes] for s in a.suites[0].scored] == \
+        [[e["share"] for e in s.result.episodes] for s in b.suites[0].scored]
+    # physics: the fixed passive-off damper captures nothing on the bump, where skyhook captures a part
+    bump = {name: r.shares()["bump 5 cm"][0] for name, r in got.items()}
+    assert bump["skyhook_continuous"] > bump["passive_off"]
+    assert all(s.wall_s > 0 and len(s.load) == 2 for s in a.suites[0].scored)
+    assert b.suites[0].leaderboard is None and a.suites[0].leaderboard == tmp_path / "a" / "leaderboards" / CAR
+
+
+def test_a_python_controller_of_the_user_is_scored_beside_the_shipped_ones(tmp_path):
+    """A controller object of the user's (run in the caller's process) under the name given; a shipped law given
+    again as the user's is scored once."""
+    class Off:  # the lowest command, always (the vector environment's space: one row per episode)
+        def __init__(self, env):
+            self.low = np.asarray(env.action_space.low, dtype=np.float32)
+
+        def predict(self, observation, state=None, episode_start=None, deterministic=True):
+            return self.low.copy(), state
+
+    bench = run_benchmark([CAR], {"mine": Off, "passive_off": "passive_off"}, only=["passive_off"], episodes=1,
+                          backend="serial")
+    scored = {s.name: s for s in bench.suites[0].scored}
+    assert sorted(scored) == ["mine", "passive_off"] and not scored["mine"].shipped
+    # the lowest command is passive-off: the same returns
+    assert [e["return"] for e in scored["mine"].result.episodes] == \
+        [e["return"] for e in scored["passive_off"].result.episodes]
+    assert "yours" in bench.summary_rows()[0]
+
+
+def test_what_does_not_fit_a_suite_is_listed_with_the_reason():
+    """An agent trained with road preview on the plain suite, the neural inverse's law on the six-storey building
+    (its inverse is of the three-storey model): listed, not scored; the preview agent fits the preview suite."""
+    plain = run_benchmark([CAR, "car-preview-v1"], only=["passive_off", "quarter_car_cmaes_preview"], episodes=1,
+                          backend="serial")
+    on = {e.suite.id: e for e in plain.suites}
+    assert [n for n, _ in on[CAR].not_applicable] == ["quarter_car_cmaes_preview"]
+    assert "preview" in on[CAR].not_applicable[0][1]
+    assert [s.name for s in on["car-preview-v1"].scored] == ["passive_off", "quarter_car_cmaes_preview"]
+    six = run_benchmark(["building-six-storey-v1"], only=["passive_off", "clipped_optimal+neural"], episodes=1,
+                        backend="serial")
+    assert [n for n, _ in six.suites[0].not_applicable] == ["clipped_optimal+neural"]
+
+
+def test_the_shipped_controllers_of_a_suite_are_its_plants_laws_mpc_rows_and_agents():
+    """The MPC rows at the suite's control step, a preview row only where the suite grants preview, each label once;
+    the agents trained on the suite's environment."""
+    for sid in ("car-comfort-v1", "car-preview-v1", "building-seismic-v1"):
+        s = suite(sid)
+        rows = shipped_controllers(s)
+        names = [r["name"] for r in rows]
+        assert len(names) == len(set(names)), sid
+        assert set(profile(s.plant).laws) <= set(names)
+        mpc = [r["name"] for r in rows if r["controller"] == "mpc"]
+        assert mpc and all(("preview" in m) == ("road_preview" in s.options.get("sensors", ())) for m in mpc), sid
+    assert any(r["name"] == "quarter_car_cmaes" for r in shipped_controllers(suite(CAR)))
+    assert not any(r["name"].startswith("quarter_car") for r in shipped_controllers(suite("building-seismic-v1")))
+
+
+def test_plant_options_choose_the_suites_of_the_plant_they_describe(tmp_path, capsys):
+    assert main(_smoke(tmp_path / "b", "--plant", "shear_building", "--storeys", "6", "--only", "passive_off")) == 0
+    assert [p.name for p in (tmp_path / "b" / "results").iterdir()] == ["building-six-storey-v1__passive_off.json"]
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--suite", "car-nowhere-v1"], "car-nowhere"),
+    (["--suite", "building-six-storey-v1", "--no-shipped", "--controller", "quarter_car_cmaes"],
+     "agent quarter_car_cmaes: trained on mrd_env/QuarterCarPhysical-v0"),
+    (["--suite", CAR, "--suite", "building-six-storey-v1", "--no-shipped", "--controller", "quarter_car_cmaes_preview"],
+     "controller 'quarter_car_cmaes_preview' fits none of the chosen suites (car-comfort-v1: agent"),
+    (["--suite", CAR, "--controller", "no_such_law"], "no_such_law"),
+    (["--suite", CAR, "--only", "no_such_law"], "only: 'no_such_law' is none of the shipped controllers"),
+    (["--suite", CAR, "--no-shipped"], "--no-shipped leaves nothing to score"),
+    (["--suite", CAR, "--suite", CAR], "given twice"),
+    (["--plant", "quarter_car", "--storeys", "6"], "--storeys"),
+    (["--suite", CAR, "--episodes", "0"], "--episodes"),
+])
+def test_the_users_errors_are_one_line_and_write_nothing(tmp_path, capsys, argv, message):
+    out = tmp_path / "never"
+    assert main(_smoke(out, *argv)) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("mrd-env benchmark: error: ") and err.count("\n") == 1 and message in err, err
+    assert not out.exists()
+
+
+def test_an_out_that_is_a_file_is_refused_before_the_run(tmp_path, capsys):
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    assert main(_smoke(blocker / "sub", "--suite", CAR, "--only", "passive_off")) == 2
+    err = capsys.readouterr().err
+    assert "--out" in err and "is a file" in err and err.count("\n") == 1
+
+
+@pytest.mark.parametrize("command", ["evaluate", "yardstick"])
+def test_the_folded_commands_answer_one_line_naming_the_benchmark(command, capsys):
+    assert main([command, "--plant", "quarter_car"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"mrd-env {command}: error: mrd-env {command} was folded into the suites' benchmark")
+    assert "mrd-env benchmark" in err and err.count("\n") == 1
+
+
+# ---------------------------------------------------------------------------------------------- the evaluation loop
 
 
 def short_building():
-    return [Scenario("El Centro 1.5 s", "mrd_env/ShearBuildingPhysical-v0",
-                     dict(ground_motion="el_centro", ground_motion_params={"time_scale": 0.2}, episode_seconds=1.5))]
+    return Scenario("El Centro 1.5 s", "mrd_env/ShearBuildingPhysical-v0",
+                    dict(ground_motion="el_centro", ground_motion_params={"time_scale": 0.2}, episode_seconds=1.5))
+
+
+def test_a_damper_in_the_loop_cuts_the_peak_drift_of_the_uncontrolled_building():
+    """J1-J4 are ratios to the uncontrolled building: every damper setting stays within (0, 2), and each cuts the
+    peak drift (J1 < 1); the same episode twice gives the same metrics."""
+    sensors = ("abs_acc", "drift", "damper_force", "damper_velocity", "ground_acc")
+    for law in ("passive_off", "passive_on", "clipped_optimal"):
+        a, b = (evaluate_batch(lambda v, n=law: make_controller(n, v), short_building(), "drift", sensors=sensors)[0]
+                for _ in range(2))
+        assert a.metrics == b.metrics and np.array_equal(a.response, b.response), law
+        assert all(0.0 < a.metrics[k] < 2.0 for k in ("J1", "J2", "J4")), (law, a.metrics)
+        assert a.metrics["J1"] < 1.0, law
 
 
 def test_controller_on_env_without_needed_sensors_raises():
@@ -26,81 +176,6 @@ def test_controller_on_env_without_needed_sensors_raises():
     env_b = gym.make("mrd_env/ShearBuildingPhysical-v0", sensors=("abs_acc", "ground_acc"), episode_seconds=0.5)
     with pytest.raises(ValueError, match="damper_force"):
         ClippedOptimal(env_b)
-
-
-def test_benchmark_reports_are_well_formed_and_reproducible(tmp_path):
-    ctrls = ["passive_off", "passive_on", "clipped_optimal"]
-    a = run_benchmark(profile("shear_building"), ctrls, short_building(), out=tmp_path / "a", progress=False)
-    b = run_benchmark(profile("shear_building"), ctrls, short_building(), out=tmp_path / "b", progress=False)
-    assert [e.controller for e in a] == ctrls
-    for ea, eb in zip(a, b):
-        assert np.array_equal(ea.response, eb.response) and ea.metrics == eb.metrics
-    assert (tmp_path / "a" / "shear_building_benchmark.csv").read_text() == (tmp_path / "b" / "shear_building_benchmark.csv").read_text()
-    with (tmp_path / "a" / "shear_building_benchmark.csv").open() as fh:
-        rows = list(csv.DictReader(fh))
-    assert len(rows) == 3 + 3  # per scenario, then the worst case per controller
-    for r in rows:
-        for k in ("J1", "J2", "J4"):
-            assert 0.0 < float(r[k]) < 2.0
-    md = (tmp_path / "a" / "shear_building_benchmark.md").read_text().splitlines()
-    header = [ln for ln in md if ln.startswith("| scenario")][0]
-    assert all(ln.count("|") == header.count("|") for ln in md if ln.startswith("|"))
-    pngs = sorted(p.name for p in (tmp_path / "a").glob("*.png"))
-    assert "shear_building_bars.png" in pngs and any(p.startswith("shear_building_history") for p in pngs)
-    # a damper in the loop cuts the peak drift relative to the uncontrolled building
-    assert all(float(r["J1"]) < 1.0 for r in rows)
-
-
-def test_quarter_car_benchmark_with_seeded_roads(tmp_path):
-    sc = [Scenario("ISO-C 1 s", "mrd_env/QuarterCarPhysical-v0",
-                   dict(road="iso8608", road_params={"road_class": "C", "speed": 20.0}, episode_seconds=1.0), seeds=(3,))]
-    eps = run_benchmark(profile("quarter_car"), ["passive_off", "skyhook_on_off", "groundhook"], sc, out=tmp_path,
-                        progress=False)
-    assert eps[-1].controller.startswith("passive_ref")
-    with (tmp_path / "quarter_car_benchmark.csv").open() as fh:
-        rows = list(csv.DictReader(fh))
-    off = [r for r in rows if r["controller"] == "passive_off"][0]
-    assert float(off["acc_weighted_rms/off"]) == pytest.approx(1.0)
-    assert all(float(r["acc_weighted_rms (m/s²)"]) > 0 for r in rows)   # headers carry their units
-    assert rows[-1]["scenario"] == "worst over scenarios"
-
-
-def test_benchmark_tables_hold_means_over_seeds_and_figures_only_ratios(tmp_path):
-    """Issue 22: the table a report quotes is the mean over a scenario's seeds (every episode in its own CSV); the
-    bar chart draws ratios only; a history shows at most four controllers."""
-    from experiments.commands.benchmark import HISTORY_LINES
-
-    sc = [Scenario("ISO-C 1 s", "mrd_env/QuarterCarPhysical-v0",
-                   dict(road="iso8608", road_params={"road_class": "C", "speed": 20.0}, episode_seconds=0.5),
-                   seeds=(3, 4))]
-    ctrls = ["passive_off", "passive_on", "skyhook_on_off", "groundhook", "hybrid"]
-    eps = run_benchmark(profile("quarter_car"), ctrls, sc, out=tmp_path, progress=False, reference_passive=False)
-    with (tmp_path / "quarter_car_benchmark.csv").open() as fh:
-        means = list(csv.DictReader(fh))
-    with (tmp_path / "quarter_car_benchmark_episodes.csv").open() as fh:
-        per_episode = list(csv.DictReader(fh))
-    assert len(per_episode) == 2 * len(ctrls) and len(means) == 2 * len(ctrls)  # means, then the worst case
-    sky = [float(r["return"]) for r in per_episode if r["controller"] == "skyhook_on_off"]
-    row = next(r for r in means if r["controller"] == "skyhook_on_off" and r["scenario"] == "ISO-C 1 s")
-    assert float(row["return"]) == pytest.approx(np.mean(sky)) and row["episodes"] == "2"
-    from experiments.commands.benchmark import history_selection
-
-    shown = history_selection([e for e in eps if e.scenario == eps[0].scenario])
-    assert len(shown) == HISTORY_LINES and {"passive_off", "passive_on"} <= {e.controller for e in shown}
-
-
-def test_history_shows_one_line_per_law():
-    """A law and the same law with an inverse draw on top of each other: the history takes the better of the two
-    and then the next law."""
-    from types import SimpleNamespace
-
-    from experiments.commands.benchmark import history_selection
-
-    eps = [SimpleNamespace(controller=c, episode_return=r) for c, r in
-           [("passive_off", -2.1), ("passive_on", -1.0), ("clipped_optimal", -0.85), ("clipped_optimal+model", -0.855),
-            ("clipped_optimal_reward", -0.86), ("lyapunov", -1.03)]]
-    assert [e.controller for e in history_selection(eps)] == ["passive_off", "passive_on",
-                                                              "clipped_optimal", "clipped_optimal_reward"]
 
 
 def test_building_history_follows_the_damper_storey():
@@ -122,12 +197,6 @@ def test_agent_and_classical_controllers_share_the_loop():
     assert make_controller("passive_on", env).predict(np.zeros(env.observation_space.shape))[0][0] == 2.25
 
 
-def test_cli_benchmark_quick(tmp_path):
-    assert main(["benchmark", "--plant", "shear_building", "--quick", "--controllers", "passive_off", "passive_on",
-                 "--out", str(tmp_path), "--no-progress"]) == 0
-    assert (tmp_path / "shear_building_benchmark_worst.md").exists()
-
-
 def test_model_based_estimate_stays_at_rest_despite_the_damper_preload():
     """The damper force sensor includes the static preload (k1·x0), which the plant balances: the Kalman
     filter must not read it as a load (regression: a 0.14 mm phantom drift)."""
@@ -145,10 +214,8 @@ def test_model_based_estimate_stays_at_rest_despite_the_damper_preload():
 
 
 def test_a_vector_environment_scores_every_seed_as_scalar_episodes_would():
-    """The benchmark's batched evaluation (one vector env, one row per seed) gives each seed the metrics and
-    return of a scalar episode with that seed."""
-    from experiments.common.evaluation import evaluate_batch
-
+    """The batched evaluation (one vector env, one row per seed) gives each seed the metrics and return of a scalar
+    episode with that seed."""
     sc = Scenario("KT", "mrd_env/ShearBuildingPhysical-v0", dict(ground_motion="kanai_tajimi", episode_seconds=0.6),
                   seeds=(4, 5, 6))
     sensors = ("abs_acc", "drift", "damper_force", "damper_velocity", "ground_acc")
@@ -157,33 +224,3 @@ def test_a_vector_environment_scores_every_seed_as_scalar_episodes_would():
         env = gym.make("mrd_env/ShearBuildingPhysical-v0", sensors=sensors, **sc.options)
         single = evaluate(make_controller("clipped_optimal", env), env, seed, "drift")
         assert ep.metrics == single.metrics and ep.episode_return == single.episode_return
-
-
-def test_the_default_controller_set_runs_on_a_fitted_damper_leaving_out_the_rows_it_cannot_serve(tmp_path, capsys):
-    """A fitted damper has no shipped neural inverse: the default set's clipped_optimal+neural row is left out with a
-    note, every other default law runs (issue 36); named explicitly, the row is refused before any episode."""
-    from mrd_env.dampers import make_damper
-    from mrd_env.identification.presets import save_preset
-
-    fitted = make_damper("spencer_dyke")
-    fitted.params = fitted.params.replace(c0a=1.1 * fitted.params.c0a)
-    preset = save_preset(fitted, tmp_path / "fitted.json", source="test: a refitted damper")
-    out = tmp_path / "out"
-    assert main(["benchmark", "--plant", "shear_building", "--quick", "--damper", str(preset), "--out", str(out),
-                 "--no-progress", "--yardstick", "off"]) == 0
-    err = capsys.readouterr().err
-    assert "note: clipped_optimal+neural left out of the shear building benchmark: no neural inverse ships" in err
-    table = (out / "shear_building_benchmark.md").read_text()
-    for law in profile("shear_building").benchmark_laws:
-        assert (law in table) == (law != "clipped_optimal+neural"), law
-    assert main(["benchmark", "--plant", "shear_building", "--quick", "--damper", str(preset), "--controllers",
-                 "clipped_optimal+neural", "--out", str(out), "--no-progress"]) == 2
-    assert "--controllers: clipped_optimal+neural does not apply to the shear building" in capsys.readouterr().err
-
-
-def test_an_unwritable_out_folder_is_refused_before_the_run(tmp_path, capsys):
-    blocker = tmp_path / "file"
-    blocker.write_text("")
-    assert main(["benchmark", "--plant", "shear_building", "--quick", "--out", str(blocker / "sub"), "--no-progress"]) == 2
-    err = capsys.readouterr().err
-    assert "--out" in err and err.count("\n") == 1

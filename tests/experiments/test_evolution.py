@@ -127,9 +127,11 @@ def test_cmaes_training_writes_an_agent_the_tooling_loads(es_runs, tmp_path):
     val = _short_validation()
     eps = evaluate_batch(lambda v: agent.bind(v), val, "", **agent.observation_kwargs)
     assert np.mean([e.episode_return for e in eps]) == pytest.approx(agent.meta["validation_return"], rel=1e-6)
-    assert main(["evaluate", "--plant", "quarter_car", "--agents", str(run), "--laws", "skyhook_continuous",
-                 "--quick", "--seeds", "1", "--no-mpc", "--out", str(tmp_path), "--no-progress"]) == 0
-    assert "agent CMA-ES" in (tmp_path / "quarter_car_evaluation.md").read_text()
+    # the trained agent enters the benchmark: scored on a suite of its environment beside a shipped law
+    assert main(["benchmark", "--suite", "car-comfort-v1", "--only", "skyhook_continuous", "--controller", str(run),
+                 "--episodes", "1", "--backend", "serial", "--out", str(tmp_path / "bench"), "--no-progress"]) == 0
+    assert len(list((tmp_path / "bench" / "results").glob("car-comfort-v1__*.json"))) == 2
+    assert str(run) in (tmp_path / "bench" / "leaderboards" / "car-comfort-v1" / "leaderboard.md").read_text()
 
 
 def test_cmaes_same_seed_same_agent(es_runs):
@@ -165,52 +167,6 @@ def test_benchmark_building_has_its_damper_where_the_command_matters():
     assert gain2 < 0.9 and abs(gain1 - 1) < 0.01
 
 
-def test_paired_comparison_cancels_what_the_episodes_share():
-    """Agent minus the best law on the same episodes: the episodes' common part cancels, the agent's seeds are
-    averaged per episode, random commands are never the best law, and each control step has its own best."""
-    from experiments.commands.evaluate import paired
-    from experiments.common.evaluation import Episode
-
-    def ep(ctrl, label, r):
-        z = np.zeros(1)
-        return Episode(ctrl, label, {}, z, z, z, z, 0.0, episode_return=r)
-
-    base = {"S s1": -10.0, "S s2": -20.0, "S s3": -15.0}  # large episode-to-episode variation
-    res = {"agent X": [ep("agent X", k, v + 0.1 + d) for k, v in base.items() for d in (-0.01, 0.01)],
-           "law @ 10 ms": [ep("law", k, v) for k, v in base.items()],
-           "worse @ 10 ms": [ep("worse", k, v - 1) for k, v in base.items()],
-           "random @ 10 ms": [ep("random", k, v + 5) for k, v in base.items()],
-           "law @ 1 ms": [ep("law", k, v + 0.2) for k, v in base.items()]}
-    rows = {(r["comparison"], r["scenario"]): r for r in paired(res)}
-    r10 = rows["agent X − law @ 10 ms", "all test scenarios"]
-    assert r10["episodes"] == 3 and r10["difference"] == pytest.approx(0.1)
-    assert r10["difference_lo95"] == pytest.approx(0.1) == pytest.approx(r10["difference_hi95"])
-    assert rows["agent X − law @ 1 ms", "S"]["difference"] == pytest.approx(-0.1)
-
-
-def test_an_agents_seeds_count_once_per_episode_in_the_summary_and_the_shares():
-    """An agent trained on 3 seeds, on 3 test episodes: 3 episodes, not 9, in the summary and in the shares, and
-    the interval of its seeds' means per episode (its seeds are not independent draws of an episode)."""
-    from experiments.commands.evaluate import summarise
-    from experiments.common.evaluation import Episode, mean_ci
-    from experiments.common.scenarios import base_scenario
-    from experiments.benchmark.yardstick import EpisodeYardstick, share_rows
-
-    def ep(ctrl, label, r):
-        z = np.zeros(1)
-        return Episode(ctrl, label, {}, z, z, z, z, 0.0, episode_return=r)
-
-    base = {"S s1": -10.0, "S s2": -20.0, "S s3": -15.0}
-    res = {"agent X": [ep("agent X", k, v + d) for k, v in base.items() for d in (-0.01, 0.0, 0.01)]}
-    row = {r["scenario"]: r for r in summarise(profile("quarter_car"), res)}["S"]
-    m, lo, hi = mean_ci(list(base.values()), upper=0.0)
-    assert row["episodes"] == 3 and (row["return"], row["return_lo95"], row["return_hi95"]) == pytest.approx((m, lo, hi))
-    ys = [EpisodeYardstick(k, 0, v - 1.0, 2.0, v + 1.0, "optimiser", 1.0) for k, v in base.items()]
-    share = {r["scenario"]: r for r in share_rows(res, ys, base_scenario)}["S"]
-    assert share["episodes"] == 3 and share["share of achievable gain"] == pytest.approx(0.5)
-    assert share["share lo95"] == pytest.approx(0.5) == pytest.approx(share["share hi95"])
-
-
 def test_a_preview_agent_is_named_and_filed_apart_from_the_plain_one(es_runs, tmp_path):
     """--preview: its own run folder (a plain run in the same --out is not overwritten) and a name that says so in
     every table; loaded, it reads the road-preview sensor."""
@@ -220,35 +176,3 @@ def test_a_preview_agent_is_named_and_filed_apart_from_the_plain_one(es_runs, tm
     assert agent.name == "CMA-ES preview s0"
     assert load_agent(es_runs / "a" / "quarter_car_cmaes_s0").name == "CMA-ES s0"
     assert "road_preview" in agent.env_kwargs["sensors"]
-
-
-@pytest.mark.parametrize("dt", [1e-3, 1e-2])
-def test_every_evaluation_row_has_its_own_label(dt):
-    """At 1 ms the car's MPC+preview row tuned for 1 ms (100-step horizon) stands alone: the one tuned for the
-    comparison's step is not added under the same label (their episodes would be pooled as one controller's)."""
-    from experiments.common.comparison import law_rows
-
-    car = profile("quarter_car")
-    rows = law_rows(car, car.laws, {"control_dt": dt})
-    labels = [label for label, _, _ in rows]
-    assert len(labels) == len(set(labels))
-    preview_1ms = [ctrl for label, ctrl, _ in rows if label == "mpc+preview (reward) @ 1 ms"]
-    assert len(preview_1ms) == 1 and preview_1ms[0][1]["horizon"] == 100
-    assert ("mpc+preview (reward) @ 10 ms" in labels) == (dt == 1e-2)
-    with pytest.raises(ValueError, match="would each be evaluated twice"):
-        law_rows(car, ["skyhook_continuous", "skyhook_continuous"], {"control_dt": dt})
-
-
-def test_a_preview_agent_listed_first_hands_the_road_ahead_to_no_law(tmp_path):
-    """The laws and the plain MPC rows run on the agent's sensors without the road preview (they took the first
-    agent's sensors, preview included, and the preview rows then failed on a sensor given twice)."""
-    import csv
-    from pathlib import Path
-
-    from experiments.cli import main
-
-    agent = Path(__file__).parents[2] / "controllers" / "agents" / "quarter_car_cmaes_preview"
-    assert main(["evaluate", "--plant", "quarter_car", "--agents", str(agent), "--laws", "skyhook_continuous",
-                 "--quick", "--seeds", "1", "--yardstick", "off", "--no-progress", "--out", str(tmp_path)]) == 0
-    rows = {r["controller"] for r in csv.DictReader((tmp_path / "quarter_car_evaluation.csv").open())}
-    assert {"mpc @ 10 ms", "mpc+preview (reward) @ 10 ms", "mpc+preview (reward) @ 1 ms"} <= rows

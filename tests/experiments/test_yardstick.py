@@ -1,18 +1,12 @@
-"""The yardstick's bookkeeping: shares of the achievable gain, the cache, the report without solving."""
+"""The per-episode yardstick (experiments.benchmark.yardstick, the learning curves' references): shares of the
+achievable gain, the bracket, the cache and its keys."""
 import math
 
-import numpy as np
 import pytest
 
-from experiments.common.evaluation import Episode
-from experiments.benchmark.yardstick import EpisodeYardstick, share_rows
+from experiments.benchmark.yardstick import EpisodeYardstick
 from mrd_env.optimal import cache
 from experiments.common.plants import profile
-
-
-def _ep(ctrl, label, ret):
-    e = np.zeros(0)
-    return Episode(ctrl, label, {}, e, e, e, e, 0.0, ret)
 
 
 def test_share_of_the_achievable_gain():
@@ -23,18 +17,6 @@ def test_share_of_the_achievable_gain():
     assert y.bracket == pytest.approx(1.0 / 5.0)      # (−5 + 6) / (−5 + 10)
     flat = EpisodeYardstick("x", 0, -1.0, 0.0, -1.0, "passive", 0.0)
     assert math.isnan(flat.share(-1.0))               # no gain to share: not a number, not a division by zero
-
-
-def test_share_rows_pool_episodes_and_give_intervals_only_with_repeats():
-    ys = [EpisodeYardstick(f"ISO-C s{i}", i, -10.0, 2.0, -6.0, "optimiser", 1.0) for i in (1, 2)]
-    ys.append(EpisodeYardstick("bump", 0, -2.0, 2.0, -1.0, "optimiser", 1.0))
-    res = {"sky": [_ep("sky", "ISO-C s1", -9.0), _ep("sky", "ISO-C s2", -8.0), _ep("sky", "bump", -1.5)]}
-    rows = share_rows(res, ys, lambda label: label.rsplit(" s", 1)[0] if " s" in label else label)
-    by = {r["scenario"]: r for r in rows}
-    assert by["ISO-C"]["share of achievable gain"] == pytest.approx(0.375) and by["ISO-C"]["episodes"] == 2
-    assert by["ISO-C"]["share lo95"] < 0.375 < by["ISO-C"]["share hi95"]
-    assert by["bump"]["share of achievable gain"] == pytest.approx(0.5) and math.isnan(by["bump"]["share lo95"])
-    assert by["all test scenarios"]["episodes"] == 3
 
 
 def test_cache_returns_only_the_exact_key(tmp_path, monkeypatch):
@@ -49,17 +31,6 @@ def test_cache_returns_only_the_exact_key(tmp_path, monkeypatch):
     text = path.read_text().replace('"seed": 1', '"seed": 2')
     path.write_text(text)
     assert cache.load("clairvoyant", key) is None
-
-
-def test_report_without_a_cached_yardstick_says_how_to_get_one(tmp_path, monkeypatch):
-    from experiments.common.scenarios import held_out_scenarios
-    from experiments.benchmark.yardstick import report
-
-    monkeypatch.setattr("mrd_env.optimal.cache.cache_dir", lambda: tmp_path / "optimal")  # kernels stay cached
-    scen = held_out_scenarios(profile("quarter_car"), quick=True)[:1]
-    text = report(profile("quarter_car"), {}, scen, tmp_path, "auto", progress=False)
-    assert "mrd-env yardstick --plant quarter_car" in text
-    assert report(profile("quarter_car"), {}, scen, tmp_path, "off") == ""
 
 
 def test_intervals_only_where_there_are_repeats_and_never_beyond_the_possible():
@@ -141,49 +112,6 @@ def test_cached_yardsticks_are_keyed_by_the_agents_content_not_their_folder_name
     assert agent_digest(c) != agent_digest(a)
 
 
-def test_report_writes_the_yardstick_and_shares_tables_and_figure(tmp_path):
-    """What `mrd-env yardstick` and `evaluate --yardstick` write: the references per episode, the shares per scenario
-    and controller (the share computed from the returns), the figure, and a note for episodes without a yardstick."""
-    import csv
-
-    from experiments.benchmark.yardstick import write_report
-
-    ys = [EpisodeYardstick(f"ISO-C s{i}", i, -10.0, 2.0, -6.0, "optimiser", 1.0, bound=-4.0, f_max=3000.0,
-                           bound_seconds=0.5, dissipative=-5.0, dissipative_seconds=0.7) for i in (1, 2)]
-    res = {"sky": [_ep("sky", "ISO-C s1", -9.0), _ep("sky", "ISO-C s2", -8.0), _ep("sky", "bump", -1.0)],
-           "agent": [_ep("agent", "ISO-C s1", -7.0), _ep("agent", "ISO-C s2", -7.0)]}
-    text = write_report(profile("quarter_car"), res, ys, tmp_path, n_eps=3)
-    refs = list(csv.DictReader((tmp_path / "quarter_car_yardstick.csv").open()))
-    assert [r["episode"] for r in refs] == ["ISO-C s1", "ISO-C s2"]
-    assert float(refs[0]["clairvoyant return"]) == -6.0 and float(refs[0]["active bound"]) == -4.0
-    assert float(refs[0]["bracket (share of bound − passive)"]) == pytest.approx(2.0 / 6.0)
-    assert float(refs[0]["passivity-aware bound"]) == -5.0                          # R_d beside R_b
-    assert float(refs[0]["bracket with it"]) == pytest.approx(1.0 / 5.0)            # (−5 + 6) / (−5 + 10)
-    shares = {(r["scenario"], r["controller"]): r for r in csv.DictReader((tmp_path / "quarter_car_shares.csv").open())}
-    assert float(shares["ISO-C", "sky"]["share of achievable gain"]) == pytest.approx(0.375)
-    assert float(shares["ISO-C", "agent"]["share of achievable gain"]) == pytest.approx(0.75)
-    assert shares["all test scenarios", "sky"]["episodes"] == "2"   # the bump has no yardstick: not scored
-    assert (tmp_path / "quarter_car_shares.png").stat().st_size > 10_000
-    assert "(1 of 3 episodes without a yardstick)" in text and "share of the achievable gain" in text
-
-
-def test_the_yardstick_is_of_the_damper_the_controllers_ran_on():
-    """Another damper's returns are scored against yardsticks solved on that damper (their own cache keys); the
-    plant's own damper, named or not, keeps the scenarios (and the cached yardsticks) as they are."""
-    from experiments.common.scenarios import held_out_scenarios
-    from experiments.benchmark.yardstick import on_damper
-    from mrd_env.optimal import episode_problem
-
-    car = profile("quarter_car")
-    scen = held_out_scenarios(car, quick=True)[:1]
-    assert on_damper(car, scen, None) is scen and on_damper(car, scen, "spencer_dyke") is scen
-    other = on_damper(car, scen, "bingham")
-    assert other[0].options == {**scen[0].options, "damper": "bingham"} and other[0].seeds == scen[0].seeds
-    keys = [episode_problem(sc.env_id, seed=sc.seeds[0], **{**sc.options, "episode_seconds": 0.05}).key()
-            for sc in (scen[0], other[0])]
-    assert keys[0]["damper"] == "spencer_dyke" and keys[1]["damper"] == "bingham"
-
-
 def test_the_yardstick_key_changes_with_what_the_result_depends_on(monkeypatch):
     """A default the options do not name (the car's reward weights) changes the key: a cached yardstick of the
     old problem is not served for the new one."""
@@ -201,6 +129,10 @@ def test_the_yardstick_key_changes_with_what_the_result_depends_on(monkeypatch):
 
     before = key()
     assert key() == before
+    assert before["damper"] == "spencer_dyke"   # the damper is part of the key: another damper, another yardstick
+    other = episode_problem(sc.env_id, seed=sc.seeds[0], control_dt=YARDSTICK_DT,
+                            **{**sc.options, "episode_seconds": 0.05, "damper": "bingham"}).key()
+    assert other["damper"] == "bingham"
     monkeypatch.setitem(quarter_car.DEFAULT_REWARD_WEIGHTS, "travel",
                         2.0 * quarter_car.DEFAULT_REWARD_WEIGHTS["travel"])
     after = key()

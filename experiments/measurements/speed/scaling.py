@@ -1,6 +1,7 @@
 """Wall time of the sweeps serially, on a local process pool (1 and 2 workers) and on a local Ray instance (2
-workers), on this machine: the benchmark (both plants, every law and scenario), training several seeds, a model
-comparison on a synthetic record, and a Monte-Carlo sensor-error propagation. Each configuration's result is
+workers), on this machine: the benchmark (every law on the published plants' nominal suites, car-comfort-v1 and
+building-seismic-v1), training several seeds, a model comparison on a synthetic record, and a Monte-Carlo
+sensor-error propagation. Each configuration's result is
 checked to equal the serial one.
 
     python -m experiments.measurements.speed.scaling [--train-steps 100000] [--out results/scaling]
@@ -20,14 +21,20 @@ from mrd_env.stepping.first_use import set_mode
 CONFIGS = (("serial", None), ("pool", 1), ("pool", 2), ("ray", 2))
 
 
-def _benchmark(backend, jobs):
-    from experiments.commands.benchmark import run_benchmark
-    from experiments.common.plants import chosen_plants
+#: The benchmark's sweep: the published plants' nominal suites.
+SUITES = ("car-comfort-v1", "building-seismic-v1")
 
-    eps = []
-    for plant in chosen_plants("both"):  # the published benchmark's plants
-        eps += run_benchmark(plant, backend=backend, jobs=jobs, progress=False)
-    return [(e.controller, e.scenario, tuple(sorted(e.metrics.items()))) for e in eps]
+
+def _benchmark(backend, jobs):
+    from controllers import available_controllers
+
+    from experiments.benchmark.run import run_benchmark, shipped_controllers
+    from mrd_env.suites import suite
+
+    laws = {c["name"] for sid in SUITES for c in shipped_controllers(suite(sid))
+            if c["controller"] in available_controllers() and c["controller"] != "mpc"}
+    bench = run_benchmark(SUITES, only=laws, backend=backend, jobs=jobs)
+    return [(e.suite.id, s.name, tuple(x["return"] for x in s.result.episodes)) for e in bench.suites for s in e.scored]
 
 
 def _train(backend, jobs, steps):
