@@ -45,8 +45,10 @@ from mrd_env import storage
 from mrd_env.suites import MAX_EPISODES, MAX_SCENARIOS, MAX_VERSION, check_shipped_id
 from mrd_env.suites import NAME as SUITE_NAME
 
+from experiments.benchmark.aggregate import paired_comparison, pooled_shares
 from experiments.common.evaluation import grouped_bars, mean_ci
-from experiments.benchmark.scoring import ALL, FORMAT, FORMAT_VERSION, KINDS, SuiteResult, interval_cell
+from experiments.benchmark.scoring import (ALL, FORMAT, KINDS, MEAN_SHARE, PAIRED_HEADING, READ_VERSIONS, SuiteResult,
+                                           interval_cell)
 
 #: The largest result file read: 4 MiB, 206 times the result of the largest shipped suite (car-comfort-v1, 31
 #: episodes: 20 344 bytes), room for about 6 000 episodes of seven criteria.
@@ -61,8 +63,10 @@ MAX_CELLS = 5_000
 MAX_NAME = 256
 #: The longest other text of a result file (an argument of its command, a path).
 MAX_TEXT = 4096
+#: The leaderboard table's column of each ranked row's paired verdict against the next one.
+NEXT = "against the next"
 #: The leaderboard table's own columns: no scenario may be named so.
-RESERVED = ("rank", "controller", "kind", "episodes", ALL)
+RESERVED = ("rank", "controller", "kind", "episodes", ALL, MEAN_SHARE, NEXT)
 #: The files a leaderboard folder holds: the table (Markdown, CSV), its numbers (Markdown, CSV) and the figure.
 FILES = ("leaderboard.md", "leaderboard.csv", "leaderboard_rows.md", "leaderboard_rows.csv", "leaderboard.png")
 
@@ -128,9 +132,10 @@ def read_result(path: str | Path, limit: int = MAX_RESULT_BYTES) -> SuiteResult:
         raise ValueError(f"{where}: not a result of mrd-env score (nested too deep)") from None
     if not isinstance(data, dict) or data.get("format") != FORMAT:
         raise ValueError(f"{where}: not a result of mrd-env score (its format must be {FORMAT!r})")
-    if data.get("format_version") != FORMAT_VERSION:
-        raise ValueError(f"{where}: result format version {str(data.get('format_version'))[:20]}, this mrd-env "
-                         f"reads {FORMAT_VERSION}")
+    version = data.get("format_version")
+    if isinstance(version, bool) or version not in READ_VERSIONS:
+        raise ValueError(f"{where}: result format version {str(version)[:20]}, this mrd-env reads "
+                         f"{', '.join(map(str, READ_VERSIONS))}")
 
     def bad(what: str):
         return ValueError(f"{where}: {what}")
@@ -177,6 +182,10 @@ def read_result(path: str | Path, limit: int = MAX_RESULT_BYTES) -> SuiteResult:
                 or not (e.get("terminated") is None or isinstance(e["terminated"], str)):
             raise bad(f"episode {i} must give label, scenario, seed, return, share, criteria (numbers or null) and "
                       "terminated (null or a reason)")
+        if (version >= 2 or "passive" in e or "clairvoyant" in e) and not (
+                _is_number(e.get("passive"), optional=False) and _is_number(e.get("clairvoyant"), optional=False)):
+            raise bad(f"episode {i} must give its references passive (R_p) and clairvoyant (R_c), numbers "
+                      "(format version 2)")
         _check_name(e["label"], f"episode {i}'s label", bad)
         _check_name(e["scenario"], f"episode {i}'s scenario", bad)
         if e["scenario"] in RESERVED:
@@ -206,11 +215,12 @@ def _partial_note(r: SuiteResult) -> str:
 
 @dataclass
 class Leaderboard:
-    """Results of one suite merged (:func:`leaderboard`): ``rows`` (per controller and scenario: episodes, share and
-    its interval, and whether the result is complete), ``table`` (one row per complete result, best first by the
-    share over all scenarios: one column per scenario, the share and its interval as text), ``partial`` (the same
-    for each partial result, never ranked). ``checked``: whether every share was recomputed from its return and the
-    suite's references."""
+    """Results of one suite merged (:func:`leaderboard`): ``rows`` (per controller and scenario: episodes, the pooled
+    share and the mean share with their intervals, and whether the result is complete), ``table`` (one row per
+    complete result, best first by the pooled share over all scenarios: that share, the mean share over all scenarios,
+    the paired verdict against the next row, and one column per scenario's pooled share, each share with its interval
+    as text), ``partial`` (the same for each partial result, never ranked), ``verdicts`` (:func:`paired_verdicts`).
+    ``checked``: whether every share was recomputed from its return and the suite's references."""
 
     suite: dict
     results: list[SuiteResult]
@@ -218,18 +228,21 @@ class Leaderboard:
     table: list[dict]
     partial: list[dict] = field(default_factory=list)
     checked: bool = True
-    verdicts: list[dict] = field(default_factory=list)  #: each ranked row against the next (:func:`paired_verdicts`)
+    #: each ranked row against the next and against the best law (:func:`paired_verdicts`)
+    verdicts: list[dict] = field(default_factory=list)
 
     def title(self) -> str:
-        unchecked = "" if self.checked else ("; shares as the result files state them, not checked against the "
-                                             "suite's references (give the suite to check them)")
-        return (f"{self.suite['id']}: share of the achievable gain (R − R_p) / (R_c − R_p) per controller and "
-                "scenario (mean [95 % interval over episodes]; 0: the best constant command, 1: the clairvoyant "
-                f"optimum; complete results only{unchecked})")
+        unchecked = "" if self.checked else ("; shares and references as the result files state them, not checked "
+                                             "against the suite's (give the suite to check them)")
+        return (f"{self.suite['id']}: pooled share of the achievable gain Σ(R − R_p) / Σ(R_c − R_p) per controller "
+                f"and scenario [bootstrap 95 % interval]; {MEAN_SHARE}: the mean of the episodes' shares "
+                "(R − R_p) / (R_c − R_p) over all scenarios [95 % interval over episodes]; 0: the best constant "
+                "command, 1: the clairvoyant optimum; ranked by the pooled share over all scenarios, "
+                f"{NEXT}: the paired verdict (below); complete results only{unchecked}")
 
     def partial_title(self) -> str:
         return (f"{self.suite['id']}: partial results, not ranked (each share over the episodes it scored only, "
-                "mean [95 % interval])")
+                "[95 % interval])")
 
     def markdown(self) -> str:
         from mrd_env.report import markdown_table, markdown_text
@@ -242,7 +255,8 @@ class Leaderboard:
         if self.verdicts:
             text += "\n" + markdown_table(self.verdicts, title=VERDICTS_TITLE)
         if self.partial:
-            text += "\n" + markdown_table([{k: v for k, v in r.items() if k != "rank"} for r in self.partial],
+            text += "\n" + markdown_table([{k: v for k, v in r.items() if k not in ("rank", NEXT)}
+                                           for r in self.partial],
                                           title=self.partial_title())
         return text
 
@@ -278,18 +292,20 @@ class Leaderboard:
         """The five files into ``folder`` (a staging folder nobody reads: plain writes, fsync'd by the swap)."""
         from mrd_env.report import csv_text, markdown_table
 
-        rows_title = self.title().replace("mean [95 % interval over episodes]", "mean, 95 % interval over episodes")
-        rows_title = rows_title.replace("; complete results only", "; partial results marked")
+        rows_title = (f"{self.suite['id']}: pooled share of the achievable gain Σ(R − R_p) / Σ(R_c − R_p) and its "
+                      "bootstrap 95 % interval; share: the mean of the episodes' shares (R − R_p) / (R_c − R_p) and "
+                      "its 95 % interval over episodes; per controller and scenario; partial results marked"
+                      + ("" if self.checked else "; not checked against the suite's references"))
         texts = {FILES[0]: self.markdown(), FILES[1]: csv_text(self.table + self.partial),
                  FILES[2]: markdown_table(self.rows, title=rows_title, floatfmt=".4g"),
                  FILES[3]: csv_text(self.rows)}
         for name, text in texts.items():
             (folder / name).write_bytes(text.encode("utf-8"))
         apart = {r["controller"]: r["episodes"] for r in self.partial}
-        grouped_bars(self.rows, "share", "share lo95", "share hi95", folder / FILES[4],
-                     xlabel="share of the achievable gain (dimensionless)", refs=(0.0, 1.0), xlim=(-1.0, 1.05),
-                     title=f"{self.suite['id']}: share of the achievable gain, (R − R_p) / (R_c − R_p); 0: best "
-                           "constant command, dashed 1: clairvoyant optimum"
+        grouped_bars(self.rows, "pooled share", "pooled share lo95", "pooled share hi95", folder / FILES[4],
+                     xlabel="pooled share of the achievable gain (dimensionless)", refs=(0.0, 1.0), xlim=(-1.0, 1.05),
+                     title=f"{self.suite['id']}: pooled share of the achievable gain, Σ(R − R_p) / Σ(R_c − R_p); 0: "
+                           "best constant command, dashed 1: clairvoyant optimum"
                            + ("; below the dotted line: partial results, not ranked" if apart and self.table else ""),
                      metadata={"Title": self.title(), "Software": "mrd-env leaderboard"}, apart=apart)
 
@@ -397,8 +413,10 @@ def check_against_suite(result: SuiteResult, suite, path) -> None:
     """``ValueError`` (one line naming the file ``path`` and the episode) unless ``result`` was scored on ``suite``
     (a :class:`mrd_env.suites.Suite`): its digest, its count of episodes, each episode's label, scenario and seed
     one of the suite's, and each share the one its return gives with the suite's references,
-    (R − R_p) / (R_c − R_p) (within :data:`SHARE_TOLERANCE`). The file holds the return and the suite holds the
-    references: a share edited by hand is refused."""
+    (R − R_p) / (R_c − R_p) (within :data:`SHARE_TOLERANCE`), as are the references a result of format 2 stores. The
+    file holds the return and the suite holds the references: a share or reference edited by hand is refused. Every
+    episode of ``result`` then holds the suite's references (``passive``, ``clairvoyant``: a result of format 1 has
+    none of its own), from which its pooled shares are computed."""
     where = f"result file {path}"
     if result.suite["digest"] != suite.digest:
         raise ValueError(f"{where}: scored on suite {result.suite['id']} of digest {result.suite['digest'][:12]}, "
@@ -425,6 +443,14 @@ def check_against_suite(result: SuiteResult, suite, path) -> None:
                              f"{e['return']!r} gives with suite {suite.id}'s references, (R − R_p) / (R_c − R_p) = "
                              f"{want!r} (R_p {ref.passive!r}, R_c {ref.clairvoyant!r}): edited by hand, or scored "
                              "against other references: refused")
+        for key, stored in (("passive", ref.passive), ("clairvoyant", ref.clairvoyant)):
+            if key in e and not math.isclose(e[key], stored, rel_tol=SHARE_TOLERANCE, abs_tol=1e-12):
+                raise ValueError(f"{where}: episode {_shown(label)}: its reference {key} {e[key]!r} is not suite "
+                                 f"{suite.id}'s ({stored!r}): edited by hand, or scored against other references: "
+                                 "refused")
+    for e in result.episodes:
+        ref = suite.references[e["label"]]
+        e["passive"], e["clairvoyant"] = ref.passive, ref.clairvoyant
 
 
 def _shipped_suite(suite_id: str):
@@ -581,16 +607,19 @@ def _check_cells(results: list[SuiteResult]) -> None:
 
 def _board(paths: list[Path], results: list[SuiteResult], checked: bool = True) -> Leaderboard:
     """The :class:`Leaderboard` of the checked ``results`` of one suite: the complete ones ranked, best first by the
-    share over all scenarios (ties: in the order given; no number: last), the partial ones apart in the order
-    given (a share over 4 of 31 episodes is not comparable with one over all 31)."""
+    pooled share over all scenarios (ties: in the order given; results without one — references neither checked
+    nor stored, format 1 merged unchecked — after those with one, by their mean share), the partial ones apart in
+    the order given (a share over 4 of 31 episodes is not comparable with one over all 31)."""
     names = [r.name for r in results]
     labels = [n if names.count(n) == 1 else f"{n} ({p.stem})" for n, p in zip(names, paths)]
     labels = [x if labels.count(x) == 1 else f"{x} ({i + 1})" for i, x in enumerate(labels)]
     scen = list(dict.fromkeys(e["scenario"] for r in results for e in r.episodes))
     summaries = [_share_summary(r.episodes) for r in results]
     complete = [i for i, r in enumerate(results) if r.complete]
-    order = sorted(complete, key=lambda i: -summaries[i][ALL]["share"]
-                   if math.isfinite(summaries[i][ALL]["share"]) else math.inf)
+    order = sorted(complete, key=lambda i: _rank_key(summaries[i][ALL]))
+    ranked = [(labels[i], results[i]) for i in order]
+    verdicts = paired_verdicts(ranked)
+    against_next = {v["controller"]: v["verdict"] for v in verdicts if "next" in v["which"]}
     rows, table, partial = [], [], []
     for i in order + [i for i in range(len(results)) if i not in complete]:
         r, summ, label = results[i], summaries[i], labels[i]
@@ -598,39 +627,54 @@ def _board(paths: list[Path], results: list[SuiteResult], checked: bool = True) 
         status = "complete" if r.complete else _partial_note(r)
         n = r.suite["episodes"]
         row = {"rank": len(table) + 1 if r.complete else "", "controller": label, "kind": kind,
-               "episodes": f"{len(r.episodes)}/{n}" if r.complete else status, ALL: interval_cell(*_share(summ[ALL])),
-               **{s: interval_cell(*_share(summ[s])) if s in summ else "" for s in scen}}
+               "episodes": f"{len(r.episodes)}/{n}" if r.complete else status,
+               ALL: interval_cell(*_pooled(summ[ALL])), MEAN_SHARE: interval_cell(*_share(summ[ALL])),
+               NEXT: against_next.get(label, ""),
+               **{s: interval_cell(*_pooled(summ[s])) if s in summ else "" for s in scen}}
         (table if r.complete else partial).append(row)
         for s in [*scen, ALL] if len(scen) > 1 else scen:
             if s in summ:
                 rows.append({"scenario": s, "controller": label, "kind": kind, "result": status,
-                             "episodes": summ[s]["episodes"], "share": summ[s]["share"],
-                             "share lo95": summ[s]["share lo95"], "share hi95": summ[s]["share hi95"]})
-    ranked = [(labels[i], results[i]) for i in order]
-    return Leaderboard(results[0].suite, results, rows, table, partial, checked, paired_verdicts(ranked))
+                             "episodes": summ[s]["episodes"], **{k: summ[s][k] for k in _FIGURES}})
+    return Leaderboard(results[0].suite, results, rows, table, partial, checked, verdicts)
+
+
+def _rank_key(summary: dict) -> tuple:
+    """Best first: by the pooled share; a result without one after, by its mean share; one with neither last."""
+    pooled, mean = summary["pooled share"], summary["share"]
+    if math.isfinite(pooled):
+        return 0, -pooled
+    return (1, -mean) if math.isfinite(mean) else (2, 0.0)
 
 
 #: The heading of the paired verdicts' table.
-VERDICTS_TITLE = ("paired verdicts: each ranked controller against the next, the difference of their shares on the "
-                  "same episodes (mean [95 % interval]); ahead where the interval excludes 0, else a tie")
+VERDICTS_TITLE = ("paired verdicts: each ranked controller against the next and against the best law (the best-ranked "
+                  f"row of kind law), {PAIRED_HEADING}")
 
 
 def paired_verdicts(ranked: list[tuple[str, SuiteResult]]) -> list[dict]:
-    """Each ranked result (best first) against the next on the episodes both scored: the mean difference of their
-    shares with its 95 % interval (:func:`mean_ci` of the per-episode differences: a paired comparison, so that
-    what every controller finds hard is not counted against either), how many episodes the higher one is ahead on,
-    and the verdict: ``ahead`` where the interval excludes 0, ``tie`` where it does not (one episode: no interval,
-    no verdict). Unpaired intervals of two rows often overlap where the paired one separates them."""
+    """Each ranked result (best first) against the next one and against the best law (the first result of kind
+    ``law``), on the episodes both scored, over all scenarios (:func:`~experiments.benchmark.aggregate.
+    paired_comparison`): the difference of their pooled shares with its paired bootstrap 95 % interval, the episodes
+    won, and the verdict — ``ahead``/``behind`` where the interval excludes 0, ``tie`` where it holds 0, ``n/a``
+    without an interval. ``which``: ``next``, ``best law``, or ``next, best law`` (one row where the next is the best
+    law). Unpaired
+    intervals of two rows often overlap where the paired one separates them."""
+    best_law = next((name for name, r in ranked if r.controller.get("kind") == "law"), None)
+    results = dict(ranked)
     out = []
-    for (name_a, a), (name_b, b) in zip(ranked, ranked[1:]):
-        sa = {e["label"]: e["share"] for e in a.episodes}
-        sb = {e["label"]: e["share"] for e in b.episodes}
-        diffs = [sa[k] - sb[k] for k in sa if k in sb and math.isfinite(sa[k]) and math.isfinite(sb[k])]
-        m, lo, hi = mean_ci(diffs)
-        verdict = "n/a" if not (math.isfinite(lo) and math.isfinite(hi)) else \
-            "ahead" if lo > 0 else "behind" if hi < 0 else "tie"
-        out.append({"controller": name_a, "against": name_b, "share difference": interval_cell(m, lo, hi),
-                    "episodes ahead": f"{sum(d > 0 for d in diffs)}/{len(diffs)}", "verdict": verdict})
+    for i, (name, r) in enumerate(ranked):
+        nxt = ranked[i + 1][0] if i + 1 < len(ranked) else None
+        others = {}
+        if nxt is not None:
+            others[nxt] = "next"
+        if best_law is not None and best_law != name:
+            others[best_law] = "next, best law" if best_law == nxt else "best law"
+        for other, role in others.items():
+            c = paired_comparison(r, results[other])[-1]  # the row over all scenarios
+            out.append({"controller": name, "against": other, "which": role,
+                        "pooled share difference": interval_cell(c["difference"], c["lo95"], c["hi95"]),
+                        "episodes won": f"{c['won']}/{c['episodes']}", "verdict": c["verdict"]})
     return out
 
 
@@ -643,17 +687,26 @@ def _kind(controller: dict) -> str:
     return controller["kind"]
 
 
+#: The figures of a leaderboard's rows, per controller and scenario: the pooled share and the mean share, each with
+#: its interval.
+_FIGURES = ("pooled share", "pooled share lo95", "pooled share hi95", "share", "share lo95", "share hi95")
+
+
 def _share_summary(episodes: list[dict]) -> dict[str, dict]:
-    """{scenario (and ``all scenarios``): episodes, share, share lo95, share hi95}: the share rows of
-    :func:`summary_rows` (the same :func:`mean_ci`), the episodes grouped in one pass (linear in the episodes)."""
+    """{scenario (and ``all scenarios``): episodes, pooled share (and lo95, hi95), share (the mean, lo95, hi95)}: the
+    share rows of :func:`summary_rows` (the same :func:`pooled_shares` and :func:`mean_ci`), the episodes grouped
+    in one pass (linear in the episodes)."""
     by_scenario: dict[str, list[float]] = {}
     for e in episodes:
         by_scenario.setdefault(e["scenario"], []).append(e["share"])
     by_scenario[ALL] = [e["share"] for e in episodes]
+    pooled = pooled_shares(episodes)
     out = {}
     for s, shares in by_scenario.items():
         m, lo, hi = mean_ci(shares)
-        out[s] = {"scenario": s, "episodes": len(shares), "share": m, "share lo95": lo, "share hi95": hi}
+        p = pooled[s]
+        out[s] = {"scenario": s, "episodes": len(shares), "pooled share": p.value, "pooled share lo95": p.lo,
+                  "pooled share hi95": p.hi, "share": m, "share lo95": lo, "share hi95": hi}
     return out
 
 
@@ -667,3 +720,7 @@ def _size(path: Path) -> int:
 
 def _share(row: dict) -> tuple[float, float, float]:
     return row["share"], row["share lo95"], row["share hi95"]
+
+
+def _pooled(row: dict) -> tuple[float, float, float]:
+    return row["pooled share"], row["pooled share lo95"], row["pooled share hi95"]

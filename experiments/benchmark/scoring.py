@@ -5,12 +5,15 @@ its control step) with one controller — a registered law, a saved agent, or an
 :class:`controllers.protocol.ControllerProtocol` — and scores each episode against the suite's **stored** references:
 the share of the achievable gain (R − R_p) / (R_c − R_p), and the suite's criteria (its episode metrics, and the
 constraint cost where the environment reports one). Nothing is solved here: a suite without a reference for one of
-its episodes is refused. Per scenario and over all of them: the mean and its 95 % interval over the episodes
-(:func:`~experiments.common.evaluation.mean_ci`; one episode has no interval).
+its episodes is refused. Per scenario and over all of them: first the **pooled share** Σ (R − R_p) / Σ (R_c − R_p),
+each episode weighed by what is at stake on it, with its bootstrap 95 % interval
+(:mod:`experiments.benchmark.aggregate`); then the mean share, the return and every criterion, each as its mean and 95 %
+interval over the episodes (:func:`~experiments.common.evaluation.mean_ci`; one episode has no interval).
 
 A :class:`SuiteResult` is written as one plain JSON file per controller (:meth:`SuiteResult.write`, atomically): the
 format, the suite's name, version and digest, the controller's description (its name, its kind — law, agent or
-python — and, for an agent, the digest of its files), every episode's figures and the summary.
+python — and, for an agent, the digest of its files), every episode's figures (its return, share and references
+R_p and R_c among them) and the summary.
 :mod:`experiments.benchmark.ranking` reads such files back, as data only, and merges them.
 
 From Python::
@@ -40,16 +43,17 @@ import numpy as np
 from mrd_env import storage
 from mrd_env.report import csv_text
 
+from experiments.benchmark.aggregate import ALL, paired_comparison, pooled_shares
 from experiments.common.evaluation import evaluate_batch, mean_ci
 from experiments.common.scenarios import Scenario
 
-#: The result files' format (bumped when their fields change).
+#: The result files' format (bumped when their fields change). Version 2 stores each episode's references
+#: (``passive`` R_p, ``clairvoyant`` R_c) beside its return and share; version 1 files, without them, are still read.
 FORMAT = "mrd-env-score"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+READ_VERSIONS = (1, 2)
 #: What a controller can be: a registered law, a saved agent, Python code (``module:attribute`` or an object).
 KINDS = ("law", "agent", "python")
-#: The row pooling every episode of the suite.
-ALL = "all scenarios"
 #: Options of an agent's environment that belong to the agent itself (how its action becomes the command): the
 #: suite's environment takes the agent's; every other option is the suite's.
 AGENT_ACTION_OPTIONS = ("action_mode", "inverse", "force_range")
@@ -699,8 +703,9 @@ def scenario_episodes(suite, index: int, seeds: tuple[int, ...], spec: Controlle
         for k in sorted(e.metrics):  # the constraint costs, where the environment reports them
             if (k == "cost" or k.startswith("cost_")) and k not in crit:
                 crit[k] = _number(e.metrics[k])
-        out.append({"label": label, "scenario": sc.name, "seed": int(seed), "return": ret,
-                    "share": suite.reference(label).share(ret), "criteria": crit,
+        ref = suite.reference(label)
+        out.append({"label": label, "scenario": sc.name, "seed": int(seed), "return": ret, "share": ref.share(ret),
+                    "passive": ref.passive, "clairvoyant": ref.clairvoyant, "criteria": crit,
                     "terminated": e.metrics.get("terminated")})
     return out
 
@@ -716,14 +721,19 @@ def _number(v) -> float:
 
 
 def summary_rows(episodes: list[dict], criteria: list[str]) -> list[dict]:
-    """Per scenario (in the order of ``episodes``) and over all of them (``all scenarios``): the episodes, the share of
-    the achievable gain, the return and every criterion, each as its mean and 95 % interval over the episodes (no
-    interval for one episode), and how many episodes ended early (``terminated``)."""
+    """Per scenario (in the order of ``episodes``) and over all of them (``all scenarios``): the episodes; the pooled
+    share and its bootstrap 95 % interval (:func:`~experiments.benchmark.aggregate.pooled_shares`; NaN for episodes
+    that hold no references, a version-1 result read alone); the share of the achievable gain (``share``: the mean of
+    the episodes' shares), the return and every criterion, each as its mean and 95 % interval over the episodes (no
+    interval for one episode); and how many episodes ended early (``terminated``)."""
     scen = list(dict.fromkeys(e["scenario"] for e in episodes))
+    pooled = pooled_shares(episodes)
     rows = []
     for s in scen + [ALL]:
         mine = [e for e in episodes if s == ALL or e["scenario"] == s]
         row = {"scenario": s, "episodes": len(mine)}
+        p = pooled[s]
+        row.update({"pooled share": p.value, "pooled share lo95": p.lo, "pooled share hi95": p.hi})
         for key, values, upper in [("share", [e["share"] for e in mine], math.inf),
                                    ("return", [e["return"] for e in mine], 0.0),
                                    *((k, [e["criteria"].get(k) for e in mine], math.inf) for k in criteria)]:
@@ -774,6 +784,24 @@ class SuiteResult:
         """{scenario (and ``all scenarios``): (mean share, lower, upper 95 % bound)}."""
         return {r["scenario"]: (r["share"], r["share lo95"], r["share hi95"]) for r in self.summary()}
 
+    def pooled_shares(self) -> dict[str, tuple[float, float, float]]:
+        """{scenario (and ``all scenarios``): (pooled share, lower, upper 95 % bound)}: the primary figure."""
+        return {s: (p.value, p.lo, p.hi) for s, p in pooled_shares(self.episodes).items()}
+
+    def paired_markdown(self, reference: "SuiteResult", suite=None) -> str:
+        """This result against ``reference`` (another controller's result on the same suite) on the same episodes, per
+        scenario and over all: the difference of their pooled shares with its paired bootstrap 95 % interval, the
+        episodes this one wins, and the verdict (:func:`~experiments.benchmark.aggregate.paired_comparison`; the
+        references are ``suite``'s where given). A Markdown table."""
+        from mrd_env.report import markdown_table
+
+        rows = [{"scenario": r["scenario"], "episodes": r["episodes"],
+                 "pooled share difference": interval_cell(r["difference"], r["lo95"], r["hi95"]),
+                 "episodes won": f"{r['won']}/{r['episodes']}", "verdict": r["verdict"]}
+                for r in paired_comparison(self, reference, suite)]
+        return markdown_table(rows, title=f"{self.name} against {reference.name} on {self.suite['id']}: "
+                                          f"{PAIRED_HEADING}")
+
     def table_rows(self, text: bool = False) -> list[dict]:
         """The summary with the criteria's units in the headers; ``text``: each quantity in one cell, its mean and
         [95 % interval] (the Markdown table), else three numeric columns (the CSV)."""
@@ -787,16 +815,18 @@ class SuiteResult:
         out = []
         for r in rows:
             row = {"scenario": r["scenario"], "episodes": r["episodes"]}
-            for k in ("share", "return", *self.criteria):
-                row[header(k)] = interval_cell(r[k], r[f"{k} lo95"], r[f"{k} hi95"], ".3f" if k == "share" else ".4g")
+            for k in ("pooled share", "share", "return", *self.criteria):
+                row[MEAN_SHARE if k == "share" else header(k)] = interval_cell(
+                    r[k], r[f"{k} lo95"], r[f"{k} hi95"], ".3f" if k.endswith("share") else ".4g")
             row["terminated"] = r["terminated"]
             out.append(row)
         return out
 
     def title(self) -> str:
         partial = "" if self.complete else f"; partial: {len(self.episodes)} of {self.suite['episodes']} episodes"
-        return (f"{self.name} on {self.suite['id']}: share of the achievable gain (R − R_p) / (R_c − R_p), return "
-                f"and criteria (mean [95 % interval over episodes]{partial})")
+        return (f"{self.name} on {self.suite['id']}: pooled share of the achievable gain Σ(R − R_p) / Σ(R_c − R_p) "
+                "[bootstrap 95 % interval]; mean share (R − R_p) / (R_c − R_p), return and criteria (mean [95 % "
+                f"interval over episodes]{partial})")
 
     def markdown(self) -> str:
         from mrd_env.report import markdown_table
@@ -921,6 +951,14 @@ def _auto(tasks: list, episodes: list[int], jobs: int | None, progress: bool, de
     pool = workers > 1 and estimate > POOL_MIN_SECONDS and unguarded_main() is None
     return out + run_tasks(rest, backend="pool" if pool else "serial", jobs=jobs, progress=progress, desc=desc,
                            retry=False)
+
+
+#: The text tables' header of the mean of the episodes' shares (the summary's ``share``), beside the pooled share.
+MEAN_SHARE = "mean share"
+#: What a paired comparison's table shows.
+PAIRED_HEADING = ("difference of the pooled shares on the same episodes, Σ(R_a − R_b) / Σ(R_c − R_p) [paired bootstrap "
+                  "95 % interval]; episodes won: those where R_a is above R_b; ahead or behind where the interval excludes 0, "
+                  "else a tie")
 
 
 def interval_cell(m: float, lo: float, hi: float, fmt: str = ".3f") -> str:

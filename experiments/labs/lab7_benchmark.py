@@ -46,6 +46,10 @@
 # - Score: the share of the achievable gain, share = (R − R_p) / (R_c − R_p): 0 is the best constant command, 1
 #   the clairvoyant, below 0 worse than the best fixed damper. The bracket (R_b − R_c) / (R_b − R_p) says how
 #   much of the range above R_p is still uncertain (where between R_c and R_b the true optimum lies).
+# - Over many episodes: the pooled share Σ(R − R_p) / Σ(R_c − R_p), the share of the gain achievable on all of
+#   them together, each episode weighed by its range R_c − R_p (what is at stake on it), with a bootstrap 95 %
+#   interval (episodes resampled within each scenario); the leaderboard ranks by it. The mean of the episodes'
+#   shares weighs every episode alike, so an episode with a small range (the bump) can decide it.
 # - Skyhook (Karnopp 1974): the damper aims at c_sky ż_s while ż_s·v_rel ≥ 0 (v_rel = ż_s − ż_u), and is as soft
 #   as it can be otherwise (it can only dissipate).
 
@@ -170,14 +174,15 @@ smoke = score(bench, lambda env: MySkyhook(env, V_SAT), name="my_skyhook (smoke 
 results = {"my_skyhook": mine, **laws}
 print(mine.markdown())
 for name, r in {**results, "smoke": smoke}.items():
-    print(f"{name:20s} complete: {r.complete}, {len(r.episodes)} episodes, mean share "
-          f"{r.shares()['all scenarios'][0]:.3f}")
+    print(f"{name:20s} complete: {r.complete}, {len(r.episodes)} episodes, pooled share "
+          f"{r.pooled_shares()['all scenarios'][0]:.3f}, mean share {r.shares()['all scenarios'][0]:.3f}")
 
 # %% [markdown]
 # ## Task 5 — Result files and the leaderboard
 # Write each result (`result.write(path)`, named by `result_filename(suite id, controller)`), merge the four files
 # with `leaderboard(paths, out=...)` and print the table (`board.markdown()`). Which results are ranked, and where
-# does the smoke run go?
+# does the smoke run go? Below the table, the paired verdicts compare each row with the next and with the best law
+# on the same episodes: which differences are resolved, and which are ties?
 
 # %%
 folder = lab.out / "score"
@@ -195,7 +200,8 @@ if in_notebook():  # the leaderboard's figure under the cell, as lab.save shows 
 # ## Task 6 — Against the clairvoyant
 # For each controller and scenario, print the mean share; then plot (a) every episode's references and returns and
 # (b) the gain each controller captures, R − R_p, against the gain available, R_c − R_p: the share is the slope
-# from the origin, the clairvoyant lies on the diagonal and the bound above it.
+# from the origin, the clairvoyant lies on the diagonal and the bound above it. The pooled share is the slope of the
+# sum of those points; the mean share is the mean of their slopes, however close to the origin a point lies.
 
 # %%
 scenarios = [sc.name for sc in bench.scenarios]
@@ -214,7 +220,9 @@ ax_r.plot(x, rp, "k--", lw=1, label="R_p, best constant command")
 for i, (name, r) in enumerate(results.items()):
     ax_r.plot(x, [e["return"] for e in r.episodes], "o", ms=4, color=f"C{i}", label=name)
     gain = np.array([e["return"] for e in r.episodes]) - rp
-    ax_g.plot(rc - rp, gain, "o", ms=4, color=f"C{i}", label=f"{name} (mean share {r.shares()['all scenarios'][0]:.2f})")
+    ax_g.plot(rc - rp, gain, "o", ms=4, color=f"C{i}",
+              label=f"{name} (pooled share {r.pooled_shares()['all scenarios'][0]:.2f}, "
+                    f"mean share {r.shares()['all scenarios'][0]:.2f})")
 ax_g.plot(rc - rp, rb - rp, "k^", ms=4, label="R_b − R_p, active bound")
 top = float(np.max(rc - rp)) * 1.05
 ax_g.plot([0, top], [0, top], "k-", lw=1, label="share 1: the clairvoyant")
@@ -248,7 +256,9 @@ lab.save(fig, "gain_captured.png")
 #    road, and why would a law tuned on random roads do badly there?
 # 5. You chose v_sat on tuning roads, not on the suite. What would change in your score, and in what it means, if
 #    you had swept v_sat on the suite itself and kept the best?
-# 6. Your law reads its signals by role. Which roles does it need, and on which other plants of the project
+# 6. Compare each controller's pooled share with its mean share. On which episode does the mean share lose most,
+#    and how large is that episode's range against a road's? Why does the leaderboard rank by the pooled share?
+# 7. Your law reads its signals by role. Which roles does it need, and on which other plants of the project
 #    (docs/your-controller.md's roles table) would it run unchanged?
 
 # %% [markdown]
@@ -285,10 +295,11 @@ lab.check("no controller's mean share exceeds 1 (the clairvoyant knows the whole
 lab.check("no controller's return exceeds the active bound R_b on any episode",
           all(e["return"] <= refs[e["label"]].bound for r in results.values() for e in r.episodes
               if np.isfinite(refs[e["label"]].bound)))
+pooled_share = {name: r.pooled_shares()["all scenarios"][0] for name, r in results.items()}
 ranked = [row["controller"] for row in board.table]
-lab.check("the leaderboard ranks the complete results in the order of their mean shares, and shows the smoke run "
+lab.check("the leaderboard ranks the complete results in the order of their pooled shares, and shows the smoke run "
           "apart, unranked",
-          ranked == sorted(mean_share, key=mean_share.get, reverse=True)
+          ranked == sorted(pooled_share, key=pooled_share.get, reverse=True)
           and [row["controller"] for row in board.partial] == [smoke.name]
           and all(row["rank"] == "" for row in board.partial),
           " > ".join(ranked))

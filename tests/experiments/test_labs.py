@@ -28,7 +28,7 @@ FIGURES = {
 REQUIRED_CHECKS = {
     "lab6_rl": ["[PASS] the lab's agent beats doing nothing: the agent started at skyhook scores above passive-off"],
     "lab7_benchmark": ["[PASS] no controller's mean share exceeds 1 (the clairvoyant knows the whole road)",
-                       "[PASS] the leaderboard ranks the complete results in the order of their mean shares, and shows "
+                       "[PASS] the leaderboard ranks the complete results in the order of their pooled shares, and shows "
                        "the smoke run apart, unranked"],
 }
 SECTIONS = ("Learning objectives", "Equations (recap", "## Task 1", "## Questions", "## Instructor's check")

@@ -340,7 +340,8 @@ def test_the_figure_has_room_for_every_label(controllers, panels, tmp_path, monk
 def test_paired_verdicts_separate_what_unpaired_intervals_cannot(tmp_path):
     """Issue 51's leaderboard says which controller is better: each ranked row against the next on the same
     episodes. Two controllers whose shares vary a lot from episode to episode (overlapping unpaired intervals) but
-    differ by a steady 0.02 on every episode are 'ahead'; two that trade places are a 'tie'."""
+    differ by a steady 0.02 on every episode are 'ahead'; two that trade places (noise whose range-weighted mean is
+    0, so that their pooled shares differ by 0.005 only) are a 'tie'."""
     import math
 
     import numpy as np
@@ -349,6 +350,8 @@ def test_paired_verdicts_separate_what_unpaired_intervals_cannot(tmp_path):
     rng = np.random.default_rng(0)
     base = {lab: float(x) for lab, x in zip(s.labels(), rng.uniform(0.0, 0.6, len(s.labels())))}
     noise = {lab: float(x) for lab, x in zip(s.labels(), rng.normal(0.0, 0.05, len(s.labels())))}
+    at_stake = {lab: s.reference(lab).clairvoyant - s.reference(lab).passive for lab in s.labels()}
+    drift = sum(noise[k] * at_stake[k] for k in s.labels()) / sum(at_stake.values())
 
     def at(name, shares):
         data = result_of(s, name)
@@ -359,14 +362,16 @@ def test_paired_verdicts_separate_what_unpaired_intervals_cannot(tmp_path):
         return write(tmp_path / f"{name}.json", data)
 
     files = [at("first", {k: v + 0.02 for k, v in base.items()}), at("second", base),
-             at("third", {k: v + noise[k] - np.mean(list(noise.values())) - 0.005 for k, v in base.items()})]
+             at("third", {k: v + noise[k] - drift - 0.005 for k, v in base.items()})]
     board = leaderboard(files)
     assert [r["controller"] for r in board.table] == ["first", "second", "third"]
     lo1, hi2 = (next(r for r in board.rows if r["controller"] == c and r["scenario"] == "all scenarios")
                 for c in ("first", "second"))
-    assert lo1["share lo95"] < hi2["share hi95"], "the unpaired intervals overlap"
-    (a, b) = board.verdicts
+    assert lo1["pooled share lo95"] < hi2["pooled share hi95"], "the unpaired intervals overlap"
+    (a, b) = [v for v in board.verdicts if v["which"] == "next"]
     assert (a["controller"], a["against"], a["verdict"]) == ("first", "second", "ahead")
-    assert a["episodes ahead"] == f"{len(s.labels())}/{len(s.labels())}"
-    assert b["verdict"] == "tie" and math.isfinite(float(b["share difference"].split()[0]))
+    assert a["episodes won"] == f"{len(s.labels())}/{len(s.labels())}"
+    assert float(a["pooled share difference"].split()[0]) == pytest.approx(0.02, abs=5e-4)
+    assert b["verdict"] == "tie" and math.isfinite(float(b["pooled share difference"].split()[0]))
+    assert [r["against the next"] for r in board.table] == ["ahead", "tie", ""]
     assert "paired verdicts" in board.markdown() and "| ahead |" in board.markdown()

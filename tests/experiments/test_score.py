@@ -257,7 +257,7 @@ def test_leaderboard_merges_three_results_into_a_table_and_a_figure(scored, tmp_
     assert {r["kind"] for r in board.table if r["kind"] != "law"} == {
         f"agent {read_result(paths['agent']).controller['agent_digest'][:12]}",
         f"python {read_result(paths['python']).controller['source_sha256'][:12]}"}
-    shares = [read_result(p).shares()["all scenarios"][0] for p in paths.values()]
+    shares = [read_result(p).pooled_shares()["all scenarios"][0] for p in paths.values()]   # ranked by the pooled
     assert [r["all scenarios"].split()[0] for r in board.table] == [f"{s:.3f}" for s in sorted(shares, reverse=True)]
     assert set(board.table[0]) >= {"controller", "episodes", "all scenarios", "ISO-C", "ISO-D"}
     for name in ("leaderboard.md", "leaderboard.csv", "leaderboard_rows.csv", "leaderboard.png"):
