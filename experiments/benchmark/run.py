@@ -60,7 +60,8 @@ def shipped_controllers(suite) -> list[dict]:
     from experiments.common.plants import profile
 
     prof = profile(suite.plant)
-    out = [{"name": law, "controller": law, "options": None} for law in dict.fromkeys((*prof.laws, *prof.benchmark_laws))]
+    laws = dict.fromkeys((*prof.laws, *prof.benchmark_laws))
+    out = [{"name": law, "controller": law, "options": None} for law in laws]
     dt = suite.control_dt
     for label, step, options, preview in prof.mpc:
         if bool(preview) != has_preview(suite):
@@ -218,11 +219,13 @@ def _named(controllers) -> list[tuple[str | None, object]]:
     return [(None, c) for c in controllers]
 
 
-def _plan(suites, controllers, shipped: bool, only, trust_agent: bool, converted) -> list[SuiteBenchmark]:
+def _plan(suites, controllers, shipped: bool, only, trust_agent: bool, converted,
+          own_process: bool) -> list[SuiteBenchmark]:
     """Per suite, the controllers that fit it (their specs, checked on the suite's scenarios) and those that do
     not; ``ValueError`` for a controller of the caller's that fits no suite, a name of ``only`` that names no
     shipped controller, or two controllers of one name."""
-    from experiments.benchmark.scoring import bounded, check_controller, controller_spec, result_filename
+    from experiments.benchmark.scoring import (bounded, check_controller, controller_spec, one_torch_thread,
+                                               result_filename)
 
     user = _named(controllers)
     plans, fits, why = [], {i: False for i in range(len(user))}, {}
@@ -240,6 +243,8 @@ def _plan(suites, controllers, shipped: bool, only, trust_agent: bool, converted
             try:
                 spec = controller_spec(c["controller"], name=c["name"], options=c["options"], trust_agent=trust_agent,
                                        converted=converted, suite=suite)
+                if own_process:
+                    one_torch_thread(spec)  # before its first environment: an SB3 policy on every core is 10x slower
                 check_controller(spec, suite)
             except ValueError as exc:
                 name = c["name"] or (c["controller"] if isinstance(c["controller"], (str, Path)) else
@@ -276,7 +281,8 @@ def _plan(suites, controllers, shipped: bool, only, trust_agent: bool, converted
 
 def run_benchmark(suites=None, controllers=(), *, shipped: bool = True, only=None, plants=None, out=None,
                   episodes: int | None = None, backend: str = "auto", jobs: int | None = None,
-                  address: str | None = None, trust_agent: bool = False, progress: bool = False) -> Benchmark:
+                  address: str | None = None, trust_agent: bool = False, progress: bool = False,
+                  own_process: bool = False) -> Benchmark:
     """Score every controller that fits each of ``suites`` (see the module docstring).
 
     ``suites``: Suites, shipped suites' names or suite files (default: every shipped suite), of ``plants`` only
@@ -287,7 +293,9 @@ def run_benchmark(suites=None, controllers=(), *, shipped: bool = True, only=Non
     each scenario only (a smoke run: every result partial). ``backend``/``jobs``/``address``: one task per suite and
     controller on :mod:`mrd_env.executor` (``"pool"`` from a script needs its calls under ``if __name__ ==
     "__main__":``). ``trust_agent``: also load agents that only have SB3's pickled ``model.zip`` (converted once into
-    ``<out>/converted-agents``). Everything is checked before any episode runs and before ``out`` is made:
+    ``<out>/converted-agents``). ``own_process``: this process is a command's own (``mrd-env benchmark``), where torch
+    may be set to one thread (:func:`~experiments.benchmark.scoring.one_torch_thread`; never in a caller's Python
+    process: a process-wide setting). Everything is checked before any episode runs and before ``out`` is made:
     ``ValueError`` (one line)."""
     from mrd_env.executor import Task, TaskFailed, run_tasks
 
@@ -303,7 +311,8 @@ def run_benchmark(suites=None, controllers=(), *, shipped: bool = True, only=Non
         check_out_folder(out / LEADERBOARDS)
     chosen = choose_suites(suites, plants)
     converted = None if out is None else out / "converted-agents"
-    plans = _plan(chosen, controllers, shipped, None if only is None else set(only), trust_agent, converted)
+    plans = _plan(chosen, controllers, shipped, None if only is None else set(only), trust_agent, converted,
+                  own_process)
     if not any(p.scored for p in plans):
         raise ValueError("nothing to score: no controller fits the chosen suites")
     if out is not None:

@@ -78,7 +78,7 @@ def run(args: argparse.Namespace) -> int:
     check_out(args.out, f"the benchmark writes {RESULTS}/, {LEADERBOARDS}/ and {SUMMARY}")
     bench = run_benchmark(suites, args.controller or (), shipped=not args.no_shipped, only=args.only, out=args.out,
                           episodes=args.episodes, trust_agent=args.trust_agent, progress=not args.no_progress,
-                          **executor)
+                          own_process=True, **executor)
     print(bench.markdown())
     n = sum(len(e.scored) for e in bench.suites)
     print(f"wrote {n} result files in {args.out / RESULTS}, {sum(e.leaderboard is not None for e in bench.suites)} "

@@ -119,13 +119,16 @@ CASES = {
         ["--out", "{out_file}"],
     ],
     "benchmark": [
-        ["--nope"], ["--plant", "nope"], ["--seeds", "0"], ["--seeds", "x"], ["--controllers", "nope"],
-        ["--plant", "shear_building", "--controllers", "passive_off", "nope"], ["--damper", "nope"],
-        ["--agent", "{missing}"], ["--agent", "{folder}"], ["--agent", "{agent_no_meta}"],
-        ["--agent", "{agent_bad_json}"], ["--agent", "{agent_foreign}"], ["--agent", "{agent_no_keys}"],
-        ["--agent", "{agent_env}"], ["--agent", "{agent_no_model}"], ["--plant", "shear_building", "--agent", "{agent_qc}"],
-        ["--backend", "gpu"], ["--jobs", "0"], ["--address", "ray://x:1"],
-        ["--plant", "shear_building", "--controllers", "passive_on", "groundhook"],   # a law the plant cannot run
+        ["--nope"], ["--plant", "nope"], ["--suite", "nope"], ["--suite", "{missing}"], ["--suite", "{wrong}"],
+        ["--suite", "{binary}"], ["--controller", "nope"], ["--controller", "passive_off", "--controller", "nope"],
+        ["--controller", "{missing}"], ["--controller", "{folder}"], ["--controller", "{agent_no_meta}"],
+        ["--controller", "{agent_bad_json}"], ["--controller", "{agent_foreign}"], ["--controller", "{agent_no_keys}"],
+        ["--controller", "{agent_env}"], ["--controller", "{agent_no_model}"],
+        ["--suite", "building-six-storey-v1", "--controller", "{agent_qc}"],   # an agent of another plant
+        ["--suite", "building-six-storey-v1", "--no-shipped", "--controller", "groundhook"],   # a law it cannot run
+        ["--only", "nope"], ["--no-shipped"], ["--no-shipped", "--only", "passive_off"], ["--episodes", "0"],
+        ["--episodes", "x"], ["--plant", "quarter_car", "--storeys", "6"], ["--backend", "gpu"], ["--jobs", "0"],
+        ["--address", "ray://x:1"], ["--out", "{out_file}"],
     ],
     "train": [
         ["--backend", "gpu"], ["--jobs", "0"], ["--jobs", "-2"], ["--address", "ray://x:1"],
@@ -145,12 +148,6 @@ CASES = {
         ["--space", "nope"], ["--space", "residual"], ["--space", "residual", "--algo", "sac"],
         ["--hyperparams", "{scalar_yml}"],
     ],
-    "evaluate": [
-        ["--nope"], ["--plant", "nope"], ["--agents", "{missing}"], ["--agents", "{agent_bad_json}"],
-        ["--agents", "{agent_foreign}"], ["--plant", "shear_building", "--agents", "{agent_qc}"], ["--laws", "nope"],
-        ["--seeds", "0"], ["--seeds", "x"], ["--control-dt", "0"], ["--control-dt", "0.0015"],
-        ["--control-dt", "nan"], ["--out", "{out_file}"], ["--plant", "shear_building", "--laws", "groundhook"],
-    ],
     "identify": DATA_ERRORS + [
         ["--data", "{good}", "--model", "nope"], ["--data", "{good}", "--preset", "nope"],
         ["--data", "{good}", "--free", "nope"], ["--data", "{good}", "--model", "ali_ramaswamy"],
@@ -164,9 +161,6 @@ CASES = {
         ["--data", "{good}", "--jobs", "0"], ["--data", "{good}", "--address", "ray://x:1"],
     ],
     "warmup": [["--nope"], ["--models", "nope"], ["--models"], ["--jobs", "0"], ["--jobs", "x"]],
-    "yardstick": [
-        ["--nope"], ["--plant", "nope"], ["--seeds", "x"], ["--seeds", "0"], ["--backend", "gpu"], ["--jobs", "0"],
-    ],
     "inverse": [
         [], ["nope"], ["achievable", "--nope"], ["achievable", "--inverses", "nope"], ["achievable", "--plants", "nope"],
         ["achievable", "--preset", "nope"], ["achievable", "--duration", "0"], ["achievable", "--rms", "-1"],
@@ -196,9 +190,8 @@ CASES = {
 def test_bad_input_is_one_line_and_exit_2(command, argv, files, capsys, tmp_path):
     argv = _argv(argv, files)
     # safety nets: should a case pass its checks after all, it stays short instead of running for minutes
-    extra = {"benchmark": ["--seeds", "1", "--quick", None], "train": ["--timesteps", "1", "--eval-freq", "0"],
-             "evaluate": ["--seeds", "1", "--quick", None, "--agents", None, "--no-1ms", None],
-             "tune": ["--trials", "1", "--timesteps", "1"], "yardstick": ["--quick", None, "--no-progress", None],
+    extra = {"benchmark": ["--suite", "car-comfort-v1", "--episodes", "1", "--backend", "serial", "--no-progress", None],
+             "train": ["--timesteps", "1", "--eval-freq", "0"], "tune": ["--trials", "1", "--timesteps", "1"],
              "identify": ["--maxiter", "1"], "compare-models": ["--maxiter", "1", "--models", "bingham"]}
     for opt, val in zip(extra.get(command, [])[::2], extra.get(command, [])[1::2]):
         if opt not in argv:
@@ -229,11 +222,11 @@ def test_help_exits_0_without_importing_the_commands():
             "with contextlib.redirect_stdout(io.StringIO()) as out:\n"
             "    rc = main(['--help'])\n"
             "mods = [m for m in ('experiments.commands.rig', 'experiments.commands.benchmark',\n"
-            "        'experiments.commands.train', 'experiments.commands.evaluate', 'experiments.common.scenarios',\n"
+            "        'experiments.commands.train', 'experiments.commands.score', 'experiments.common.scenarios',\n"
             "        'experiments.commands.warmup', 'experiments.commands.identify',\n"
             "        'experiments.commands.compare_models', 'mrd_env.rig',\n"
             "        'mrd_env.identification', 'stable_baselines3', 'torch') if m in sys.modules]\n"
-            "print(rc, 'COMMANDS' if all(c in out.getvalue() for c in ('rig', 'benchmark', 'train', 'evaluate', 'identify',\n"
+            "print(rc, 'COMMANDS' if all(c in out.getvalue() for c in ('rig', 'benchmark', 'train', 'score', 'identify',\n"
             "      'compare-models')) else 'missing', mods)\n")
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert res.returncode == 0, res.stderr
@@ -259,10 +252,11 @@ MESSAGES = [  # (argv, what the one line says): the option by its name, values a
     (["identify", "--data", "{good}", "--force-offset", "2", "--align"], "--align estimates the force offset and"),
     (["identify", "--data", "{clipped}", "--fit-fraction", "0.99"],
      "fit_fraction = 0.99 leaves 0 sample(s) of 'clipped' to validate on once its faults are excluded"),
-    (["benchmark", "--plant", "shear_building", "--controllers", "groundhook"],
-     "--controllers: groundhook does not apply to the shear building"),
-    (["evaluate", "--plant", "shear_building", "--laws", "groundhook"],
-     "--laws: groundhook does not apply to the shear building"),
+    (["benchmark", "--suite", "building-six-storey-v1", "--no-shipped", "--controller", "groundhook"],
+     "controller groundhook: Groundhook needs signals with the role(s) ['wheel_velocity'], which the "
+     "'shear_building' environment does not declare"),
+    (["benchmark", "--suite", "car-comfort-v1", "--only", "passive_off", "nope"],
+     "only: 'nope' is none of the shipped controllers of the chosen suites (clipped_optimal, groundhook,"),
     (["train", "--hyperparams", "{scalar_yml}"], "the entry for mrd_env/QuarterCarPhysical-v0 must be a mapping"),
     (["train", "--set", "normalize=3"], "hyperparameter normalize must be true, false or a mapping"),
     (["compare-models", "--data", "{good}", "--models", "bingham", "bingham"],
@@ -306,8 +300,8 @@ def test_warmup_compiles_models_side_by_side(capsys):
 
 
 def _raising_run(monkeypatch, exc):
-    """``mrd-env yardstick`` made to raise ``exc`` once its options are parsed."""
-    import experiments.commands.yardstick as cmd
+    """``mrd-env benchmark`` made to raise ``exc`` once its options are parsed."""
+    import experiments.commands.benchmark as cmd
 
     def run(args):
         raise exc
@@ -319,9 +313,9 @@ def test_a_user_error_in_a_sweep_worker_is_one_line_and_exit_2(monkeypatch, caps
 
     task = Task(print, (1,), label="El Centro / groundhook")
     _raising_run(monkeypatch, TaskFailed(task, ValueError("Groundhook needs the sensor(s) ['wheel_velocity']")))
-    assert main(["yardstick", "--quick"]) == 2
+    assert main(["benchmark"]) == 2
     err = capsys.readouterr().err
-    assert err == "mrd-env yardstick: error: El Centro / groundhook: Groundhook needs the sensor(s) " \
+    assert err == "mrd-env benchmark: error: El Centro / groundhook: Groundhook needs the sensor(s) " \
                   "['wheel_velocity']\n"
 
 
@@ -330,18 +324,18 @@ def test_a_bug_is_one_line_and_exit_1_and_traceback_shows_it(monkeypatch, capsys
 
     for exc in (RuntimeError("boom"), TaskFailed(Task(print, label="t"), KeyError("boom"))):
         _raising_run(monkeypatch, exc)
-        assert main(["yardstick", "--quick"]) == 1
+        assert main(["benchmark"]) == 1
         err = capsys.readouterr().err
-        assert err.startswith(f"mrd-env yardstick: error: internal error: {type(exc).__name__}: ") and \
+        assert err.startswith(f"mrd-env benchmark: error: internal error: {type(exc).__name__}: ") and \
             err.count("\n") == 1 and "--traceback" in err, err
         with pytest.raises(type(exc)):
-            main(["--traceback", "yardstick", "--quick"])
+            main(["--traceback", "benchmark"])
 
 
 def test_interrupted_is_exit_130(monkeypatch, capsys):
     _raising_run(monkeypatch, KeyboardInterrupt())
-    assert main(["yardstick", "--quick"]) == 130
-    assert capsys.readouterr().err == "mrd-env yardstick: interrupted\n"
+    assert main(["benchmark"]) == 130
+    assert capsys.readouterr().err == "mrd-env benchmark: interrupted\n"
 
 
 def test_a_missing_optional_dependency_names_its_extra(monkeypatch, capsys):

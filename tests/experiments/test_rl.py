@@ -78,27 +78,21 @@ def test_same_seed_same_agent(tmp_path):
         assert ka == kb and np.array_equal(va.numpy(), vb.numpy())
 
 
-def test_evaluate_puts_agents_and_laws_side_by_side(trained, tmp_path):
+def test_the_benchmark_scores_trained_agents_beside_the_laws(trained, tmp_path):
+    """Agents from ``mrd-env train`` enter the benchmark as folders: scored on a suite of the environment they were
+    trained on, beside the shipped laws, one result file each, shares within what the suite's references allow."""
     agents = [str(trained / f"shear_building_ppo_s{s}") for s in (0, 1)]
-    assert main(["evaluate", "--plant", "shear_building", "--agents", *agents, "--laws", "passive_off", "clipped_optimal",
-                 "--quick", "--seeds", "1", "--no-mpc", "--out", str(tmp_path), "--no-progress"]) == 0
-    with (tmp_path / "shear_building_evaluation.csv").open() as fh:
-        rows = list(csv.DictReader(fh))
-    ctrls = {r["controller"] for r in rows}
-    assert ctrls == {"agent PPO", "passive_off @ 10 ms", "clipped_optimal @ 10 ms", "passive_off @ 1 ms",
-                     "clipped_optimal @ 1 ms"}
-    agent_row = next(r for r in rows if r["controller"] == "agent PPO" and r["scenario"] != "all test scenarios")
-    assert int(agent_row["episodes"]) == 1  # both training seeds pooled: one episode, with their mean
-    for r in rows:
-        if int(r["episodes"]) > 1:
-            assert float(r["return_lo95"]) <= float(r["return"]) <= float(r["return_hi95"]) <= 0.0
-        else:  # one episode: no interval (issue 22)
-            assert np.isnan(float(r["return_lo95"])) and np.isnan(float(r["return_hi95"]))
-        assert 0 < float(r["J1"]) < 2
-    assert (tmp_path / "shear_building_evaluation.png").stat().st_size > 10_000
-    # the benchmark takes the same agent folders
-    assert main(["benchmark", "--plant", "shear_building", "--quick", "--seeds", "1", "--controllers", "passive_off",
-                 "--agent", agents[0], "--out", str(tmp_path / "b"), "--no-progress"]) == 0
+    out = tmp_path / "b"
+    assert main(["benchmark", "--suite", "building-seismic-v1", "--only", "passive_off", "clipped_optimal",
+                 "--controller", agents[0], "--controller", agents[1], "--episodes", "1", "--backend", "serial",
+                 "--out", str(out), "--no-progress"]) == 0
+    results = sorted((out / "results").glob("*.json"))
+    assert len(results) == 4
+    for path in results:
+        data = json.loads(path.read_text())
+        assert data["controller"]["kind"] == ("agent" if "ppo" in path.name else "law")
+        assert all(e["share"] <= 1.0 + 1e-9 for e in data["episodes"]), path.name  # none beats the clairvoyant
+    assert (out / "leaderboards" / "building-seismic-v1" / "leaderboard.png").stat().st_size > 10_000
 
 
 def test_recurrent_policies_work_with_the_tooling(tmp_path):

@@ -1,5 +1,6 @@
 """A user's path from one command to the next (issue 22): identify a damper on a record, then use the saved preset
-everywhere a model name is accepted — the rig, the environments, the benchmark, training and evaluation."""
+everywhere a model name is accepted — the rig, the environments, training — and enter the benchmark with the agent
+trained on it."""
 import csv
 import json
 
@@ -24,7 +25,7 @@ def fitted(tmp_path_factory):
     return d, preset
 
 
-def test_identify_then_rig_environments_benchmark_train_and_evaluate_on_the_preset(fitted):
+def test_identify_then_rig_environments_and_train_on_the_preset_then_benchmark_the_agent(fitted):
     d, preset = fitted
     doc = json.loads(preset.read_text())
     assert doc["model"] == "bouc_wen"
@@ -39,11 +40,7 @@ def test_identify_then_rig_environments_benchmark_train_and_evaluate_on_the_pres
         assert env.unwrapped.damper.params.alpha_b == doc["parameters"]["alpha_b"]["value"]
     with pytest.raises(ValueError, match="preset file"):
         gym.make("mrd_env/QuarterCarPhysical-v0", damper=str(preset), damper_preset="spencer1997")
-    # the benchmark
-    assert main(["benchmark", "--plant", "shear_building", "--quick", "--controllers", "passive_off", "clipped_optimal",
-                 "--damper", str(preset), "--yardstick", "off", "--out", str(d / "bench"), "--no-progress"]) == 0
-    assert (d / "bench" / "shear_building_benchmark.md").exists()
-    # a short training on it, and its evaluation on the same damper (taken from the agent's record)
+    # a short training on it
     assert main(["train", "--plant", "shear_building", "--algo", "ppo", "--damper", str(preset), "--timesteps", "64",
                  "--set", "n_steps=32", "batch_size=32", "n_envs=1", "--eval-freq", "0", "--no-progress",
                  "--out", str(d / "agents")]) == 0
@@ -52,9 +49,12 @@ def test_identify_then_rig_environments_benchmark_train_and_evaluate_on_the_pres
     # the preset travels with the agent (a shared agent reads nothing outside its folder): a copy, named by content
     copy = agent / meta["env_kwargs"]["damper"]
     assert copy.parent == agent and copy.read_bytes() == preset.read_bytes()
-    assert main(["evaluate", "--plant", "shear_building", "--agents", str(agent), "--laws", "passive_off", "--quick",
-                 "--seeds", "1", "--no-mpc", "--no-1ms", "--yardstick", "off", "--out", str(d / "eval"),
-                 "--no-progress"]) == 0
+    # the agent enters the benchmark: a suite fixes its plant and damper, so it is scored on the suite's damper
+    assert main(["benchmark", "--suite", "building-seismic-v1", "--no-shipped", "--controller", str(agent),
+                 "--episodes", "1", "--backend", "serial", "--out", str(d / "bench"), "--no-progress"]) == 0
+    assert len(list((d / "bench" / "results").glob("building-seismic-v1__*.json"))) == 1
+    # a suite fixes its damper: the preset as a plant option describes the plant of no shipped suite
+    assert main(["benchmark", "--damper", str(preset), "--out", str(d / "bench2")]) == 2
 
 
 def test_a_bad_preset_file_is_one_line(tmp_path, capsys):
@@ -63,7 +63,7 @@ def test_a_bad_preset_file_is_one_line(tmp_path, capsys):
     assert main(["rig", "--preset", str(bad), "--out", str(tmp_path)]) == 2
     err = capsys.readouterr().err
     assert "not a JSON preset" in err and err.count("\n") == 1
-    assert main(["benchmark", "--plant", "shear_building", "--damper", str(tmp_path / "missing.json"), "--quick",
+    assert main(["benchmark", "--plant", "shear_building", "--damper", str(tmp_path / "missing.json"),
                  "--out", str(tmp_path)]) == 2
     assert "missing.json" in capsys.readouterr().err
 
