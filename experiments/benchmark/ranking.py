@@ -22,7 +22,9 @@ return gives with the suite's stored references, (R − R_p) / (R_c − R_p) —
 references, so a share edited by hand is refused naming the file and the episode. The suite is the shipped one of
 the result's id (whose digest :func:`read_result` checked), or one given (``--suite``); :func:`leaderboards` refuses
 a result of any other suite, :func:`leaderboard` merges it unchecked and its tables say so. Complete results are
-ranked, best first; a partial one (``score --episodes``) is shown apart, never ranked: its own section of the
+ranked, best first by the pooled share over all scenarios (:mod:`experiments.benchmark.aggregate`: each episode
+weighed by its range R_c − R_p; the mean of the episodes' shares is shown beside it), and each is compared with the
+next and with the best law on the same episodes (:func:`paired_verdicts`); a partial one (``score --episodes``) is shown apart, never ranked: its own section of the
 Markdown, below the ranked rows of the CSV with no rank, below a dotted line in the figure, each marked
 "partial: n of N episodes".
 

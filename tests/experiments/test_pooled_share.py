@@ -245,3 +245,23 @@ def test_score_stores_the_references_it_scored_against():
     row = r.to_json()["summary"][-1]
     assert row["scenario"] == ALL and row["pooled share"] == pytest.approx(
         sum(e["return"] - e["passive"] for e in r.episodes) / sum(e["clairvoyant"] - e["passive"] for e in r.episodes))
+
+
+def test_scores_summary_against_a_reference_controller(bumpy):
+    """What mrd-env score prints when a reference controller is given: per scenario and over all, the paired
+    difference, the episodes won and the verdict, with the suite's references; results of another suite refused."""
+    s, _ = bumpy
+    roads = [lab for lab in s.labels() if lab.startswith("road")]
+    mine = as_result(result_data(s, "mine", {**{k: 0.3 + 0.01 * i for i, k in enumerate(roads)}, "bump": 0.1},
+                                 version=1))
+    ref = as_result(result_data(s, "ref", {k: 0.1 for k in s.labels()}, version=1))
+    rows = paired_comparison(mine, ref, s)
+    assert [(r["scenario"], r["episodes"], r["won"], r["verdict"]) for r in rows] == [
+        ("road", 4, 4, "ahead"), ("bump", 1, 0, "n/a"), (ALL, 5, 4, "ahead")]
+    assert math.isnan(paired_comparison(mine, ref)[-1]["difference"]), "format 1, no suite: no references"
+    md = mine.paired_markdown(ref, s)
+    assert md.splitlines()[0].startswith("### mine against ref on bumpy-car-v1") and "| all scenarios | 5 |" in md
+    other = as_result({**result_data(s, "other", {k: 0.1 for k in s.labels()}),
+                       "suite": {**ref.suite, "id": "other-v1", "digest": "1" * 64}})
+    with pytest.raises(ValueError, match="same episodes and references"):
+        paired_comparison(mine, other)
