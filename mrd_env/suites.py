@@ -584,7 +584,7 @@ def spec_definition(data, where: str = "suite spec", folder: str | Path | None =
     missing = [k for k in SPEC_FIELDS if k not in data]
     unknown = [k for k in data if k not in SPEC_FIELDS + SPEC_OPTIONAL_FIELDS]
     if missing or unknown:
-        what = f"lacks the field(s) {missing}" if missing else f"has unknown field(s) {[_shown(k) for k in unknown[:5]]}"
+        what = f"lacks the field(s) {missing}" if missing else f"has unknown field(s) {[k[:60] for k in unknown[:5]]}"
         raise ValueError(f"{where}: {what}; a suite spec has {list(SPEC_FIELDS)} and optionally "
                          f"{list(SPEC_OPTIONAL_FIELDS)}")
 
@@ -654,7 +654,7 @@ def _check_bands(bands, fail) -> None:
     known = ("seed", *BAND_GROUPS, "sensor_delay")
     unknown = [k for k in bands if k not in known]
     if unknown:
-        fail("randomise", f"an object of {list(known)}", f"the unknown field(s) {[_shown(k) for k in unknown[:5]]}")
+        fail("randomise", f"an object of {list(known)}", f"the unknown field(s) {[k[:60] for k in unknown[:5]]}")
     seed = bands.get("seed")
     if type(seed) is not int or not 0 <= seed <= MAX_SEED:
         fail("randomise.seed", f"a whole number in [0, {MAX_SEED}]", seed)

@@ -187,11 +187,11 @@ def test_the_script_refuses_a_changed_definition(tmp_path, shipped):
     path = tmp_path / f"{s.id}.json"
     write_suite(s, path)
     changed = replace(s, scenarios=s.scenarios[:-1])
-    with pytest.raises(SystemExit, match="another definition"):
-        sr._shipped_check(path, changed, overwrite=True)
-    with pytest.raises(SystemExit, match="frozen"):
-        sr._shipped_check(path, s, overwrite=False)
-    sr._shipped_check(path, s, overwrite=True)
+    with pytest.raises(ValueError, match="another definition"):
+        sr._check_out(path, changed, overwrite=True, shipped=True)
+    with pytest.raises(ValueError, match="frozen"):
+        sr._check_out(path, s, overwrite=False, shipped=True)
+    sr._check_out(path, s, overwrite=True, shipped=True)
 
 
 @pytest.mark.slow

@@ -228,17 +228,17 @@ def _git_commit() -> str:
         return "unknown"
 
 
-def _check_out(path: Path, new, overwrite: bool) -> None:
-    """``ValueError`` (one line) if ``path`` holds a file this build must not replace: a shipped suite (in a plant's
-    folder: the same definition and ``overwrite`` only, before it ships), or any existing file without
-    ``overwrite``."""
+def _check_out(path: Path, new, overwrite: bool, *, shipped: bool | None = None) -> None:
+    """``ValueError`` (one line) if ``path`` holds a file this build must not replace: a shipped suite (``shipped``,
+    by default a file in a plant's folder: the same definition and ``overwrite`` only, before it ships), or any
+    existing file without ``overwrite``."""
     from mrd_env.suites import PLANTS_FOLDER, read_suite
 
     if not path.exists() and not path.is_symlink():
         return
     if not path.is_file():
         raise ValueError(f"{path} exists and is not a file: refused")
-    if PLANTS_FOLDER not in path.resolve().parents:
+    if not (PLANTS_FOLDER in path.resolve().parents if shipped is None else shipped):
         if not overwrite:
             raise ValueError(f"{path} exists: --overwrite replaces it")
         return
@@ -338,7 +338,7 @@ def build_suite(definition, plant: str, env_id: str, out: str | Path, *, backend
         new = copy_references(plant, env_id, definition, command)
         _check_out(out, new, overwrite)
         written = write_suite(new, out)
-        record = _record(written, new, command, backend, jobs, {}, t0, load0, started, 0, 0)
+        record = _record(written, new, command, "none", None, {}, t0, load0, started, 0, 0)
         return Build(new, written, record, write_json(build_record_path(written), record, indent=1))
     profile = plant_spec(plant).profile
     if not profile.warm_laws:
@@ -470,8 +470,11 @@ def table(s, record: dict | None = None) -> str:
         walls = [eps[sc.label(seed)]["wall"] for seed in sc.seeds if "wall" in eps.get(sc.label(seed), {})]
         br = [(r.bound - r.clairvoyant) / (r.bound - r.passive) for r in refs if r.bound > r.passive]
         cw = [w["clairvoyant_s"] for w in walls]
+        bounds = [r.bound for r in refs if math.isfinite(r.bound)]  # null where the conic solver failed
+        rb = (f"{mean(bounds):.4f}" + (f" ({len(bounds)} of {len(refs)})" if len(bounds) < len(refs) else "")
+              if bounds else "–")
         rows.append(f"| {sc.name} | {len(refs)} | {mean(r.passive for r in refs):.4f} | "
-                    f"{mean(r.clairvoyant for r in refs):.4f} | {mean(r.bound for r in refs):.4f} | "
+                    f"{mean(r.clairvoyant for r in refs):.4f} | {rb} | "
                     f"{mean(br) if br else math.nan:.2f} | "
                     + (f"{mean(cw):.0f} / {max(cw):.0f} | {mean(w['total_s'] for w in walls):.0f} |" if walls
                        else "– | – |"))
