@@ -70,16 +70,21 @@ def test_backend_and_jobs_are_checked():
 
 # --- the sweeps on the executor ---------------------------------------------------------------------------------
 
-def test_benchmark_on_a_local_ray_instance_equals_the_serial_table(tmp_path):
+def test_benchmark_on_a_local_ray_instance_equals_the_serial_scores(tmp_path):
     pytest.importorskip("ray")
+    import json
+
     from experiments.cli import main
 
     for backend in ("serial", "ray"):
-        assert main(["benchmark", "--plant", "shear_building", "--quick", "--seeds", "1", "--controllers", "passive_on",
-                     "clipped_optimal", "--backend", backend, "--jobs", "2", "--out", str(tmp_path / backend),
+        assert main(["benchmark", "--suite", "building-six-storey-v1", "--only", "passive_on", "clipped_optimal",
+                     "--episodes", "1", "--backend", backend, "--jobs", "2", "--out", str(tmp_path / backend),
                      "--no-progress"]) == 0
-    assert (tmp_path / "serial" / "shear_building_benchmark.csv").read_text() == \
-        (tmp_path / "ray" / "shear_building_benchmark.csv").read_text()
+    files = sorted(p.name for p in (tmp_path / "serial" / "results").iterdir())
+    assert files == sorted(p.name for p in (tmp_path / "ray" / "results").iterdir()) and len(files) == 2
+    for name in files:
+        a, b = (json.loads((tmp_path / bk / "results" / name).read_text()) for bk in ("serial", "ray"))
+        assert a["episodes"] == b["episodes"] and a["summary"] == b["summary"], name
 
 
 def test_training_seeds_on_a_pool_equal_serial_ones(tmp_path):

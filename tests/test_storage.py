@@ -82,7 +82,7 @@ def test_a_symlink_leaving_the_folder_is_refused(tmp_path):
 
 
 def test_sigterm_ends_a_command_like_ctrl_c_with_exit_143(monkeypatch, capsys):
-    import experiments.commands.yardstick as cmd
+    import experiments.commands.benchmark as cmd
     from experiments.cli import main
 
     seen = []
@@ -105,9 +105,9 @@ def test_sigterm_ends_a_command_like_ctrl_c_with_exit_143(monkeypatch, capsys):
 
     monkeypatch.setattr(cmd, "run", run)
     before = signal.getsignal(signal.SIGTERM)
-    assert main(["yardstick", "--quick"]) == 143
+    assert main(["benchmark"]) == 143
     assert seen == ["saved"]
-    assert capsys.readouterr().err == "mrd-env yardstick: terminated\n"
+    assert capsys.readouterr().err == "mrd-env benchmark: terminated\n"
     assert signal.getsignal(signal.SIGTERM) == before   # the caller's handler is restored
 
 

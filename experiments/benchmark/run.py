@@ -94,7 +94,8 @@ def choose_suites(suites=None, plants=None) -> list:
     if plants is not None:
         kept = [s for s in given if s.plant in plants]
         if not kept:
-            raise ValueError(f"none of the suites {ids} is of the plant(s) {sorted(plants)}")
+            raise ValueError(f"none of the suites {ids} is of the plant(s) {sorted(plants)}: make one of your own "
+                             "with mrd-env suite build SPEC")
         given = kept
     for s in given:
         check_references(s)

@@ -311,5 +311,5 @@ def run(args: argparse.Namespace) -> int:
                     checkpoint_freq=args.checkpoint_freq, tensorboard=args.tensorboard,
                     progress=not args.no_progress, command=command, warm_start=args.warm_start, **executor)
     for f in folders:
-        print(f"saved {f} (evaluate with: mrd-env evaluate --plant {plant.name} --agents {f})")
+        print(f"saved {f} (score it on the suites it fits: mrd-env benchmark --plant {plant.name} --controller {f})")
     return 0

@@ -196,7 +196,7 @@ def check_suite_plant(suite, args: argparse.Namespace) -> None:
             if _plain(_naming(given, plant.plant_environment, d.options, given)) == _plain(d.options)]
     raise ValueError(f"{flags} would change the plant of suite {suite.name}-v{suite.version}, and a suite fixes its "
                      f"plant; " + (f"score {' or '.join(fits)}, whose plant that is" if fits
-                                   else "no shipped suite has that plant (use mrd-env benchmark)"))
+                                   else "no shipped suite has that plant (make one: mrd-env suite build SPEC)"))
 
 
 def check_agent_plant(plant: PlantProfile, agent: str, env_kwargs: dict) -> None:

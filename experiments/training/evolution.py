@@ -195,7 +195,7 @@ def train_cmaes(plant: PlantProfile, algo: str, seed: int, *, out: Path, timeste
             bar.update(n)
             with monitor.open("a", encoding="utf-8") as fh:
                 fh.write(f"{returns.mean():.6g},{n},{time.perf_counter() - t_start:.3f}\n")
-    except KeyboardInterrupt:  # the search so far is an agent: evaluate takes the folder
+    except KeyboardInterrupt:  # the search so far is an agent: the benchmark takes the folder
         bar.close()
         save(run_dir, es.mean, {"timesteps_done": steps, "interrupted": True}, in_place=True)
         plot_learning_curve(run_dir)

@@ -1,8 +1,8 @@
 """Malicious agents (issue 36): a shared agent folder runs no code and reads nothing outside itself.
 
 - A copy of a shipped PPO agent whose SB3 ``model.zip`` carries a pickle that creates a marker file is refused by
-  ``load_agent`` and ``mrd-env evaluate`` without running it (no marker; exit 2, one line); with trust it is loaded
-  and the payload runs (the marker appears: the test can fail).
+  ``load_agent``, ``mrd-env score`` and ``mrd-env benchmark`` without running it (no marker; exit 2, one line); with
+  trust it is loaded and the payload runs (the marker appears: the test can fail).
 - An ``agent.json`` naming a file outside its folder (absolute, ``..``, a symlink out) is refused, naming the file.
 - An ``agent.json`` whose environment options would exhaust memory is refused by the environment's own check.
 """
@@ -26,8 +26,7 @@ pytestmark = pytest.mark.hostile  # every case here is a hostile file (a count: 
 pytest.importorskip("stable_baselines3")
 pytest.importorskip("safetensors")
 SHIPPED = next(f for f in shipped_agents("quarter_car") if f.name == "quarter_car_ppo_residual")
-EVALUATE = ["evaluate", "--plant", "quarter_car", "--quick", "--seeds", "1", "--laws", "passive_off", "--no-mpc",
-            "--no-1ms", "--yardstick", "off", "--no-progress", "--backend", "serial"]
+SCORE = ["score", "--suite", "car-comfort-v1", "--episodes", "1", "--no-progress", "--backend", "serial"]
 
 
 class Payload:
@@ -103,18 +102,18 @@ def test_load_agent_refuses_an_sb3_zip_without_running_it(malicious):
     assert not marker.exists()
 
 
-def test_evaluate_refuses_it_in_one_line_with_exit_code_2(malicious, tmp_path, capsys):
+def test_score_refuses_it_in_one_line_with_exit_code_2(malicious, tmp_path, capsys):
     folder, marker = malicious
-    assert main([*EVALUATE, "--agents", str(folder), "--out", str(tmp_path)]) == 2
+    assert main([*SCORE, "--controller", str(folder), "--out", str(tmp_path)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--trust-agent" in err and "model.zip" in err and "Traceback" not in err
     assert not marker.exists()
-    assert not list(tmp_path.glob("*.md"))  # nothing evaluated
+    assert not list(tmp_path.glob("*.json"))  # nothing scored
 
 
 def test_only_trust_loads_it_and_then_its_payload_runs(malicious, tmp_path, capsys):
     """The proof that the tests above can fail: trusted, the zip is unpickled and the payload creates the marker.
-    The agent acts as the shipped one, and evaluate --trust-agent scores its code-free copy."""
+    The agent acts as the shipped one, and score --trust-agent scores its code-free copy."""
     folder, marker = malicious
     with pytest.warns(TrustedCodeWarning, match="can run any code"):
         agent = load_agent(folder, trust=True)
@@ -125,8 +124,8 @@ def test_only_trust_loads_it_and_then_its_payload_runs(malicious, tmp_path, caps
     marker.unlink()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", TrustedCodeWarning)
-        assert main([*EVALUATE, "--agents", str(folder), "--out", str(tmp_path), "--trust-agent"]) == 0
-    assert marker.exists() and (tmp_path / "quarter_car_evaluation.csv").exists()
+        assert main([*SCORE, "--controller", str(folder), "--out", str(tmp_path), "--trust-agent"]) == 0
+    assert marker.exists() and len(list(tmp_path.glob("car-comfort-v1__*.json"))) == 1
     converted = list((tmp_path / "converted-agents").iterdir())
     assert len(converted) == 1 and not (converted[0] / "model.zip").exists()
     assert json.loads((converted[0] / "agent.json").read_text())["converted_from"]["file"] == "model.zip"
@@ -153,7 +152,7 @@ def test_a_file_named_outside_the_folder_is_refused(tmp_path, key, name, capsys)
     for read in (load_agent, agent_digest, agent_files):
         with pytest.raises(ValueError, match=rf"{key} file '{name}'.*only a name inside the folder"):
             read(folder)
-    assert main([*EVALUATE, "--agents", str(folder), "--out", str(tmp_path / "out")]) == 2
+    assert main([*SCORE, "--controller", str(folder), "--out", str(tmp_path / "out")]) == 2
     assert "only a name inside the folder" in capsys.readouterr().err
 
 
@@ -219,12 +218,12 @@ def test_huge_environment_options_in_agent_json_are_refused(tmp_path):
 
 def test_benchmark_refuses_it_too_and_trust_is_its_only_way_in(malicious, tmp_path, capsys):
     folder, marker = malicious
-    bench = ["benchmark", "--plant", "quarter_car", "--quick", "--controllers", "passive_off", "--yardstick", "off",
-             "--no-progress", "--agent", str(folder), "--out", str(tmp_path)]
+    bench = ["benchmark", "--suite", "car-comfort-v1", "--only", "passive_off", "--episodes", "1", "--backend", "serial",
+             "--no-progress", "--controller", str(folder), "--out", str(tmp_path)]
     assert main(bench) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--trust-agent" in err and "model.zip" in err and "Traceback" not in err
-    assert not marker.exists() and not list(tmp_path.glob("*.md"))
+    assert not marker.exists() and not list(tmp_path.iterdir())
     with pytest.warns(TrustedCodeWarning):
         assert main([*bench, "--trust-agent"]) == 0
     assert marker.exists() and (tmp_path / "converted-agents").is_dir()

@@ -103,8 +103,8 @@ def test_the_written_preset_still_reads(folder):
 
 @pytest.mark.parametrize("name", ["self.json", "list_parameters.json", "text_command.json", "escape.json"])
 @pytest.mark.parametrize("command", [["rig", "--damper", "{path}", "--cycles", "1"],
-                                     ["benchmark", "--plant", "shear_building", "--quick", "--damper", "{path}",
-                                      "--yardstick", "off", "--no-progress"]])
+                                     ["benchmark", "--plant", "shear_building", "--damper", "{path}", "--episodes",
+                                      "1", "--no-progress"]])
 def test_the_commands_say_one_line_and_exit_2(folder, capsys, name, command):
     changes, names = CASES[name]
     path = _bad(folder, name, **changes)

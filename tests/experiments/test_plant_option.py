@@ -15,7 +15,7 @@ from experiments.cli import build_parser
 from experiments.common.plants import chosen_plants, default_plant, plant_choices, profile, profiles
 
 #: The commands with a ``--plant`` option.
-COMMANDS = ("benchmark", "evaluate", "yardstick", "train", "tune")
+COMMANDS = ("benchmark", "train", "tune")
 
 
 def renamed() -> tuple[str, str]:
@@ -33,7 +33,7 @@ def test_a_former_plant_name_still_works_but_is_not_offered(command, capsys):
         build_parser(command).parse_args([command, "--help"])
     offered = re.search(r"--plant \{([^}]*)\}", capsys.readouterr().out).group(1).split(",")
     assert former not in offered and name in offered
-    assert offered == plant_choices(both=command in ("benchmark", "evaluate", "yardstick"))
+    assert offered == plant_choices(both=command == "benchmark")
 
 
 def test_the_single_plant_commands_default_to_the_one_training_default():
@@ -72,7 +72,7 @@ def test_an_agent_recording_a_former_plant_name_is_found_under_todays(tmp_path):
 
 
 def test_the_cars_passive_reference_is_the_presets_dashpot():
-    """The benchmark's ``passive_ref`` row of the quarter car: the MR damper replaced by set A's 1500 N·s/m
+    """The quarter car's conventional passive reference (its profile's ``passive_ref``): the MR damper replaced by set A's 1500 N·s/m
     dashpot (a Bingham damper without friction), set B's 1000 N·s/m."""
     reference = profile("quarter_car").passive_reference
     name, options = reference({})

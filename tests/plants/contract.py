@@ -1,5 +1,5 @@
 """The checks every plant added through its folder passes the same way (the Gymnasium contract of its two ids,
-its native vector env against scalar ones, and the commands training and evaluating an agent on it), shared by
+its native vector env against scalar ones, and the commands training an agent on it and scoring it), shared by
 the plants' test files so that each states only what is its own."""
 from __future__ import annotations
 
@@ -59,15 +59,29 @@ def check_vector_steps_as_scalar_ones(env_id: str, options: dict, n_dampers: int
             assert np.array_equal(o, vo[i]) and r == vr[i] and (t, tr) == (vt[i], vtr[i])
 
 
-def check_train_then_evaluate(plant: str, env_id: str, tmp_path) -> None:
-    """``mrd-env train --plant plant`` (PPO, a few steps) writes an agent of ``env_id`` that ``mrd-env evaluate``
-    scores."""
+def check_train_then_score(plant: str, env_id: str, tmp_path) -> None:
+    """``mrd-env train --plant plant`` (PPO, a few steps) writes an agent of ``env_id`` that acts on the plant's
+    episodes, and that ``mrd-env benchmark`` scores on the plant's first suite where it has one."""
+    from controllers import load_agent
+    from mrd_env.suites import suites
+
+    from experiments.common.evaluation import evaluate_batch
+    from experiments.common.plants import profile
+    from experiments.common.scenarios import held_out_scenarios
+
     assert main(["train", "--plant", plant, "--algo", "ppo", "--timesteps", "64", "--set", "n_steps=32",
                  "batch_size=32", "n_envs=1", "n_epochs=1", "--eval-freq", "0", "--no-progress",
                  "--out", str(tmp_path / "agents")]) == 0
     agent = tmp_path / "agents" / f"{plant}_ppo_s0"
     meta = json.loads((agent / "agent.json").read_text())
     assert meta["env_id"] == env_id
-    assert main(["evaluate", "--plant", plant, "--agents", str(agent), "--laws", "passive_off", "--quick",
-                 "--seeds", "1", "--no-mpc", "--no-1ms", "--yardstick", "off", "--backend", "serial",
-                 "--out", str(tmp_path / "eval"), "--no-progress"]) == 0
+    loaded = load_agent(agent)
+    sc = held_out_scenarios(profile(plant), quick=True)[0]
+    eps = evaluate_batch(lambda v: loaded.bind(v), sc, "", **loaded.observation_kwargs)
+    assert eps and all(np.isfinite(e.episode_return) for e in eps)
+    mine = [sid for sid, s in suites().items() if s.env_id == env_id]
+    if mine:  # scored on the suites whose sensors are the training's (a preview suite's are not)
+        assert main(["benchmark", *(a for sid in mine for a in ("--suite", sid)), "--no-shipped", "--controller",
+                     str(agent), "--episodes", "1", "--backend", "serial", "--out", str(tmp_path / "bench"),
+                     "--no-progress"]) == 0
+        assert list((tmp_path / "bench" / "results").glob("*.json"))

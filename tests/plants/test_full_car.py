@@ -25,7 +25,7 @@ from mrd_env.plants.full_car import full_car
 from mrd_env.plants.full_car.metrics import full_car_metrics, we_magnitude, we_sos
 from mrd_env.plants.full_car.roads import Geometry, two_track_iso8608
 
-from tests.plants.contract import (check_reset_reproduces_an_episode, check_train_then_evaluate,
+from tests.plants.contract import (check_reset_reproduces_an_episode, check_train_then_score,
                                    check_vector_steps_as_scalar_ones)
 from tests.reference_models import nrmse
 
@@ -647,24 +647,23 @@ def test_bad_options_raise_value_error_naming_the_option(options, match):
 
 
 # --- (h) the commands reach it -------------------------------------------------------------------------------------
-def test_benchmark_runs_on_the_full_car(tmp_path):
-    assert main(["benchmark", "--plant", "full_car", "--quick", "--seeds", "1", "--controllers", "passive_off",
-                 "skyhook_continuous", "hybrid", "--yardstick", "off", "--backend", "serial",
-                 "--out", str(tmp_path), "--no-progress"]) == 0
-    text = (tmp_path / "full_car_benchmark.md").read_text()
-    assert "passive_ref" in text and "hybrid" in text
+def test_benchmark_runs_on_the_full_cars_suites_with_its_laws_and_mpc(tmp_path, capsys):
+    """The full car's suites offer its laws and its MPC rows (the preview row on the preview suite only); the
+    benchmark scores the laws on both."""
+    from experiments.benchmark import shipped_controllers, suite
+
+    offered = {sid: {c["name"] for c in shipped_controllers(suite(sid))} for sid in ("car-full-v3", "car-full-preview-v3")}
+    assert {"mpc (reward)", "clipped_optimal", "groundhook"} <= offered["car-full-v3"]
+    assert "mpc+preview (reward)" in offered["car-full-preview-v3"] - offered["car-full-v3"]
+    assert main(["benchmark", "--plant", "full_car", "--only", "passive_off", "skyhook_continuous", "hybrid",
+                 "--episodes", "1", "--backend", "serial", "--out", str(tmp_path), "--no-progress"]) == 0
+    out = capsys.readouterr().out
+    assert "| car-full-v3 |" in out and "| car-full-preview-v3 |" in out
+    assert len(list((tmp_path / "results").glob("car-full*.json"))) == 6
 
 
-def test_evaluate_runs_on_the_full_car_with_its_laws_and_mpc(tmp_path):
-    assert main(["evaluate", "--plant", "full_car", "--quick", "--seeds", "1", "--laws", "passive_off", "groundhook",
-                 "clipped_optimal", "--no-1ms", "--yardstick", "off", "--backend", "serial", "--out", str(tmp_path),
-                 "--no-progress"]) == 0
-    text = (tmp_path / "full_car_evaluation.md").read_text()
-    assert "mpc (reward)" in text and "mpc+preview (reward)" in text and "clipped_optimal" in text
-
-
-def test_train_then_evaluate_an_agent_on_the_full_car(tmp_path):
-    check_train_then_evaluate("full_car", V0, tmp_path)
+def test_train_then_score_an_agent_on_the_full_car(tmp_path):
+    check_train_then_score("full_car", V0, tmp_path)
 
 
 def test_the_full_cars_suites_grant_the_preview_that_mpc_uses():
