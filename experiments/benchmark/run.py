@@ -141,15 +141,16 @@ class Benchmark:
 
     def summary_rows(self) -> list[dict]:
         """One row per suite: its episodes, the controllers scored (and not applicable), and the best law, MPC row,
-        shipped agent and controller of the caller's by the share over all scenarios (mean [95 % interval])."""
+        shipped agent and controller of the caller's by the pooled share over all scenarios, the leaderboards' figure
+        (:meth:`~experiments.benchmark.scoring.SuiteResult.pooled_shares`: value [95 % bootstrap interval])."""
         from experiments.benchmark.scoring import ALL, interval_cell
 
         def best(entry: SuiteBenchmark, which) -> str:
             rows = [s for s in entry.scored if which(s)]
             if not rows:
                 return "–"
-            b = max(rows, key=lambda s: _mean_share(s.result))
-            m, lo, hi = b.result.shares()[ALL]
+            b = max(rows, key=lambda s: _pooled(s.result))
+            m, lo, hi = b.result.pooled_shares()[ALL]
             partial = "" if b.result.complete else f" (partial: {len(b.result.episodes)} episodes)"
             return f"{b.name}: {interval_cell(m, lo, hi)}{partial}"
 
@@ -173,8 +174,9 @@ class Benchmark:
         from mrd_env.report import markdown_table
 
         text = markdown_table(self.summary_rows(), title="The benchmark: per suite, the best controller of each kind "
-                                                         "by its share of the achievable gain (R − R_p) / (R_c − R_p) "
-                                                         "over all scenarios, mean [95 % interval over episodes]")
+                                                         "by its pooled share of the achievable gain Σ(R − R_p) / "
+                                                         "Σ(R_c − R_p) over all scenarios [95 % bootstrap interval]; "
+                                                         "each suite's leaderboard has every controller")
         for e in self.suites:
             if e.not_applicable:
                 text += (f"\n{e.suite.id}, not applicable: "
@@ -182,10 +184,10 @@ class Benchmark:
         return text
 
 
-def _mean_share(result) -> float:
+def _pooled(result) -> float:
     from experiments.benchmark.scoring import ALL
 
-    m = result.shares()[ALL][0]
+    m = result.pooled_shares()[ALL][0]
     return m if math.isfinite(m) else -math.inf
 
 
