@@ -18,7 +18,7 @@ object of the caller's runs in this process); the shares are the same on every b
 ``<out>/results/<suite id>__<controller>.json`` (each as its task ends: an interrupted run keeps the finished ones)
 and one leaderboard per suite, ``<out>/leaderboards/<suite id>/`` (:func:`~experiments.benchmark.ranking.
 write_leaderboards`: tables and figure, every share checked against the suite's references), and
-``<out>/benchmark.md``, the summary.
+``<out>/benchmark.md``, the summary (``benchmark.json``: what was scored and what did not fit, as data).
 """
 from __future__ import annotations
 
@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 #: The folders of ``out``: the result files, and the leaderboards (one folder per suite).
-RESULTS, LEADERBOARDS, SUMMARY = "results", "leaderboards", "benchmark.md"
+RESULTS, LEADERBOARDS, SUMMARY, RECORD = "results", "leaderboards", "benchmark.md", "benchmark.json"
 
 
 def _load() -> list[float]:
@@ -168,6 +168,21 @@ class Benchmark:
                 row["yours"] = best(e, lambda s: not s.shipped)
             out.append(row)
         return out
+
+    def to_json(self) -> dict:
+        """What was scored, as plain data (``benchmark.json``): per suite its id and digest, each controller scored
+        (name, kind, whether shipped, result file, wall time, load) and each not applicable with the reason; the
+        run's wall time and load."""
+        return {"format": "mrd-env-benchmark", "wall_s": round(self.wall_s, 2), "load_start": self.load_start,
+                "load_end": self.load_end,
+                "suites": [{"id": e.suite.id, "digest": e.suite.digest,
+                            "scored": [{"name": s.name, "kind": s.spec.kind, "shipped": s.shipped,
+                                        "result": None if s.path is None else s.path.name,
+                                        "complete": s.result.complete, "wall_s": round(s.wall_s, 2), "load": s.load}
+                                       for s in e.scored],
+                            "not_applicable": [{"name": n, "reason": why} for n, why in e.not_applicable],
+                            "leaderboard": None if e.leaderboard is None else e.leaderboard.name}
+                           for e in self.suites]}
 
     def markdown(self) -> str:
         """The summary table and, per suite, the controllers that do not fit it with the reason."""
@@ -355,7 +370,8 @@ def run_benchmark(suites=None, controllers=(), *, shipped: bool = True, only=Non
         boards = leaderboards([s.path for p in plans for s in p.scored], out=out / LEADERBOARDS, suites=given)
         for p in plans:
             p.leaderboard = out / LEADERBOARDS / p.suite.id if p.suite.id in boards else None
-        storage.write_text(out / SUMMARY, bench.markdown())
+        storage.write_texts({out / SUMMARY: bench.markdown(),
+                             out / RECORD: json.dumps(bench.to_json(), indent=1, allow_nan=False) + "\n"})
     return bench
 
 

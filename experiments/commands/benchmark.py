@@ -10,7 +10,8 @@ file, e.g. one ``mrd-env suite build`` wrote).
 Writes, under ``--out``: ``results/<suite id>__<controller>.json`` (one result file per controller and suite, each
 as soon as it is scored), ``leaderboards/<suite id>/`` (per suite: ``leaderboard.md``/``.csv``, the ranked table,
 ``leaderboard_rows.md``/``.csv``, its numbers, and ``leaderboard.png``, the figure) and ``benchmark.md`` (the
-summary printed at the end: per suite, the best controller of each kind).
+summary printed at the end: per suite, the best controller of each kind; ``benchmark.json``: what was scored and
+what did not fit, with the reasons and wall times, as data).
 """
 from __future__ import annotations
 

@@ -36,6 +36,9 @@ def test_a_smoke_run_writes_a_result_per_controller_a_leaderboard_and_the_summar
     # the summary: one row per suite, the best law (partial: one episode per scenario, 4 of the suite's 31)
     assert f"| {CAR} | 31 | 2 (0) | skyhook_continuous:" in out and "(partial: 4 episodes)" in out
     assert (tmp_path / "b" / "benchmark.md").read_text() in out
+    record = json.loads((tmp_path / "b" / "benchmark.json").read_text())
+    assert [(c["name"], c["result"], c["complete"]) for c in record["suites"][0]["scored"]] == \
+        [(law, f"{CAR}__{law}.json", False) for law in LAWS]
     data = json.loads(results[1].read_text())
     assert data["controller"]["name"] == "skyhook_continuous" and data["complete"] is False
     assert len(data["episodes"]) == len(suite(CAR).scenarios)
