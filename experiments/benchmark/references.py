@@ -41,6 +41,7 @@ A shipped file is never overwritten: a suite whose definition or references chan
 from __future__ import annotations
 
 import argparse
+import contextlib
 import hashlib
 import json
 import math
@@ -366,7 +367,8 @@ def build_suite(definition, plant: str, env_id: str, out: str | Path, *, backend
     used = resolve_backend(backend, len(tasks), jobs) if tasks else "none"
     say(f"{new.id}: {len(chosen)} episodes, {len(results)} kept in {keep}, {len(tasks)} to solve on {used}"
         + (f" ({jobs} jobs)" if jobs and used in ("pool", "ray") else "") + f"; load average {load0}")
-    solved = run_tasks(tasks, backend=backend, jobs=jobs, address=address, progress=progress, desc=new.id)
+    with _one_thread_per_worker():
+        solved = run_tasks(tasks, backend=backend, jobs=jobs, address=address, progress=progress, desc=new.id)
     results.update(zip(slots, solved))
     refs, episodes_json, costs = {}, {}, {}
     for sc, seed in chosen:
@@ -395,6 +397,29 @@ def build_suite(definition, plant: str, env_id: str, out: str | Path, *, backend
     record_path = write_json(build_record_path(written), record, indent=1)
     _remove_kept(keep)
     return Build(suite, written, record, record_path)
+
+
+#: The thread counts of the numerical libraries a pool's worker would otherwise size to every core.
+THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+@contextlib.contextmanager
+def _one_thread_per_worker():
+    """One BLAS/OpenMP thread in each worker the pool spawns meanwhile (a variable the user set is left as set), as
+    Ray does for its workers: one worker per core, each with a thread per core, oversubscribed the cores — a
+    4-episode build of 3 s car episodes on 2 workers took 51.7 s, 26.4 s with one thread each (load 4.5 on 2
+    cores), the same bytes. The spawned workers read the variables when they start; this process is unchanged."""
+    saved = {n: os.environ.get(n) for n in THREAD_VARIABLES}
+    for n in THREAD_VARIABLES:
+        os.environ.setdefault(n, "1")
+    try:
+        yield
+    finally:
+        for n, v in saved.items():
+            if v is None:
+                os.environ.pop(n, None)
+            else:
+                os.environ[n] = v
 
 
 def _record(path: Path, suite, command: str, backend: str, jobs, costs: dict, t0: float, load0, started: float,
