@@ -208,7 +208,7 @@ def test_an_interrupted_build_resumes_without_solving_its_kept_episodes(serial, 
 
 @pytest.mark.slow
 def test_a_build_is_the_same_bytes_on_ray(serial, tmp_path, capsys):
-    """A local Ray instance's workers give the pool's bytes (about 20 s: Ray's start)."""
+    """A local Ray instance's workers give the serial bytes (10 s, most of it Ray's start)."""
     pytest.importorskip("ray")
     spec = write_spec(tmp_path, spec_data())
     rc, _, err = _build([spec, "--backend", "ray", "--jobs", "2", "--out", tmp_path / "ray.json"], capsys)
