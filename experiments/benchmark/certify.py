@@ -1,0 +1,173 @@
+"""The clairvoyant optimum of an episode certified by two solution paths (issue 51, item 1).
+
+A suite's R_c is a claim: no controller can do better on the episode. One optimiser's result is only a local
+optimum of its own model, and the two paths of the project find different ones (on ``car-comfort-v1``'s bump at the
+suite's 10 ms step, the CasADi path ends ABNORMAL at R = −2.508 while the gradient path reaches −2.443, half the
+episode's range higher). So an episode's R_c is the better of two independent paths, and it is stored as an optimum
+only when the other path cannot beat it:
+
+1. **Independent solves**: the CasADi path (:func:`mrd_env.optimal.clairvoyant`: the smoothed model, L-BFGS-B)
+   and the gradient path (:func:`mrd_env.jax.clairvoyant.clairvoyant`: the plant's JAX twin, differentiable scheme,
+   the same L-BFGS-B) each run from the ``n_starts`` best warm starts. A path's result is the best of its
+   optimiser runs, each re-simulated in the native environment, which alone pays the returns compared here (a warm
+   start the optimiser did not beat is no result of the path).
+2. **Agreement**: the two paths' results differ by at most :data:`TOLERANCE` of the episode's range R_c − R_p,
+   and neither path's runs all ended abnormally. Then the episode is certified in round 1.
+3. **More starts** otherwise: each path runs again from ``more_starts`` warm starts and from the other path's
+   optimum (at the control step directly: command blocks would blur it), the CasADi path with IPOPT in place of L-BFGS-B (on the bump of ``car-comfort-v1`` L-BFGS-B stops
+   ABNORMAL after 7 iterations on the smoothed model where IPOPT reaches the gradient path's optimum within
+   0.1 % of the range), and the two results are compared again (round 2).
+4. An episode whose paths still disagree is **not certified**: :class:`Certificate` says so, and the suite builder
+   refuses to store it as an optimum.
+
+Both paths work at the problem's control step: the suite's own action space, one command per control step held as
+the environment holds it. Certification needs the ``jax`` extra (the gradient path).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+#: The largest disagreement of the two paths' returns, as a share of the episode's range R_c − R_p, that certifies.
+TOLERANCE = 0.005
+#: Command blocks (s) each path solves first, coarse to fine, before every control step.
+COARSE_BLOCK = 0.05
+
+
+@dataclass
+class PathResult:
+    """One path's runs: ``ret``, the best environment return of its optimiser runs; ``commands``, the best command
+    sequence it found that beat every warm start it had, and ``commands_ret`` their return (``commands`` None when
+    no run beat its warm starts: the runs still count, as a check of the optimum they started from); each run
+    (start, status, success, iterations, function evaluations, the environment's return)."""
+
+    ret: float
+    commands: np.ndarray | None
+    commands_ret: float
+    runs: list = field(default_factory=list)
+
+    @property
+    def found(self) -> bool:
+        return self.commands is not None
+
+    @property
+    def abnormal(self) -> bool:
+        """Every run of this path ended without converging."""
+        return not any(r["success"] for r in self.runs)
+
+    def to_json(self) -> dict:
+        return {"return": float(self.ret), "runs": self.runs}
+
+
+@dataclass
+class Certificate:
+    """The certified clairvoyant of one episode: the better path's return and commands, both paths' results, their
+    disagreement (share of the range), the round that certified (1 or 2; 0: not certified)."""
+
+    ret: float
+    commands: np.ndarray
+    path: str
+    paths: dict
+    disagreement: float
+    rounds: int
+    certified: bool
+
+    def to_json(self) -> dict:
+        """What the suite file keeps of it (deterministic: no wall times)."""
+        return {"path": self.path, "certified": self.certified, "round": self.rounds,
+                "disagreement": round(float(self.disagreement), 8),
+                "paths": {k: v.to_json() for k, v in self.paths.items()}}
+
+
+def _runs(solves) -> list[dict]:
+    return [{"start": s.start, "status": s.status, "success": bool(s.success), "iterations": int(s.iterations),
+             "evaluations": int(s.evaluations), "return": float(s.ret)} for s in solves]
+
+
+def _blocks(problem) -> int:
+    """The coarse level in control steps (at least 2, else none)."""
+    return max(int(round(COARSE_BLOCK / problem.control_dt)), 1)
+
+
+def _path_result(res) -> PathResult:
+    """A path's result from a clairvoyant's (see :class:`PathResult`)."""
+    runs = _runs(res.solves)
+    best = max((r["return"] for r in runs), default=-np.inf)
+    if res.source == "optimiser":
+        return PathResult(float(best), np.asarray(res.commands, dtype=float), float(res.ret), runs)
+    return PathResult(float(best), None, -np.inf, runs)
+
+
+def casadi_path(problem, starts: dict, n_starts: int, fine_only: bool = False, method: str = "lbfgsb") -> PathResult:
+    """The CasADi path from the ``n_starts`` best of ``starts`` (no cache: a certificate is computed, not read);
+    ``fine_only``: no coarse level (a start that is another path's optimum would lose its detail in blocks)."""
+    from mrd_env.optimal import clairvoyant
+
+    blk = 1 if fine_only else _blocks(problem)
+    return _path_result(clairvoyant(problem, warm_starts=starts, n_starts=n_starts, cache=False, progress=False,
+                                    method=method, coarse=(blk * problem.control_dt,) if blk >= 2 else ()))
+
+
+def casadi_ipopt_path(problem, starts: dict, n_starts: int, fine_only: bool = False) -> PathResult:
+    """The CasADi path with IPOPT (round 2)."""
+    return casadi_path(problem, starts, n_starts, fine_only, method="ipopt")
+
+
+def gradient_path(problem, starts: dict, n_starts: int, fine_only: bool = False) -> PathResult:
+    """The gradient path through the plant's JAX twin from the ``n_starts`` best of ``starts``."""
+    from mrd_env.jax import env as je
+    from mrd_env.jax.clairvoyant import clairvoyant
+
+    params = je.params_of_problem(problem, scheme="differentiable")
+    _, s0 = je.reset(None, params, record=0)
+    blk = 1 if fine_only else _blocks(problem)
+    return _path_result(clairvoyant(je.episode_return, lambda V: problem.replay(V).ret, starts, problem.v_min,
+                                    problem.v_max, data=(params, s0), n_starts=n_starts,
+                                    coarse=(blk,) if blk >= 2 else ()))
+
+
+def _joined(a: PathResult, b: PathResult) -> PathResult:
+    """Two results of one path as one: every run, the better commands."""
+    c = a if a.commands_ret >= b.commands_ret else b
+    return PathResult(max(a.ret, b.ret), c.commands, c.commands_ret, a.runs + b.runs)
+
+
+#: The two paths: {name: (round 1, round 2)}.
+PATHS = {"casadi": (casadi_path, casadi_ipopt_path), "gradient": (gradient_path, gradient_path)}
+
+
+def certified_clairvoyant(problem, starts: dict, passive: float, *, n_starts: int = 2, more_starts: int = 4,
+                          tolerance: float = TOLERANCE, paths=None) -> Certificate:
+    """The clairvoyant optimum of ``problem``'s episode by the procedure of the module docstring.
+
+    ``starts``: {name: commands (n_steps, nd)} (the warm laws and the best constant command); ``passive``: R_p, the
+    best constant command's return (the range R_c − R_p scales the tolerance); ``paths``: {name: (round 1's
+    fn(problem, starts, n_starts) -> PathResult, round 2's)}, two of them (default :data:`PATHS`)."""
+    if not 0 < tolerance < 1:
+        raise ValueError(f"tolerance must be in (0, 1) (a share of the episode's range), got {tolerance!r}")
+    if not 1 <= n_starts <= more_starts:
+        raise ValueError(f"n_starts must be in [1, more_starts={more_starts}], got {n_starts!r}")
+    paths = paths or PATHS
+    if len(paths) != 2:
+        raise ValueError(f"certification takes two solution paths, got {sorted(paths)}")
+    (na, (fa, fa2)), (nb, (fb, fb2)) = paths.items()
+    a, b = fa(problem, starts, n_starts), fb(problem, starts, n_starts)
+
+    def verdict(a, b, rounds):
+        win, name = (a, na) if a.commands_ret >= b.commands_ret else (b, nb)
+        top = max(a.ret, b.ret)
+        gap = top - passive
+        dis = abs(a.ret - b.ret) / gap if gap > 0 else (0.0 if a.ret == b.ret else np.inf)
+        ok = bool(win.found and a.runs and b.runs and not (a.abnormal or b.abnormal) and dis <= tolerance
+                  and top - win.commands_ret <= tolerance * gap)  # the stored commands reach the agreed optimum
+        return Certificate(win.commands_ret, win.commands, name, {na: a, nb: b}, float(dis), rounds if ok else 0, ok)
+
+    first = verdict(a, b, 1)
+    if first.certified:
+        return first
+    # round 2: more starts, and each path from the other's optimum (at the control step only)
+    a, b = _joined(a, fa2(problem, starts, more_starts)), _joined(b, fb2(problem, starts, more_starts))
+    a2 = _joined(a, fa2(problem, {f"{nb} optimum": b.commands}, 1, True)) if b.found else a
+    b2 = _joined(b, fb2(problem, {f"{na} optimum": a.commands}, 1, True)) if a.found else b
+    return verdict(a2, b2, 2)

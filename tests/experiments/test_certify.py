@@ -1,0 +1,88 @@
+"""The certified clairvoyant (experiments/benchmark/certify.py): two solution paths that must agree, at the suite's own
+control step; an episode they disagree on is never certified."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+pytest.importorskip("jax")
+pytest.importorskip("casadi")
+
+from experiments.benchmark import certify  # noqa: E402
+from experiments.benchmark.references import best_constant  # noqa: E402
+from mrd_env.optimal import episode_problem  # noqa: E402
+
+ENV = "mrd_env/QuarterCarPhysical-v0"
+
+
+@pytest.fixture(scope="module")
+def problem():
+    """A short ISO class C road at the suite's 10 ms step: 40 commands."""
+    return episode_problem(ENV, seed=1_000_000, control_dt=0.01, road="iso8608",
+                           road_params={"road_class": "C", "speed": 20.0}, episode_seconds=0.4)
+
+
+@pytest.fixture(scope="module")
+def starts(problem):
+    rp, vp = best_constant(problem)
+    return rp, {"best constant": np.full((problem.n_steps, problem.nd), vp),
+                "passive_off": np.full((problem.n_steps, problem.nd), problem.v_min)}
+
+
+@pytest.fixture(scope="module")
+def certificate(problem, starts):
+    rp, st = starts
+    return certify.certified_clairvoyant(problem, st, rp, n_starts=1, more_starts=2)
+
+
+def test_both_paths_agree_and_certify_at_the_suites_control_step(problem, starts, certificate):
+    rp, _ = starts
+    c = certificate
+    assert problem.n_steps == 40 and c.commands.shape == (40, 1)  # one command per 10 ms control step
+    assert c.certified and c.rounds in (1, 2)
+    a, b = (p.ret for p in c.paths.values())
+    assert abs(a - b) <= certify.TOLERANCE * (c.ret - rp)
+    assert c.ret > rp  # the clairvoyant beats the best constant command
+    assert problem.replay(c.commands).ret == pytest.approx(c.ret, abs=1e-12)  # the environment pays it
+
+
+def test_no_command_sequence_near_the_certified_optimum_does_better(problem, certificate):
+    """A second method cannot improve it: random perturbations and the constant commands all score lower."""
+    rng = np.random.default_rng(0)
+    V = certificate.commands
+    for _ in range(20):
+        trial = np.clip(V + rng.normal(0, 0.05 * (problem.v_max - problem.v_min), V.shape), problem.v_min,
+                        problem.v_max)
+        assert problem.replay(trial).ret <= certificate.ret + 1e-9
+    for v in np.linspace(problem.v_min, problem.v_max, 9):
+        assert problem.replay(np.full_like(V, v)).ret <= certificate.ret
+
+
+def test_paths_that_disagree_are_not_certified(problem, starts):
+    """A path stuck at a poor point (a stand-in for a solver that failed) makes the episode uncertified, after the
+    second round; the certificate still reports both paths."""
+    rp, st = starts
+    calls = []
+
+    def poor(prob, s, n, fine_only=False):
+        calls.append(n)
+        V = np.full((prob.n_steps, prob.nd), prob.v_max)  # passive-on: far below the optimum
+        r = float(prob.replay(V).ret)
+        return certify.PathResult(r, V, r,
+                                  [{"start": "x", "status": "converged", "success": True, "iterations": 1,
+                                    "evaluations": 1, "return": r}])
+
+    paths = {"casadi": (certify.casadi_path, certify.casadi_path), "poor": (poor, poor)}
+    c = certify.certified_clairvoyant(problem, st, rp, n_starts=1, more_starts=2, paths=paths)
+    assert not c.certified and c.rounds == 0
+    assert calls == [1, 2, 1]  # solved again with more starts, and from the other path's optimum, before it was refused
+    assert c.disagreement > certify.TOLERANCE
+    assert c.to_json()["certified"] is False
+
+
+def test_bad_arguments_are_refused(problem, starts):
+    rp, st = starts
+    with pytest.raises(ValueError, match="tolerance"):
+        certify.certified_clairvoyant(problem, st, rp, tolerance=0)
+    with pytest.raises(ValueError, match="n_starts"):
+        certify.certified_clairvoyant(problem, st, rp, n_starts=5, more_starts=4)
