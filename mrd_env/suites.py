@@ -96,6 +96,8 @@ class SuiteDefinition:
     #: :func:`mrd_env.plants.suite_spec`)
     plant: str = ""
     env_id: str = ""
+    #: the reference procedure its references are computed by (:data:`PROCEDURES`)
+    procedure: int = 2
     #: the folder of the spec file it was read from, where the record files its options name are; "" otherwise
     folder: str = field(default="", compare=False, repr=False)
 
@@ -133,6 +135,7 @@ class SuiteDefinition:
             out["references_of"] = self.references_of
         if self.randomise:
             out["randomise"] = _json_options(self.randomise)
+        out["procedure"] = int(self.procedure)
         return out
 
 
@@ -562,7 +565,10 @@ SPEC_FORMAT = "mrd-env-suite-spec"
 SPEC_FORMAT_VERSION = 1
 SPEC_FIELDS = ("format", "format_version", "name", "version", "plant", "description", "options", "control_dt",
                "scenarios", "criteria")
-SPEC_OPTIONAL_FIELDS = ("env_id", "references_of", "randomise")
+SPEC_OPTIONAL_FIELDS = ("env_id", "references_of", "randomise", "procedure")
+#: The reference procedures a spec may name (``experiments.benchmark.references``): 1, the clairvoyant at 1 ms by one
+#: solver (the v1 suites); 2, the clairvoyant at the suite's control step, certified by two solvers (the default).
+PROCEDURES = (1, 2)
 #: A robustness twin's bands (:func:`draw_episode`): ``seed`` and the bands of these groups.
 BAND_GROUPS = ("damper_params", "command", "plant_params", "sensor_noise")
 
@@ -609,6 +615,10 @@ def spec_definition(data, where: str = "suite spec", folder: str | Path | None =
         fail("references_of", "the name of a shipped suite with the same episodes", references_of)
     randomise = data.get("randomise", {})
     _check_bands(randomise, fail)
+    procedure = data.get("procedure", PROCEDURES[-1])
+    if type(procedure) is not int or procedure not in PROCEDURES:
+        fail("procedure", f"one of {list(PROCEDURES)} (the reference procedure; left out: {PROCEDURES[-1]})",
+             procedure)
     body = {"format": FORMAT, "format_version": FORMAT_VERSION,
             **{k: data[k] for k in SPEC_FIELDS if k not in ("format", "format_version", "scenarios")},
             "env_id": env_id, "scenarios": expanded, "references": {}, "digest": "0" * 64,
@@ -627,7 +637,7 @@ def spec_definition(data, where: str = "suite spec", folder: str | Path | None =
                            scenarios=tuple(SuiteScenario(s["name"], s["options"], tuple(s["seeds"]))
                                            for s in expanded),
                            criteria=tuple(data["criteria"]), references_of=references_of, randomise=randomise,
-                           plant=data["plant"], env_id=env_id,
+                           plant=data["plant"], env_id=env_id, procedure=procedure,
                            folder=str(Path(folder).resolve()) if folder is not None else "")
 
 

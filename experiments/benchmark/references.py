@@ -81,6 +81,28 @@ PROCEDURE = {
 }
 
 
+#: Procedure 2 (issue 51): the clairvoyant in the suite's own action space, certified by two solution paths.
+PROCEDURE_2 = {
+    "version": 2,
+    "best_constant": PROCEDURE["best_constant"] + ", at the suite's control step",
+    "clairvoyant": "experiments.benchmark.certify.certified_clairvoyant at the suite's control step (one command per "
+                   "step, held as the environment holds it): the CasADi path and the JAX gradient path, each from the "
+                   f"{N_STARTS} best warm starts (the plant's warm_laws at the control step and the best constant "
+                   "command, no agent); certified where their results agree within 0.5 % of the episode's range "
+                   "R_c − R_p; otherwise again from the {more} best, CasADi with IPOPT, and each path from the other's "
+                   "optimum; an episode still uncertified is not stored (the build fails naming it)".replace(
+                       "{more}", str(FALLBACK_STARTS)),
+    "bound": PROCEDURE["bound"] + ", at the suite's control step",
+    "sensors": PROCEDURE["sensors"],
+}
+#: The procedures by their number (a spec's ``procedure``, :data:`mrd_env.suites.PROCEDURES`).
+PROCEDURES = {1: PROCEDURE, 2: PROCEDURE_2}
+
+
+class UncertifiedEpisode(ValueError):
+    """The two solution paths of procedure 2 disagree on an episode: it is not stored as an optimum."""
+
+
 def best_constant(problem) -> tuple[float, float]:
     """(return, command) of the best constant command of :data:`PASSIVE_GRID` on the problem's episode (the first
     of equal returns)."""
@@ -93,14 +115,15 @@ def best_constant(problem) -> tuple[float, float]:
     return best
 
 
-def episode_problem(env_id: str, options: dict, seed: int):
+def episode_problem(env_id: str, options: dict, seed: int, step: float = STEP):
     from mrd_env.optimal import episode_problem as build
 
-    return build(env_id, seed=int(seed), control_dt=STEP, **options)
+    return build(env_id, seed=int(seed), control_dt=step, **options)
 
 
 def episode_references(env_id: str, options: dict, label: str, seed: int, warm_laws, *, cache: bool = False,
-                       keep: str | None = None, key: dict | None = None) -> dict:
+                       keep: str | None = None, key: dict | None = None, procedure: int = 1,
+                       control_dt: float = STEP) -> dict:
     """The references of one episode by the fixed procedure (see the module docstring): {"reference": {passive,
     passive_command, clairvoyant, bound, f_max}, "source", "solves": [{start, status, success, iterations,
     evaluations, return, seconds}], "wall": {...}, "load_average": [...]}. A plain function of picklable inputs (the
@@ -110,15 +133,26 @@ def episode_references(env_id: str, options: dict, label: str, seed: int, warm_l
     from experiments.benchmark.yardstick import force_peak, warm_starts
     from mrd_env.optimal import active_bound, clairvoyant
 
-    problem = episode_problem(env_id, options, seed)
+    problem = episode_problem(env_id, options, seed, STEP if procedure == 1 else control_dt)
     t0 = time.perf_counter()
     rp, vp = best_constant(problem)
     starts = warm_starts(problem, warm_laws, agents=())
     starts["best constant"] = np.full((problem.n_steps, problem.nd), vp)
     t1 = time.perf_counter()
-    cv = clairvoyant(problem, warm_starts=starts, n_starts=N_STARTS, cache=cache, progress=False)
-    if cv.failed:
-        cv = clairvoyant(problem, warm_starts=starts, n_starts=FALLBACK_STARTS, cache=cache, progress=False)
+    certificate = None
+    if procedure == 1:
+        cv = clairvoyant(problem, warm_starts=starts, n_starts=N_STARTS, cache=cache, progress=False)
+        if cv.failed:
+            cv = clairvoyant(problem, warm_starts=starts, n_starts=FALLBACK_STARTS, cache=cache, progress=False)
+    else:
+        from experiments.benchmark.certify import certified_clairvoyant
+
+        cv = certified_clairvoyant(problem, starts, rp, n_starts=N_STARTS, more_starts=FALLBACK_STARTS)
+        if not cv.certified:
+            raise UncertifiedEpisode(f"episode {label}: the two solution paths disagree by {cv.disagreement:.2%} of "
+                                     f"its range (at most 0.5 % certifies): {', '.join(f'{k} {v.ret:.6g}' for k, v in cv.paths.items())}; "
+                                     "it is not stored as an optimum")
+        certificate = cv.to_json()
     t2 = time.perf_counter()
     on = np.full((problem.n_steps, problem.nd), problem.v_max)
     f_max = max(force_peak(problem, U) for U in [on, *starts.values(), cv.commands])
@@ -127,12 +161,15 @@ def episode_references(env_id: str, options: dict, label: str, seed: int, warm_l
     except RuntimeError as exc:  # the conic solver's failure on this episode: no bound, said so (R_b is optional)
         bound, bound_status = math.nan, f"not solved: {exc}"
     t3 = time.perf_counter()
+    solves = ([{"start": s.start, "status": s.status, "success": bool(s.success), "iterations": int(s.iterations),
+                "evaluations": int(s.evaluations), "return": float(s.ret), "seconds": round(float(s.seconds), 2)}
+               for s in cv.solves] if certificate is None else
+              [{**r, "path": name, "seconds": 0.0} for name, p in certificate["paths"].items() for r in p["runs"]])
     out = {"reference": {"passive": float(rp), "passive_command": float(vp), "clairvoyant": float(cv.ret),
                          "bound": bound, "f_max": float(f_max)},
-           "source": str(cv.source), "bound": bound_status,
-           "solves": [{"start": s.start, "status": s.status, "success": bool(s.success),
-                       "iterations": int(s.iterations), "evaluations": int(s.evaluations), "return": float(s.ret),
-                       "seconds": round(float(s.seconds), 2)} for s in cv.solves],
+           "source": str(cv.source) if certificate is None else certificate["path"], "bound": bound_status,
+           **({"certificate": {k: v for k, v in certificate.items() if k != "paths"}} if certificate else {}),
+           "solves": solves,
            "wall": {"passive_and_warm_starts_s": round(t1 - t0, 2), "clairvoyant_s": round(t2 - t1, 2),
                     "bound_s": round(t3 - t2, 2), "total_s": round(t3 - t0, 2)},
            "load_average": [round(x, 2) for x in os.getloadavg()]}
@@ -153,7 +190,8 @@ def partial_folder(out: str | Path) -> Path:
     return out.with_name(out.name + ".partial")
 
 
-def episode_key(env_id: str, options: dict, label: str, seed: int, warm_laws) -> dict:
+def episode_key(env_id: str, options: dict, label: str, seed: int, warm_laws, procedure: int = 1,
+                control_dt: float = STEP) -> dict:
     """What a kept episode must match to be used again: the environment, the episode's options (each file they
     name by its content's SHA-256, not its place), label and seed, the warm laws, the procedure and mrd-env's
     version."""
@@ -165,7 +203,8 @@ def episode_key(env_id: str, options: dict, label: str, seed: int, warm_laws) ->
         return "sha256:" + hashlib.sha256(read_limited(value, file_limit(), what=where)).hexdigest()
 
     return {"env_id": env_id, "options": json.loads(json.dumps(map_files(options, content, label))),
-            "label": label, "seed": int(seed), "warm_laws": list(warm_laws), "procedure": PROCEDURE,
+            "label": label, "seed": int(seed), "warm_laws": list(warm_laws), "procedure": PROCEDURES[procedure],
+            **({"control_dt": float(control_dt)} if procedure != 1 else {}),
             "mrd_env": _version()}
 
 
@@ -356,13 +395,14 @@ def build_suite(definition, plant: str, env_id: str, out: str | Path, *, backend
     results, tasks, slots = {}, [], []
     for sc, seed in chosen:
         label, options = sc.label(seed), new.reference_options(sc, seed)
-        key = episode_key(env_id, options, label, seed, warm)
+        key = episode_key(env_id, options, label, seed, warm, definition.procedure, new.control_dt)
         hit = kept_episode(keep, key) if resume else None
         if hit is not None:
             results[label] = {**hit, "kept": True}
         else:
             tasks.append(Task(episode_references, (env_id, options, label, seed, warm),
-                              {"keep": str(keep), "key": key}, label=label))
+                              {"keep": str(keep), "key": key, "procedure": definition.procedure,
+                               "control_dt": new.control_dt}, label=label))
             slots.append(label)
     used = resolve_backend(backend, len(tasks), jobs) if tasks else "none"
     say(f"{new.id}: {len(chosen)} episodes, {len(results)} kept in {keep}, {len(tasks)} to solve on {used}"
@@ -377,13 +417,13 @@ def build_suite(definition, plant: str, env_id: str, out: str | Path, *, backend
         refs[label] = Reference(**r["reference"])
         episodes_json[label] = {"source": r["source"],
                                 "solves": [{k: v for k, v in x.items() if k != "seconds"} for x in r["solves"]],
-                                "bound": r["bound"]}
+                                "bound": r["bound"], **({"certificate": r["certificate"]} if "certificate" in r else {})}
         costs[label] = {"wall": r["wall"], "load_average": r["load_average"],
                         "solves_s": [x["seconds"] for x in r["solves"]], "kept": bool(r.get("kept", False))}
     iterations = sum(x["iterations"] for e in episodes_json.values() for x in e["solves"])
     evaluations = sum(x["evaluations"] for e in episodes_json.values() for x in e["solves"])
     suite, files = _bundle_files(new, out.parent)
-    procedure = {**PROCEDURE, "warm_laws": list(warm), "command": command, "mrd_env": _version(),
+    procedure = {**PROCEDURES[definition.procedure], "warm_laws": list(warm), "command": command, "mrd_env": _version(),
                  "cost": {"solver_iterations": iterations, "function_evaluations": evaluations,
                           "note": "the optimiser's iterations and model evaluations (each a simulation with its "
                                   "gradient) over every episode: the build's cost independent of the machine; the "

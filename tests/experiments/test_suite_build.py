@@ -42,7 +42,7 @@ def spec_data(**changes) -> dict:
                           {"name": "my road", "options": {"road": "csv", "road_params": {
                               "path": "roads/my-road.csv", "height_column": "z", "time_column": "t"},
                               "episode_seconds": SECONDS}, "seeds": [0]}],
-            "criteria": ["acc_weighted_rms"]}
+            "criteria": ["acc_weighted_rms"], "procedure": 1}  # the fast procedure (2 is tested apart)
     data.update(changes)
     return data
 
@@ -239,3 +239,42 @@ def test_every_shipped_suite_is_built_from_its_spec():
         built = d.suite(plant_name, env_id, s.randomised.get("draws"))
         assert json.dumps(built.definition_json()) == json.dumps(s.definition_json()), s.id
         assert read_spec(path) == d and sr.spec_command(path).endswith(f"suites/specs/{s.id}.json")
+
+
+def test_procedure_2_certifies_the_clairvoyant_at_the_suites_control_step(tmp_path):
+    """Procedure 2 (the default): the references in the suite's own action space, each episode's clairvoyant found by
+    two solution paths that agree within 0.5 % of its range; the certificate is in the suite file, and the stored
+    R_c is paid by the environment at the suite's control step to a command sequence the paths found."""
+    pytest.importorskip("jax")
+    data = spec_data()
+    del data["procedure"]
+    data["scenarios"] = data["scenarios"][:1]
+    spec = write_spec(tmp_path, data)
+    plant_name, env_id, d = suite_spec(spec)
+    assert d.procedure == 2
+    b = sr.build_suite(d, plant_name, env_id, tmp_path / "v2.json", backend="serial", progress=False,
+                       command=sr.spec_command(spec), say=lambda _: None)
+    s = read_suite(b.path)
+    assert s.procedure["version"] == 2
+    (label,) = s.labels()
+    cert = s.procedure["episodes"][label]["certificate"]
+    assert cert["certified"] and cert["disagreement"] <= 0.005 and cert["round"] in (1, 2)
+    r = s.reference(label)
+    assert r.clairvoyant > r.passive
+    paths = {x["path"] for x in s.procedure["episodes"][label]["solves"]}
+    assert paths == {"casadi", "gradient"}
+    # R_p is paid at the suite's 10 ms step: a constant command held for the episode in the environment itself
+    env = gym.make(s.env_id, **s.episode_options(*s.episodes()[0]), control_dt=s.control_dt)
+    env.reset(seed=s.episodes()[0][1])
+    total, done = 0.0, False
+    while not done:
+        _, rew, term, trunc, _ = env.step(np.array([r.passive_command]))
+        total += rew
+        done = term or trunc
+    assert total == pytest.approx(r.passive, rel=1e-9)
+
+
+def test_a_spec_names_a_known_procedure(tmp_path, capsys):
+    spec = write_spec(tmp_path, spec_data(procedure=3))
+    rc, _, err = _build([spec], capsys)
+    assert rc == 2 and "procedure must be one of [1, 2]" in err and err.count("\n") == 1
