@@ -71,6 +71,8 @@ NEXT = "against the next"
 RESERVED = ("rank", "controller", "kind", "episodes", ALL, MEAN_SHARE, NEXT)
 #: The files a leaderboard folder holds: the table (Markdown, CSV), its numbers (Markdown, CSV) and the figure.
 FILES = ("leaderboard.md", "leaderboard.csv", "leaderboard_rows.md", "leaderboard_rows.csv", "leaderboard.png")
+#: The leaderboard's HTML page (:mod:`experiments.benchmark.page`), beside :data:`FILES` where asked for (``html``).
+PAGE = "leaderboard.html"
 
 
 # ---------------------------------------------------------------------------------------------- reading results
@@ -222,7 +224,9 @@ class Leaderboard:
     complete result, best first by the pooled share over all scenarios: that share, the mean share over all scenarios,
     the paired verdict against the next row, and one column per scenario's pooled share, each share with its interval
     as text), ``partial`` (the same for each partial result, never ranked), ``verdicts`` (:func:`paired_verdicts`).
-    ``checked``: whether every share was recomputed from its return and the suite's references."""
+    ``checked``: whether every share was recomputed from its return and the suite's references; ``against``: the
+    suite (:class:`mrd_env.suites.Suite`) they were checked against, or None; ``labels``: each result's row label, in
+    the order of ``results``."""
 
     suite: dict
     results: list[SuiteResult]
@@ -232,6 +236,8 @@ class Leaderboard:
     checked: bool = True
     #: each ranked row against the next and against the best law (:func:`paired_verdicts`)
     verdicts: list[dict] = field(default_factory=list)
+    against: object = None
+    labels: list[str] = field(default_factory=list)
 
     def title(self) -> str:
         unchecked = "" if self.checked else ("; shares and references as the result files state them, not checked "
@@ -262,11 +268,11 @@ class Leaderboard:
                                           title=self.partial_title())
         return text
 
-    def write(self, out: str | Path) -> dict[str, Path]:
+    def write(self, out: str | Path, html: bool = False) -> dict[str, Path]:
         """``<out>/leaderboard.md`` and ``.csv`` (the table), ``leaderboard_rows.md``/``.csv`` (the numbers) and
         ``leaderboard.png`` (a panel per scenario, a bar per controller with its interval; the PNG's ``Title`` text
-        entry names the suite), as one set: ``out`` becomes a folder of these five files only (see
-        :func:`check_folder`). Written into a staging folder beside ``out`` and swapped in whole, so that a reader
+        entry names the suite), and with ``html`` the page ``leaderboard.html`` (:mod:`experiments.benchmark.page`),
+        as one set: ``out`` becomes a folder of these files only (see :func:`check_folder`). Written into a staging folder beside ``out`` and swapped in whole, so that a reader
         or a kill at any moment finds the previous set or the new one; staging folders of an earlier writer that
         was killed are removed first. ``ValueError`` before anything is written for an ``out`` that holds other
         files."""
@@ -281,17 +287,18 @@ class Leaderboard:
             _remove_empty(made)
             raise OSError(exc.errno, f"leaderboard folder {out} cannot be written ({exc.strerror or exc})") from None
         try:
-            self._write_files(staged)
+            self._write_files(staged, html)
             storage.replace_folder(staged, out)
         except BaseException:
             shutil.rmtree(staged, ignore_errors=True)
             _remove_empty(made)
             raise
         return {"markdown": out / FILES[0], "csv": out / FILES[1], "rows_markdown": out / FILES[2],
-                "rows_csv": out / FILES[3], "figure": out / FILES[4]}
+                "rows_csv": out / FILES[3], "figure": out / FILES[4], **({"page": out / PAGE} if html else {})}
 
-    def _write_files(self, folder: Path) -> None:
-        """The five files into ``folder`` (a staging folder nobody reads: plain writes, fsync'd by the swap)."""
+    def _write_files(self, folder: Path, html: bool = False) -> None:
+        """The five files (and the page) into ``folder`` (a staging folder nobody reads: plain writes, fsync'd by the
+        swap)."""
         from mrd_env.report import csv_text, markdown_table
 
         rows_title = (f"{self.suite['id']}: pooled share of the achievable gain Σ(R − R_p) / Σ(R_c − R_p) and its "
@@ -301,6 +308,10 @@ class Leaderboard:
         texts = {FILES[0]: self.markdown(), FILES[1]: csv_text(self.table + self.partial),
                  FILES[2]: markdown_table(self.rows, title=rows_title, floatfmt=".4g"),
                  FILES[3]: csv_text(self.rows)}
+        if html:
+            from experiments.benchmark.page import page
+
+            texts[PAGE] = page(self)
         for name, text in texts.items():
             (folder / name).write_bytes(text.encode("utf-8"))
         apart = {r["controller"]: r["episodes"] for r in self.partial}
@@ -314,7 +325,7 @@ class Leaderboard:
 
 def check_folder(out: str | Path) -> None:
     """``ValueError`` (one line) unless ``out`` can become a leaderboard folder: absent, or a folder that holds
-    nothing but a leaderboard's files (:data:`FILES`, and hidden temporaries of them left by an earlier version
+    nothing but a leaderboard's files (:data:`FILES`, :data:`PAGE`, and hidden temporaries of them left by an earlier version
     killed while writing). The folder is replaced as a whole, so a file of the user's there would be lost: refused
     rather than deleted."""
     out = Path(out)
@@ -323,7 +334,7 @@ def check_folder(out: str | Path) -> None:
     if not out.is_dir():
         raise ValueError(f"leaderboard folder {out} is a file, not a folder: refused")
     others = sorted(f.name for f in out.iterdir()
-                    if f.name not in FILES and not (f.name.startswith(".leaderboard") and f.is_file()))
+                    if f.name not in (*FILES, PAGE) and not (f.name.startswith(".leaderboard") and f.is_file()))
     if others:
         raise ValueError(f"leaderboard folder {out} holds {len(others)} file(s) that are not a leaderboard's "
                          f"(e.g. {_shown(others[0])}): refused, since the folder is replaced as a whole by the new "
@@ -505,15 +516,16 @@ def leaderboard(paths, out: str | Path | None = None, *, suite=None) -> Leaderbo
     if ref is not None:
         for p, r in zip(paths, results):
             check_against_suite(r, ref, p)
-    board = _board(paths, results, checked=ref is not None)
+    board = _board(paths, results, checked=ref is not None, against=ref)
     if out is not None:
         board.write(out)
     return board
 
 
-def leaderboards(paths, out: str | Path | None = None, *, suites=()) -> dict[str, Leaderboard]:
+def leaderboards(paths, out: str | Path | None = None, *, suites=(), html: bool = False) -> dict[str, Leaderboard]:
     """The result files ``paths`` grouped by suite: {suite id: :class:`Leaderboard`}, in the order the suites first
-    appear, written to ``<out>/<suite id>/`` when ``out`` is given (:func:`write_leaderboards`). Every share is
+    appear, written to ``<out>/<suite id>/`` when ``out`` is given (:func:`write_leaderboards`; ``html``: with the
+    page). Every share is
     checked against its return and its suite's references (:func:`check_against_suite`): a shipped suite's, or one
     of ``suites`` (Suites, or their names or files); a result of any other suite is refused, as are files of one id
     with different digests, a result given twice and a suite given for no result. Everything is read and checked
@@ -537,23 +549,26 @@ def leaderboards(paths, out: str | Path | None = None, *, suites=()) -> dict[str
     if unused:
         raise ValueError(f"suite {unused[0]} is given (--suite), but no result file was scored on it: no result to "
                          "check against it")
+    refs = {}
     for sid, members in groups.items():
-        ref = given.get(sid) or _shipped_suite(sid)
+        ref = refs[sid] = given.get(sid) or _shipped_suite(sid)
         if ref is None:
             raise ValueError(f"result file {paths[members[0]]} was scored on suite {sid}, which is not shipped: its "
                              "shares are checked against its references, so give its suite file (mrd-env leaderboard "
                              "--suite FILE.json; suites= from Python)")
         for i in members:
             check_against_suite(results[i], ref, paths[i])
-    boards = {sid: _board([paths[i] for i in m], [results[i] for i in m]) for sid, m in groups.items()}
+    boards = {sid: _board([paths[i] for i in m], [results[i] for i in m], against=refs[sid])
+              for sid, m in groups.items()}
     if out is not None:
-        write_leaderboards(boards, out)
+        write_leaderboards(boards, out, html=html)
     return boards
 
 
-def write_leaderboards(boards: dict[str, Leaderboard], out: str | Path) -> dict[str, dict[str, Path]]:
-    """Each leaderboard into ``<out>/<suite id>/`` (:meth:`Leaderboard.write`: its five files one set, swapped in
-    whole); the folders of other suites in ``out`` are left as they are, and the five files of a leaderboard of the
+def write_leaderboards(boards: dict[str, Leaderboard], out: str | Path,
+                       html: bool = False) -> dict[str, dict[str, Path]]:
+    """Each leaderboard into ``<out>/<suite id>/`` (:meth:`Leaderboard.write`: its five files, and with ``html`` its
+    page, one set, swapped in whole); the folders of other suites in ``out`` are left as they are, and the five files of a leaderboard of the
     earlier layout (in ``out`` itself) removed once every suite's folder is written. ``ValueError`` before anything
     is written for an ``out`` that holds anything else (:func:`check_out_folder`). {suite id: the files written}."""
     out = Path(out)
@@ -562,7 +577,7 @@ def write_leaderboards(boards: dict[str, Leaderboard], out: str | Path) -> dict[
         if not re.fullmatch(rf"{SUITE_NAME.pattern}-v[0-9]+", sid):  # a folder name: a suite's id only
             raise ValueError(f"suite id {_shown(sid)} cannot name a folder")
         check_folder(out / sid)
-    written = {sid: board.write(out / sid) for sid, board in boards.items()}
+    written = {sid: board.write(out / sid, html=html) for sid, board in boards.items()}
     for f in out.iterdir():  # the earlier layout's set, now replaced by the suites' folders
         if f.is_file() and not f.is_symlink() and (f.name in FILES or f.name.startswith(".leaderboard")):
             f.unlink()
@@ -607,11 +622,12 @@ def _check_cells(results: list[SuiteResult]) -> None:
                          f"the table, at most {MAX_CELLS} (e.g. {MAX_CELLS // 100} controllers on 100 scenarios)")
 
 
-def _board(paths: list[Path], results: list[SuiteResult], checked: bool = True) -> Leaderboard:
+def _board(paths: list[Path], results: list[SuiteResult], checked: bool = True, against=None) -> Leaderboard:
     """The :class:`Leaderboard` of the checked ``results`` of one suite: the complete ones ranked, best first by the
     pooled share over all scenarios (ties: in the order given; results without one — references neither checked
     nor stored, format 1 merged unchecked — after those with one, by their mean share), the partial ones apart in
-    the order given (a share over 4 of 31 episodes is not comparable with one over all 31)."""
+    the order given (a share over 4 of 31 episodes is not comparable with one over all 31). ``against``: the suite
+    they were checked against."""
     names = [r.name for r in results]
     labels = [n if names.count(n) == 1 else f"{n} ({p.stem})" for n, p in zip(names, paths)]
     labels = [x if labels.count(x) == 1 else f"{x} ({i + 1})" for i, x in enumerate(labels)]
@@ -638,7 +654,7 @@ def _board(paths: list[Path], results: list[SuiteResult], checked: bool = True) 
             if s in summ:
                 rows.append({"scenario": s, "controller": label, "kind": kind, "result": status,
                              "episodes": summ[s]["episodes"], **{k: summ[s][k] for k in _FIGURES}})
-    return Leaderboard(results[0].suite, results, rows, table, partial, checked, verdicts)
+    return Leaderboard(results[0].suite, results, rows, table, partial, checked, verdicts, against, labels)
 
 
 def _rank_key(summary: dict) -> tuple:

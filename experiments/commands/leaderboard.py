@@ -10,7 +10,9 @@ one (``score --episodes``) is shown apart, marked "partial: n of N episodes", ne
 data: nothing they name is imported or run.
 
 Writes, per suite, ``<out>/<suite id>/leaderboard.md``/``.csv`` (the table), ``leaderboard_rows.md``/``.csv`` (the
-numbers) and ``leaderboard.png`` as one set: each suite's folder is replaced as a whole (a reader or a kill finds the
+numbers) and ``leaderboard.png`` — and with ``--html`` the page ``leaderboard.html`` (:mod:`experiments.benchmark.page`: one
+self-contained file, the sortable table, the paired verdicts, a chart per scenario, each controller's episodes) —
+as one set: each suite's folder is replaced as a whole (a reader or a kill finds the
 previous set or the new one); the folders of suites not given are left as they are. ``--out`` must be new, empty or
 hold only such folders (or a leaderboard of the earlier layout, whose five files the suites' folders replace); a
 folder that holds other files is refused. Every file is read and checked, and the folders checked, before anything
@@ -31,6 +33,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", type=Path, default=Path("results/leaderboard"),
                    help="the folder of the leaderboards, one folder per suite (<out>/<suite id>/), each replaced as a "
                         "whole: new, empty or holding only leaderboard folders (default: %(default)s)")
+    p.add_argument("--html", action="store_true",
+                   help="also write each suite's page, <out>/<suite id>/leaderboard.html: one self-contained file "
+                        "(no server, no network) with the sortable table, the paired verdicts, a chart per scenario "
+                        "and each controller's episodes")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -39,9 +45,9 @@ def run(args: argparse.Namespace) -> int:
     check_out_folder(args.out)  # a folder that would lose the user's files: refused before the files are read
     suites = [Path(s) if s.endswith(".json") or Path(s).is_file() else s for s in args.suite]
     boards = leaderboards(args.results, suites=suites)  # every file read and checked before anything is written
-    written = write_leaderboards(boards, args.out)
+    written = write_leaderboards(boards, args.out, html=args.html)
     for sid, board in boards.items():
         print(board.markdown())
         files = written[sid]
-        print(f"wrote {', '.join(str(files[k]) for k in ('markdown', 'csv', 'rows_markdown', 'rows_csv', 'figure'))}")
+        print(f"wrote {', '.join(str(f) for f in files.values())}")
     return 0
