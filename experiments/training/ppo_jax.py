@@ -12,9 +12,9 @@ standard deviation is one learned number per action, independent of the state; t
 [−1, 1], the log-probability is the unclipped sample's (as SB3 does). The value is a separate tanh network with a
 linear output. The loss is PPO's clipped objective (advantages normalised per minibatch) plus ``vf_coef`` × the
 value's squared error minus ``ent_coef`` × the entropy, one Adam over both networks with the gradient's global
-norm clipped (SB3's defaults otherwise). Observations are normalised by running statistics updated with every
-batch of observations inside the scan (SB3 ``VecNormalize``'s rule, clip ±10), so the saved agent's
-``normalization.npz`` is exactly what it was trained with.
+norm clipped (optax: :func:`optimizer`; SB3's defaults otherwise). Observations are normalised by running
+statistics updated with every batch of observations inside the scan (SB3 ``VecNormalize``'s rule, clip ±10), so
+the saved agent's ``normalization.npz`` is exactly what it was trained with.
 
 GAE treats the two ends of an episode apart: a termination (the stroke limit, a failed step) has no future, a
 truncation (the time limit) is bootstrapped from the value of the episode's last observation
@@ -109,7 +109,7 @@ def check_config(cfg: Config) -> None:
         raise ValueError(f"hidden must be one or more layer sizes >= 1, got {cfg.hidden!r}")
 
 
-# ---------------------------------------------------------------- networks, normaliser, optimiser (pure jnp)
+# ---------------------------------------------------------------- networks, normaliser (pure jnp), optimiser
 
 def mlp_init(key, sizes, out_scale: float):
     """[(W (n_in, n_out), b), ...]: orthogonal weights (gain √2, the last layer's ``out_scale``), zero biases
@@ -189,30 +189,16 @@ def normalize(s: RunningStats, x, clip: float):
     return jnp.clip((x - s.mean) / jnp.sqrt(s.var + OBS_EPS), -clip, clip)
 
 
-def adam_init(params):
-    import jax
-    import jax.numpy as jnp
+def optimizer(cfg: Config):
+    """Adam (SB3's and PureJaxRL's ε) after the gradient's global norm is clipped to ``max_grad_norm``; with
+    ``anneal_lr`` its learning rate falls linearly to 0 over the updates, constant within one update's epochs
+    (PureJaxRL's schedule: optax counts minibatch steps)."""
+    import optax
 
-    zeros = jax.tree_util.tree_map(jnp.zeros_like, params)
-    return zeros, zeros, jnp.asarray(0, jnp.int32)
-
-
-def adam_step(params, grads, opt, lr, max_grad_norm: float):
-    """One Adam step (bias-corrected) after clipping the gradient's global norm to ``max_grad_norm``."""
-    import jax
-    import jax.numpy as jnp
-
-    leaves = jax.tree_util.tree_leaves(grads)
-    norm = jnp.sqrt(sum(jnp.sum(g * g) for g in leaves))
-    scale = jnp.minimum(1.0, max_grad_norm / (norm + 1e-12))
-    m, v, t = opt
-    t = t + 1
-    m = jax.tree_util.tree_map(lambda m_, g: ADAM_B1 * m_ + (1 - ADAM_B1) * g * scale, m, grads)
-    v = jax.tree_util.tree_map(lambda v_, g: ADAM_B2 * v_ + (1 - ADAM_B2) * (g * scale) ** 2, v, grads)
-    c1, c2 = 1 - ADAM_B1 ** t, 1 - ADAM_B2 ** t
-    params = jax.tree_util.tree_map(lambda p, m_, v_: p - lr * (m_ / c1) / (jnp.sqrt(v_ / c2) + ADAM_EPS),
-                                    params, m, v)
-    return params, (m, v, t)
+    per_update = cfg.update_epochs * cfg.num_minibatches
+    lr = (lambda count: cfg.lr * (1.0 - (count // per_update) / cfg.num_updates)) if cfg.anneal_lr else cfg.lr
+    return optax.chain(optax.clip_by_global_norm(cfg.max_grad_norm),
+                       optax.adam(lr, b1=ADAM_B1, b2=ADAM_B2, eps=ADAM_EPS))
 
 
 # ---------------------------------------------------------------- GAE
@@ -262,6 +248,7 @@ def make_train(cfg: Config):
     the approximate KL, the clipped fraction, the policy's std)."""
     import jax
     import jax.numpy as jnp
+    import optax
     from jax import lax
 
     from mrd_env.plants.quarter_car import jax_twin as qc
@@ -271,6 +258,7 @@ def make_train(cfg: Config):
     batch = n * T
     v_reset = jax.vmap(qc.reset, in_axes=(0, None))
     v_step = jax.vmap(qc.step_autoreset, in_axes=(0, 0, 0, None))
+    tx = optimizer(cfg)
 
     def init(key, env_params):
         k_env, k_actor, k_critic, key = jax.random.split(key, 4)
@@ -280,7 +268,7 @@ def make_train(cfg: Config):
                   "log_std": jnp.full((1,), cfg.log_std_init, jnp.float64),
                   "critic": mlp_init(k_critic, (n_obs, *cfg.hidden, 1), 1.0)}
         stats = stats_update(stats_init(n_obs), obs)
-        return Runner(params, adam_init(params), env_state, normalize(stats, obs, cfg.obs_clip), stats, key,
+        return Runner(params, tx.init(params), env_state, normalize(stats, obs, cfg.obs_clip), stats, key,
                       jnp.zeros(n), jnp.asarray(0, jnp.int32))
 
     def rollout_step(carry, _):
@@ -322,7 +310,6 @@ def make_train(cfg: Config):
         adv, target = gae(rew, v, value(r.params["critic"], r.obs), term, trunc, v_final, cfg.gamma,
                           cfg.gae_lambda)
         flat = [x.reshape(batch, *x.shape[2:]) for x in (obs, a, logp, adv, target)]
-        lr = cfg.lr * (1.0 - r.update / cfg.num_updates) if cfg.anneal_lr else cfg.lr
 
         def epoch(c, _):
             params, opt, key = c
@@ -333,7 +320,8 @@ def make_train(cfg: Config):
             def minibatch(c2, mb):
                 params, opt = c2
                 (_, aux), grads = jax.value_and_grad(loss_fn, has_aux=True)(params, mb)
-                params, opt = adam_step(params, grads, opt, lr, cfg.max_grad_norm)
+                step, opt = tx.update(grads, opt, params)
+                params = optax.apply_updates(params, step)
                 return (params, opt), jnp.stack(aux)
 
             (params, opt), aux = lax.scan(minibatch, (params, opt), mbs)

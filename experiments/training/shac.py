@@ -9,9 +9,9 @@ of the training environment's id and options, its differentiable scheme) gives t
 with respect to the policy's weights along the disturbance actually met: no noise from it at all. Over a long
 horizon those derivatives explode or vanish, so the episode is cut into windows of ``horizon`` control steps; the
 loss of a window is −(Σ γᵗ rₜ + γᴴ V(o_H)) over ``n_envs`` episodes, V a critic fitted to TD(λ) targets of the same
-rollouts (a target copy, Polyak-averaged, gives the bootstrap), and Adam takes one step per window on the
-policy's weights. The critic also sees the episode's remaining time (the return ends with it), as a
-fraction of the bank's longest episode.
+rollouts (a target copy, Polyak-averaged, gives the bootstrap), and Adam (``optax.adam``, the gradient's global
+norm clipped first by ``optax.clip_by_global_norm``) takes one step per window on the policy's weights. The critic
+also sees the episode's remaining time (the return ends with it), as a fraction of the bank's longest episode.
 
 The policy is the CMA-ES agents' network (:class:`~controllers.mlp_policy.MLPPolicy`: tanh layers, actions in
 [−1, 1], deterministic) on the same normalised observations, so the agent saves and loads in the same code-free
@@ -117,10 +117,17 @@ class Setup:
     def __init__(self, sizes, critic_sizes, norm, h: dict):
         import jax
         import jax.numpy as jnp
+        import optax
 
         from mrd_env.jax import env as je
 
         self.sizes, self.critic_sizes, self.h = tuple(sizes), tuple(critic_sizes), h
+        # the actor: its gradient's global norm clipped (a rare stiff window must not jump), then Adam at the
+        # learning rate of each window (its decay, 0 in the critic's warm-up: a hyperparameter set per call)
+        self.actor_opt = optax.inject_hyperparams(lambda learning_rate: optax.chain(
+            optax.clip_by_global_norm(float(h["grad_clip"])), optax.adam(learning_rate)))(
+            learning_rate=float(h["actor_lr"]))
+        self.critic_opt = optax.adam(float(h["critic_lr"]))
         mean, scale, clip = (jnp.asarray(norm[0]), jnp.asarray(norm[1]), float(norm[2]))
         H, gamma, lam = int(h["horizon"]), float(h["gamma"]), float(h["lam"])
 
@@ -180,21 +187,17 @@ class Setup:
             _, G = jax.lax.scan(back, v_end, (R.T, V_next.T, D.T), reverse=True)
             return G.T
 
-        def adam(p, g, m, v, t, lr):
-            m = 0.9 * m + 0.1 * g
-            v = 0.999 * v + 0.001 * g * g
-            step = lr * (m / (1 - 0.9 ** t)) / (jnp.sqrt(v / (1 - 0.999 ** t)) + 1e-8)
-            return p - step, m, v
-
-        def actor_update(theta, m, v, t, lr, phi_target, states, obs, params, key=None):
+        def actor_update(theta, opt_state, lr, phi_target, states, obs, params, key=None):
             (l, (traj, end)), g = grad(theta, phi_target, states, obs, params, key)
-            norm_g = jnp.linalg.norm(g)
-            g = g * jnp.minimum(1.0, h["grad_clip"] / (norm_g + 1e-12))  # why: a rare stiff window must not jump
-            new = adam(theta, g, m, v, t, lr)
-            theta, m, v = (jnp.where(lr > 0, a, b) for a, b in zip(new, (theta, m, v)))  # the warm-up moves nothing
-            return theta, m, v, l, norm_g, traj, end
+            opt_state = opt_state._replace(hyperparams={**opt_state.hyperparams,
+                                                        "learning_rate": jnp.asarray(lr, jnp.float64)})
+            step, new_state = self.actor_opt.update(g, opt_state)
+            new = (optax.apply_updates(theta, step), new_state)
+            # the warm-up (lr 0) moves nothing: neither the weights nor Adam's moments and count
+            theta, opt_state = jax.tree_util.tree_map(lambda a, b: jnp.where(lr > 0, a, b), new, (theta, opt_state))
+            return theta, opt_state, l, jnp.linalg.norm(g), traj, end
 
-        def critic_update(phi, phi_target, m, v, t, traj, key, params):
+        def critic_update(phi, phi_target, opt_state, traj, key, params):
             G = targets(phi_target, traj, params)
             O, K, rec = traj[0], traj[1], traj[6]
             X = jax.vmap(jax.vmap(features, in_axes=(0, 0, None, None)), in_axes=(0, 0, 0, None))(O, K, rec, params)
@@ -206,23 +209,22 @@ class Setup:
                 return jnp.mean((mlp(p, self.critic_sizes, x, linear_out=True)[:, 0] - y) ** 2)
 
             def epoch(carry, k):
-                phi, m, v, t = carry
                 perm = jax.random.permutation(k, X.shape[0])
 
                 def mb(carry, idx):
-                    phi, m, v, t = carry
+                    phi, opt_state = carry
                     l, g = jax.value_and_grad(mse)(phi, X[idx], G[idx])
-                    phi, m, v = adam(phi, g, m, v, t + 1, h["critic_lr"])
-                    return (phi, m, v, t + 1), l
+                    step, opt_state = self.critic_opt.update(g, opt_state)
+                    return (optax.apply_updates(phi, step), opt_state), l
 
-                (phi, m, v, t), ls = jax.lax.scan(mb, (phi, m, v, t), perm[:n_mb * size].reshape(n_mb, size))
-                return (phi, m, v, t), ls.mean()
+                carry, ls = jax.lax.scan(mb, carry, perm[:n_mb * size].reshape(n_mb, size))
+                return carry, ls.mean()
 
             keys = jax.random.split(key, int(h["critic_iterations"]))
-            (phi, m, v, t), ls = jax.lax.scan(epoch, (phi, m, v, t), keys)
+            (phi, opt_state), ls = jax.lax.scan(epoch, (phi, opt_state), keys)
             a = h["target_alpha"]
             phi_target = a * phi_target + (1.0 - a) * phi
-            return phi, phi_target, m, v, t, ls[-1]
+            return phi, phi_target, opt_state, ls[-1]
 
         def restart(key, states, obs, done, params):
             """Episodes that ended restart on a record of the bank drawn from ``key``."""
@@ -345,8 +347,7 @@ def train_shac(plant: PlantProfile, algo: str, seed: int, *, out: Path, timestep
     theta = jnp.asarray(policy0.theta)
     phi = _init_critic(k_phi, critic_sizes)
     phi_target = phi
-    am, av = jnp.zeros_like(theta), jnp.zeros_like(theta)
-    cm, cv, ct = jnp.zeros_like(phi), jnp.zeros_like(phi), jnp.asarray(0)
+    actor_state, critic_state = setup.actor_opt.init(theta), setup.critic_opt.init(phi)
     val, obs_kwargs = validation_split(plant, env_kwargs, eval_episodes)
 
     def save(folder: Path, th, extra: dict, in_place: bool = False) -> None:
@@ -367,7 +368,7 @@ def train_shac(plant: PlantProfile, algo: str, seed: int, *, out: Path, timestep
     bar = tqdm(total=timesteps, desc=f"train {run_dir.name}", unit="step", disable=not progress)
     monitor = run_dir / "training.monitor.csv"
     monitor.write_text(f'#{{"t_start": {time.time()}, "env_id": "{plant.env_id}"}}\nr,l,t\n', encoding="utf-8")
-    steps, next_eval, t, windows_done = 0, 0, 0, 0
+    steps, next_eval, windows_done = 0, 0, 0
     noise = None  # the sensors' noise keys, split off only if they are noisy (else the run's keys are as without)
     try:
         while steps < timesteps:
@@ -384,16 +385,15 @@ def train_shac(plant: PlantProfile, algo: str, seed: int, *, out: Path, timestep
                     next_eval = steps + eval_freq
                 # the critic learns first (a random one's gradient at the window's end would mislead the policy)
                 learn = windows_done >= h["critic_warmup"]
-                t += int(learn)
                 lr = float(h["actor_lr"]) * (1.0 - steps / timesteps if h["lr_decay"] else 1.0) * learn
                 if params.noisy:
                     key, noise = jax.random.split(key)
-                theta, am, av, loss, gnorm, traj, (states, obs, done) = setup.actor_update(
-                    theta, am, av, max(t, 1), lr, phi_target, states, obs, params, noise)
+                theta, actor_state, loss, gnorm, traj, (states, obs, done) = setup.actor_update(
+                    theta, actor_state, lr, phi_target, states, obs, params, noise)
                 windows_done += 1
                 key, k1, k2 = jax.random.split(key, 3)
-                phi, phi_target, cm, cv, ct, closs = setup.critic_update(phi, phi_target, cm, cv, ct, traj, k1,
-                                                                         params)
+                phi, phi_target, critic_state, closs = setup.critic_update(phi, phi_target, critic_state, traj, k1,
+                                                                           params)
                 returns += np.asarray(traj[2]).sum(axis=1)
                 states, obs = setup.restart(k2, states, obs, done, params)
                 steps += N * H
