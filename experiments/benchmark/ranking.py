@@ -30,7 +30,8 @@ Markdown, below the ranked rows of the CSV with no rank, below a dotted line in 
 
 :meth:`Leaderboard.write` writes its five files as one set: into a staging folder beside ``out``, swapped in whole
 (:func:`mrd_env.storage.replace_folder`), so that a reader or a kill at any moment finds the previous set or the new
-one. :func:`write_leaderboards` does so for each suite's folder, leaving other suites' folders as they are.
+one. :func:`write_leaderboards` does so for each suite's folder, leaving other suites' folders as they are; with
+``html`` each set also holds the suite's page, ``leaderboard.html`` (:mod:`experiments.benchmark.page`).
 """
 from __future__ import annotations
 
