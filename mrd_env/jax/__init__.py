@@ -9,7 +9,7 @@ write, not only at import (:class:`CheckedCache`); a process that set ``jax_comp
 its own choice (that folder is JAX's business). See ``docs/jax.md``: every plant's environment made from its own
 assembly (:mod:`.env`) and its Gymnasium ``VectorEnv`` (:mod:`.vector`), the stepping scheme (:mod:`.scheme`), the
 dampers (:mod:`.dampers`), any system over a record (:mod:`.simulate`), the clairvoyant by gradient
-(:mod:`.clairvoyant`).
+(:mod:`.clairvoyant`), the environment as a gymnax-style object (:func:`make_gymnax`, :mod:`.gymnax`).
 """
 from __future__ import annotations
 
@@ -113,5 +113,6 @@ if cache_wanted() and not jax.config.jax_compilation_cache_dir:
     _persist()
 
 from . import dampers, scheme, simulate  # noqa: E402
+from .gymnax import make_gymnax  # noqa: E402
 
-__all__ = ["CACHE_VARIABLE", "CheckedCache", "cache_wanted", "dampers", "scheme", "simulate"]
+__all__ = ["CACHE_VARIABLE", "CheckedCache", "cache_wanted", "dampers", "scheme", "simulate", "make_gymnax"]
