@@ -37,7 +37,6 @@ import math
 import shlex
 
 from experiments.benchmark.aggregate import ALL
-from experiments.benchmark.ranking import NEXT, VERDICTS_TITLE, Leaderboard
 from experiments.benchmark.scoring import MEAN_SHARE
 
 #: The charts' geometry (px): a controller's row, the plot's width, a character of the 12 px labels (a generous
@@ -205,20 +204,21 @@ def _num(v: float, fmt: str = ".4g") -> str:
 # ------------------------------------------------------------------------------------------------- the page
 
 
-def page(board: Leaderboard) -> str:
-    """The HTML page of ``board`` (see the module docstring)."""
+def page(board) -> str:
+    """The HTML page of ``board``, a :class:`~experiments.benchmark.ranking.Leaderboard` (see the module docstring;
+    this module imports nothing of :mod:`~experiments.benchmark.ranking`, which imports it to write the page)."""
     from mrd_env import __version__
 
     figures = {(r["controller"], r["scenario"]): r for r in board.rows}
     scenarios = list(dict.fromkeys(r["scenario"] for r in board.rows if r["scenario"] != ALL))
-    ranked_keys, ranked = _ranked_table("ranked", board.title(), board.table, scenarios, figures, ranked=True)
+    ranked_keys, ranked = _ranked_table("ranked", board.title(), board.table, scenarios, figures,
+                                        verdict_column=board.next_column)
     parts = [_identity(board), "<h2>Ranking</h2>", ranked]
     sort_keys = {"ranked": ranked_keys}
     if board.verdicts:
-        parts += ["<h2>Paired verdicts</h2>", _verdicts(board.verdicts)]
+        parts += ["<h2>Paired verdicts</h2>", _verdicts(board.verdicts, board.verdicts_title())]
     if board.partial:
-        partial_keys, partial = _ranked_table("partial", board.partial_title(), board.partial, scenarios, figures,
-                                              ranked=False)
+        partial_keys, partial = _ranked_table("partial", board.partial_title(), board.partial, scenarios, figures)
         parts += ["<h2>Partial results (not ranked)</h2>", partial]
         sort_keys["partial"] = partial_keys
     parts += ["<h2>Charts</h2>", _charts(board, scenarios, figures)]
@@ -249,7 +249,7 @@ def page(board: Leaderboard) -> str:
     ])
 
 
-def _identity_fields(board: Leaderboard) -> dict:
+def _identity_fields(board) -> dict:
     """The suite's identity: what the result files state, and what the suite the shares were checked against
     holds (its description, control step and reference procedure)."""
     s, ref = board.suite, board.against
@@ -264,7 +264,7 @@ def _identity_fields(board: Leaderboard) -> dict:
     return fields
 
 
-def _identity(board: Leaderboard) -> str:
+def _identity(board) -> str:
     f = _identity_fields(board)
     unknown = "not known (the shares were not checked against the suite)"
     items = [("suite", f["name"]), ("version", f["version"]), ("digest (SHA-256)", f["digest"]),
@@ -278,16 +278,18 @@ def _identity(board: Leaderboard) -> str:
 
 
 def _ranked_table(table_id: str, caption: str, rows: list[dict], scenarios: list[str], figures: dict,
-                  ranked: bool) -> tuple[list[list], str]:
-    """(sort keys per row and column, the table's HTML): the table rows of :class:`Leaderboard` with a number to
-    sort each share column by (its pooled share, or mean share) from the leaderboard's rows."""
+                  verdict_column: str | None = None) -> tuple[list[list], str]:
+    """(sort keys per row and column, the table's HTML): the table rows of a leaderboard with a number to sort each
+    share column by (its pooled share, or mean share) from the leaderboard's rows; ``verdict_column``: the ranked
+    table's column of the verdict against the next row (a partial result has no rank and no verdict)."""
+    ranked = verdict_column is not None
     columns = [("rank", "rank", "ascending")] if ranked else []
     columns += [("controller", "controller", "ascending"), ("kind", "kind (digest of what was scored)", "ascending"),
                 ("episodes", "episodes", "descending"),
                 (ALL, "pooled share, all scenarios", "descending"),
                 (MEAN_SHARE, "mean share, all scenarios", "descending")]
     if ranked:
-        columns.append((NEXT, "paired verdict against the next", "ascending"))
+        columns.append((verdict_column, "paired verdict against the next", "ascending"))
     columns += [(s, f"{s}: pooled share", "descending") for s in scenarios]
     keys, body = [], []
     for i, row in enumerate(rows):
@@ -310,7 +312,7 @@ def _ranked_table(table_id: str, caption: str, rows: list[dict], scenarios: list
                 value, cls = fig["pooled share"] if fig else None, "num"
             else:
                 value = str(text)
-                if key == NEXT and text:
+                if key == verdict_column and text:
                     cls = f"verdict-{text}"
             values.append(value)
             shown = _t(text)
@@ -328,19 +330,19 @@ def _ranked_table(table_id: str, caption: str, rows: list[dict], scenarios: list
                   f"<thead><tr>{head}</tr></thead><tbody>{''.join(body)}</tbody></table></div>")
 
 
-def _verdicts(verdicts: list[dict]) -> str:
+def _verdicts(verdicts: list[dict], title: str) -> str:
     keys = list(verdicts[0])
     head = "".join(f'<th scope="col">{_t(k)}</th>' for k in keys)
     body = "".join("<tr>" + "".join(f'<td class="verdict-{_t(v[k])}">{_t(v[k])}</td>' if k == "verdict"
                                     else f"<td>{_t(v[k])}</td>" for k in keys) + "</tr>" for v in verdicts)
-    return (f'<div class="scroll"><table id="verdicts"><caption>{_t(VERDICTS_TITLE)}</caption>'
+    return (f'<div class="scroll"><table id="verdicts"><caption>{_t(title)}</caption>'
             f"<thead><tr>{head}</tr></thead><tbody>{body}</tbody></table></div>")
 
 
 # ------------------------------------------------------------------------------------------------- the charts
 
 
-def _charts(board: Leaderboard, scenarios: list[str], figures: dict) -> str:
+def _charts(board, scenarios: list[str], figures: dict) -> str:
     apart = {r["controller"]: r["episodes"] for r in board.partial}
     order = [r["controller"] for r in board.table + board.partial]
     out = []
@@ -429,7 +431,7 @@ def chart(scenario: str, entries: list[tuple[str, dict, bool]]) -> str:
 # ------------------------------------------------------------------------------------------------- controllers
 
 
-def _controllers(board: Leaderboard) -> str:
+def _controllers(board) -> str:
     """Per result (ranked first, then partial), a ``<details>``: its controller description and its episodes."""
     by_label = dict(zip(board.labels, board.results))
     order = [r["controller"] for r in board.table + board.partial]

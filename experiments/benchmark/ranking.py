@@ -43,6 +43,7 @@ import shutil
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import ClassVar
 
 from mrd_env import storage
 from mrd_env.suites import MAX_EPISODES, MAX_SCENARIOS, MAX_VERSION, check_shipped_id
@@ -239,6 +240,12 @@ class Leaderboard:
     verdicts: list[dict] = field(default_factory=list)
     against: object = None
     labels: list[str] = field(default_factory=list)
+    #: the table's column of the paired verdict against the next row
+    next_column: ClassVar[str] = NEXT
+
+    def verdicts_title(self) -> str:
+        """The heading of the paired verdicts' table."""
+        return VERDICTS_TITLE
 
     def title(self) -> str:
         unchecked = "" if self.checked else ("; shares and references as the result files state them, not checked "
