@@ -366,10 +366,11 @@ def run_benchmark(suites=None, controllers=(), *, shipped: bool = True, only=Non
     if out is not None:
         from mrd_env import storage
 
-        given = [p.suite for p in plans if p.scored and not _is_shipped(p.suite)]
-        boards = leaderboards([s.path for p in plans for s in p.scored], out=out / LEADERBOARDS, suites=given)
-        for p in plans:
-            p.leaderboard = out / LEADERBOARDS / p.suite.id if p.suite.id in boards else None
+        for p in plans:  # one suite at a time: a leaderboard's bounds are per suite
+            if p.scored:
+                leaderboards([s.path for s in p.scored], out=out / LEADERBOARDS,
+                             suites=() if _is_shipped(p.suite) else [p.suite])
+                p.leaderboard = out / LEADERBOARDS / p.suite.id
         storage.write_texts({out / SUMMARY: bench.markdown(),
                              out / RECORD: json.dumps(bench.to_json(), indent=1, allow_nan=False) + "\n"})
     return bench

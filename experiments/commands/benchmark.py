@@ -81,8 +81,7 @@ def run(args: argparse.Namespace) -> int:
                           episodes=args.episodes, trust_agent=args.trust_agent, progress=not args.no_progress,
                           own_process=True, **executor)
     print(bench.markdown())
-    n = sum(len(e.scored) for e in bench.suites)
-    print(f"wrote {n} result files in {args.out / RESULTS}, {sum(e.leaderboard is not None for e in bench.suites)} "
-          f"leaderboards (tables and figure) in {args.out / LEADERBOARDS}, and {args.out / SUMMARY} "
-          f"({bench.wall_s:.0f} s)")
+    n, boards = sum(len(e.scored) for e in bench.suites), sum(e.leaderboard is not None for e in bench.suites)
+    print(f"wrote {n} result file(s) in {args.out / RESULTS}, {boards} leaderboard(s) (tables and figure) in "
+          f"{args.out / LEADERBOARDS}, and {args.out / SUMMARY} (scored in {bench.wall_s:.0f} s)")
     return 0

@@ -17,7 +17,6 @@ import numpy as np
 from mrd_env.envs.sensors import newest_layout
 from mrd_env.report import figure, save_figure
 
-from .plants import PlantProfile
 from .scenarios import Scenario
 
 
@@ -151,44 +150,6 @@ def controller_episodes(controller, scenario: Scenario, response: str = "", name
                           **env_options)
 
 
-def check_laws(option: str, names, plants: list[PlantProfile], **env_options) -> None:
-    """Before any episode runs: every law in ``names`` exists and applies to every plant in ``plants`` (built on
-    the plant's experiment environment with ``env_options``, e.g. the comparison's ``damper``, it finds the sensors
-    it reads and, for a neural inverse, its network); ``ValueError`` naming ``option``."""
-    if not names:
-        return
-    import mrd_env  # noqa: F401
-    from controllers import available_controllers, make_controller
-
-    unknown = [c for c in names if c not in available_controllers()]
-    if unknown:
-        raise ValueError(f"{option}: unknown controller(s) {unknown}; available: {available_controllers()}")
-    for plant in plants:
-        laws_apply(plant.env_id, {**plant.options, **env_options}, [(option, name) for name in names],
-                   f"the {plant.title}", lambda env, name: make_controller(name, env), sep=": ")
-
-
-def applicable_laws(plant: PlantProfile, names, **env_options) -> tuple[list[str], dict[str, str]]:
-    """(the laws of ``names`` that build on ``plant``'s experiment environment with ``env_options``, {law: why not}
-    for the others): a default set of laws meets a damper some of them cannot serve (a fitted damper has no shipped
-    neural inverse), and leaves those rows out with a note instead of stopping the run."""
-    import mrd_env  # noqa: F401
-    from controllers import make_controller
-
-    kept, skipped = [], {}
-    env = gym.make(plant.env_id, **{**plant.options, **env_options})
-    try:
-        for name in names:
-            try:
-                make_controller(name, env)
-                kept.append(name)
-            except ValueError as exc:
-                skipped[name] = str(exc)
-    finally:
-        env.close()
-    return kept, skipped
-
-
 def laws_apply(env_id: str, env_kwargs: dict, laws, where: str, build, sep: str = " ") -> None:
     """Each law of ``laws`` ((option, law name) pairs) builds on the environment (``build(env, name)``: it finds
     the sensors and roles it reads), else ``ValueError`` "<option><sep><name> does not apply to <where>: ..."."""
@@ -201,15 +162,6 @@ def laws_apply(env_id: str, env_kwargs: dict, laws, where: str, build, sep: str 
                 raise ValueError(f"{option}{sep}{name} does not apply to {where}: {exc}") from None
     finally:
         env.close()
-
-
-def episode_means(eps: list[Episode], value=lambda e: e.episode_return) -> dict[str, float]:
-    """{episode label: the mean of ``value`` over the runs of that episode}: an agent trained on several seeds
-    counts once per episode, with its seeds' mean (its seeds are not independent draws of the episode)."""
-    by_label: dict[str, list[float]] = {}
-    for e in eps:
-        by_label.setdefault(e.scenario, []).append(float(value(e)))
-    return {k: float(np.mean(v)) for k, v in by_label.items()}
 
 
 def mean_ci(values, confidence: float = 0.95, upper: float = math.inf) -> tuple[float, float, float]:

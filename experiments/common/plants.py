@@ -15,7 +15,7 @@ from mrd_env.plants.profile import PlantProfile, TestCase
 
 __all__ = ["PlantProfile", "TestCase", "profiles", "profile", "by_env_id", "plant_choices", "plant_name",
            "default_plant", "chosen_plants", "add_plant_options", "with_plant_options",
-           "check_suite_plant", "check_agent_plant", "shipped_agents_of"]
+           "check_suite_plant"]
 
 
 def profiles() -> dict[str, PlantProfile]:
@@ -197,33 +197,3 @@ def check_suite_plant(suite, args: argparse.Namespace) -> None:
     raise ValueError(f"{flags} would change the plant of suite {suite.name}-v{suite.version}, and a suite fixes its "
                      f"plant; " + (f"score {' or '.join(fits)}, whose plant that is" if fits
                                    else "no shipped suite has that plant (make one: mrd-env suite build SPEC)"))
-
-
-def check_agent_plant(plant: PlantProfile, agent: str, env_kwargs: dict) -> None:
-    """``ValueError`` if the agent was trained on another plant than ``plant`` (its recorded environment options
-    ``env_kwargs`` differ from the plant's on :attr:`PlantProfile.plant_keys`): its observations and actions would
-    not be this plant's."""
-    differ = [k for k in plant.plant_keys if _plain(env_kwargs.get(k)) != _plain(plant.options.get(k))]
-    if differ:
-        theirs = ", ".join(f"{k}={_plain(env_kwargs.get(k))}" for k in differ)
-        raise ValueError(f"agent {agent} was trained on the {plant.title} with {theirs}, not on this one: give the "
-                         f"plant options that make it ({', '.join('--' + o.name for o in plant.plant_options)})")
-
-
-def shipped_agents_of(plant: PlantProfile) -> list:
-    """The shipped agents of ``plant`` that were trained on it as it is (its plant options included); a note on
-    stderr names those left out."""
-    import sys
-
-    from controllers import shipped_agents
-    from controllers.agents import agent_files
-
-    out = []
-    for a in shipped_agents(plant):
-        try:
-            check_agent_plant(plant, str(a), agent_files(a)[1].get("env_kwargs") or {})
-        except ValueError:
-            print(f"note: shipped agent {a} left out: it was trained on another {plant.title}", file=sys.stderr)
-            continue
-        out.append(a)
-    return out

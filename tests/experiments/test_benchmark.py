@@ -81,11 +81,13 @@ def test_a_python_controller_of_the_user_is_scored_beside_the_shipped_ones(tmp_p
     assert "yours" in bench.summary_rows()[0]
 
 
-def test_what_does_not_fit_a_suite_is_listed_with_the_reason():
+def test_what_does_not_fit_a_suite_is_listed_with_the_reason(tmp_path):
     """An agent trained with road preview on the plain suite, the neural inverse's law on the six-storey building
-    (its inverse is of the three-storey model): listed, not scored; the preview agent fits the preview suite."""
+    (its inverse is of the three-storey model): listed, not scored; the preview agent fits the preview suite. Each
+    suite gets its own leaderboard (a leaderboard's bounds are per suite)."""
     plain = run_benchmark([CAR, "car-preview-v1"], only=["passive_off", "quarter_car_cmaes_preview"], episodes=1,
-                          backend="serial")
+                          backend="serial", out=tmp_path)
+    assert sorted(p.name for p in (tmp_path / "leaderboards").iterdir()) == sorted([CAR, "car-preview-v1"])
     on = {e.suite.id: e for e in plain.suites}
     assert [n for n, _ in on[CAR].not_applicable] == ["quarter_car_cmaes_preview"]
     assert "preview" in on[CAR].not_applicable[0][1]

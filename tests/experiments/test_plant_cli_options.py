@@ -83,13 +83,3 @@ def test_benchmark_runs_the_suites_of_the_six_storey_building(tmp_path, capsys):
     out = capsys.readouterr().out
     assert code == 0
     assert "| building-six-storey-v1 |" in out and "building-seismic-v1" not in out
-
-
-def test_an_agent_trained_on_another_building_is_refused_until_its_plant_options_are_given():
-    from experiments.common.plants import check_agent_plant
-
-    base, trained = profile(BUILDING), {"plant_preset": "six_storey", "damper_floors": [1, 1, 2, 2]}
-    with pytest.raises(ValueError, match="plant_preset=six_storey, damper_floors=.*--storeys"):
-        check_agent_plant(base, "agent", trained)
-    check_agent_plant(base.with_plant_options({"storeys": "6"}), "agent", trained)
-    check_agent_plant(base, "agent", {"damper_floors": list(base.options["damper_floors"])})
