@@ -197,7 +197,7 @@ class Suite:
                 target = options
                 for k in keys[:-1]:
                     target = target[k]
-                target[keys[-1]] = str(_confined(self.folder, name, f"suite {self.id}: {_field(keys)}"))
+                target[keys[-1]] = str(confined_file(self.folder, name, f"suite {self.id}: {_field(keys)}"))
         return options
 
     def reference_options(self, scenario: SuiteScenario, seed: int) -> dict:
@@ -268,7 +268,7 @@ def from_json(data: dict, where: str = "suite", folder: str | Path | None = None
         if folder is None:
             raise ValueError(f"{where}: {_field(keys)} names the file {_shown(name)}: only a suite read from its "
                              "file names files (in that file's folder)")
-        _confined(folder, name, f"{where}: {_field(keys)}")
+        confined_file(folder, name, f"{where}: {_field(keys)}")
     refs = {k: Reference(**{f: (math.nan if v is None else float(v)) for f, v in r.items()})
             for k, r in data["references"].items()}
     return Suite(name=data["name"], version=data["version"], plant=data["plant"], env_id=data["env_id"],
@@ -463,7 +463,7 @@ def _files_named(data: dict) -> list[tuple[tuple, object]]:
     return out
 
 
-def _confined(folder: str | Path, name, what: str) -> Path:
+def confined_file(folder: str | Path, name, what: str) -> Path:
     """``folder / name`` for a file a suite names: a plain name inside the suite file's folder
     (:func:`mrd_env.storage.inside`: no absolute path, no ``..``, no link leaving it) of a regular file (not a
     folder, device, FIFO or socket, which the environment's read would hang on or never finish)."""
@@ -631,7 +631,7 @@ def spec_definition(data, where: str = "suite spec", folder: str | Path | None =
         if folder is None:
             raise ValueError(f"{where}: {_field(keys)} names the file {_shown(name)}: only a spec read from its "
                              "file names files (in that file's folder)")
-        _confined(folder, name, f"{where}: {_field(keys)}")
+        confined_file(folder, name, f"{where}: {_field(keys)}")
     return SuiteDefinition(name=data["name"], version=data["version"], description=data["description"],
                            options=data["options"], control_dt=float(data["control_dt"]),
                            scenarios=tuple(SuiteScenario(s["name"], s["options"], tuple(s["seeds"]))

@@ -47,7 +47,6 @@ import json
 import math
 import os
 import platform
-import shutil
 import subprocess
 import sys
 import time
@@ -487,12 +486,12 @@ def _bundle_files(suite, folder: Path):
     from mrd_env.envs.build import map_files
     from mrd_env.resources import file_limit
     from mrd_env.storage import read_limited, write_bytes
-    from mrd_env.suites import _confined
+    from mrd_env.suites import confined_file
 
     files: dict[str, str] = {}
 
     def copy(value: str, label: str) -> str:
-        source = _confined(suite.folder, value, f"suite {suite.id}: {label}") if suite.folder else Path(value)
+        source = confined_file(suite.folder, value, f"suite {suite.id}: {label}") if suite.folder else Path(value)
         content = read_limited(source, file_limit(), what=f"suite {suite.id}: {label}")
         digest = hashlib.sha256(content).hexdigest()
         name = f"data-{digest[:12]}-{re.sub(r'[^A-Za-z0-9_.-]+', '_', Path(value).name)[-80:]}"

@@ -182,6 +182,9 @@ CASES = {
         ["--suite", "nope", "--controller", "passive_off", "--jobs", "0"],
     ],
     "leaderboard": [["--nope"], [], ["{missing}"], ["{binary}"], ["{wrong}"], ["{good}"], ["{folder}"]],
+    "suite": [["--nope"], [], ["nope"], ["build"], ["build", "{missing}"], ["build", "{binary}"], ["build", "{wrong}"],
+              ["build", "{folder}"], ["show"], ["show", "nope"], ["show", "{binary}"],
+              ["build", "{wrong}", "--jobs", "0"], ["build", "{wrong}", "--backend", "nope"]],
 }
 
 
