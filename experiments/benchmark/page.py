@@ -213,7 +213,8 @@ def page(board) -> str:
     scenarios = list(dict.fromkeys(r["scenario"] for r in board.rows if r["scenario"] != ALL))
     ranked_keys, ranked = _ranked_table("ranked", board.title(), board.table, scenarios, figures,
                                         verdict_column=board.next_column)
-    parts = [_identity(board), "<h2>Ranking</h2>", ranked]
+    parts = [_identity(board), "<h2>Ranking</h2>",
+             ranked if board.table else "<p>No complete result: nothing is ranked.</p>"]
     sort_keys = {"ranked": ranked_keys}
     if board.verdicts:
         parts += ["<h2>Paired verdicts</h2>", _verdicts(board.verdicts, board.verdicts_title())]
@@ -266,7 +267,8 @@ def _identity_fields(board) -> dict:
 
 def _identity(board) -> str:
     f = _identity_fields(board)
-    unknown = "not known (the shares were not checked against the suite)"
+    unknown = ("not recorded in the suite" if f["checked"]
+               else "not known (the shares were not checked against the suite)")
     items = [("suite", f["name"]), ("version", f["version"]), ("digest (SHA-256)", f["digest"]),
              ("episodes", f["episodes"]), ("plant", f["plant"] or unknown), ("environment", f["environment"] or unknown),
              ("description", f["description"] if f["description"] is not None else unknown),
