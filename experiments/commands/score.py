@@ -42,6 +42,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--name", default=None,
                    help="the row's and result file's name of the one --controller (default: the law's name, with its "
                         "options; agent <name>; the import spec)")
+    p.add_argument("--against", default=None, metavar="RESULT_OR_CONTROLLER",
+                   help="compare each controller with this one on the same episodes (paired: the difference of their "
+                        "pooled shares with its 95 %% interval, episodes won, ahead/behind/tie): a result file of the "
+                        "same suite (.json), or a controller scored in this run (as --controller)")
     p.add_argument("--out", type=Path, default=Path("results/score"), metavar="FOLDER",
                    help="the folder of the result files (default results/score)")
     p.add_argument("--no-progress", action="store_true")
@@ -89,6 +93,7 @@ def run(args: argparse.Namespace) -> int:
         if any(s.name == spec.name for s in specs):
             raise ValueError(f"--controller {bounded(c)}: {bounded(spec.name)} is given twice")
         specs.append(spec)
+    reference = _against(args, suite, specs)
     out_folder(args.out, "each controller's <suite>__<controller>.json/.md/.csv are written")
     for spec in specs:
         one_torch_thread(spec)  # this process is the command's own (an SB3 policy: 10× faster on 2 cores)
@@ -96,13 +101,49 @@ def run(args: argparse.Namespace) -> int:
     clash = {f for f in files if files.count(f) > 1}
     if clash:
         raise ValueError(f"--controller: two controllers would write {sorted(map(str, clash))[0]}; rename one")
+    results = {}
     for spec, path in zip(specs, files):
         result = score(suite, spec, episodes=args.episodes, progress=not args.no_progress,
                        command=["mrd-env", *getattr(args, "_argv", [])], **executor)
         result.write(path)
         md, csv_path = result.write_tables(path.with_suffix(""))
+        results[spec.name] = result
         print(result.markdown())
         print(f"wrote {path}, {md}, {csv_path}")
+    if isinstance(reference, Path):
+        reference = _read_reference(reference, suite)
+    elif reference is not None:  # a controller: this run's result, or scored now on the same episodes
+        reference = results.get(reference.name) or score(suite, reference, episodes=args.episodes,
+                                                         progress=not args.no_progress, **executor)
+    for result in results.values():
+        if reference is not None and result is not reference:
+            print(result.paired_markdown(reference, suite))
     if len(files) > 1:
         print(f"merge them: mrd-env leaderboard {' '.join(map(str, files))} --out {args.out / 'leaderboard'}")
     return 0
+
+
+def _against(args, suite, specs):
+    """``--against``: None; the result file's path (checked when read); or the controller's spec, checked like a
+    ``--controller``, before anything is scored or written."""
+    from experiments.benchmark.scoring import check_controller, controller_spec
+
+    if args.against is None:
+        return None
+    if args.against.endswith(".json"):
+        path = Path(args.against)
+        _read_reference(path, suite)  # refused now, not after the scoring
+        return path
+    spec = controller_spec(args.against, trust_agent=args.trust_agent, converted=args.out / "converted-agents",
+                           suite=suite)
+    check_controller(spec, suite)
+    return next((s for s in specs if s.name == spec.name), spec)
+
+
+def _read_reference(path: Path, suite):
+    """The result file ``path`` checked against ``suite`` (its digest, episodes and shares)."""
+    from experiments.benchmark.ranking import check_against_suite, read_result
+
+    result = read_result(path)
+    check_against_suite(result, suite, path)
+    return result

@@ -320,6 +320,28 @@ def test_the_command_line_scores_and_merges(suite_file, user_laws, tmp_path, cap
     assert "nothing is ranked" in text and "| 1 |" not in text and text.count("| partial: 2 of 3 episodes |") == 2
 
 
+def test_against_compares_on_the_same_episodes(suite_file, tmp_path, capsys):
+    """--against: each controller against a reference on the same episodes, from this run or from a result file;
+    a controller compared with itself is a tie of exactly 0; passive-on against passive-off is decided."""
+    out = tmp_path / "score"
+    code = main(["score", "--suite", str(suite_file), "--controller", "passive_on", "--against", "passive_off",
+                 "--backend", "serial", "--no-progress", "--out", str(out)])
+    text, err = capsys.readouterr()
+    assert code == 0, err
+    assert "pooled share difference" in text and "episodes won" in text
+    off = score(suite_file, "passive_off")
+    off.write(tmp_path / "off.json")
+    code = main(["score", "--suite", str(suite_file), "--controller", "passive_off", "--against",
+                 str(tmp_path / "off.json"), "--backend", "serial", "--no-progress", "--out", str(out)])
+    text, err = capsys.readouterr()
+    assert code == 0, err
+    assert "0.000" in text.split("all scenarios")[-1] and "0/" in text.split("all scenarios")[-1]
+    code = main(["score", "--suite", str(suite_file), "--controller", "passive_on", "--against", "nope",
+                 "--out", str(tmp_path / "refused")])
+    _, err = capsys.readouterr()
+    assert code == 2 and err.count("\n") == 1 and not (tmp_path / "refused").exists()
+
+
 def test_a_law_takes_its_options_from_python_and_the_command_line(suite_file, tmp_path, capsys):
     """The options reach the law: MPC of horizon 1 with a bound that never binds is the sampled-data LQR, i.e.
     clipped-optimal of the sampled design (tests/controllers/test_mpc.py), so the two score the same returns; with a
