@@ -1,6 +1,6 @@
 """PPO inside one jit on the JAX quarter car (``experiments.training.ppo_jax``, issue 41 item 3c): reproducible
-per seed, finite losses, GAE against a plain reference, the saved agent acting as the trained mean policy, bad
-command lines refused."""
+per seed, finite losses, the optimiser (optax's Adam, annealed per update, clipped), GAE against a plain reference,
+the saved agent acting as the trained mean policy, bad command lines refused."""
 from __future__ import annotations
 
 import subprocess
@@ -51,6 +51,33 @@ def test_losses_finite_and_episodes_counted(runs):
     episodes = rows[:, pj.METRICS.index("episodes")]
     assert episodes.sum() >= CFG.num_envs * 2  # 16 steps of 5-step episodes: at least 3 ends per car
     assert np.all(np.isfinite(rows[:, 0])) and np.all(rows[:, 0] < 0)  # returns relative to the passive car's cost
+
+
+def test_optimizer_anneals_per_update_and_clips():
+    """optax's Adam under PureJaxRL's schedule: with a constant gradient below the clip, every step moves each weight
+    by lr × g/(|g| + ε) (Adam's bias-corrected first step size), the learning rate constant within an update's
+    epochs × minibatches steps and falling linearly to 0 over the updates; a gradient above ``max_grad_norm`` is
+    scaled to it first (the same step: Adam is scale-free, but the moments hold the clipped gradient)."""
+    cfg = pj.Config(num_envs=4, num_steps=8, total_timesteps=4 * 8 * 4, update_epochs=2, num_minibatches=2,
+                    lr=1e-2, max_grad_norm=0.5)
+    per_update = cfg.update_epochs * cfg.num_minibatches
+    tx = pj.optimizer(cfg)
+    p, g = {"w": jnp.zeros(3)}, {"w": jnp.asarray([0.1, -0.2, 0.05])}
+    state = tx.init(p)
+    moves = []
+    for _ in range(cfg.num_updates * per_update):
+        step, state = tx.update(g, state, p)
+        moves.append(np.asarray(step["w"]))
+    moves = np.asarray(moves)
+    lr = cfg.lr * (1.0 - np.arange(cfg.num_updates) / cfg.num_updates)
+    want = -np.repeat(lr, per_update)[:, None] * np.sign(np.asarray(g["w"]))
+    np.testing.assert_allclose(moves, want, rtol=1e-3)  # |g|/(|g| + 1e-5): within 1e-4
+    big = {"w": 100 * g["w"]}
+    _, state = tx.update(big, tx.init(p), p)
+    mu = jax.tree_util.tree_leaves(state)  # the first moment holds (1 − β1) × the clipped gradient
+    norm = float(np.linalg.norm(100 * np.asarray(g["w"])))
+    assert any(np.allclose(np.asarray(x), (1 - pj.ADAM_B1) * 100 * np.asarray(g["w"]) * cfg.max_grad_norm / norm,
+                           rtol=1e-12) for x in mu if np.shape(x) == (3,))
 
 
 def _gae_reference(r, v, last_v, term, trunc, vf, gamma, lam):
