@@ -369,7 +369,7 @@ def run_benchmark(suites=None, controllers=(), *, shipped: bool = True, only=Non
         for p in plans:  # one suite at a time: a leaderboard's bounds are per suite
             if p.scored:
                 leaderboards([s.path for s in p.scored], out=out / LEADERBOARDS,
-                             suites=() if _is_shipped(p.suite) else [p.suite])
+                             suites=() if _is_shipped(p.suite) else [p.suite], html=True)
                 p.leaderboard = out / LEADERBOARDS / p.suite.id
         storage.write_texts({out / SUMMARY: bench.markdown(),
                              out / RECORD: json.dumps(bench.to_json(), indent=1, allow_nan=False) + "\n"})

@@ -9,7 +9,8 @@ file, e.g. one ``mrd-env suite build`` wrote).
 
 Writes, under ``--out``: ``results/<suite id>__<controller>.json`` (one result file per controller and suite, each
 as soon as it is scored), ``leaderboards/<suite id>/`` (per suite: ``leaderboard.md``/``.csv``, the ranked table,
-``leaderboard_rows.md``/``.csv``, its numbers, and ``leaderboard.png``, the figure) and ``benchmark.md`` (the
+``leaderboard_rows.md``/``.csv``, its numbers, ``leaderboard.png``, the figure, and ``leaderboard.html``, the page a
+browser opens from disk) and ``benchmark.md`` (the
 summary printed at the end: per suite, the best controller of each kind; ``benchmark.json``: what was scored and
 what did not fit, with the reasons and wall times, as data).
 """
@@ -82,6 +83,6 @@ def run(args: argparse.Namespace) -> int:
                           own_process=True, **executor)
     print(bench.markdown())
     n, boards = sum(len(e.scored) for e in bench.suites), sum(e.leaderboard is not None for e in bench.suites)
-    print(f"wrote {n} result file(s) in {args.out / RESULTS}, {boards} leaderboard(s) (tables and figure) in "
+    print(f"wrote {n} result file(s) in {args.out / RESULTS}, {boards} leaderboard(s) (tables, figure and page) in "
           f"{args.out / LEADERBOARDS}, and {args.out / SUMMARY} (scored in {bench.wall_s:.0f} s)")
     return 0

@@ -31,7 +31,8 @@ def test_a_smoke_run_writes_a_result_per_controller_a_leaderboard_and_the_summar
     assert [p.name for p in results] == [f"{CAR}__{law}.json" for law in LAWS]
     board = tmp_path / "b" / "leaderboards" / CAR
     assert sorted(p.name for p in board.iterdir()) == sorted(
-        ["leaderboard.md", "leaderboard.csv", "leaderboard_rows.md", "leaderboard_rows.csv", "leaderboard.png"])
+        ["leaderboard.md", "leaderboard.csv", "leaderboard_rows.md", "leaderboard_rows.csv", "leaderboard.png",
+         "leaderboard.html"])
     assert (board / "leaderboard.png").stat().st_size > 10_000
     # the summary: one row per suite, the best law (partial: one episode per scenario, 4 of the suite's 31)
     assert f"| {CAR} | 31 | 2 (0) | skyhook_continuous:" in out and "(partial: 4 episodes)" in out
