@@ -68,6 +68,8 @@ def score_suite(suite, out: Path, executor: dict) -> dict:
             "spec": _relative(spec.description["spec"]) if spec.kind == "agent" else spec.description.get("spec"),
             "options": spec.description.get("options"),
             "shares": {sc: [_r(r["share"]), _r(r["share lo95"]), _r(r["share hi95"])] for sc, r in summ.items()},
+            "pooled": {sc: [_r(r["pooled share"]), _r(r["pooled share lo95"]), _r(r["pooled share hi95"])]
+                       for sc, r in summ.items()},
             "episode_shares": {e["label"]: _r(e["share"]) for e in result.episodes},
             "terminated": sum(1 for e in result.episodes if e.get("terminated")),
             "cost_totals": {k: _r(v) for k, v in costs.items()},
@@ -89,9 +91,15 @@ def _relative(folder: str) -> str:
         return str(folder)
 
 
+def _primary(c: dict) -> dict:
+    """A controller's primary figures per scenario: the pooled shares (the leaderboards' ranking figure), the mean
+    shares for an entry scored before they were stored."""
+    return c.get("pooled") or c["shares"]
+
+
 def _rank(c: dict) -> float:
-    """Sort key: best share over all scenarios first, no number last."""
-    m = c["shares"]["all scenarios"][0]
+    """Sort key: best pooled share over all scenarios first, no number last."""
+    m = _primary(c)["all scenarios"][0]
     return math.inf if m is None else -m
 
 
@@ -112,14 +120,15 @@ def _cell(v) -> str:
 
 
 def share_table(entry: dict) -> str:
-    """A suite's shares: one row per controller (best first over all scenarios), the share and its 95 % interval
-    per scenario and over all, the episodes that ended early and the wall time."""
-    head = ["controller", "kind", *entry["scenarios"], "all scenarios", "ended early", "wall s"]
+    """A suite's shares: one row per controller (best first over all scenarios), the pooled share and its 95 %
+    interval per scenario and over all, the mean share over all, the episodes that ended early and the wall time."""
+    head = ["controller", "kind", *entry["scenarios"], "all scenarios", "mean share", "ended early", "wall s"]
     rows = sorted(entry["controllers"], key=_rank)
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for c in rows:
-        cells = [c["name"], c["kind"], *(_cell(c["shares"][s]) for s in entry["scenarios"]),
-                 _cell(c["shares"]["all scenarios"]), str(c["terminated"]), f"{c['wall_s']:.1f}"]
+        cells = [c["name"], c["kind"], *(_cell(_primary(c)[s]) for s in entry["scenarios"]),
+                 _cell(_primary(c)["all scenarios"]), _cell(c["shares"]["all scenarios"]), str(c["terminated"]),
+                 f"{c['wall_s']:.1f}"]
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
@@ -133,7 +142,7 @@ def robustness_table(nominal: dict, twin: dict) -> str:
     for c in sorted(nominal["controllers"], key=_rank):
         if c["name"] not in have:
             continue
-        a, b = c["shares"]["all scenarios"], have[c["name"]]["shares"]["all scenarios"]
+        a, b = _primary(c)["all scenarios"], _primary(have[c["name"]])["all scenarios"]
         drop = "n/a" if a[0] is None or b[0] is None else f"{a[0] - b[0]:+.3f}"
         lines.append(f"| {c['name']} | {_cell(a)} | {_cell(b)} | {drop} |")
     return "\n".join(lines)
@@ -196,14 +205,14 @@ def twins(entries: dict) -> list[tuple[dict, dict]]:
 
 
 def summary_table(data: dict) -> str:
-    """The README's summary: per suite, the best law, the best MPC row and the best agent by their share over all
-    scenarios (mean [95 % interval]), and the wall time of all its controllers."""
+    """The README's summary: per suite, the best law, the best MPC row and the best agent by their pooled share over
+    all scenarios ([bootstrap 95 % interval]), and the wall time of all its controllers."""
     head = ["suite", "episodes", "best law", "MPC", "best agent", "wall s (controllers)"]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
 
     def best(entry, which) -> str:
         rows = sorted((c for c in entry["controllers"] if which(c)), key=_rank)
-        return f"{rows[0]['name']}: {_cell(rows[0]['shares']['all scenarios'])}" if rows else "–"
+        return f"{rows[0]['name']}: {_cell(_primary(rows[0])['all scenarios'])}" if rows else "–"
 
     for sid in ordered(data["suites"]):
         e = data["suites"][sid]
@@ -219,13 +228,14 @@ def markdown(data: dict) -> str:
     entries = {k: data["suites"][k] for k in ordered(data["suites"])}
     parts = []
     for sid, e in entries.items():
-        parts.append(f"**`{sid}`** ({e['episodes']} episodes; share of the achievable gain, mean [95 % interval "
-                     f"over episodes]; {e['wall_s']:.0f} s for its {len(e['controllers'])} controllers):\n\n"
+        parts.append(f"**`{sid}`** ({e['episodes']} episodes; pooled share of the achievable gain "
+                     f"Σ(R − R_p)/Σ(R_c − R_p) [bootstrap 95 % interval], and the mean of the episodes' shares; "
+                     f"{e['wall_s']:.0f} s for its {len(e['controllers'])} controllers):\n\n"
                      + share_table(e))
         if e["not_applicable"]:
             parts.append("Not applicable: " + "; ".join(f"{n['name']} ({n['reason']})" for n in e["not_applicable"]))
     for a, b in twins(entries):
-        parts.append(f"**Robustness: `{a['id']}` against `{b['id']}`** (share over all scenarios; drop = nominal − "
+        parts.append(f"**Robustness: `{a['id']}` against `{b['id']}`** (pooled share over all scenarios; drop = nominal − "
                      "randomised):\n\n" + robustness_table(a, b))
     for plant in dict.fromkeys(e["plant"] for e in entries.values()):
         mine = [e for e in entries.values() if e["plant"] == plant]
