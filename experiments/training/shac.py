@@ -189,9 +189,9 @@ class Setup:
 
         def actor_update(theta, opt_state, lr, phi_target, states, obs, params, key=None):
             (l, (traj, end)), g = grad(theta, phi_target, states, obs, params, key)
-            opt_state = opt_state._replace(hyperparams={**opt_state.hyperparams,
-                                                        "learning_rate": jnp.asarray(lr, jnp.float64)})
-            step, new_state = self.actor_opt.update(g, opt_state)
+            at_lr = opt_state._replace(hyperparams={**opt_state.hyperparams,
+                                                    "learning_rate": jnp.asarray(lr, jnp.float64)})
+            step, new_state = self.actor_opt.update(g, at_lr)
             new = (optax.apply_updates(theta, step), new_state)
             # the warm-up (lr 0) moves nothing: neither the weights nor Adam's moments and count
             theta, opt_state = jax.tree_util.tree_map(lambda a, b: jnp.where(lr > 0, a, b), new, (theta, opt_state))

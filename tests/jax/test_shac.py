@@ -142,6 +142,32 @@ def test_tiny_training_is_reproducible_and_saves_the_trained_policy(tiny, tmp_pa
     np.testing.assert_allclose(got, want, rtol=1e-5, atol=1e-6)
 
 
+@pytest.mark.slow
+def test_warm_up_moves_nothing_then_adam_takes_its_first_step(tiny):
+    """The actor's optax Adam: a window at learning rate 0 (the critic's warm-up) leaves the weights and the whole
+    optimiser state (moments, step count) as they were; the next window at lr is Adam's first step, which moves
+    every weight with a non-negligible gradient by lr × |ĝ|/(|ĝ| + ε) ≈ lr (a count advanced by the warm-up would
+    give about 0.74 lr)."""
+    setup, params, agent, _, _ = tiny
+    obs, states = setup.start(params)
+    theta = jnp.asarray(agent.model.theta)
+    phi = shac._init_critic(jax.random.PRNGKey(0), setup.critic_sizes)
+    opt0 = setup.actor_opt.init(theta)
+    th, opt, *_ = setup.actor_update(theta, opt0, 0.0, phi, states, obs, params)
+    assert np.array_equal(np.asarray(th), np.asarray(theta))
+    for x, y in zip(jax.tree_util.tree_leaves(opt), jax.tree_util.tree_leaves(opt0)):
+        np.testing.assert_array_equal(x, y)
+    lr = 1e-3
+    th, opt, _, gnorm, *_ = setup.actor_update(theta, opt, lr, phi, states, obs, params)
+    g = np.asarray(jax.grad(lambda t: setup.loss(t, phi, states, obs, params)[0])(theta))
+    assert float(gnorm) == pytest.approx(np.linalg.norm(g), rel=1e-12)
+    ghat = g * min(1.0, setup.h["grad_clip"] / np.linalg.norm(g))
+    step = theta - np.asarray(th)
+    np.testing.assert_allclose(step, lr * ghat / (np.abs(ghat) + 1e-8), rtol=1e-9, atol=1e-18)
+    big = np.abs(ghat) > 1e-4
+    assert big.sum() > 10 and np.allclose(np.abs(step[big]), lr, rtol=1e-3)
+
+
 def test_noisy_sensors_draw_their_noise_from_the_key(tiny):
     """With sensor_noise the twin's observations are noisy: the window's loss needs a key, is the same for the same
     key and differs for another; without noise the loss is the noise-free one whatever the key."""
