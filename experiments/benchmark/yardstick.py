@@ -1,5 +1,5 @@
 """The yardstick of one episode, computed on the spot: the best any controller could do on it, and bounds from above
-— what the learning curves draw against (:mod:`experiments.training.learning_curves`), what the tests and the
+— what the learning curves draw against (:mod:`experiments.scripts.learning_curves`), what the tests and the
 accuracy measurements check the optimisers with. The benchmark's suites store their references instead, computed
 once by :mod:`experiments.benchmark.references` (which builds on :func:`warm_starts` and :func:`force_peak`).
 

@@ -21,7 +21,7 @@ from pathlib import Path
 
 from ..common import sweep
 from ..common.plants import add_plant_options, plant_choices, plant_name
-from ..common.scoring_options import add_controller_arguments, check_out, importable
+from ..benchmark.scoring_options import add_controller_arguments, check_out, importable
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

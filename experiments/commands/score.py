@@ -26,7 +26,7 @@ from pathlib import Path
 
 from ..common import sweep
 from ..common.plants import add_plant_options, check_suite_plant
-from ..common.scoring_options import add_controller_arguments, importable, out_folder
+from ..benchmark.scoring_options import add_controller_arguments, importable, out_folder
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

@@ -14,7 +14,7 @@ def whole(option: str, low: int):
     """argparse's ``type`` of a whole-number option >= ``low``: its error names the option's range (``int()`` takes
     '²'-free Unicode digits such as '٣' and 5 000-digit numbers; the option takes ASCII digits, at most 18)."""
     def parse(text: str) -> int:
-        from experiments.benchmark.scoring import bounded
+        from .scoring import bounded
 
         digits = text.strip()
         if not (digits.isascii() and digits.isdigit() and len(digits) <= 18) or int(digits) < low:
@@ -28,7 +28,7 @@ def whole(option: str, low: int):
 def check_out(path: Path, what: str) -> None:
     """A one-line ``ValueError`` where ``--out``, or a folder above it, is a file (``--out results/score.json``: the
     option takes a folder, not a result file); ``what``: what the folder receives, for that message."""
-    from experiments.benchmark.scoring import bounded
+    from .scoring import bounded
 
     for p in (path, *path.parents):
         if p.exists() or p.is_symlink():
@@ -49,7 +49,7 @@ def add_controller_arguments(p: argparse.ArgumentParser, *, required: bool) -> N
     """``--controller`` (repeatable), ``--episodes K`` and ``--trust-agent``."""
     from controllers import available_controllers
 
-    from experiments.benchmark.scoring import shipped_agent_names
+    from .scoring import shipped_agent_names
 
     p.add_argument("--controller", action="append", required=required, metavar="CONTROLLER",
                    help="a registered law (" + ", ".join(available_controllers()) + "), a shipped agent ("

@@ -2,7 +2,7 @@
 step and sensors, and the clairvoyant optimum on the same validation episodes (the yardstick's full-knowledge
 command sequence, :mod:`experiments.benchmark.yardstick`; cached, so a second call draws at once).
 
-    python -m experiments.training.learning_curves --plant shear_building \
+    python -m experiments.scripts.learning_curves --plant shear_building \
         --agents results/agents/shear_building_ppo-residual-paired_s* --out docs/building_ppo_learning_curves.png
 
 The curves are the ``validation.csv`` of each agent folder (the seeds' own lines and their mean).
