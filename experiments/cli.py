@@ -28,7 +28,7 @@ COMMANDS = {
     "rig": ("experiments.commands.rig", "virtual damper test rig: loops (PNG), records (CSV), peak/energy table"),
     "benchmark": ("experiments.commands.benchmark",
                   "the benchmark: every controller that fits (laws, MPC, shipped agents, yours) scored on the "
-                  "suites, one result file each, one leaderboard and figure per suite"),
+                  "suites, one result file each, one leaderboard (tables, figure, page) per suite"),
     "suite": ("experiments.commands.suite",
               "your own benchmark suite: build one from a small JSON definition (references, digest, procedure, "
               "cost) on a process pool or Ray, resumable; show one"),
@@ -44,9 +44,10 @@ COMMANDS = {
                 "inverse models: force-tracking tables and figures (achievable forces, a measured record); train one"),
     "score": ("experiments.commands.score",
               "score controllers (laws, agents, your module:attribute) on a benchmark suite: shares of the achievable "
-              "gain and criteria with 95-percent intervals, one result file each"),
+              "gain and criteria with 95-percent intervals, one result file each; --against: paired verdicts"),
     "leaderboard": ("experiments.commands.leaderboard",
-                    "merge result files of mrd-env score on one suite version into one table and one figure"),
+                    "merge result files of mrd-env score on one suite version into one ranked table with paired "
+                    "verdicts and one figure (--html: a page)"),
 }
 
 
