@@ -1,7 +1,8 @@
 """What the experiments know about a plant (:class:`PlantProfile`): its environment options, what agents train on,
-the held-out test scenarios, the laws that apply, the metrics and the figures' layout. Each plant declares its
-profile in its folder (``mrd_env/plants/<plant>/profile.py``: ``PROFILE``); the commands (``train``,
-``evaluate``, ``benchmark``, ``tune``, ``yardstick``, the labs) read it and never branch on a plant's name.
+the labs' held-out scenarios, the laws and MPC rows that apply, the laws that warm-start the clairvoyant. Each plant
+declares its profile in its folder (``mrd_env/plants/<plant>/profile.py``: ``PROFILE``); the commands (``train``,
+``tune``, ``benchmark``, ``score``, ``suite build``), the labs and the measurements read it and never branch on a
+plant's name. Each field's comment names what reads it.
 
 A profile is data: the library holds it without importing the experiments. It pickles by reference (its plant's
 name), so that the commands hand it to their workers as it is.
@@ -39,55 +40,56 @@ class PlantProfile:
     """One plant as the experiments see it (see the module docstring)."""
 
     spec: PlantSpec                #: the plant (its name, ids and title)
-    #: environment options every experiment gives the plant (training, validation, test, benchmark)
+    #: the environment options of the plant every experiment runs (the building's damper storey): the labs' held-out
+    #: scenarios are on it (``experiments.common.scenarios.held_out_scenarios``)
     options: dict
-    #: the training distribution as environment options (a new disturbance per episode)
+    #: the training distribution as environment options (a new disturbance per episode): what ``mrd-env train``
+    #: and ``tune`` train on and the validation episodes (``experiments.common.scenarios.validation``)
     training: dict
-    #: the environment option holding the disturbance ("road", "ground_motion")
+    #: the environment option holding the disturbance ("road", "ground_motion"): the trainers replace it
+    #: (``experiments.training.trainers``)
     disturbance_key: str
-    #: ``tests(plant_options, quick) -> [TestCase]``: the held-out test scenarios on ``plant_options``
+    #: ``tests(plant_options, quick) -> [TestCase]``: the labs' held-out scenarios on ``plant_options``
+    #: (``experiments.common.scenarios.held_out_scenarios``; not a benchmark)
     tests: Callable[[dict, bool], list]
-    #: the classical laws ``mrd-env evaluate`` compares (by default)
+    #: the classical laws that apply: ``mrd-env benchmark`` scores them (with ``benchmark_laws``,
+    #: ``experiments.benchmark.run.shipped_controllers``), the reward-separation measurement compares them
     laws: tuple
-    #: the controllers ``mrd-env benchmark`` runs (by default)
+    #: the controllers ``mrd-env benchmark`` scores besides ``laws`` (the building's clipped-optimal with each
+    #: inverse model); the controllers' speed measurement times them
     benchmark_laws: tuple
-    #: the laws drawn next to the agents' validation curves: the best law at the agents' 10 ms and a passive one
+    #: the laws drawn next to the agents' validation curves (``mrd-env train``): the best law at the agents' 10 ms
+    #: and a passive one
     reference_laws: tuple
-    #: the metric columns of ``mrd-env evaluate``
-    evaluation_metrics: tuple
-    #: the metric columns of ``mrd-env benchmark``
-    benchmark_metrics: tuple
-    #: ``response(scenario_options)``: the key response of the histories (a sensor, ``name[i]`` for channel i)
+    #: ``response(scenario_options)``: the key response of an episode's history (a sensor, ``name[i]`` for channel
+    #: i); the building's follows its damper's storey
     response: Callable[[dict], str]
-    #: the histories' y label of a response and the factor from SI to the label's unit
-    response_axis: Callable[[str], tuple[str, float]]
-    #: benchmark metrics also divided by passive-off's on the same episode (``<metric>/off`` columns)
-    normalise_by_passive_off: bool = False
-    #: the bar chart's ratios (benchmark: worst case over the scenarios) and its y label
-    bar_metrics: tuple = ()
-    bar_ylabel: str = "ratio to passive-off (dimensionless)"
-    bar_legend_columns: int = 4
-    #: model predictive control rows of ``mrd-env evaluate``: (label, control step (None: the comparison's),
-    #: controller options, road preview)
+    #: the model predictive control rows ``mrd-env benchmark`` scores (``experiments.benchmark.run.
+    #: shipped_controllers``): (label, control step (None: any suite's), controller options, road preview); a
+    #: row runs on a suite of its control step, a preview row only on a suite that grants the road-preview sensor
     mpc: tuple = ()
-    #: ``passive_reference(scenario_options) -> (row name, environment options)``: the conventional passive plant the
-    #: benchmark adds as a row (the MR damper replaced by the set-up's passive damper; None: no such row)
+    #: ``passive_reference(scenario_options) -> (row name, environment options)``: the conventional passive plant of
+    #: a set-up (the MR damper replaced by the set's passive damper; None: no such plant)
     passive_reference: Callable[[dict], tuple[str, dict]] | None = None
-    #: the SI unit of each metric column that has one (the tables' headers; ratios have none)
+    #: the SI unit of each metric that has one (the score tables' headers, ``experiments.benchmark.scoring``;
+    #: ratios have none)
     metric_units: dict = field(default_factory=dict)
-    #: the road-preview sensor exists (``--preview``; the MPC preview rows)
+    #: the road-preview sensor exists (``mrd-env train --preview``, ``experiments.common.scenarios.preview_options``)
     preview: bool = False
-    #: laws whose commands warm-start the clairvoyant of ``mrd-env yardstick`` (empty: no yardstick)
+    #: laws whose commands warm-start the clairvoyant: of a suite's references (``mrd-env suite build``,
+    #: ``experiments.benchmark.references``) and of the learning curves' yardstick (``experiments.benchmark.
+    #: yardstick``); empty: neither can be computed on the plant
     warm_laws: tuple = ()
-    #: why there is no yardstick (when ``warm_laws`` is empty)
+    #: why there is no yardstick (when ``warm_laws`` is empty; the yardstick's one-line refusal)
     no_yardstick: str = ""
     #: the environment id whose hyperparameter entry is used where the YAML file has none for ``env_id``
+    #: (``experiments.training.trainers``)
     hyperparams_fallback: str | None = None
-    #: one of the plants of the published benchmark, evaluation and yardstick (``--plant both``)
+    #: one of the plants of ``--plant both`` (``experiments.common.plants.chosen_plants``: ``mrd-env benchmark``,
+    #: the measurements), listed first under ``--plant all``
     published: bool = False
     #: the plant ``mrd-env train`` and ``mrd-env tune`` take without ``--plant`` (one plant says so)
     train_default: bool = False
-    extra: dict = field(default_factory=dict)
     #: the plant's frozen benchmark suites (:class:`mrd_env.suites.SuiteDefinition`; their references ship in
     #: ``suites/`` of the plant's folder)
     suites: tuple = ()
@@ -99,9 +101,6 @@ class PlantProfile:
     apply_plant_options: Callable[[dict, dict], dict] | None = None
     #: the plant options this profile was derived with (:meth:`with_plant_options`): sorted (name, text) pairs
     applied: tuple = ()
-    #: the environment options that make the plant (the building's preset and damper storeys): an agent trained on
-    #: other values is refused where the command runs this plant (the damper has its own rule, ``--damper``)
-    plant_keys: tuple = ()
 
     @property
     def name(self) -> str:

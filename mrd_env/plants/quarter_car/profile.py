@@ -1,8 +1,9 @@
 """What the experiments run on the quarter car (:class:`~mrd_env.plants.profile.PlantProfile`).
 
 Quarter car — training: a new ISO 8608 road per episode, class B, C or D at a speed drawn in [10, 30] m/s;
-validation: the same distribution with seeds training never draws; test: class C and D at 20 m/s (unseen
-seeds), class A at 30 m/s (a class never trained on) and a 5 cm bump (a road shape never trained on).
+validation: the same distribution with seeds training never draws; test (the labs' held-out scenarios): class C and
+D at 20 m/s (unseen seeds), class A at 30 m/s (a class never trained on) and a 5 cm bump (a road shape never trained
+on).
 """
 from __future__ import annotations
 
@@ -33,8 +34,8 @@ def _quarter_car_tests(plant: dict, quick: bool) -> list[TestCase]:
 
 
 def passive_car(options: dict) -> tuple[str, dict]:
-    """The conventional passive car of a set-up (its environment options), the benchmark's ``passive_ref`` row: its
-    name and the options that replace the MR damper by the preset's passive damper — a Bingham damper of viscous
+    """The conventional passive car of a set-up (its environment options, :attr:`PlantProfile.passive_reference`):
+    its name and the options that replace the MR damper by the preset's passive damper — a Bingham damper of viscous
     coefficient ``passive_c`` and no friction."""
     c = quarter_car(options.get("plant_preset", "set_a")).passive_c
     return f"passive_ref (c={c:g})", {"damper": "bingham",
@@ -54,16 +55,11 @@ PROFILE = PlantProfile(
     laws=("random", *CAR_LAWS),
     benchmark_laws=CAR_LAWS,
     reference_laws=("skyhook_continuous", "passive_off"),
-    evaluation_metrics=("acc_weighted_rms", "travel_peak", "tyre_load_ratio"),
-    benchmark_metrics=("acc_weighted_rms", "travel_rms", "travel_peak", "tyre_load_rms"),
     response=lambda options: "sprung_acc",
-    response_axis=lambda response: ("sprung acceleration (m/s²)", 1.0),
-    normalise_by_passive_off=True,
-    bar_metrics=("acc_weighted_rms/off", "travel_rms/off", "travel_peak/off", "tyre_load_rms/off"),
-    # the objective's MPC at the comparison's step; with the reward's own cost (settings tuned on the validation
-    # roads, see controllers.mpc.MPC) with road preview at the comparison's step and at 1 ms, and without preview
-    # at 1 ms. A preview row measures the road ahead (scenarios.PREVIEW): the only rows with information the
-    # others lack, and never "the best law".
+    # the objective's MPC at any suite's step; with the reward's own cost (settings tuned on the validation
+    # roads, see controllers.mpc.MPC) with road preview at any suite's step and at 1 ms, and without preview
+    # at 1 ms. A preview row measures the road ahead (only on a suite that grants the road-preview sensor): the
+    # only rows with information the others lack.
     mpc=(("mpc", None, {}, False),
          ("mpc+preview (reward)", None, {**_REWARD_MPC, "force_ref": 200.0, "horizon": 10}, True),
          ("mpc (reward)", 1e-3, {**_REWARD_MPC, "force_ref": 1000.0, "horizon": 10}, False),
