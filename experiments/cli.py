@@ -48,6 +48,7 @@ COMMANDS = {
     "leaderboard": ("experiments.commands.leaderboard",
                     "merge result files of mrd-env score on one suite version into one ranked table with paired "
                     "verdicts and one figure (--html: a page)"),
+    "dataset": ("experiments.commands.dataset", "a controller's suite episodes as Minari datasets (offline RL)"),
 }
 
 

@@ -182,6 +182,15 @@ CASES = {
         ["--suite", "nope", "--controller", "passive_off", "--jobs", "0"],
     ],
     "leaderboard": [["--nope"], [], ["{missing}"], ["{binary}"], ["{wrong}"], ["{good}"], ["{folder}"]],
+    "dataset": [
+        ["--nope"], [], ["--suite", "nope", "--controller", "passive_off"], ["--suite", "car-comfort-v1", "--controller",
+                                                                              "nope"],
+        ["--suite", "car-comfort-v1", "--controller", "passive_off", "--episodes", "0"],
+        ["--suite", "car-comfort-v1", "--controller", "passive_off", "--scenario", "nope"],
+        ["--suite", "car-comfort-robust-v1", "--controller", "passive_off"],   # every episode its own environment
+        ["--suite", "car-comfort-v1", "--controller", "skyhook_continuous", "--law-options", "x"],
+        ["--suite", "car-comfort-v1", "--controller", "passive_off", "--out", "{out_file}"],
+    ],
     "suite": [["--nope"], [], ["nope"], ["build"], ["build", "{missing}"], ["build", "{binary}"], ["build", "{wrong}"],
               ["build", "{folder}"], ["show"], ["show", "nope"], ["show", "{binary}"],
               ["build", "{wrong}", "--jobs", "0"], ["build", "{wrong}", "--backend", "nope"]],
