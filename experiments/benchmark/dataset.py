@@ -25,8 +25,8 @@ sensors saw. **Non-causal**: the commands were optimised knowing the whole distu
 metadata say so (``mrd_env.causal`` false). A solve takes seconds to minutes an episode: record a few (``episodes``).
 
 Beside Minari's own metadata, the key ``mrd_env`` holds the suite (id, digest), the scenario, the controller's
-description (as in a result file), whether it is causal, and each episode's seed, return and stored references
-(R_p, R_c). Infos per step: ``t`` (s), ``cost`` and ``cost_terms`` (the constraint costs, s in violation over the
+description (as in a result file), whether it is causal, each episode's seed, return and stored references (R_p,
+R_c), and the columns: each sensor's columns of the observation with its unit, and the action's unit. Infos per step: ``t`` (s), ``cost`` and ``cost_terms`` (the constraint costs, s in violation over the
 step; the CMDP convention of :mod:`mrd_env.envs.costs`), where the environment reports them.
 """
 from __future__ import annotations
@@ -198,16 +198,16 @@ def _size(folder: Path) -> int:
     return sum(f.stat().st_size for f in folder.rglob("*") if f.is_file())
 
 
-def run_episodes(suite, spec, planned: Planned) -> tuple[list[dict], object]:
+def run_episodes(suite, spec, planned: Planned) -> tuple[list[dict], object, dict]:
     """The episodes of ``planned`` with ``spec``, in one vector environment of the suite as the score runs them:
-    per episode its seed, observations (n + 1), actions (n), rewards, terminations, truncations and infos; and the
-    scalar environment's spec."""
+    per episode its seed, observations (n + 1), actions (n), rewards, terminations, truncations and infos; the
+    scalar environment's spec; and what the columns are (the observation's sensors, the action's unit)."""
     import gymnasium as gym
 
     import mrd_env  # noqa: F401  (registers the environments)
     from mrd_env.envs.vector import env_info
 
-    from experiments.benchmark.scoring import _built, _Driven, _Signals
+    from experiments.benchmark.scoring import _built, _Driven, _Signals, action_unit
 
     options = dict(planned.options)
     seeds = list(planned.seeds)
@@ -243,7 +243,8 @@ def run_episodes(suite, spec, planned: Planned) -> tuple[list[dict], object]:
         finally:
             venv.close()
     env_spec = replace(gym.spec(suite.env_id), kwargs={**gym.spec(suite.env_id).kwargs, **options})
-    return eps, env_spec
+    layout = [{"sensor": n, "columns": [sl.start, sl.stop], "unit": u} for n, sl, u in venv.sensor_layout]
+    return eps, env_spec, {"observation": layout, "action": action_unit(venv)}
 
 
 def _infos(info: dict) -> dict:
@@ -361,7 +362,7 @@ def record(suite, controller, *, root: str | Path = DEFAULT_ROOT, name: str | No
     done = []
     for p in planned:
         t0, load0 = time.perf_counter(), _load1()
-        eps, env_spec = run_episodes(suite, spec, p)
+        eps, env_spec, columns = run_episodes(suite, spec, p)
         target = root / p.dataset_id
         staging = storage.staging_folder(target)
         try:
@@ -372,7 +373,8 @@ def record(suite, controller, *, root: str | Path = DEFAULT_ROOT, name: str | No
                                                  algorithm_name=spec.name, author={"mrd-env"},
                                                  description=_description(suite, spec, p), data_format=DATA_FORMAT,
                                                  requirements=["mrd-env"])
-                ds.storage.update_metadata({"mrd_env": _metadata(suite, spec, p, eps, command)})
+                ds.storage.update_metadata({"mrd_env": {**_metadata(suite, spec, p, eps, command),
+                                                        "columns": columns}})
             storage.replace_folder(staging / p.dataset_id, target)
         finally:
             shutil.rmtree(staging, ignore_errors=True)

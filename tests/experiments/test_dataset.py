@@ -75,6 +75,8 @@ def test_the_episodes_are_the_scores(recorded, monkeypatch):
         ds = _load(recorded, dataset_id, monkeypatch)
         meta = ds.storage.metadata["mrd_env"]
         assert meta["causal"] is True and meta["suite"]["id"] == SUITE and meta["controller"]["name"] == LAW
+        layout = meta["columns"]["observation"]   # what each column is: the suite's sensors, the preview last
+        assert layout[-1]["sensor"] == "road_preview" and layout[-1]["columns"][1] == ds.observation_space.shape[0]
         for ep, m in zip(ds.iterate_episodes(), meta["episodes"]):
             assert float(np.sum(ep.rewards)) == pytest.approx(scored[(scenario, m["seed"])], abs=1e-12)
             assert m["return"] == pytest.approx(float(np.sum(ep.rewards)), abs=1e-12)
