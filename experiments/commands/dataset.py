@@ -37,10 +37,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import importlib.util
-
-    if importlib.util.find_spec("minari") is None or importlib.util.find_spec("h5py") is None:
-        raise ImportError("mrd-env dataset needs minari and h5py: pip install 'mrd-env[datasets]'")
+    try:
+        import h5py  # noqa: F401  (Minari's HDF5 storage)
+        import minari  # noqa: F401
+    except ImportError as exc:
+        raise ImportError(f"mrd-env dataset needs minari and h5py ({exc}): pip install 'mrd-env[datasets]'") from None
     from experiments.benchmark.dataset import plan, record, resolve_controller
     from experiments.benchmark.scoring import bounded, resolve_suite
 

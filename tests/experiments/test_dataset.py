@@ -103,3 +103,13 @@ def test_overwrite_replaces_a_dataset_whole(recorded, monkeypatch):
                  "--no-progress", "--overwrite", "--out", str(recorded)]) == 0
     ds = _load(recorded, IDS[1], monkeypatch)
     assert ds.total_episodes == 1 and not [p for p in recorded.rglob("*staging*")]
+
+
+def test_without_minari_the_line_names_the_extra(monkeypatch, capsys, tmp_path):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "minari", None)   # what a machine without the extra raises
+    assert main(["dataset", "--suite", SUITE, "--controller", LAW, "--out", str(tmp_path / "d")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "pip install 'mrd-env[datasets]'" in err, err
+    assert not (tmp_path / "d").exists()
