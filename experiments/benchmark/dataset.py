@@ -207,16 +207,16 @@ def run_episodes(suite, spec, planned: Planned) -> tuple[list[dict], object, dic
     import mrd_env  # noqa: F401  (registers the environments)
     from mrd_env.envs.vector import env_info
 
-    from experiments.benchmark.scoring import _built, _Driven, _Signals, action_unit
+    from experiments.benchmark.scoring import built_controller, DrivenController, ControllerSignals, action_unit
 
     options = dict(planned.options)
     seeds = list(planned.seeds)
     commands = _clairvoyant_commands(suite, planned) if spec.kind == "clairvoyant" else None
     venv = gym.make_vec(suite.env_id, num_envs=len(seeds), vectorization_mode="vector_entry_point", **options)
-    with _Signals() as signals:
+    with ControllerSignals() as signals:
         try:
             ctrl = None if commands is not None else \
-                _Driven(_built(spec, venv, signals), venv, spec.name, user=spec.kind == "python", signals=signals)
+                DrivenController(built_controller(spec, venv, signals), venv, spec.name, user=spec.kind == "python", signals=signals)
             obs, info = venv.reset(seed=seeds)
             if ctrl is not None:
                 ctrl.reset()

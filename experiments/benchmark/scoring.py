@@ -476,8 +476,8 @@ def check_controller(spec: ControllerSpec, suite) -> None:
             if spec.kind == "agent":
                 _check_agent(spec, suite, venv)
             try:
-                with _Signals() as signals:
-                    _built(spec, venv, signals)
+                with ControllerSignals() as signals:
+                    built_controller(spec, venv, signals)
             except TypeError as exc:
                 if spec.kind != "law":
                     raise
@@ -491,7 +491,7 @@ def check_controller(spec: ControllerSpec, suite) -> None:
             venv.close()
 
 
-class _Signals:
+class ControllerSignals:
     """Whether SIGINT or SIGTERM arrived while the controllers ran (a context; main thread only): a
     ``KeyboardInterrupt`` or ``SystemExit`` is a stop only when one did; else the controller's code raised it.
     Python-level handlers (Python's Ctrl-C handler, ``mrd-env``'s SIGTERM) are wrapped to note the signal before
@@ -533,7 +533,7 @@ class _Signals:
         self._previous.clear()
 
 
-def _exited(name: str, what: str, exc: BaseException, signals: _Signals | None) -> None:
+def _exited(name: str, what: str, exc: BaseException, signals: ControllerSignals | None) -> None:
     """Re-raise ``exc`` (a ``SystemExit`` or ``KeyboardInterrupt``) where a signal raised it (a stop); else it is the
     controller's own exit: ``ValueError`` naming it."""
     if signals is None or signals.seen:
@@ -543,7 +543,7 @@ def _exited(name: str, what: str, exc: BaseException, signals: _Signals | None) 
                      "scorer)") from None
 
 
-def _built(spec: ControllerSpec, venv, signals: _Signals | None):
+def built_controller(spec: ControllerSpec, venv, signals: ControllerSignals | None):
     """:func:`_build`, with a ``sys.exit()`` or ``KeyboardInterrupt`` of the controller's construction its error."""
     try:
         return _build(spec, venv)
@@ -551,16 +551,16 @@ def _built(spec: ControllerSpec, venv, signals: _Signals | None):
         _exited(spec.name, "building it", exc, signals)
 
 
-class _Driven:
+class DrivenController:
     """A controller as :func:`~experiments.common.evaluation.evaluate_batch` drives it, holding the protocol: the
     state handed back, ``episode_start`` at the first step, ``reset`` only where the controller has one, and every
     action checked (shape, finite) with a one-line error naming the controller. ``user``: the controller is the
     user's code, whose exceptions are reported as theirs (a one-line ``ValueError``), not as the project's bugs.
     A ``SystemExit`` or ``KeyboardInterrupt`` its code raises (``sys.exit()`` in ``predict``) is its error too,
-    whatever its kind — not the scorer's exit; one raised by a signal (``signals``: :class:`_Signals`) stops the
+    whatever its kind — not the scorer's exit; one raised by a signal (``signals``: :class:`ControllerSignals`) stops the
     scoring."""
 
-    def __init__(self, ctrl, venv, name: str, user: bool = False, signals: _Signals | None = None):
+    def __init__(self, ctrl, venv, name: str, user: bool = False, signals: ControllerSignals | None = None):
         self.ctrl, self.name, self.user = ctrl, name, user
         self.signals = signals
         self.space = venv.single_action_space
@@ -680,11 +680,11 @@ def scenario_episodes(suite, index: int, seeds: tuple[int, ...], spec: Controlle
         key = json.dumps(options, sort_keys=True, default=repr)
         groups.setdefault(key, (options, []))[1].append(int(seed))
     ran = {}
-    with _Signals() as signals:
+    with ControllerSignals() as signals:
         for options, group in groups.values():
             options = dict(options)
             control_dt = options.pop("control_dt")
-            eps = evaluate_batch(lambda venv: _Driven(_built(spec, venv, signals), venv, spec.name,
+            eps = evaluate_batch(lambda venv: DrivenController(built_controller(spec, venv, signals), venv, spec.name,
                                                       user=spec.kind == "python", signals=signals),
                                  Scenario(sc.name, suite.env_id, options, tuple(group)), "", name=spec.name,
                                  control_dt=control_dt)
