@@ -134,7 +134,7 @@ def test_randomised_bank_is_the_native_robustness_draws(plant):
     from mrd_env.suites import draw_episode, nominal_values
 
     spec = plant_spec(plant)
-    bands = spec.module("suites").ROBUST_BANDS
+    bands = next(d.randomise for d in spec.profile.suites if d.randomise)  # the plant's robustness twin's
     env_id, options = spec.rl_id, {"episode_seconds": 0.3}
     seeds = [11, 12]
     params = je.make_params(env_id, seeds=seeds, randomise=bands, **options)
