@@ -379,7 +379,7 @@ def batched_clairvoyant(episode_return: Callable, data, V0, v_min: float, v_max:
         _COMPILED[key] = _batched_program(episode_return, tuple(blocks), max_iter, tol, memory)
     args = (jnp.asarray(np.clip(V0, v_min, v_max)), data, jnp.asarray(float(v_min)), jnp.asarray(float(v_max)))
     shapes = (key, jax.tree_util.tree_structure(data),
-              tuple((np.shape(x), str(np.result_type(x))) for x in jax.tree_util.tree_leaves(data)))
+              tuple((np.shape(x), str(getattr(x, "dtype", type(x)))) for x in jax.tree_util.tree_leaves(data)))
     t0 = time.perf_counter()
     if shapes not in _COMPILED:  # compiled apart from the run, so that the run's time is the solves'
         _COMPILED[shapes] = _COMPILED[key].lower(*args).compile()
