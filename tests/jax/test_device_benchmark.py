@@ -16,7 +16,7 @@ def test_quick_run_records_the_device_and_each_size(tmp_path, monkeypatch):
     from experiments.measurements.speed import device
     from mrd_env.jax import env as je
 
-    env_id, options = device.PLANTS["quarter_car"]
+    env_id, options = device.PLANTS[device.QUICK["plants"]]
     asm = je.assembly_of(env_id, options)[0]
     small = je.check_bank(asm, seeds=range(device.BANK), num_envs=8)
     big = je.check_bank(asm, seeds=range(device.BANK), num_envs=1 << 20)
@@ -29,11 +29,11 @@ def test_quick_run_records_the_device_and_each_size(tmp_path, monkeypatch):
     assert d["device"]["cpus"] >= 1 and isinstance(d["load_start"], float) and isinstance(d["load_end"], float)
     assert d["options"]["quick"] and d["clairvoyant"] is None
     ran, refused = d["speed"]
-    assert (ran["plant"], ran["scheme"], ran["N"], ran["steps"]) == ("quarter_car", "differentiable", 8, 5)
+    assert (ran["plant"], ran["scheme"], ran["N"], ran["steps"]) == (device.QUICK["plants"], "differentiable", 8, 5)
     assert ran["env_steps_per_s"] > 0 and ran["compile_s"] > 0 and "skipped" not in ran
     assert refused["N"] == 1 << 20 and "MRD_ENV_MEMORY_LIMIT" in refused["skipped"]
     md = out.with_suffix(".md").read_text()
-    assert "env-steps/s" in md and jax.devices()[0].device_kind in md and "quarter_car" in md
+    assert "env-steps/s" in md and jax.devices()[0].device_kind in md and device.QUICK["plants"] in md
 
 
 @pytest.mark.parametrize("args, names", [(["--plants", "nope"], "--plants"), (["--n", "0"], "--n"),

@@ -34,13 +34,14 @@ from pathlib import Path
 
 import numpy as np
 
+from experiments.common.plants import default_plant
 from experiments.measurements.speed.jax_plants import PLANTS, SCHEMES
 from experiments.measurements.speed.jax_quarter_car import compiled, load_average
 
 SIZES = (1024, 4096, 16384, 65536)
 #: Episodes in each plant's bank (the records the environments draw from at every reset).
 BANK = 16
-QUICK = {"plants": next(iter(PLANTS)), "n": "64", "steps": 5, "repeats": 1, "schemes": "differentiable",
+QUICK = {"plants": default_plant(), "n": "64", "steps": 5, "repeats": 1, "schemes": "differentiable",
          "episodes": 1, "seconds": 0.3}
 
 
