@@ -53,6 +53,16 @@ def test_the_docs_show_the_stored_figures(stored):
     assert score_suites.summary_table(stored).strip() in (ROOT / "README.md").read_text(encoding="utf-8")
 
 
+def test_no_shipped_controller_scores_above_the_clairvoyant(stored):
+    """Issue 51: R_c is the optimum of the suite's own action space, so no causal controller's return may exceed it
+    on any episode of any suite — a share above 1 would mean a reference that is not an optimum (the stored shares
+    are rounded to 4 decimals: 1e-4 of slack)."""
+    above = [(sid, c["name"], label, share) for sid, entry in stored["suites"].items()
+             for c in entry["controllers"] for label, share in c["episode_shares"].items()
+             if share is not None and share > 1 + 1e-4]
+    assert not above, f"controllers above the clairvoyant: {above}"
+
+
 CASES = [  # (suite, controller row, episodes per scenario: None for all)
     ("car-comfort-v1", "skyhook_continuous", None),
     ("car-preview-v1", "mpc+preview (reward)", 1),
