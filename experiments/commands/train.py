@@ -10,7 +10,9 @@ every ``--eval-freq`` steps on the validation scenarios (the training distributi
 draws; the test scenarios are never seen), and the best agent is kept; checkpoints every ``--checkpoint-freq``
 steps; learning curves as CSV (training episodes, validation) and PNG; TensorBoard logs with ``--tensorboard``;
 several seeds in one command (``--seeds 0 1 2``); a progress bar. ``--algo cmaes`` trains a policy network with an
-evolution strategy instead, on the same scenarios and with the same outputs (:mod:`.evolution`). Both are trainers
+evolution strategy instead, on the same scenarios and with the same outputs (:mod:`.evolution`); ``--algo bc`` and
+``--algo td3bc`` learn offline from recorded episodes (``--dataset FOLDER``: Minari datasets of ``mrd-env dataset``;
+:mod:`experiments.training.offline`). Both are trainers
 behind one interface (:mod:`.trainers`); the plant's environment, training distribution and validation come from its
 profile (:mod:`.plants`).
 
@@ -37,8 +39,8 @@ from ..common import sweep
 from ..common.plants import (PlantProfile, add_plant_options, default_plant, plant_choices, plant_name, profile,
                              with_plant_options)
 from experiments.training.sb3_trainer import check_laws, check_with_sb3
-from experiments.training.trainers import (ALGOS, available_algos, env_options, hyperparameters, residual_spec, run_name,
-                               steps_label, train_one, validation_split)
+from experiments.training.trainers import (ALGOS, TRAINERS, available_algos, env_options, hyperparameters, residual_spec,
+                               run_name, steps_label, train_one, validation_split)
 
 
 def _parse_overrides(items) -> dict:
@@ -207,6 +209,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--warm-start", default=None, metavar="LAW",
                    help="cmaes: begin as this classical law (behaviour cloning; default: the YAML's warm_start); "
                         "shac: begin as this agent (a folder, or 'cmaes': the shipped CMA-ES agent)")
+    p.add_argument("--dataset", type=Path, default=None, metavar="FOLDER",
+                   help="bc, td3bc: learn from the Minari dataset(s) in FOLDER (mrd-env dataset) instead of the "
+                        "environment; --timesteps and --eval-freq then count gradient steps")
     p.add_argument("--eval-freq", type=int, default=20_000, help="validation every so many steps (0: never)")
     p.add_argument("--eval-episodes", type=int, default=8, help="validation episodes (unseen seeds)")
     p.add_argument("--checkpoint-freq", type=int, default=0, help="checkpoint every so many steps (0: never)")
@@ -220,7 +225,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def check_before_training(algo: str, hyper: dict, env_id: str, env_kwargs: dict) -> None:
     """What an SB3 entry must pass before any training starts (its keys and values are checked when it is read):
     the residual's and the paired baseline's laws apply to the plant, and SB3 builds the model."""
-    if algo not in ("cmaes", "shac"):
+    if algo not in ("cmaes", "shac") and "dataset" not in TRAINERS[algo].options:  # SB3's
         import torch
 
         # this command's own process: one torch thread, as in training (none spins against the environments)
@@ -246,6 +251,12 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError(f"{name} must be >= 0, got {v}")
     if args.eval_episodes < 1:
         raise ValueError(f"--eval-episodes must be >= 1, got {args.eval_episodes}")
+    offline = "dataset" in TRAINERS[args.algo].options
+    if offline and args.dataset is None:
+        raise ValueError(f"--algo {args.algo} learns from recorded episodes: give --dataset FOLDER (mrd-env dataset)")
+    if args.dataset is not None and not offline:
+        raise ValueError(f"--dataset applies to the offline algorithms "
+                         f"({', '.join(a for a, t in TRAINERS.items() if 'dataset' in t.options)}), not to {args.algo}")
     disturbance = None
     if args.disturbance is not None:
         text = args.disturbance.strip()
@@ -296,6 +307,9 @@ def run(args: argparse.Namespace) -> int:
                              "hyperparameter file with one")
         hyper = hyperparameters(args.algo, env_id, args.hyperparams, {**overrides, "residual": {**spec, **options}})
     check_before_training(args.algo, hyper, env_id, env_kwargs)
+    if offline:  # the dataset read and checked against the agent's observations before anything is written
+        from experiments.training.offline import check_dataset
+        check_dataset(args.dataset, plant, env_kwargs)
     if args.tensorboard:
         import importlib.util
         if importlib.util.find_spec("tensorboard") is None:
@@ -309,7 +323,8 @@ def run(args: argparse.Namespace) -> int:
     folders = train(plant, args.algo, args.seeds, out=args.out, timesteps=args.timesteps, hyper=hyper,
                     env_kwargs=env_kwargs, eval_freq=args.eval_freq, eval_episodes=args.eval_episodes,
                     checkpoint_freq=args.checkpoint_freq, tensorboard=args.tensorboard,
-                    progress=not args.no_progress, command=command, warm_start=args.warm_start, **executor)
+                    progress=not args.no_progress, command=command, warm_start=args.warm_start,
+                    **({"dataset": args.dataset} if offline else {}), **executor)
     for f in folders:
         print(f"saved {f} (score it on the suites it fits: mrd-env benchmark --plant {plant.name} --controller {f})")
     return 0

@@ -16,7 +16,8 @@ imports no trainer and every trainer imports this one — no import circle:
   any training starts.
 
 The Stable-Baselines3 algorithms (PPO, SAC, TD3, A2C, RecurrentPPO, TQC) share one trainer
-(:mod:`.sb3_trainer`); CMA-ES is the other (:mod:`.evolution`). A new trainer is a module with these two functions
+(:mod:`.sb3_trainer`); CMA-ES (:mod:`.evolution`) and SHAC (:mod:`.shac`) have their own; BC and TD3+BC learn from a
+recorded dataset instead of the environment (:mod:`.offline`, the trainers with the ``dataset`` option). A new trainer is a module with these two functions
 and an entry in :data:`TRAINERS`.
 """
 from __future__ import annotations
@@ -34,7 +35,7 @@ from experiments.common.scenarios import Scenario, validation
 
 #: What each optional keyword of ``train`` is, for the message when a trainer lacks it.
 OPTION_NAMES = {"report": "pruning", "checkpoint_freq": "checkpoints", "tensorboard": "TensorBoard logs",
-                "warm_start": "warm start"}
+                "warm_start": "warm start", "dataset": "offline dataset (--dataset)"}
 
 
 @dataclass(frozen=True)
@@ -77,6 +78,11 @@ TRAINERS: dict[str, Trainer] = {
                      "experiments.training.evolution:check_entry", ("warm_start",)),
     "shac": Trainer("shac", "SHAC", "experiments.training.shac:train_shac", "experiments.training.shac:check_entry",
                     ("warm_start",)),
+    # offline: from a recorded dataset, no environment step (the trainers that take one)
+    "bc": Trainer("bc", "BC", "experiments.training.offline:train_bc", "experiments.training.offline:check_entry",
+                  ("dataset",)),
+    "td3bc": Trainer("td3bc", "TD3+BC", "experiments.training.offline:train_td3bc",
+                     "experiments.training.offline:check_entry", ("dataset",)),
 }
 
 
@@ -94,14 +100,15 @@ ALGOS = {algo: t.label for algo, t in TRAINERS.items()}
 def train_one(plant: PlantProfile, algo: str, seed: int, *, out: Path, timesteps: int | None = None,
               hyper: dict | None = None, env_kwargs: dict | None = None, eval_freq: int = 20_000,
               eval_episodes: int = 8, checkpoint_freq: int = 0, tensorboard: bool = False, progress: bool = False,
-              command: str = "", report=None, warm_start: str | None = None) -> Path:
+              command: str = "", report=None, warm_start: str | None = None, dataset=None) -> Path:
     """Train one agent on ``plant`` with the trainer of ``algo`` (:data:`TRAINERS`); return its folder. ``report``
     (SB3): told every validation, stops the training when it returns False (a hyperparameter search's pruning);
-    ``warm_start`` (CMA-ES): a law's name, which the policy imitates before training (:mod:`.warm_start`)."""
+    ``warm_start`` (CMA-ES): a law's name, which the policy imitates before training (:mod:`.warm_start`);
+    ``dataset`` (BC, TD3+BC): the recorded episodes' folder (:mod:`.offline`)."""
     return trainer(algo).train(plant, seed, out=out, timesteps=timesteps, hyper=hyper, env_kwargs=env_kwargs,
                                eval_freq=eval_freq, eval_episodes=eval_episodes, checkpoint_freq=checkpoint_freq,
                                tensorboard=tensorboard, progress=progress, command=command, report=report,
-                               warm_start=warm_start)
+                               warm_start=warm_start, dataset=dataset)
 
 
 # --- hyperparameter entries -----------------------------------------------------------------------------------------
@@ -326,6 +333,8 @@ def steps_label(run_dir: Path) -> str:
 
     path = run_dir / "agent.json"
     meta = json.loads(path.read_text(encoding="utf-8")) if path.exists() else {}
+    if meta.get("offline"):
+        return "gradient steps (offline: no environment step)"
     hold = int((meta.get("residual") or {}).get("hold", 1))
     if hold == 1:
         return "environment steps"
