@@ -1,57 +1,81 @@
 """A passivity-aware upper bound: the active-actuator bound (:mod:`.bound`) with the actuator barred from giving
 back more energy than it has taken from the plant.
 
-**What it covers.** Every force history F (total damper force, linear between the 1 ms rows: the bound's model of
+**What it covers.** Every force history F (the damper forces, linear between the 1 ms rows: the bound's model of
 the environment, as for :func:`~.bound.active_bound`) with, at every row t_r,
 
-* |F(t_r) − F_static| ≤ f_max (the active bound's force limit), and
-* ∫₀^{t_r} (F − F_static)·ẋ_d dτ ≥ −E₀ (summed over the dampers where there are several),
+* |F_i(t_r) − F_static| ≤ f_max for every damper i (the active bound's force box), and
+* Σ_i ∫₀^{t_r} [(F_i − F_s,i)·ẋ_d,i − c_min,i·ẋ_d,i²] dτ ≥ −E₀ (summed over the dampers),
 
-E₀ = ``storage`` (J, default 0): the device, started with an empty store, has never given the plant more energy than
-it has taken from it. That is a *passive device with internal storage*, a class larger than the semi-active one:
-every force history with (F − F_static)·ẋ_d ≥ 0 at every instant belongs to it (its absorbed energy never falls),
-and so does a device that stores energy and returns it later (a spring, a regenerative actuator with a lossless
-battery). The bound holds for all of them — every semi-active damper whose force stays within f_max, whatever its
-model — and for every passive damper model whose internal store starts empty. The environment's Spencer–Dyke damper:
-the accumulator spring k1 stores ½k1·x_d² (x_d(0) = 0: the plant starts at its static equilibrium), the internal
-spring k0 ½k0(x − y)², the Bouc–Wen element its hysteretic z, the dashpots c0, c1 dissipate. One caveat is of the
-model, not of MR fluid: a Bouc–Wen gain α(u) that follows the command makes a spring of stiffness α·A in its elastic
-range, and a spring whose stiffness is switched can be pumped (soft while it extends, stiff while it recovers), at
-most ~Δα·z_max²/(2A) per cycle (17 mJ for the automotive preset, 11 mJ for the prototype). Measured: passive-on,
+**The energy accounting.** Damper i's port is (F_i − F_s,i, ẋ_d,i). F_s,i (``static_forces``, N) is the damper's
+force at rest at its initial stroke x_d,i(0) (:func:`static_forces`: F_static + F_r(x_d,i(0)) − F_r(0), F_r the
+damper model's force at rest, :meth:`~mrd_env.dampers.DamperModel.rest_force`): F_static wherever the strokes start
+at 0 (the quarter car, the buildings, the full car on a bump), F_static + k1·x_d,i(0) for the Spencer–Dyke damper
+on the full car's warped start (the car at rest on the road's initial heights with the accumulators' k1·x_d in its
+equilibrium; the environment resets the damper there, its force then is F_s,i). E₀ = ``storage`` (J, default 0) is
+the energy the devices hold at t = 0 *relative to those forces*. For a device at rest at its initial stroke it is
+0: a static spring F_r (nondecreasing) stores ∫_{x_d(0)}^{x_d} (F_r(ξ) − F_r(x_d(0))) dξ ≥ 0, nil at t = 0 — for
+the Spencer–Dyke accumulator ½k1(x_d − x_d(0))² — and the environment resets the internal states at rest at the
+initial stroke (y = x_d, z = 0: the k0 spring and the Bouc–Wen element hold nothing). So the class is that of
+*passive devices with internal storage, empty at the start*; every semi-active force history belongs to it — every
+F with (F_i − F_s,i)·ẋ_d,i ≥ 0 at every instant, whatever the damper's model, so long as it stays within f_max — and
+so does a device that stores energy and gives it back later (a spring, a regenerative actuator with a lossless
+battery). Referring the ports to F_static instead (the only accounting before issue 51) is not valid on a warped
+start: ∫(F − F_static)·ẋ_d = ∫(F − F_s)·ẋ_d + Σ_i (F_s,i − F_static)(x_d,i − x_d,i(0)), and the last term has no
+lower bound known in advance — the damper locked at its static forces, F ≡ F_s, would lie outside the class. The
+plant's own initial energy (the full car starts moving with the road, stroke rates nil) is in the free response
+x̄ below, which is data: it costs the class nothing. ``storage`` > 0 widens the class to cover a store explicitly
+(the bound grows with it, to the active bound).
+
+``min_damping`` c_min,i (N·s/m, default 0) narrows the class to devices that dissipate at least a dashpot c_min's
+energy: F − F_s − c_min·ẋ_d passive, i.e. the semi-active damper's lower force limit F ∈ [c_min, c_max]·ẋ_d
+(Savaresi et al. 2010, ch. 3) in cumulative form. :func:`viscous_floor` gives the Spencer–Dyke damper's: c0, c1 in
+series at the minimum command, c0c1/(c0 + c1) (744 N·s/m for the automotive preset), since c1ẏ·ẋ = c1ẏ² + c0(ẋ − ẏ)²
++ α z (ẋ − ẏ) + k0 (x − y)(ẋ − ẏ) and c1ẏ² + c0(ẋ − ẏ)² ≥ c0c1/(c0 + c1)·ẋ² for every split of ẋ. Its validity rests
+on the Bouc–Wen term as the whole bound's does (below), with less of the viscous dissipation to spare: checked on
+the environment's runs (``experiments/measurements/accuracy/bound_bracket.py``), not proven.
+
+One caveat is of the model, not of MR fluid: a Bouc–Wen gain α(u) that follows the command makes a spring of
+stiffness α·A in its elastic range, and a spring whose stiffness is switched can be pumped (soft while it extends,
+stiff while it recovers), at most ~Δα·z_max²/(2A) per cycle (17 mJ for the automotive preset, 11 mJ for the
+prototype); with β > γ (the automotive preset) its unloading branch is stiffer than A as well. Measured: passive-on,
 passive-off, every law of the yardstick at 1 ms, random and bang-bang commands and the clairvoyant optimum have
-absorbed ≥ 0 J (to rounding) at every row of every episode checked (:func:`absorbed_energy` on the environment's forces;
-``experiments/measurements/accuracy/bound_bracket.py``, ``tests/optimal/test_bound.py``); ``storage`` > 0 widens the class
-to cover a store explicitly (the bound grows with it, to the active bound).
+absorbed ≥ 0 J (to rounding) at every row of every episode checked (:func:`absorbed_energy` on the environment's
+forces; ``experiments/measurements/accuracy/bound_bracket.py``, ``tests/optimal/test_bound.py``,
+``tests/optimal/test_dissipative.py``).
 
-**How.** The plant seen from the damper's port is passive: with M, K, C recovered from the problem's matrices
+**How.** The plant seen from the dampers' ports is passive: with M, K, C recovered from the problem's matrices
 (:func:`port_storage`: M q̈ + C q̇ + K q = −Sᵀ(F − F_static) + E w), the storage ½eᵀPe, P = diag(K, M), and the
-dissipation ½eᵀQe, Q = diag(0, 2C), satisfy for the deviation e = x − x̄ from the free response x̄ (F ≡ F_static,
-the disturbance known) the exact identity
+dissipation ½eᵀQe, Q = diag(0, 2C), satisfy for the deviation e = x − x̄ from the free response x̄ (F ≡ F_s, the
+disturbance known, x̄(0) = x(0) whatever the initial state) the exact identity
 
-    ∫₀ᵗ (F − F_static)·ẋ_d dτ = ∫₀ᵗ (F − F_static)·ẋ̄_d dτ − ½e(t)ᵀP e(t) − ½∫₀ᵗ eᵀQe dτ
+    ∫₀ᵗ (F − F_s)·ẋ_d dτ = ∫₀ᵗ (F − F_s)·ẋ̄_d dτ − ½e(t)ᵀP e(t) − ½∫₀ᵗ eᵀQe dτ
 
-(d/dt ½eᵀPe = −½eᵀQe − (F − F_static)·C_v e, since P B_F = −C_vᵀ and AᵀP + PA = −Q). The first term is linear in
-the forces (x̄ is data), the others are concave quadratics: the energy condition at each row is a convex constraint.
-A running variable Y_t — the first term minus the dissipation, a linear recursion (no damping in the plant, the car)
-or one rotated second-order cone per row (the building's structural damping) — turns it into one cone per row,
-½e_tᵀPe_t ≤ E₀ + Y_t, added to the active bound's QP. The integrals over each row are 3-point Gauss–Legendre on the
-exact intra-row response (the force-linear part to rounding, the rest within ~1e-9 relative). Rows where the plant
-is still at rest with an empty store (before a bump arrives) force e = 0 exactly: equalities, not cones at their
-apex. Clarabel solves the SOCP; the bound is −its dual objective (weak duality), an upper bound on the return of
-every force history of the class to the solver's tolerance, as the active bound is.
+(d/dt ½eᵀPe = −½eᵀQe − (F − F_s)·C_v e, since ė = Ae + B_F(F − F_s), P B_F = −C_vᵀ and AᵀP + PA = −Q). The first
+term is linear in the forces (x̄ is data), the others are concave quadratics, and so is −c_min∫ẋ_d² (ẋ_d affine in
+the unknowns): the energy condition at each row is a convex constraint. A running variable Y_t — the first term
+minus the dissipation, a linear recursion (no damping in the plant and c_min = 0: the quarter car) or one rotated
+second-order cone per row (the building's structural damping, the full car's tyres, c_min > 0) — turns it into one
+cone per row, ½e_tᵀPe_t ≤ E₀ + Y_t, added to the active bound's QP. The integrals over each row are 3-point
+Gauss–Legendre on the exact intra-row response (the force-linear part to rounding, the rest within ~1e-9
+relative). Rows where the plant is still at rest with an empty store (before a bump arrives) force e = 0 exactly:
+equalities, not cones at their apex. Clarabel solves the SOCP; the bound is −its dual objective (weak duality), an
+upper bound on the return of every force history of the class to the solver's tolerance, as the active bound is.
 
-**Why not the semi-active condition row by row.** (F − F_static)·ẋ_d ≥ 0 is bilinear; the convex hull of
-{(F, v): (F − F_static)·v ≥ 0, |F − F_static| ≤ f_max} is the whole box unless the stroke velocity v is bounded at
-that row, so a McCormick envelope (or any per-row cut) needs [v_lo, v_hi] valid for every admissible trajectory.
-The class contains F ≡ F_static, and the car has no damping but its damper: bounds from the force limit alone grow
-by ~41 m/s per second of episode (±4 m/s after 0.1 s, against 0.3 m/s RMS stroke velocity); bounds restricted to
-trajectories scoring better than the best law but with the force box dropped (an ellipsoid, closed form) were
-±144 m/s on a 2 s ISO episode; tightening them by a convex problem per row is 2·10⁴ solves per 10 s episode. And even
-the envelope of the velocities the laws and the clairvoyant actually had (not a valid bound: narrower than any
-valid one) leaves most of the bracket (``bench_bound_bracket --oracle``; docs/yardstick.md). A Lagrangian (Shor)
-relaxation with one multiplier per row is tractable only where the Lagrangian stays concave in the forces; with
-nonincreasing multipliers it is a positive combination of the cumulative conditions imposed here (concave by the
-plant's passivity) — whether other multipliers gain anything is open.
+**Why not per damper, or the semi-active condition row by row.** Σ_i is a condition on the dampers together: one
+damper's absorbed energy ∫(F_i − F_s,i)·ẋ_d,i has a cross term ∫F_i·(C_v,i e(F_j)) bilinear in two dampers' forces
+(the plant's storage makes only the sum concave), so per-damper conditions are not convex. (F − F_s)·ẋ_d ≥ 0 row
+by row is bilinear; the convex hull of {(F, v): (F − F_s)·v ≥ 0, |F − F_static| ≤ f_max} is the whole box unless the
+stroke velocity v is bounded at that row, so a McCormick envelope (or any per-row cut) needs [v_lo, v_hi] valid for
+every admissible trajectory. The class contains F ≡ F_s, and the car has no damping but its damper: bounds from the
+force limit alone grow by ~41 m/s per second of episode (±4 m/s after 0.1 s, against 0.3 m/s RMS stroke velocity);
+bounds restricted to trajectories scoring better than the best law but with the force box dropped (an ellipsoid,
+closed form) were ±144 m/s on a 2 s ISO episode; tightening them by a convex problem per row is 2·10⁴ solves per
+10 s episode. And even the envelope of the velocities the laws and the clairvoyant actually had (not a valid bound:
+narrower than any valid one) leaves most of the bracket (``bound_bracket --oracle``; docs/yardstick.md). A
+Lagrangian (Shor) relaxation with one multiplier per row is tractable only where the Lagrangian stays concave in the
+forces; with nonincreasing multipliers it is a positive combination of the cumulative conditions imposed here
+(concave by the plant's passivity) — whether other multipliers gain anything is open.
 """
 from __future__ import annotations
 
@@ -67,15 +91,22 @@ from .problem import EpisodeProblem
 
 #: Gauss–Legendre nodes per row for the energy integrals.
 NODES = 3
+#: the relative duality gap accepted where Clarabel stops "almost solved" with a negligible dual residual: the
+#: bound is the dual objective, valid whatever the gap, looser by it (the full car's bump stalls at 7e-5)
+ALMOST_GAP = 1e-4
 
 
 @dataclass
 class DissipativeBoundResult(BoundResult):
-    """The passivity-aware bound of an episode: :class:`~.bound.BoundResult`'s fields (``kind`` "passive") and the
-    initial store ``storage`` (J) and the optimum's ``absorbed`` energy ∫₀^{t_r} (F − F_static)·ẋ_d (n_rows,)."""
+    """The passivity-aware bound of an episode: :class:`~.bound.BoundResult`'s fields (``kind`` "passive"), the
+    initial store ``storage`` (J), the ports' reference forces ``static_forces`` (N, (nd,)) and least damping
+    ``min_damping`` (N·s/m, (nd,)), and the optimum's ``absorbed`` energy, the class's quantity
+    Σ∫₀^{t_r} [(F − F_s)·ẋ_d − c_min·ẋ_d²] (J, (n_rows,))."""
 
     storage: float = 0.0
     absorbed: np.ndarray | None = None
+    static_forces: np.ndarray | None = None
+    min_damping: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -157,6 +188,52 @@ def _gauss(k: int = NODES):
     return 0.5 * (x + 1.0), 0.5 * w   # nodes in (0, 1), weights summing to 1
 
 
+def static_forces(problem: EpisodeProblem) -> np.ndarray:
+    """The dampers' forces at rest at their initial strokes x_d(0) = C_x x0 (N, (nd,)): F_static + F_r(x_d,i(0)) −
+    F_r(0), F_r the damper's force at rest at the minimum command (where the environment resets the effective
+    command), :meth:`~mrd_env.dampers.DamperModel.rest_force`. Exactly F_static where a stroke starts at 0 (no
+    damper model needed there)."""
+    p = problem
+    xd0 = np.asarray(p.Cx, dtype=float) @ np.asarray(p.x0, dtype=float)
+    out = np.full(p.nd, float(p.F_static))
+    moved = np.nonzero(xd0)[0]
+    if moved.size:
+        if p.damper is None:
+            raise ValueError("static_forces: the problem's strokes start off zero and it has no damper model to "
+                             "give their forces at rest; pass static_forces to dissipative_bound")
+        u = p.v_min
+        f0 = p.damper.rest_force(0.0, u)
+        for i in moved:
+            out[i] += p.damper.rest_force(float(xd0[i]), u) - f0
+    return out
+
+
+def viscous_floor(damper) -> float:
+    """The least viscous damping of a Spencer–Dyke damper at any command (N·s/m): its dashpots c0 and c1 in series
+    at the minimum command, c0c1/(c0 + c1) (c0, c1 grow with the command): c1ẏ² + c0(ẋ − ẏ)² ≥ c0c1/(c0 + c1)·ẋ²
+    for every split of ẋ (see the module docstring). ``ValueError`` for another model (no such floor derived)."""
+    if getattr(damper, "name", None) != "spencer_dyke":
+        raise ValueError(f"viscous_floor is derived for the Spencer–Dyke damper only, got "
+                         f"{getattr(damper, 'name', type(damper).__name__)!r}: give min_damping yourself")
+    q, u = damper.params, float(damper.command.v_min)
+    c0, c1 = q.c0a + q.c0b * u, q.c1a + q.c1b * u
+    return float(c0 * c1 / (c0 + c1)) if c0 + c1 > 0 else 0.0
+
+
+def _per_damper(problem: EpisodeProblem, value, name: str, unit: str, lo: float = -np.inf) -> np.ndarray:
+    """A scalar or (nd,) argument as a finite float array (nd,) ≥ ``lo``, else ``ValueError`` naming it."""
+    if isinstance(value, (bool, str)):
+        raise ValueError(f"{name} must be a number or {problem.nd} numbers in {unit}, got {value!r}")
+    try:
+        v = np.broadcast_to(np.asarray(value, dtype=float), (problem.nd,)).copy()
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number or {problem.nd} numbers (one per damper) in {unit}, "
+                         f"got {value!r}") from None
+    if not np.all(np.isfinite(v)) or np.any(v < lo):
+        raise ValueError(f"{name} must be finite{'' if lo == -np.inf else f' and >= {lo:g}'} {unit}, got {value!r}")
+    return v
+
+
 def _response(problem: EpisodeProblem, F: np.ndarray) -> np.ndarray:
     """The plant's states at every row (n_rows, nx) under the forces ``F`` (n_rows, nd), linear between rows."""
     p = problem
@@ -170,69 +247,99 @@ def _response(problem: EpisodeProblem, F: np.ndarray) -> np.ndarray:
     return X
 
 
-def free_response(problem: EpisodeProblem) -> np.ndarray:
-    """The plant's states at every row (n_rows, nx) with the damper force held at F_static (exact, FOH)."""
-    return _response(problem, np.full((problem.n_rows, problem.nd), problem.F_static))
+def free_response(problem: EpisodeProblem, static_forces=None) -> np.ndarray:
+    """The plant's states at every row (n_rows, nx) with the damper forces held at ``static_forces`` (default
+    :func:`static_forces`; F_static where the strokes start at 0) (exact, FOH)."""
+    Fs = _reference(problem, static_forces)
+    return _response(problem, np.tile(Fs, (problem.n_rows, 1)))
 
 
-def absorbed_energy(problem: EpisodeProblem, F, X=None) -> np.ndarray:
-    """∫₀^{t_r} (F − F_static)·ẋ_d dτ (J, summed over the dampers) at every row r of the force history ``F``
-    (n_rows, nd; linear between rows) on the problem's plant: the energy the dampers have taken from the plant.
-    ``X``: the plant's states at the rows (default: the exact response of the plant to ``F``, the bound's
-    model). The class of :func:`dissipative_bound` is ``absorbed_energy(...) >= −storage`` at every row."""
+def _reference(problem, static_forces):
+    return static_forces_of(problem) if static_forces is None else \
+        _per_damper(problem, static_forces, "static_forces", "N")
+
+
+static_forces_of = static_forces   # the module-level name, for the functions whose argument shadows it
+
+
+def absorbed_energy(problem: EpisodeProblem, F, X=None, static_forces=None, min_damping=0.0) -> np.ndarray:
+    """Σ_i ∫₀^{t_r} [(F_i − F_s,i)·ẋ_d,i − c_min,i·ẋ_d,i²] dτ (J) at every row r of the force history ``F``
+    (n_rows, nd; linear between rows) on the problem's plant: the energy the dampers have taken from the plant
+    beyond a dashpot c_min's (``min_damping``, default 0), their ports referred to ``static_forces`` (default
+    :func:`static_forces`). ``X``: the plant's states at the rows (default: the exact response of the plant to
+    ``F``, the bound's model). The class of :func:`dissipative_bound` is ``absorbed_energy(...) >= −storage`` at
+    every row."""
     p = problem
+    Fs = _reference(p, static_forces)
+    cmin = _per_damper(p, min_damping, "min_damping", "N·s/m", lo=0.0)
     F = np.asarray(F, dtype=float).reshape(p.n_rows, p.nd)
     B = np.hstack([p.BF, p.Bw])
     U = np.hstack([F, p.W])
     X = _response(p, F) if X is None else np.asarray(X, dtype=float)
     s, w = _gauss()
-    dF = F - p.F_static
+    dF = F - Fs
     per_row = np.zeros(p.n_rows - 1)
     for (Phk, G0, G1), sk, wk in zip(_node_maps(p.A, B, p.dt, s), s, w):
         Xk = X[:-1] @ Phk.T + U[:-1] @ G0.T + (U[1:] - U[:-1]) @ G1.T
         Fk = (1 - sk) * dF[:-1] + sk * dF[1:]
-        per_row += wk * p.dt * np.sum(Fk * (Xk @ p.Cv.T), axis=1)
+        Vk = Xk @ p.Cv.T
+        per_row += wk * p.dt * np.sum(Fk * Vk - cmin * Vk ** 2, axis=1)
     return np.concatenate([[0.0], np.cumsum(per_row)])
 
 
 def dissipative_bound(problem: EpisodeProblem, f_max: float | None = None, storage: float = 0.0,
-                      solver: str = "clarabel", limits: bool = True, tol: float = 1e-8) -> DissipativeBoundResult:
+                      solver: str = "clarabel", limits: bool = True, tol: float = 1e-8, static_forces=None,
+                      min_damping=0.0) -> DissipativeBoundResult:
     """The passivity-aware bound of ``problem`` (see the module docstring): an upper bound on the return of every
     force history within ``f_max`` of F_static that never gives back more energy than it has absorbed plus
-    ``storage`` (J). ``f_max``, ``solver``, ``limits`` and ``tol`` as for :func:`~.bound.active_bound` (the same
-    default force limit); never above the active bound of the same ``f_max`` (to the solvers' tolerances)."""
+    ``storage`` (J), its ports referred to ``static_forces`` (N, scalar or one per damper; default
+    :func:`static_forces`, the dampers' forces at rest at their initial strokes) and, with ``min_damping`` c_min
+    (N·s/m, scalar or per damper; default 0), beyond a dashpot c_min's dissipation. ``f_max``, ``solver``,
+    ``limits`` and ``tol`` as for :func:`~.bound.active_bound` (the same default force limit); never above the
+    active bound of the same ``f_max`` (to the solvers' tolerances). ``RuntimeError`` where the class holds no
+    force history within the limits (e.g. f_max below the static forces' offset from F_static)."""
     f_max, source = check_arguments(problem, f_max, solver, tol)
     if isinstance(storage, bool) or not isinstance(storage, (int, float, np.floating, np.integer)) \
             or not np.isfinite(storage) or storage < 0:
         raise ValueError(f"storage must be finite and >= 0 J, got {storage!r}")
     storage = float(storage)
-    ps = port_storage(problem)
-    if f_max == 0.0:   # one force history, F ≡ F_static, which takes no energy: the active bound's, exactly
+    p = problem
+    Fs = _reference(p, static_forces)
+    cmin = _per_damper(p, min_damping, "min_damping", "N·s/m", lo=0.0)
+    ps = port_storage(p)
+    extra = {"storage": storage, "static_forces": Fs, "min_damping": cmin}
+    if f_max == 0.0:   # one force history, F ≡ F_static: the active bound's, if it lies in the class
         from dataclasses import asdict
 
         from .bound import active_bound
 
-        res = active_bound(problem, f_max=0.0, solver=solver, limits=limits, tol=tol)
+        F0 = np.full((p.n_rows, p.nd), p.F_static)
+        taken = absorbed_energy(p, F0, static_forces=Fs, min_damping=cmin)
+        if taken.min() < -storage - 1e-9 * max(float(np.max(np.abs(taken))), 1e-300):
+            raise RuntimeError("dissipative_bound: the problem is infeasible: with f_max = 0 the one force history, "
+                               f"F ≡ F_static, gives back {-taken.min():.3g} J beyond the store of {storage:g} J")
+        res = active_bound(p, f_max=0.0, solver=solver, limits=limits, tol=tol)
         return DissipativeBoundResult(**{**asdict(res), "kind": "passive", "f_max_source": source},
-                                      storage=storage, absorbed=np.zeros(problem.n_rows))
+                                      absorbed=taken, **extra)
     t0 = time.perf_counter()
-    p = problem
     prog = program(p, f_max, limits)
     L = prog.L
     N, nx, nd, dt = L.N, L.nx, L.nd, p.dt
     n0, n = L.n, L.n + N
     iY = n0 + np.arange(N)            # Y_t, t = 1..N: the energy the plant may hold beyond its free response
     r0 = np.arange(N)                 # rows r = 0..N−1 (intervals [t_r, t_{r+1}])
-    Xf = free_response(p)
+    FsR = np.tile(Fs, (N + 1, 1))
+    Xf = _response(p, FsR)            # the free response x̄: every damper holding its static force
     s, w = _gauss()
     maps = _node_maps(p.A, np.hstack([p.BF, p.Bw]), dt, s)
-    Uf = np.hstack([np.full((N + 1, nd), p.F_static), p.W])
+    Uf = np.hstack([FsR, p.W])
     # the free stroke velocity against the force's two ends on each row: ∫ ΔF v̄ = a_r·ΔF_r + b_r·ΔF_{r+1}
     a, b = np.zeros((N, nd)), np.zeros((N, nd))
     for (Phk, G0, G1), sk, wk in zip(maps, s, w):
         vk = (Xf[:-1] @ Phk.T + Uf[:-1] @ G0.T + (Uf[1:] - Uf[:-1]) @ G1.T) @ p.Cv.T
         a += wk * dt * (1 - sk) * vk
         b += wk * dt * sk * vk
+    lin0 = -np.sum((a + b) * Fs, axis=1)   # ∫ ΔF v̄ = a_r·F_r + b_r·F_{r+1} + lin0_r
     # per row, the energy a force of f_max could have taken along the free velocity so far (+ the store): the
     # scale of Y_t and of its cones; rows where it is nil — below 1e-20 of the episode's, rounding in a plant at
     # rest with nothing stored — have e_t = 0 and Y_t = 0
@@ -245,7 +352,7 @@ def dissipative_bound(problem: EpisodeProblem, f_max: float | None = None, stora
     cY = np.maximum(avail, floor if floor > 0 else 1.0)   # the cones' unit per row: ||x||² ≤ β ⟺
     cstep = np.maximum(step, 1e-3 * cY)                   # ||(β − c, 2√c x)|| ≤ β + c
     Fcol = [L.F(r0) + j for j in range(nd)], [L.F(r0 + 1) + j for j in range(nd)]
-    dissipative = bool(np.any(ps.C))
+    dissipative = bool(np.any(ps.C)) or bool(np.any(cmin > 0))
     eq = Rows()
     b_eq_x = []
     soc = Rows()
@@ -260,7 +367,7 @@ def dissipative_bound(problem: EpisodeProblem, f_max: float | None = None, stora
         b_eq_x.append(np.zeros(T0))
     live = r0[T0:]                    # the rows r whose energy step Y_r → Y_{r+1} is constrained (r ≥ T0)
     if not dissipative:
-        # Y_{r+1} − Y_r − a_r·F_r − b_r·F_{r+1} = −(a_r + b_r)·F_static  (Y_0 = 0)
+        # Y_{r+1} − Y_r − a_r·F_r − b_r·F_{r+1} = lin0_r  (Y_0 = 0)
         st = eq.new(live.size)
         ri = st + np.arange(live.size)
         eq.add(np.ones((1, 1)), ri, iY[live])
@@ -270,21 +377,24 @@ def dissipative_bound(problem: EpisodeProblem, f_max: float | None = None, stora
             eq.i += [ri, ri]
             eq.j += [Fcol[0][j][live], Fcol[1][j][live]]
             eq.v += [-a[live, j], -b[live, j]]
-        b_eq_x.append(-np.sum(a + b, axis=1)[live] * p.F_static)
+        b_eq_x.append(lin0[live])
     elif live.size:
-        # ½∫_r^{r+1} eᵀQe ≤ β_r = Y_r − Y_{r+1} + a_r·ΔF_r + b_r·ΔF_{r+1}: (β + c, β − c, 2√c·g) in the cone,
-        # g = [√(½ w_k dt)·L_q e(t_r + s_k dt)]_k, e(τ) = Φ(τ)(x_r − x̄_r) + Γ0 ΔF_r + Γ1 (ΔF_{r+1} − ΔF_r)
+        # ½∫_r^{r+1} eᵀQe + ∫ c_min·ẋ_d² ≤ β_r = Y_r − Y_{r+1} + a_r·ΔF_r + b_r·ΔF_{r+1}: (β + c, β − c, 2√c·g) in
+        # the cone, g = [√(½ w_k dt)·L_q e(τ_k), √(w_k dt·c_min)·ẋ_d(τ_k)]_k at the nodes τ_k = t_r + s_k dt, with
+        # e(τ) = Φ(τ)(x_r − x̄_r) + Γ0 ΔF_r + Γ1 (ΔF_{r+1} − ΔF_r) and x(τ) = Φ(τ) x_r + Γ0 u_r + Γ1 (u_{r+1} − u_r)
         lam, V = np.linalg.eigh(ps.Q)
-        keep = lam > 1e-12 * lam.max()
+        keep = lam > 1e-12 * lam.max() if lam.max() > 0 else np.zeros(nx, bool)
         Lq = np.sqrt(lam[keep])[:, None] * V[:, keep].T
-        nq_ = Lq.shape[0]
-        d = 2 + len(s) * nq_
+        Lc = np.sqrt(cmin[cmin > 0])[:, None] * np.asarray(p.Cv, float)[cmin > 0]
+        nq_, nc_ = Lq.shape[0], Lc.shape[0]
+        d = 2 + len(s) * (nq_ + nc_)
         m_ = live.size
         st = soc.new(m_ * d)
         rb = st + np.arange(m_) * d
         c = cstep[live]
         bconst = np.zeros((m_, d))
         has = live >= 1
+        first = live == 0             # row 0 starts from the known x0 (= x̄_0): no variable, a constant
         for k_, sign in enumerate((1.0, -1.0)):   # the rows β + c and β − c: s = b − A v
             rr = rb + k_
             soc.add(-np.ones((1, 1)), rr[has], iY[live[has] - 1])      # +Y_r (r ≥ 1)
@@ -293,24 +403,32 @@ def dissipative_bound(problem: EpisodeProblem, f_max: float | None = None, stora
                 soc.i += [rr, rr]
                 soc.j += [Fcol[0][j][live], Fcol[1][j][live]]
                 soc.v += [-a[live, j], -b[live, j]]
-            bconst[:, k_] = sign * c - np.sum(a + b, axis=1)[live] * p.F_static
-        FsV = np.full(nd, p.F_static)
+            bconst[:, k_] = sign * c + lin0[live]
+        sc = 2.0 * np.sqrt(c)
+        Wl, Wn = p.W[live], p.W[live + 1]
         for k_, ((Phk, G0, G1), wk) in enumerate(zip(maps, w)):
-            m = np.sqrt(0.5 * wk * dt) * Lq                            # (nq_, nx), times 2√c per row
-            G0F, G1F = G0[:, :nd], G1[:, :nd]
-            rows_k = rb + 2 + k_ * nq_
-            sc = 2.0 * np.sqrt(c)
-            for i_ in range(nq_):
-                for blk, cols, sel in ((m[i_] @ Phk, L.x(live[has]), has), (m[i_] @ (G0F - G1F), L.F(live), None),
-                                       (m[i_] @ G1F, L.F(live + 1), None)):
-                    rows_i = (rows_k + i_) if sel is None else (rows_k + i_)[sel]
-                    scl = sc if sel is None else sc[sel]
-                    for jx in np.nonzero(blk)[0]:
-                        soc.i.append(rows_i)
-                        soc.j.append(cols + jx)
-                        soc.v.append(-scl * blk[jx])
-            bconst[:, 2 + k_ * nq_: 2 + (k_ + 1) * nq_] = \
-                -sc[:, None] * ((Xf[live] @ Phk.T + FsV @ G0F.T) @ m.T)
+            G0F, G1F, G0W, G1W = G0[:, :nd], G1[:, :nd], G0[:, nd:], G1[:, nd:]
+            col0 = 2 + k_ * (nq_ + nc_)
+            e_const = -(Xf[live] @ Phk.T + Fs @ G0F.T)            # e(τ) = … − Φ x̄_r − Γ0 F_s
+            e_const[first] += p.x0 @ Phk.T                         # + Φ x_0 on row 0 (x_0 is not a variable)
+            x_const = Wl @ (G0W - G1W).T + Wn @ G1W.T              # x(τ) = … + Γ0 W_r + Γ1 (W_{r+1} − W_r)
+            x_const[first] += p.x0 @ Phk.T
+            for Lm, const, off, fac in ((Lq, e_const, col0, np.sqrt(0.5 * wk * dt)),
+                                        (Lc, x_const, col0 + nq_, np.sqrt(wk * dt))):
+                mk = fac * Lm                                          # (rows, nx), times 2√c per live row
+                for i_ in range(mk.shape[0]):
+                    rows_i = rb + off + i_
+                    for blk, cols, sel in ((mk[i_] @ Phk, L.x(live[has]), has),
+                                           (mk[i_] @ (G0F - G1F), L.F(live), None),
+                                           (mk[i_] @ G1F, L.F(live + 1), None)):
+                        rsel = rows_i if sel is None else rows_i[sel]
+                        scl = sc if sel is None else sc[sel]
+                        for jx in np.nonzero(blk)[0]:
+                            soc.i.append(rsel)
+                            soc.j.append(cols + jx)
+                            soc.v.append(-scl * blk[jx])
+                if mk.shape[0]:
+                    bconst[:, off:off + mk.shape[0]] = sc[:, None] * (const @ mk.T)
         b_soc.append(bconst.ravel())
         dims += [d] * m_
     # ½e_tᵀPe_t ≤ E₀ + Y_t (t = T0+1..N): (β + c, β − c, √(2c)·L_p e_t) in the cone, β = E₀ + Y_t
@@ -361,12 +479,13 @@ def dissipative_bound(problem: EpisodeProblem, f_max: float | None = None, stora
     t_setup = time.perf_counter() - t0
     t1 = time.perf_counter()
     z, primal, dual, status, iters = clarabel_solve(P, np.zeros(n), A_eq_s, b_eq, A_in_s, lo, hi, tol,
-                                               soc=(A_s, b_s, dims), who="dissipative_bound")
+                                                    soc=(A_s, b_s, dims), who="dissipative_bound",
+                                                    almost_gap=ALMOST_GAP)
     t_solve = time.perf_counter() - t1
     v = z * scale
     X, F, limit_active = prog.solution(v[:n0])
     return DissipativeBoundResult(
         bound=float(-min(dual, primal)), primal_return=float(-primal), f_max=f_max, f_max_source=source, F=F,
         X=X, limit_active=limit_active, solver=solver, status=status, iterations=int(iters),
-        setup_seconds=t_setup, solve_seconds=t_solve, kind="passive", storage=storage,
-        absorbed=absorbed_energy(p, F, X))
+        setup_seconds=t_setup, solve_seconds=t_solve, kind="passive",
+        absorbed=absorbed_energy(p, F, X, static_forces=Fs, min_damping=cmin), **extra)

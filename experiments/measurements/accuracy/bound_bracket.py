@@ -2,14 +2,20 @@
 
     python -m experiments.measurements.accuracy.bound_bracket [--scenario NAME ...] [--seeds N | --seed S ...] [--seconds S] \\
         [--no-clairvoyant] [--oracle] [--storage J] [--out results/bench/bound_bracket]
-    python -m experiments.measurements.accuracy.bound_bracket --suite ID [ID ...] [--out results/bench/suite_bracket]
+    python -m experiments.measurements.accuracy.bound_bracket --suite ID [ID ...] [--out results/bench/suite_bracket] \\
+        [--resume]
 
 ``--suite`` (``all``: every shipped suite with its own references; a suite that copies another's, ``car-preview``,
-has that one's brackets): on **every episode of the suite**, the stored references R_p, R_c, R_b and f_max
-(:mod:`mrd_env.suites`: nothing is re-solved but R_d) beside R_d, the passivity-aware bound with the stored f_max on
-the episode's plant (:meth:`~mrd_env.suites.Suite.reference_options`), both brackets, whether R_c ≤ R_d ≤ R_b, and
-how far R_d's optimum is from semi-active (the share of its rows giving energy back: 0 would make it tight); then
-per scenario the brackets' mean, least and largest, and the wall times.
+``car-full-preview``, has that one's brackets): on **every episode of the suite**, the stored references R_p, R_c,
+R_b and f_max (:mod:`mrd_env.suites`: nothing is re-solved but the passivity-aware bounds) beside R_d, the
+passivity-aware bound with the stored f_max on the episode's plant (:meth:`~mrd_env.suites.Suite.reference_options`;
+its ports referred to the dampers' static forces at their initial strokes, the full car's warped start), and R_d,c,
+the same with the damper's viscous floor c_min (:func:`~mrd_env.optimal.dissipative.viscous_floor`); the three
+brackets; whether R_c ≤ R_d ≤ R_b and R_c ≤ R_d,c ≤ R_d; how far each optimum is from semi-active (the share of its
+rows giving energy back: 0 would make it tight); and the least energy that passive-on, passive-off and a seeded
+random bang-bang sequence absorbed at any row, with c_min = 0 and with the floor (≥ 0: the runs lie in each class).
+Then per suite and per scenario each bracket's smallest / median / largest and the wall times. ``--out`` writes
+``<out>.json`` after every episode (``--resume`` keeps its episodes) and the tables as Markdown and CSV.
 
 For each episode (default: the first seed of the held-out scenarios "ISO-C 20 m/s" and "bump 5 cm" of the quarter
 car and "El Centro NS (×0.2 time)" of the building; ``--scenario all`` for every held-out scenario of both plants,
@@ -184,67 +190,137 @@ def run(plant, env_id, label, seed, options, *, clairvoyant: bool, oracle: bool,
     return row
 
 
-def suite_rows(suite, storage: float = 0.0) -> list[dict]:
-    """One row per episode of ``suite`` (see the module docstring, ``--suite``)."""
-    from mrd_env.optimal import dissipative_bound, episode_problem
+def _solve_rd(p, f_max, storage, min_damping):
+    """R_d at the default tolerance, then a looser one where Clarabel stalls (still a bound: the dual objective,
+    certified by the solver). (result or None, tolerance, wall s)."""
+    from mrd_env.optimal import dissipative_bound
+
+    t0 = time.perf_counter()
+    for tol in (1e-8, 1e-6):
+        try:
+            return dissipative_bound(p, f_max=f_max, storage=storage, tol=tol, min_damping=min_damping), tol, \
+                time.perf_counter() - t0
+        except RuntimeError as exc:
+            print(f"  {p.episode_name}: c_min {np.max(min_damping):g}, tol {tol:g}: {exc}", flush=True)
+    return None, None, time.perf_counter() - t0
+
+
+def _class_check(p, c_min: float, seed: int) -> dict:
+    """The least energy (J) that passive-on, passive-off and a seeded random bang-bang command sequence (held over
+    the suite's control step) re-simulated in the environment have absorbed at any row, on the environment's own
+    forces and states, with c_min = 0 and with the damper's viscous floor: ≥ 0 puts each run in R_d's (R_d,c's)
+    class. The runs' largest |F − F_static| beside it (the stored f_max covers them where it is larger)."""
+    from mrd_env.optimal.dissipative import absorbed_energy
+
+    rng = np.random.default_rng(seed)
+    hold = max(1, int(round(0.01 / p.control_dt)))
+    bang = np.repeat(rng.choice([p.v_min, p.v_max], size=(-(-p.n_steps // hold), p.nd)), hold, axis=0)[:p.n_steps]
+    runs = [np.full((p.n_steps, p.nd), p.v_max), np.full((p.n_steps, p.nd), p.v_min), bang]
+    least0 = least_c = math.inf
+    peak = 0.0
+    for U in runs:
+        tr = p.replay(U, states=True)
+        ok = ~np.isnan(tr.F).any(axis=1)
+        if not ok.all():   # an early end: the rows it reached
+            continue
+        least0 = min(least0, float(absorbed_energy(p, tr.F, tr.X).min()))
+        least_c = min(least_c, float(absorbed_energy(p, tr.F, tr.X, min_damping=c_min).min()))
+        peak = max(peak, float(np.max(np.abs(tr.F - p.F_static))))
+    return {"least absorbed (J)": least0, "least absorbed beyond c_min (J)": least_c, "runs' peak |F − F_static| (N)": peak}
+
+
+def suite_rows(suite, storage: float = 0.0, done: dict | None = None, save=None) -> list[dict]:
+    """One row per episode of ``suite`` (see the module docstring, ``--suite``); episodes already in ``done``
+    (keyed by suite and episode) are taken from it; ``save(rows)`` after each new one."""
+    from mrd_env.optimal import episode_problem
+    from mrd_env.optimal.dissipative import static_forces, viscous_floor
 
     rows = []
-    for sc, seed in suite.episodes():
+    for k, (sc, seed) in enumerate(suite.episodes()):
         label = sc.label(seed)
+        if done and (suite.id, label) in done:
+            rows.append(done[(suite.id, label)])
+            continue
         ref = suite.reference(label)
         t0 = time.perf_counter()
         p = episode_problem(suite.env_id, seed=int(seed), control_dt=1e-3, **suite.reference_options(sc, seed))
-        d, tol = None, None
-        for tol in (1e-8, 1e-6):   # the default tolerance, then a looser one where Clarabel stalls (still a bound:
-            try:                   # R_d is the dual objective, certified by the solver)
-                d = dissipative_bound(p, f_max=ref.f_max, storage=storage, tol=tol)
-                break
-            except RuntimeError as exc:
-                print(f"{suite.id} {label}: tol {tol:g}: {exc}", flush=True)
-        rd, share_back, status = math.nan, math.nan, "failed"
-        if d is not None:
-            v = d.X @ p.Cv.T
-            power = np.sum((d.F - p.F_static) * v, axis=1)
-            tolp = 1e-6 * np.max(np.abs(power))
-            rd, share_back, status = d.bound, float(np.mean(power < -tolp)), f"{d.status} (tol {tol:g})"
-        rows.append({"suite": suite.id, "scenario": sc.name, "episode": label, "R_p": ref.passive,
-                     "R_c": ref.clairvoyant, "R_b active": ref.bound, "R_d passive": rd, "f_max (N)": ref.f_max,
-                     "bracket active": bracket(ref.bound, ref.clairvoyant, ref.passive),
-                     "bracket passive": bracket(rd, ref.clairvoyant, ref.passive),
-                     # R_d ≤ R_b up to the solvers' tolerance (1e-6 of |R_b|)
-                     "R_c <= R_d <= R_b": bool(ref.clairvoyant <= rd <= ref.bound + 1e-6 * abs(ref.bound)),
-                     "R_d rows giving energy": share_back, "R_d status": status,
-                     "passive (s)": time.perf_counter() - t0})
-        r = rows[-1]
+        c_min = viscous_floor(p.damper)
+        Fs = static_forces(p)
+        out = {}
+        for key, cm in (("R_d", 0.0), ("R_d,c", c_min)):
+            d, tol, wall = _solve_rd(p, ref.f_max, storage, cm)
+            rd, share_back, status = math.nan, math.nan, "failed"
+            if d is not None:
+                power = np.sum((d.F - d.static_forces) * (d.X @ p.Cv.T), axis=1)
+                tolp = 1e-6 * np.max(np.abs(power))
+                rd, share_back, status = d.bound, float(np.mean(power < -tolp)), f"{d.status} (tol {tol:g})"
+            out[key] = (rd, share_back, status, wall)
+        rd, rdc = out["R_d"][0], out["R_d,c"][0]
+        row = {"suite": suite.id, "scenario": sc.name, "episode": label, "R_p": ref.passive,
+               "R_c": ref.clairvoyant, "R_b active": ref.bound, "R_d passive": rd, "R_d,c passive + c_min": rdc,
+               "f_max (N)": ref.f_max, "c_min (N·s/m)": c_min,
+               "static forces − F_static (N, largest)": float(np.max(np.abs(Fs - p.F_static))),
+               "bracket active": bracket(ref.bound, ref.clairvoyant, ref.passive),
+               "bracket passive": bracket(rd, ref.clairvoyant, ref.passive),
+               "bracket passive + c_min": bracket(rdc, ref.clairvoyant, ref.passive),
+               # R_d ≤ R_b up to the solvers' tolerance (1e-6 of |R_b|)
+               "R_c <= R_d <= R_b": bool(ref.clairvoyant <= rd <= ref.bound + 1e-6 * abs(ref.bound)),
+               "R_c <= R_d,c <= R_d": bool(ref.clairvoyant <= rdc <= rd + 1e-6 * abs(rd)),
+               "R_d rows giving energy": out["R_d"][1], "R_d,c rows giving energy": out["R_d,c"][1],
+               "R_d status": out["R_d"][2], "R_d,c status": out["R_d,c"][2],
+               **_class_check(p, c_min, seed=1000 + k),
+               "R_d (s)": out["R_d"][3], "R_d,c (s)": out["R_d,c"][3], "episode (s)": time.perf_counter() - t0}
+        rows.append(row)
+        r = row
         print(f"{suite.id} {label}: R_p {r['R_p']:.4g}  R_c {r['R_c']:.4g}  R_b {r['R_b active']:.4g} "
-              f"({r['bracket active']:.0%})  R_d {r['R_d passive']:.4g} ({r['bracket passive']:.0%})  "
-              f"rows giving energy {r['R_d rows giving energy']:.0%}  [{r['passive (s)']:.1f} s]", flush=True)
+              f"({r['bracket active']:.0%})  R_d {rd:.4g} ({r['bracket passive']:.1%})  R_d,c {rdc:.4g} "
+              f"({r['bracket passive + c_min']:.1%})  least absorbed {r['least absorbed (J)']:.2g} / "
+              f"{r['least absorbed beyond c_min (J)']:.2g} J  [{r['episode (s)']:.1f} s]", flush=True)
+        if save is not None:
+            save(rows)
     return rows
 
 
-def suite_summary(rows: list[dict]) -> list[dict]:
-    """Per suite and scenario: the episodes, each bracket's mean, least and largest, whether every episode has
-    R_c ≤ R_d ≤ R_b, the least share of R_d's rows giving energy back, and R_d's mean wall time."""
+def _spread(values) -> str:
+    v = np.asarray([x for x in values if math.isfinite(x)])
+    if not v.size:
+        return "n/a"
+    return f"{v.min():.0%} / {np.median(v):.0%} / {v.max():.0%}"
+
+
+def suite_summary(rows: list[dict], by_scenario: bool = False) -> list[dict]:
+    """Per suite (and scenario): the episodes, each bracket's smallest / median / largest, the episodes under 10 %,
+    whether every episode has R_c ≤ R_d ≤ R_b and R_c ≤ R_d,c, the least energy the check runs absorbed, and the
+    wall time."""
     out = []
-    for key in dict.fromkeys((r["suite"], r["scenario"]) for r in rows):
-        mine = [r for r in rows if (r["suite"], r["scenario"]) == key]
-        ba = np.array([r["bracket active"] for r in mine])
+    key_of = (lambda r: (r["suite"], r["scenario"])) if by_scenario else (lambda r: (r["suite"],))
+    for key in dict.fromkeys(key_of(r) for r in rows):
+        mine = [r for r in rows if key_of(r) == key]
         solved = [r for r in mine if math.isfinite(r["R_d passive"])]
-        bp = np.array([r["bracket passive"] for r in solved]) if solved else np.array([math.nan])
-        out.append({"suite": key[0], "scenario": key[1], "episodes": len(mine),
-                    "bracket R_b mean (min–max)": f"{ba.mean():.0%} ({ba.min():.0%}–{ba.max():.0%})",
-                    "bracket R_d mean (min–max)": f"{bp.mean():.0%} ({bp.min():.0%}–{bp.max():.0%})",
-                    "R_d solved": f"{len(solved)}/{len(mine)}",
-                    "episodes under 10 %": int(np.sum(bp < 0.10)),
+        solved_c = [r for r in mine if math.isfinite(r["R_d,c passive + c_min"])]
+        head = {"suite": key[0]} if not by_scenario else {"suite": key[0], "scenario": key[1]}
+        out.append({**head, "episodes": len(mine),
+                    "bracket R_b min / median / max": _spread(r["bracket active"] for r in mine),
+                    "bracket R_d min / median / max": _spread(r["bracket passive"] for r in solved),
+                    "bracket R_d,c min / median / max": _spread(r["bracket passive + c_min"] for r in solved_c),
+                    "R_d solved": f"{len(solved)}/{len(mine)}", "R_d,c solved": f"{len(solved_c)}/{len(mine)}",
+                    "episodes under 10 % (R_d, R_d,c)":
+                        f"{sum(r['bracket passive'] < 0.10 for r in solved)}, "
+                        f"{sum(r['bracket passive + c_min'] < 0.10 for r in solved_c)}",
                     "R_c ≤ R_d ≤ R_b": f"{sum(r['R_c <= R_d <= R_b'] for r in solved)}/{len(solved)}",
-                    "R_d rows giving energy (least)":
-                        f"{min(r['R_d rows giving energy'] for r in solved):.0%}" if solved else "n/a",
-                    "R_d s (mean)": float(np.mean([r["passive (s)"] for r in mine]))})
+                    "R_c ≤ R_d,c ≤ R_d": f"{sum(r['R_c <= R_d,c <= R_d'] for r in solved_c)}/{len(solved_c)}",
+                    "least absorbed, beyond c_min (J)":
+                        f"{min(r['least absorbed (J)'] for r in mine):.2g}, "
+                        f"{min(r['least absorbed beyond c_min (J)'] for r in mine):.2g}",
+                    "R_d + R_d,c s (mean)": float(np.mean([r["R_d (s)"] + r["R_d,c (s)"] for r in mine]))})
     return out
 
 
 def main_suites(args) -> None:
+    import json
+
     from mrd_env.report import markdown_table, write_table
+    from mrd_env.storage import write_json
     from mrd_env.suites import suites
 
     shipped = suites()
@@ -253,16 +329,40 @@ def main_suites(args) -> None:
     unknown = [k for k in ids if k not in shipped]
     if unknown:
         raise SystemExit(f"--suite: unknown {unknown}; shipped: {sorted(shipped)}")
+    copies = {k: s.procedure["references_of"] for k, s in shipped.items()
+              if s.procedure.get("references_of") in ids and k not in ids}
+    done, rows_all = {}, []
+    if args.out and args.resume and os.path.exists(f"{args.out}.json"):
+        with open(f"{args.out}.json", encoding="utf-8") as fh:
+            done = {(r["suite"], r["episode"]): r for r in json.load(fh)["episodes"]}
+        print(f"resuming: {len(done)} episodes from {args.out}.json", flush=True)
     load0, t0 = os.getloadavg(), time.perf_counter()
-    rows = [r for k in ids for r in suite_rows(shipped[k], args.storage)]
+
+    def record(rows, final=False):
+        load1 = os.getloadavg()
+        doc = {"what": "bound bracket on every shipped suite episode (experiments.measurements.accuracy."
+                       "bound_bracket --suite)", "suites": ids, "copies (same references)": copies,
+               "complete": final, "wall_s": time.perf_counter() - t0, "cores": os.cpu_count(),
+               "load average": [load0[0], load1[0]], "episodes": rows}
+        if args.out:
+            write_json(f"{args.out}.json", doc, indent=1, ensure_ascii=False)
+
+    for k in ids:
+        rows_all += suite_rows(shipped[k], args.storage, done, save=lambda rows: record(rows_all + rows))
     load1 = os.getloadavg()
-    title = (f"bound bracket on every suite episode ({', '.join(ids)}): {len(rows)} episodes, "
+    title = (f"bound bracket on every suite episode ({', '.join(ids)}): {len(rows_all)} episodes, "
              f"{time.perf_counter() - t0:.0f} s, {os.cpu_count()} cores, load average {load0[0]:.1f} → {load1[0]:.1f}")
-    summary = suite_summary(rows)
+    summary, per_scenario = suite_summary(rows_all), suite_summary(rows_all, by_scenario=True)
     print(markdown_table(summary, title=title))
+    print(markdown_table(per_scenario, title="per scenario"))
+    if copies:
+        print("suites with another's references (the same brackets):",
+              ", ".join(f"{k} = {v}" for k, v in copies.items()))
     if args.out:
-        for path in [*write_table(rows, args.out, title=title),
-                     *write_table(summary, f"{args.out}_summary", title=title)]:
+        record(rows_all, final=True)
+        for path in [f"{args.out}.json", *write_table(rows_all, args.out, title=title),
+                     *write_table(summary, f"{args.out}_summary", title=title),
+                     *write_table(per_scenario, f"{args.out}_scenarios", title=title)]:
             print("wrote", path)
 
 
@@ -278,7 +378,10 @@ def main(argv=None) -> None:
     ap.add_argument("--storage", type=float, default=0.0, help="the passive bound's initial store E0 (J)")
     ap.add_argument("--suite", nargs="+", default=None,
                     help="every episode of these shipped suites, against their stored references ('all': every one)")
-    ap.add_argument("--out", default=None, help="write <out>.md and <out>.csv")
+    ap.add_argument("--out", default=None, help="write <out>.md and <out>.csv (with --suite also <out>.json, "
+                    "after every episode, and the summaries <out>_summary.*, <out>_scenarios.*)")
+    ap.add_argument("--resume", action="store_true", help="with --suite and --out: keep the episodes already in "
+                    "<out>.json")
     args = ap.parse_args(argv)
 
     import mrd_env  # noqa: F401
