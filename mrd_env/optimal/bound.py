@@ -385,12 +385,15 @@ def normalise_rows(A, *sides):
     return (sp.diags(d) @ A).tocsc(), *(side * d for side in sides)
 
 
-def clarabel_solve(P, q, A_eq, b_eq, A_in, lo, hi, tol, soc=None, who="active_bound", almost_gap=1e-6):
+def clarabel_solve(P, q, A_eq, b_eq, A_in, lo, hi, tol, soc=None, who="active_bound", almost_gap=1e-6,
+                   stalled_ok=False):
     """Solve min ½zᵀPz + qᵀz s.t. A_eq z = b_eq, lo ≤ A_in z ≤ hi and, with ``soc`` = (A_s, b_s, dims), every
     block of b_s − A_s z (consecutive rows, sizes ``dims``) in a second-order cone. (z, primal, dual objective,
     status, iterations); ``RuntimeError`` if infeasible or not solved. "Almost solved" is accepted where the dual
     residual is ≤ 1e-6 (the dual objective is then still a lower bound on the cost) and the relative gap
-    ≤ ``almost_gap`` (how much looser than the optimum the bound may be)."""
+    ≤ ``almost_gap`` (how much looser than the optimum the bound may be); with ``stalled_ok`` also a stop for
+    insufficient progress where the dual residual is ≤ 1e-9 and the gap ≤ ``almost_gap`` (a dual-feasible point's
+    objective is a lower bound whatever the primal residual; the primal iterate is then approximate)."""
     import clarabel
 
     blocks, rhs = [A_eq, A_in, -A_in], [b_eq, hi, -lo]
@@ -417,6 +420,8 @@ def clarabel_solve(P, q, A_eq, b_eq, A_in, lo, hi, tol, soc=None, who="active_bo
     gap = abs(res.obj_val - res.obj_val_dual) / max(1.0, abs(res.obj_val))
     # "almost solved": the reduced tolerances (1e-5) hold; the dual objective is still a bound if the gap is small
     near = res.status == clarabel.SolverStatus.AlmostSolved and gap <= almost_gap and res.r_dual <= 1e-6
+    near |= stalled_ok and res.status == clarabel.SolverStatus.InsufficientProgress and gap <= almost_gap \
+        and res.r_dual <= 1e-9
     if res.status != clarabel.SolverStatus.Solved and not near:
         raise RuntimeError(f"{who}: Clarabel did not solve the problem ({status} after {res.iterations} "
                            "iterations); no bound is reported")
