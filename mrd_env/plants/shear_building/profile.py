@@ -44,7 +44,9 @@ def _storey_response(options: dict) -> str:
 
 
 #: The presets by their number of storeys (``--storeys``).
-_BY_STOREYS = {p.n_floors: name for name, p in BUILDING_PRESETS.items()}
+_BY_STOREYS: dict = {}
+for _name, _preset in BUILDING_PRESETS.items():  # the first preset of a storey count (six: v1's six_storey)
+    _BY_STOREYS.setdefault(_preset.n_floors, _name)
 _PLANT_OPTIONS = (
     PlantOption("storeys", "number of storeys of the building: "
                 + ", ".join(f"{n} (preset {name})" for n, name in sorted(_BY_STOREYS.items()))
