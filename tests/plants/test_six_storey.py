@@ -91,26 +91,27 @@ def test_six_storey_v1_is_unchanged():
 
 
 def test_six_storey_v2_floors_are_sized_by_the_stated_rule():
-    """The rule by hand: the benchmark building's storey 2 holds one damper and carries its two 98.3 kg floors;
-    four dampers in storey 2 of six equal floors carry five floors, so 4 / (5 m) = 1 / (2 · 98.3 kg):
-    m = 4 · 2 · 98.3 / 5 = 157.28 kg; the storeys 6 000 N/m per kg keep the v1 building's modes."""
-    from mrd_env.plants.shear_building.physics import (capacity_matched_floor_mass, dampers_per_carried_mass)
+    """The rule by hand: at full command the four prototype dampers of storey 2 (1 619.5 N each, half the peak-to-peak
+    force of the reference page's check motion: 1 548 N and −1 691 N) hold the five floors storey 2 carries up to
+    0.3 g: 4 · 1 619.5 = 5 · m · 0.3 · 9.80665, m = 440.38 kg; the storeys 6 000 N/m per kg keep v1's modes."""
+    from mrd_env.plants.shear_building.physics import capacity_ratio, capacity_sized_floor_mass
 
     b = shear_building("six_storey_v2")
     assert b.damper_floors == (2, 2, 2, 2)
-    np.testing.assert_allclose(b.masses, [157.28] * N, rtol=1e-12)
-    k = 6000.0 * 157.28
-    np.testing.assert_allclose(np.diag(b.K), [2 * k] * 5 + [k], rtol=1e-12)
-    lab = shear_building("three_storey", damper_floors=(2,))
-    assert dampers_per_carried_mass(b, 2) == pytest.approx(dampers_per_carried_mass(lab, 2), rel=1e-12)
-    assert dampers_per_carried_mass(lab, 2) == pytest.approx(1 / 196.6, rel=1e-12)
-    assert capacity_matched_floor_mass(6, 1, 2) == pytest.approx(2 * 2 * 98.3 / 6, rel=1e-12)  # v1's layout
+    m = 4 * 1619.5 / (5 * 0.3 * 9.80665)
+    assert m == pytest.approx(440.38, abs=0.005)
+    np.testing.assert_allclose(b.masses, [m] * N, rtol=1e-12)
+    np.testing.assert_allclose(np.diag(b.K), [2 * 6000.0 * m] * 5 + [6000.0 * m], rtol=1e-12)
+    assert capacity_ratio(b, 2) == pytest.approx(0.3, rel=1e-12) and capacity_ratio(b, 1) == 0.0
+    # v1's layout sat near the rule by accident: 2 · 1 619.5 N over 6 · 200 kg in storey 1
+    assert capacity_ratio(shear_building("six_storey"), 1) == pytest.approx(2 * 1619.5 / (1200 * 9.80665))
+    assert capacity_sized_floor_mass(3, 2, 1, pga=9.80665) == pytest.approx(1619.5 / (2 * 9.80665))
     w_v1 = np.sqrt(eigh(shear_building("six_storey").K, np.diag(shear_building("six_storey").masses),
                         eigvals_only=True))
     w_v2 = np.sqrt(eigh(b.K, np.diag(b.masses), eigvals_only=True))
     np.testing.assert_allclose(w_v2, w_v1, rtol=1e-12)
     with pytest.raises(ValueError, match="storey"):
-        dampers_per_carried_mass(b, 7)
+        capacity_ratio(b, 7)
 
 
 def test_storeys_option_six_still_names_the_v1_building():
