@@ -120,7 +120,7 @@ def dataset_folders(path: str | Path) -> list[Path]:
     name order (staging folders, whose names start with '.', left out); ``ValueError`` where there is none."""
     path = Path(path)
     if not path.is_dir():
-        raise ValueError(f"--dataset {path}: no such folder (a Minari dataset's folder, as mrd-env dataset writes)")
+        raise ValueError(f"--dataset {path}: not a folder (a Minari dataset's folder, as mrd-env dataset writes)")
     if (path / "data" / "metadata.json").is_file():
         return [path]
     found = sorted(p.parent.parent for p in path.rglob("data/metadata.json")

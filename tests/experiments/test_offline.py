@@ -130,7 +130,7 @@ def test_a_dataset_that_does_not_fit_is_refused_in_one_line_before_anything_is_w
     _fails(["train", "--algo", "bc", "--preview"], capsys, out, "--dataset")
     _fails(["train", "--algo", "ppo", "--dataset", str(linear_dataset)], capsys, out, "--dataset applies", "bc")
     _fails(["train", "--algo", "bc", "--preview", "--dataset", str(tmp_path / "nowhere")], capsys, out,
-           "no such folder")
+           "not a folder")
     _fails(["train", "--algo", "bc", "--preview", "--dataset", str(tmp_path)], capsys, out, "no Minari dataset")
     # recorded with the road preview, trained without it: other observations
     _fails(["train", "--algo", "bc", "--dataset", str(linear_dataset)], capsys, out, "other observations",
