@@ -15,7 +15,8 @@ brackets; whether R_c ≤ R_d ≤ R_b and R_c ≤ R_d,c ≤ R_d; how far each op
 rows giving energy back: 0 would make it tight); and the least energy that passive-on, passive-off and a seeded
 random bang-bang sequence absorbed at any row, with c_min = 0 and with the floor (≥ 0: the runs lie in each class).
 Then per suite and per scenario each bracket's smallest / median / largest and the wall times. ``--out`` writes
-``<out>.json`` after every episode (``--resume`` keeps its episodes) and the tables as Markdown and CSV.
+``<out>.json`` after every episode (``--resume`` keeps its episodes), the tables as Markdown and CSV, and
+``<out>_docs.md``, the tables of docs/yardstick.md.
 
 For each episode (default: the first seed of the held-out scenarios "ISO-C 20 m/s" and "bump 5 cm" of the quarter
 car and "El Centro NS (×0.2 time)" of the building; ``--scenario all`` for every held-out scenario of both plants,
@@ -249,12 +250,13 @@ def suite_rows(suite, storage: float = 0.0, done: dict | None = None, save=None)
         out = {}
         for key, cm in (("R_d", 0.0), ("R_d,c", c_min)):
             d, tol, wall = _solve_rd(p, ref.f_max, storage, cm)
-            rd, share_back, status = math.nan, math.nan, "failed"
+            rd, share_back, status, gap = math.nan, math.nan, "failed", math.nan
             if d is not None:
                 power = np.sum((d.F - d.static_forces) * (d.X @ p.Cv.T), axis=1)
                 tolp = 1e-6 * np.max(np.abs(power))
                 rd, share_back, status = d.bound, float(np.mean(power < -tolp)), f"{d.status} (tol {tol:g})"
-            out[key] = (rd, share_back, status, wall)
+                gap = (d.bound - d.primal_return) / abs(d.bound)   # how much looser than its optimum the bound is
+            out[key] = (rd, share_back, status, wall, gap)
         rd, rdc = out["R_d"][0], out["R_d,c"][0]
         row = {"suite": suite.id, "scenario": sc.name, "episode": label, "R_p": ref.passive,
                "R_c": ref.clairvoyant, "R_b active": ref.bound, "R_d passive": rd, "R_d,c passive + c_min": rdc,
@@ -268,6 +270,7 @@ def suite_rows(suite, storage: float = 0.0, done: dict | None = None, save=None)
                "R_c <= R_d,c <= R_d": bool(ref.clairvoyant <= rdc <= rd + 1e-6 * abs(rd)),
                "R_d rows giving energy": out["R_d"][1], "R_d,c rows giving energy": out["R_d,c"][1],
                "R_d status": out["R_d"][2], "R_d,c status": out["R_d,c"][2],
+               "R_d relative gap": out["R_d"][4], "R_d,c relative gap": out["R_d,c"][4],
                **_class_check(p, c_min, seed=1000 + k),
                "R_d (s)": out["R_d"][3], "R_d,c (s)": out["R_d,c"][3], "episode (s)": time.perf_counter() - t0}
         rows.append(row)
@@ -316,11 +319,44 @@ def suite_summary(rows: list[dict], by_scenario: bool = False) -> list[dict]:
     return out
 
 
+def docs_tables(rows: list[dict], copies: dict | None = None) -> str:
+    """The docs' tables (docs/yardstick.md): per suite each bracket's smallest / median / largest, then every episode
+    in compact columns; ¹ marks a bound Clarabel solved only at tolerance 1e-6 or stopped short of its tolerance
+    with a certified dual (the status column of the full table)."""
+    from mrd_env.report import markdown_table
+
+    def pct(x):
+        return "–" if not math.isfinite(x) else f"{x:.0%}"
+
+    def val(r, key, status):
+        x = r[key]
+        if not math.isfinite(x):
+            return "failed"
+        return f"{x:.4f}" + ("" if r[status].startswith("Solved (tol 1e-08") else " ¹")
+
+    per_suite = [{"suite": r["suite"], "episodes": r["episodes"],
+                  "bracket R_b min / median / max": r["bracket R_b min / median / max"],
+                  "bracket R_d": r["bracket R_d min / median / max"],
+                  "bracket R_d,c": r["bracket R_d,c min / median / max"],
+                  "under 10 % (R_d, R_d,c)": r["episodes under 10 % (R_d, R_d,c)"],
+                  "R_c ≤ R_d ≤ R_b": r["R_c ≤ R_d ≤ R_b"], "R_c ≤ R_d,c ≤ R_d": r["R_c ≤ R_d,c ≤ R_d"]}
+                 for r in suite_summary(rows)]
+    for k, v in (copies or {}).items():
+        per_suite.append({"suite": k, "episodes": f"{v}'s references", **{c: "(the same)" for c in list(per_suite[0])[2:]}})
+    eps = [{"suite": r["suite"], "episode": r["episode"], "R_p": f"{r['R_p']:.4f}", "R_c": f"{r['R_c']:.4f}",
+            "R_b": f"{r['R_b active']:.4f}", "R_d": val(r, "R_d passive", "R_d status"),
+            "R_d,c": val(r, "R_d,c passive + c_min", "R_d,c status"), "bracket R_b": pct(r["bracket active"]),
+            "bracket R_d": pct(r["bracket passive"]), "bracket R_d,c": f"**{pct(r['bracket passive + c_min'])}**",
+            "R_d rows giving energy back": pct(r["R_d rows giving energy"]),
+            "R_d, R_d,c (s)": f"{r['R_d (s)']:.0f}, {r['R_d,c (s)']:.0f}"} for r in rows]
+    return markdown_table(per_suite) + "\n" + markdown_table(eps)
+
+
 def main_suites(args) -> None:
     import json
 
     from mrd_env.report import markdown_table, write_table
-    from mrd_env.storage import write_json
+    from mrd_env.storage import write_json, write_text
     from mrd_env.suites import suites
 
     shipped = suites()
@@ -331,27 +367,38 @@ def main_suites(args) -> None:
         raise SystemExit(f"--suite: unknown {unknown}; shipped: {sorted(shipped)}")
     copies = {k: s.procedure["references_of"] for k, s in shipped.items()
               if s.procedure.get("references_of") in ids and k not in ids}
-    done, rows_all = {}, []
+    done, rows_all, before = {}, [], {}
     if args.out and args.resume and os.path.exists(f"{args.out}.json"):
         with open(f"{args.out}.json", encoding="utf-8") as fh:
-            done = {(r["suite"], r["episode"]): r for r in json.load(fh)["episodes"]}
+            before = json.load(fh)
+        done = {(r["suite"], r["episode"]): r for r in before["episodes"]}
         print(f"resuming: {len(done)} episodes from {args.out}.json", flush=True)
-    load0, t0 = os.getloadavg(), time.perf_counter()
+    t0 = time.perf_counter()
+    wall0 = float(before.get("wall_s", 0.0))           # the runs resumed from: their wall time and load
+    loads = list(before.get("load average", [])) or [os.getloadavg()[0]]
+    fresh = []                                          # episodes solved by this run
+
+    def load_range():
+        return [loads[0], os.getloadavg()[0]] if fresh or len(loads) < 2 else loads[:2]
 
     def record(rows, final=False):
-        load1 = os.getloadavg()
         doc = {"what": "bound bracket on every shipped suite episode (experiments.measurements.accuracy."
                        "bound_bracket --suite)", "suites": ids, "copies (same references)": copies,
-               "complete": final, "wall_s": time.perf_counter() - t0, "cores": os.cpu_count(),
-               "load average": [load0[0], load1[0]], "episodes": rows}
+               "complete": final, "wall_s": wall0 + time.perf_counter() - t0, "cores": os.cpu_count(),
+               "load average": load_range(), "episodes": rows}
         if args.out:
             write_json(f"{args.out}.json", doc, indent=1, ensure_ascii=False)
 
+    def save(rows_all_so_far):
+        fresh.append(1)
+        record(rows_all_so_far)
+
     for k in ids:
-        rows_all += suite_rows(shipped[k], args.storage, done, save=lambda rows: record(rows_all + rows))
-    load1 = os.getloadavg()
+        rows_all += suite_rows(shipped[k], args.storage, done, save=lambda rows: save(rows_all + rows))
+    la = load_range()
     title = (f"bound bracket on every suite episode ({', '.join(ids)}): {len(rows_all)} episodes, "
-             f"{time.perf_counter() - t0:.0f} s, {os.cpu_count()} cores, load average {load0[0]:.1f} → {load1[0]:.1f}")
+             f"{wall0 + time.perf_counter() - t0:.0f} s, {os.cpu_count()} cores, load average {la[0]:.1f} → "
+             f"{la[1]:.1f}")
     summary, per_scenario = suite_summary(rows_all), suite_summary(rows_all, by_scenario=True)
     print(markdown_table(summary, title=title))
     print(markdown_table(per_scenario, title="per scenario"))
@@ -360,6 +407,7 @@ def main_suites(args) -> None:
               ", ".join(f"{k} = {v}" for k, v in copies.items()))
     if args.out:
         record(rows_all, final=True)
+        print("wrote", write_text(f"{args.out}_docs.md", f"{title}\n\n" + docs_tables(rows_all, copies)))
         for path in [f"{args.out}.json", *write_table(rows_all, args.out, title=title),
                      *write_table(summary, f"{args.out}_summary", title=title),
                      *write_table(per_scenario, f"{args.out}_scenarios", title=title)]:
