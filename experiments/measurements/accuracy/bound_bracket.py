@@ -320,9 +320,9 @@ def suite_summary(rows: list[dict], by_scenario: bool = False) -> list[dict]:
 
 
 def docs_tables(rows: list[dict], copies: dict | None = None) -> str:
-    """The docs' tables (docs/yardstick.md): per suite each bracket's smallest / median / largest, then every episode
-    in compact columns; ¹ marks a bound Clarabel solved only at tolerance 1e-6 or stopped short of its tolerance
-    with a certified dual (the status column of the full table)."""
+    """The docs' tables (docs/yardstick.md): per suite and per scenario each bracket's smallest / median / largest,
+    then every episode in compact columns; ¹ marks a bound Clarabel solved only at tolerance 1e-6 or stopped short
+    of its tolerance with a certified dual (the status column of the full table)."""
     from mrd_env.report import markdown_table
 
     def pct(x):
@@ -342,14 +342,20 @@ def docs_tables(rows: list[dict], copies: dict | None = None) -> str:
                   "R_c ≤ R_d ≤ R_b": r["R_c ≤ R_d ≤ R_b"], "R_c ≤ R_d,c ≤ R_d": r["R_c ≤ R_d,c ≤ R_d"]}
                  for r in suite_summary(rows)]
     for k, v in (copies or {}).items():
-        per_suite.append({"suite": k, "episodes": f"{v}'s references", **{c: "(the same)" for c in list(per_suite[0])[2:]}})
+        per_suite.append({"suite": k, "episodes": f"{v}'s references",
+                          **{c: "(the same)" for c in list(per_suite[0])[2:]}})
+    per_scenario = [{"suite": r["suite"], "scenario": r["scenario"], "episodes": r["episodes"],
+                     "bracket R_b min / median / max": r["bracket R_b min / median / max"],
+                     "bracket R_d": r["bracket R_d min / median / max"],
+                     "bracket R_d,c": r["bracket R_d,c min / median / max"]}
+                    for r in suite_summary(rows, by_scenario=True)]
     eps = [{"suite": r["suite"], "episode": r["episode"], "R_p": f"{r['R_p']:.4f}", "R_c": f"{r['R_c']:.4f}",
             "R_b": f"{r['R_b active']:.4f}", "R_d": val(r, "R_d passive", "R_d status"),
             "R_d,c": val(r, "R_d,c passive + c_min", "R_d,c status"), "bracket R_b": pct(r["bracket active"]),
             "bracket R_d": pct(r["bracket passive"]), "bracket R_d,c": f"**{pct(r['bracket passive + c_min'])}**",
             "R_d rows giving energy back": pct(r["R_d rows giving energy"]),
             "R_d, R_d,c (s)": f"{r['R_d (s)']:.0f}, {r['R_d,c (s)']:.0f}"} for r in rows]
-    return markdown_table(per_suite) + "\n" + markdown_table(eps)
+    return markdown_table(per_suite) + "\n" + markdown_table(per_scenario) + "\n" + markdown_table(eps)
 
 
 def main_suites(args) -> None:
