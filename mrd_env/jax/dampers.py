@@ -16,6 +16,8 @@ argument of an unselected power, division or ``tanh`` is made harmless first), s
 """
 from __future__ import annotations
 
+import contextlib
+import contextvars
 from typing import Callable, NamedTuple
 
 import jax.numpy as jnp
@@ -94,11 +96,28 @@ def _fd_model(cls, rhs, force, project) -> JaxDamper:
 
 
 # --- shared pieces (the numba helpers' twins) ------------------------------------------------------------------
+_FAST_POWER = contextvars.ContextVar("mrd_env_jax_fast_power", default=False)
+
+
 def _power(a, n):
     """a^n for a > 0 as :func:`mrd_env.dampers.hysteresis.power` (exact for n = 1, 2); 1 where a = 0 (masked
     by the callers), so that no branch makes a NaN that a derivative would pick up."""
     safe = jnp.where(a > 0.0, a, 1.0)
-    return jnp.where(n == 2.0, safe * safe, jnp.where(n == 1.0, safe, safe ** n))
+    general = jnp.exp(n * jnp.log(safe)) if _FAST_POWER.get() else safe ** n
+    return jnp.where(n == 2.0, safe * safe, jnp.where(n == 1.0, safe, general))
+
+
+@contextlib.contextmanager
+def fast_power():
+    """Inside it, the models' general exponent a^n (an n other than 1 or 2: every branch of a ``jnp.where`` is
+    evaluated, so it costs in every step) is traced as exp(n·ln a): XLA's vectorised exp and log, about twice as
+    fast as its pow on the CPU, within a few ulps of it. The differentiable scheme traces its step inside it; the
+    exact scheme keeps pow, as the numba kernel."""
+    token = _FAST_POWER.set(True)
+    try:
+        yield
+    finally:
+        _FAST_POWER.reset(token)
 
 
 def _azn1(z, n):

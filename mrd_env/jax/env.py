@@ -486,22 +486,43 @@ def _episode(params: EnvParams, record) -> _Episode:
                     params.noise[i], params.sensor_delay[i], params.cost_limits[i])
 
 
-def _row(params: EnvParams, G, Y, F, w, cmd, zi):
-    """The row h = [G·[Y, F, w], the commands, the filters' outputs] and the filters' new states."""
-    nsig = G.shape[0]
-    h = jnp.zeros(params.width).at[:nsig].set(G @ jnp.concatenate([Y, F, w]))
-    h = h.at[nsig:nsig + params.nd].set(cmd)
+def _stepped_columns(params: EnvParams) -> tuple:
+    """The named signals the period reads at every physics step (the reward's, the limits', the costs' and the
+    filters' inputs): the other rows of G are needed once, for the measurement at the period's end."""
+    nsig = params.G.shape[1]
+    cols = (*params.reward_cols, *params.limit_cols, *params.cost_cols, *(f[0] for f in params.filters))
+    return tuple(sorted({int(c) for c in cols if c < nsig}))
+
+
+def _step_row(params: EnvParams, G, Y, F, w, cmd, zi):
+    """The columns of the row h = [G·[Y, F, w], the commands, the filters' outputs] that a physics step reads
+    ({column: value}, :func:`_stepped_columns`), the filters' outputs (n_filters,) and their new states."""
+    nsig, rows = G.shape[0], _stepped_columns(params)
+    sig = (G[jnp.asarray(rows, jnp.int32)] if rows else G[:0]) @ jnp.concatenate([Y, F, w])
+    h = {c: sig[i] for i, c in enumerate(rows)}
+    h.update({nsig + j: cmd[j] for j in range(params.nd)})
+    sections, out = [zi[s] for s in range(zi.shape[0])], []
     for fin, fout, s0, count in params.filters:
         x = h[fin]
-        rows = []
         for s in range(s0, s0 + count):
             c = params.sos[s]
             y = c[0] * x + zi[s, 0]
-            rows.append(jnp.stack([c[1] * x - c[4] * y + zi[s, 1], c[2] * x - c[5] * y]))
+            sections[s] = jnp.stack([c[1] * x - c[4] * y + zi[s, 1], c[2] * x - c[5] * y])
             x = y
-        h = h.at[fout].set(x)
-        zi = zi.at[s0:s0 + count].set(jnp.stack(rows))
-    return h, zi
+        h[fout] = x
+        out.append(x)
+    return h, jnp.stack(out) if out else jnp.zeros(0), jnp.stack(sections) if sections else zi
+
+
+def _row(params: EnvParams, G, Y, F, w, cmd, filtered):
+    """The whole row h (width,): the named signals G·[Y, F, w], the commands, the filters' outputs ``filtered``.
+    Assembled from its columns (no scatter: under ``vmap`` an indexed update of a batch is a serial loop)."""
+    sig = G @ jnp.concatenate([Y, F, w])
+    cols = [sig[i] for i in range(G.shape[0])] + [cmd[j] for j in range(params.nd)]
+    cols += [jnp.zeros_like(sig[0])] * (params.width - len(cols))
+    for i, (_, fout, _, _) in enumerate(params.filters):
+        cols[fout] = filtered[i]
+    return jnp.stack(cols)
 
 
 def _measure(params: EnvParams, noise, h, key):
@@ -547,13 +568,9 @@ def reset(key, params: EnvParams, record=None):
     Y = params.Y0[record]
     U = jnp.full(nd, params.v_min, jnp.float64)  # strongly typed, as step returns it: no second compile
     w = params.W[record, 0]
-    F, finite = sc.end_forces(model, ep.plant.C, ep.plant.D, ep.P, [Y[i] for i in range(Y.shape[0])],
-                              [U[j] for j in range(nd)], [w[i] for i in range(w.shape[0])])
-    F = jnp.stack(F)
+    F, finite = sc.end_forces(model, ep.plant.C, ep.plant.D, ep.P, Y, U, w, exact=params.scheme == "exact")
     zi = jnp.zeros((params.sos.shape[0], 2))
-    h = jnp.zeros(params.width).at[:ep.G.shape[0]].set(ep.G @ jnp.concatenate([Y, F, w]))
-    h = h.at[ep.G.shape[0]:ep.G.shape[0] + nd].set(U)
-    m = _measure(params, ep.noise, h, key)
+    m = _measure(params, ep.noise, _row(params, ep.G, Y, F, w, U, jnp.zeros(len(params.filters))), key)
     fifo = jnp.tile(m[None], (params.max_delay + params.history, 1))
     state = EnvState(Y=Y, U=U, F=F, cmd=U, queue=jnp.full((params.queue, nd), params.v_min, jnp.float64),
                      nsub=jnp.asarray(1, jnp.int32), zi=zi, fifo=fifo,
@@ -581,25 +598,26 @@ def step(key, state: EnvState, action, params: EnvParams):
     cmd = command(params, action)
     scale = params.reward_scale[state.record]
     ep = _episode(params, state.record)
-    splits = [sc.delay_split(ep.lag[j, 2], params.dt) for j in range(nd)]
-    lag = [[ep.lag[j, 0], ep.lag[j, 1]] for j in range(nd)]
+    whole, ts = sc.delay_split(ep.lag[:, 2], params.dt)  # each damper's delay: whole steps and the rest
+    lag = ep.lag[:, :2]
 
     def physics(carry, k):
-        Y, U, F, queue, nsub, zi, h, work, status, total, hit, cost, used_total = carry
+        Y, U, F, queue, nsub, zi, w_ok, filtered, work, status, total, hit, cost, used_total = carry
         row = state.k * params.n_sub + k
         queue = jnp.concatenate([cmd[None], queue[:-1]])
-        cmds = ([queue[m + 1, j] for j, (m, _) in enumerate(splits)], [queue[m, j] for j, (m, _) in enumerate(splits)],
-                [s for _, s in splits])
+        # the commands whole + 1 and whole steps back, per damper (selections: a gather per damper costs more)
+        va, vb = queue[-1], queue[-1]
+        for i in range(params.queue - 2, -1, -1):
+            va = jnp.where(whole + 1 == i, queue[i], va)
+            vb = jnp.where(whole == i, queue[i], vb)
         w0, w1 = params.W[state.record, row], params.W[state.record, row + 1]
         st, Yn, Un, Fn, used, nsub_n, work = sc.macro_step(
-            model, ep.plant, ep.P, lag, cmds, [Y[i] for i in range(Y.shape[0])], [U[j] for j in range(nd)],
-            [F[j] for j in range(nd)], [w0[i] for i in range(w0.shape[0])], [w1[i] for i in range(w1.shape[0])],
-            params.dt, params.atol, params.rtol, nsub, work, exact=exact, max_level=params.max_level,
-            substeps=params.substeps, newton_iterations=params.newton_iterations)
+            model, ep.plant, ep.P, lag, (va, vb, ts), Y, U, F, w0, w1, params.dt, params.atol, params.rtol, nsub,
+            work, exact=exact, max_level=params.max_level, substeps=params.substeps,
+            newton_iterations=params.newton_iterations)
         running = status == OK
         ok = running & (st == OK)
-        Yn, Un, Fn = jnp.stack(Yn), jnp.stack(Un), jnp.stack(Fn)
-        hn, zin = _row(params, ep.G, Yn, Fn, w1, cmd, zi)
+        hn, fn, zin = _step_row(params, ep.G, Yn, Fn, w1, cmd, zi)
         keep = lambda new, old: jnp.where(ok, new, old)  # noqa: E731  (a failed system stays as it was)
         term = jnp.asarray(0.0)
         for i, c in enumerate(params.reward_cols):
@@ -609,15 +627,18 @@ def step(key, state: EnvState, action, params: EnvParams):
             hit = hit | (ok & (jnp.abs(hn[c]) > params.limits[i]))
         cost = cost + jnp.where(ok, _violations(params, ep.cost_limits, hn), 0.0)
         status = jnp.where(running, st, status).astype(jnp.int32)
-        return (keep(Yn, Y), keep(Un, U), keep(Fn, F), queue, keep(nsub_n, nsub), keep(zin, zi), keep(hn, h), work,
-                status, total, hit, cost, used_total + jnp.where(ok, used, 0)), None
+        return (keep(Yn, Y), keep(Un, U), keep(Fn, F), queue, keep(nsub_n, nsub), keep(zin, zi), keep(w1, w_ok),
+                keep(fn, filtered), work, status, total, hit, cost, used_total + jnp.where(ok, used, 0)), None
 
-    work = sc.empty_work(nd, model.ns)
-    h0 = jnp.zeros(params.width)
-    init = (state.Y, state.U, state.F, state.queue, state.nsub, state.zi, h0, work, state.status, jnp.asarray(0.0),
-            jnp.asarray(False), jnp.zeros(len(params.cost_terms)), jnp.asarray(0))
-    (Y, U, F, queue, nsub, zi, h, _, status, total, hit, cost, used), _ = lax.scan(physics, init,
-                                                                                   jnp.arange(params.n_sub))
+    work = sc.empty_work(nd, model.ns) if exact else None
+    # the last accepted physics step's input and filter outputs: the measurement's row is made from them
+    w_ok, filtered = params.W[state.record, 0], jnp.zeros(len(params.filters))
+    init = (state.Y, state.U, state.F, state.queue, state.nsub, state.zi, w_ok, filtered, work, state.status,
+            jnp.asarray(0.0), jnp.asarray(False), jnp.zeros(len(params.cost_terms)), jnp.asarray(0))
+    (Y, U, F, queue, nsub, zi, w_ok, filtered, _, status, total, hit, cost, used), _ = lax.scan(
+        physics, init, jnp.arange(params.n_sub))
+    # the row of the period's last accepted physics step (zeros if none was: an episode that had already failed)
+    h = jnp.where(used > 0, _row(params, ep.G, Y, F, w_ok, cmd, filtered), 0.0)
     k = state.k + 1
     diverged = status != OK
     terminated = hit | diverged

@@ -3,8 +3,9 @@ order, as :func:`mrd_env.stepping.matrices.lu_factor` / ``lu_solve`` (partial pi
 with the row swaps written as selections so that a vmapped batch pivots each system on its own. For the 2×2 and
 3×3 systems of one damper this beats a call to LAPACK inside a scan (the prototype's finding). Systems of several
 dampers (the full car's 12×12) are factorised on an array instead (:data:`UNROLL_UP_TO`): the same operations, each
-element's in the same order, with the row swaps as dynamic gathers, which compiles in seconds where the unrolled
-selections took minutes."""
+element's in the same order, which compiles in seconds where the unrolled selections took minutes. Row swaps are
+selections throughout, never indexed reads or writes with a traced index: under ``vmap`` those are gathers and
+scatters, which XLA's CPU backend runs as serial loops over the batch."""
 from __future__ import annotations
 
 import jax.numpy as jnp
@@ -46,20 +47,31 @@ def lu_factor(M):
     return M, piv, ok
 
 
+def _pick(rows, p, first: int = 0):
+    """rows[p] for a traced index p in [first, len(rows)), as a chain of selections: the value itself, exactly
+    (under ``vmap`` an indexed read or write of a batch is a gather or a scatter, which XLA's CPU backend runs as
+    a serial loop over the batch)."""
+    out = rows[-1]
+    for i in range(len(rows) - 2, first - 1, -1):
+        out = jnp.where(p == i, rows[i], out)
+    return out
+
+
 def _lu_factor_array(M):
-    """:func:`lu_factor` on an (n, n) array: the pivot is the first largest (``argmax``), the swap two dynamic row
-    updates, the elimination M[i, c] − f_i·M[k, c] element by element as the unrolled loops do it."""
+    """:func:`lu_factor` on an (n, n) array: the pivot is the first largest (``argmax``), the swap two row
+    selections, the elimination M[i, c] − f_i·M[k, c] element by element as the unrolled loops do it."""
     n = len(M)
     A = jnp.stack([jnp.stack([jnp.asarray(x, jnp.float64) for x in row]) for row in M])
+    rows = jnp.arange(n)[:, None]
     piv = []
     ok = jnp.asarray(True)
     for k in range(n):
         p = (k + jnp.argmax(jnp.abs(A[k:, k]))).astype(jnp.int32)
-        big = jnp.abs(A[p, k])
+        row_k, row_p = A[k], _pick([A[i] for i in range(n)], p, k)
+        big = jnp.abs(row_p[k])
         ok = ok & (big != 0.0) & jnp.isfinite(big)
         piv.append(p)
-        row_k, row_p = A[k], A[p]
-        A = A.at[p].set(row_k).at[k].set(row_p)
+        A = jnp.where(rows == k, row_p, jnp.where(rows == p, row_k, A))
         if k + 1 < n:
             f = A[k + 1:, k] / A[k, k]
             A = A.at[k + 1:, k].set(f)
@@ -70,12 +82,11 @@ def _lu_factor_array(M):
 def lu_solve(LU, piv, b):
     """x with M x = b from the factors of :func:`lu_factor` (b a list of scalars)."""
     n = len(b)
-    if n > UNROLL_UP_TO:  # the row swaps as dynamic updates of an array
-        v = jnp.stack([jnp.asarray(x, jnp.float64) for x in b])
+    if n > UNROLL_UP_TO:  # the row swaps as selections of the pivot's entry
+        b = list(b)
         for k in range(n):
-            bp = v[piv[k]]
-            v = v.at[piv[k]].set(v[k]).at[k].set(bp)
-        b = [v[i] for i in range(n)]
+            bk, bp = b[k], _pick(b, piv[k], k)
+            b = b[:k] + [bp] + [jnp.where(piv[k] == i, bk, b[i]) for i in range(k + 1, n)]
     else:
         b = list(b)
         for k in range(n):

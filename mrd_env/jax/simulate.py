@@ -31,29 +31,25 @@ def simulate(plant: sc.Plant, P, lag, Y0, U0, V, W, dt, *, model: str, queue: in
     m_ = jax_damper(model)
     nd = U0.shape[0]
     exact = scheme == "exact"
-    split = [sc.delay_split(lag[j, 2], dt) for j in range(nd)]
-    Y0 = [Y0[i] for i in range(Y0.shape[0])]
-    U0 = [U0[j] for j in range(nd)]
-    F0, finite = sc.end_forces(m_, plant.C, plant.D, P, Y0, U0, [W[0, k] for k in range(W.shape[1])])
+    whole, ts = sc.delay_split(lag[:, 2], dt)
+    F0, finite = sc.end_forces(m_, plant.C, plant.D, P, Y0, U0, W[0], exact=exact)
 
     def body(c, r):
         Y, U, F, qu, nsub, work, status = c
         qu = jnp.concatenate([V[r][None], qu[:-1]])
-        cmds = ([qu[split[j][0] + 1, j] for j in range(nd)], [qu[split[j][0], j] for j in range(nd)],
-                [split[j][1] for j in range(nd)])
-        w0 = [W[r, k] for k in range(W.shape[1])]
-        w1 = [W[r + 1, k] for k in range(W.shape[1])]
+        va, vb = qu[-1], qu[-1]
+        for i in range(queue - 2, -1, -1):
+            va = jnp.where(whole + 1 == i, qu[i], va)
+            vb = jnp.where(whole == i, qu[i], vb)
         st, Yn, Un, Fn, used, nsub_n, work = sc.macro_step(
-            m_, plant, P, [[lag[j, 0], lag[j, 1]] for j in range(nd)], cmds, Y, U, F, w0, w1, dt, atol, rtol, nsub,
-            work, exact=exact, max_level=max_level_of(MAX_SUBSTEPS), substeps=substeps,
-            newton_iterations=newton_iterations)
+            m_, plant, P, lag[:, :2], (va, vb, ts), Y, U, F, W[r], W[r + 1], dt, atol, rtol, nsub, work, exact=exact,
+            max_level=max_level_of(MAX_SUBSTEPS), substeps=substeps, newton_iterations=newton_iterations)
         ok = status == OK
-        keep = lambda new, old: [jnp.where(ok, a, b) for a, b in zip(new, old)]  # noqa: E731
-        Y, U, F = keep(Yn, Y), keep(Un, U), keep(Fn, F)
+        Y, U, F = (jnp.where(ok, a, b) for a, b in ((Yn, Y), (Un, U), (Fn, F)))
         status = jnp.where(ok, st, status)
-        return (Y, U, F, qu, jnp.where(ok, nsub_n, nsub), work, status), (jnp.stack(F), jnp.stack(Y), status, used)
+        return (Y, U, F, qu, jnp.where(ok, nsub_n, nsub), work, status), (F, Y, status, used)
 
-    init = (Y0, U0, F0, jnp.tile(jnp.stack(U0)[None], (queue, 1)), jnp.asarray(1), sc.empty_work(nd, m_.ns),
+    init = (Y0, U0, F0, jnp.tile(U0[None], (queue, 1)), jnp.asarray(1), sc.empty_work(nd, m_.ns) if exact else None,
             jnp.where(finite, OK, sc.NONFINITE))
     _, (F, Y, status, used) = lax.scan(body, init, jnp.arange(V.shape[0]))
     return F, Y, status, used

@@ -243,9 +243,14 @@ def throughput(name: str, sizes, repeats: int, window: float, schemes=("differen
             case[1], case[3] = states, key
             return N * n / (time.perf_counter() - t0)
 
-        # a first run (warm-up) sizes each timed run to about `window` seconds
-        counts = {} if native is None else {"native": max(2, int(window * run_native(2) / N))}
+        # a warm-up step, then a short run sizes each timed run to about `window` seconds (a first call's one-off
+        # costs in the sizing run made the timed runs a few steps long)
+        counts = {}
+        if native is not None:
+            run_native(1)
+            counts["native"] = max(2, int(window * run_native(2) / N))
         for label, case in cases.items():
+            run_jax(case, 1)
             counts[label] = max(2, int(window * run_jax(case, 2) / N))
         rates: dict[str, list] = {k: [] for k in counts}
         for _ in range(repeats):
