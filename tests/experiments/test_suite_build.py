@@ -278,3 +278,26 @@ def test_a_spec_names_a_known_procedure(tmp_path, capsys):
     spec = write_spec(tmp_path, spec_data(procedure=3))
     rc, _, err = _build([spec], capsys)
     assert rc == 2 and "procedure must be one of [1, 2]" in err and err.count("\n") == 1
+
+
+def test_an_uncertified_episode_fails_the_build_after_the_others_are_kept(serial, tmp_path, monkeypatch):
+    """An episode whose two paths disagree is never stored, and does not cost the build its other episodes: they are
+    solved and kept, the build fails naming the uncertified one, and a build run again solves only that one."""
+    spec = write_spec(tmp_path, spec_data())
+    plant_name, env_id, d = suite_spec(spec)
+    out = tmp_path / "tiny-build-v1.json"
+    real = sr.episode_references
+
+    def disagreeing(*args, **kwargs):
+        if args[2] == "ISO-C":
+            return {"uncertified": "ISO-C: the two solution paths disagree by 2.35% of its range", "wall_s": 0.0}
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(sr, "episode_references", disagreeing)
+    with pytest.raises(sr.UncertifiedEpisode, match=r"1 episode\(s\) not certified.*ISO-C: the two solution paths"):
+        sr.build_suite(d, plant_name, env_id, out, progress=False, command=sr.spec_command(spec), say=lambda _: None)
+    assert not out.exists() and len(list(sr.partial_folder(out).glob("episode-*.json"))) == 1   # "my road" kept
+    solved = []
+    monkeypatch.setattr(sr, "episode_references", lambda *a, **k: solved.append(a[2]) or real(*a, **k))
+    sr.build_suite(d, plant_name, env_id, out, progress=False, command=sr.spec_command(spec), say=lambda _: None)
+    assert solved == ["ISO-C"] and out.read_bytes() == serial.read_bytes()
