@@ -78,8 +78,9 @@ class SuiteDefinition:
 
     ``options``: the environment options of every episode (damper, damper floors, sensors — ``road_preview``
     among them says the controller has the road preview); ``scenarios``: each scenario's own options and seeds;
-    ``criteria``: the episode metrics reported beside the share; ``references_of``: the name of the suite whose
-    references this one shares (the same episodes on the same plant, only the sensors differ); ``randomise``: a
+    ``criteria``: the episode metrics reported beside the share; ``references_of``: the suite whose references
+    this one shares (the same episodes on the same plant, only the sensors differ): an id (``car-comfort-v1``), or a
+    name, meaning that name at this suite's own version (:attr:`references_id`); ``randomise``: a
     robustness twin's bands (:func:`draw_episode`: drawn per episode from ``randomise["seed"]``, stored in the
     suite file)."""
 
@@ -98,6 +99,16 @@ class SuiteDefinition:
     env_id: str = ""
     #: the reference procedure its references are computed by (:data:`PROCEDURES`)
     procedure: int = 2
+
+    @property
+    def references_id(self) -> str:
+        """The id of the suite whose references this one shares ("" for none): ``references_of`` where it names a
+        version, else that name at this suite's version — a twin and its source are versioned together, so a new
+        version of the source (``car-comfort-v2``) leaves the twins of the old one (``car-preview-v1``) on theirs."""
+        ref = self.references_of
+        if not ref or re.fullmatch(r".+-v[0-9]+", ref):
+            return ref
+        return f"{ref}-v{self.version}"
     #: the folder of the spec file it was read from, where the record files its options name are; "" otherwise
     folder: str = field(default="", compare=False, repr=False)
 

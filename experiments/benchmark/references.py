@@ -296,11 +296,12 @@ def copy_references(plant: str, env_id: str, definition, command: str):
     (``references_of``): the same plant and episodes, checked."""
     from mrd_env.suites import draws, suites
 
-    sources = sorted((s.version, s) for s in suites().values() if s.name == definition.references_of)
-    if not sources:
-        raise ValueError(f"suite {definition.id}: references_of must name a shipped suite (one of "
-                         f"{sorted({s.name for s in suites().values()})}), got {definition.references_of!r}")
-    src = sources[-1][1]
+    shipped = suites()
+    src = shipped.get(definition.references_id)
+    if src is None:
+        raise ValueError(f"suite {definition.id}: references_of must name a shipped suite at this suite's version, or "
+                         f"a shipped suite's id (one of {sorted(shipped)}), got {definition.references_of!r} "
+                         f"({definition.references_id} is not shipped)")
     new = definition.suite(plant, env_id, draws(definition, env_id))  # a twin's episodes include its draws
     for (a, sa), (b, sb) in zip(new.episodes(), src.episodes()):
         if a.label(sa) != b.label(sb) or new.reference_options(a, sa) != src.reference_options(b, sb):
