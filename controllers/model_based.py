@@ -19,7 +19,6 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-import control
 import numpy as np
 from scipy.linalg import expm, solve_discrete_are
 
@@ -282,6 +281,7 @@ class KalmanEstimator:
         self.C, self.D = C, D
         QN = process_noise * np.eye(nw)
         RN = np.diag(np.broadcast_to(measurement_noise, (C.shape[0],)).astype(float))
+        import control  # imported where a design is made: 2.6 s that every `import controllers` paid
         self.L, self.P, self.poles = control.dlqe(self.Phi, self.Gw, C, QN, RN)
         self.L = np.asarray(self.L)
         # the same update regrouped: x̂[k+1] = (Φ − LC) x̂ + (Γ_f − LD) f + L y, transposed for row batches
@@ -429,6 +429,7 @@ class ClippedOptimal(ObserverLaw):
         self.lq = (Q, R, N)  # the continuous cost ∫ xᵀQx + 2xᵀNf + fᵀRf dt (w = 0)
         self.cost = (Cz, Dz, Dzw)  # z = C_z x + D_z f + D_zw w, R₀ = 1/force_ref² on f besides
         if design == "continuous":
+            import control  # imported where a design is made: 2.6 s that every `import controllers` paid
             self.K, self.S_riccati, self.closed_loop_poles = control.lqr(self.design.A, self.design.Bf, Q, R, N)
             self.K = np.asarray(self.K)
         else:
@@ -474,6 +475,7 @@ class Lyapunov(ObserverLaw):
             n = d.n_dof
             Q = np.block([[d.plant.K, np.zeros((n, n))], [np.zeros((n, n)), d.plant.M]])
             Q = 0.5 * (Q + Q.T)  # K = Sᵀ K_s S is symmetric to round-off only (the full car's), lyap wants it exactly
+        import control  # imported where a design is made: 2.6 s that every `import controllers` paid
         self.P = control.lyap(d.A.T, Q)
         self._PB = self.P @ self.design.Bf
 
