@@ -94,6 +94,48 @@ def test_gradient_of_an_episode_cost_matches_finite_differences(car):
     assert np.all(g[:-1] != 0.0)  # every command but the last (whose effect starts after the record) matters
 
 
+def _plant_ids():
+    from mrd_env.plants import plants
+
+    return [f"mrd_env/{spec.id_name}-v1" for spec in plants().values()]
+
+
+@pytest.mark.parametrize("env_id", _plant_ids())
+def test_force_system_needs_no_pivoting(env_id):
+    """Both schemes solve the dampers' force system by elimination without pivoting (mrd_env.jax.scheme): on
+    every plant, at every sub-step level, over the dampers' range of internal states, strokes of ±10 cm, stroke
+    rates of ±2 m/s and commands, partial pivoting would keep the diagonal at every step (so the elimination is
+    the kernel's own), and no entry grows past twice the matrix's largest."""
+    from mrd_env.jax import env as je, scheme as sc
+    from mrd_env.jax.dampers import jax_damper
+    from mrd_env.stepping.scheme import GAMMA
+
+    params = je.make_params(env_id, seeds=[0], scheme="differentiable")
+    model, P, nd = jax_damper(params.model), params.P[0], params.nd
+    if nd == 1:
+        pytest.skip("one damper: the force system is a division")
+    rng = np.random.default_rng(0)
+    M = 4000
+    x, v = rng.uniform(-0.1, 0.1, (M, nd)), rng.uniform(-2.0, 2.0, (M, nd))
+    u = rng.uniform(params.v_min, params.v_max, (M, nd))
+    S = rng.uniform(-1.0, 1.0, (M, nd, model.ns)) * np.r_[0.1, 1.0][:model.ns]  # the models' own range: projected
+    S = jax.vmap(jax.vmap(lambda p, s, x, v, u: jnp.stack(model.project(p, tuple(s), x, v, u)),
+                          in_axes=(0, 0, 0, 0, 0)), in_axes=(None, 0, 0, 0, 0))(P, S, x, v, u)
+
+    def system(S, x, v, u, hg, PP):
+        *_, alpha, beta = sc._state_blocks(sc._jacobian(model, P, S, x, v, jnp.zeros(nd), u), hg)
+        return sc.force_system(alpha, beta, PP[0], PP[1])
+
+    systems = jax.jit(jax.vmap(system, in_axes=(0, 0, 0, 0, None, None)))
+    for level in range(params.plant.PP.shape[1]):
+        F = np.array(systems(S, x, v, u, params.dt / 2 ** level * GAMMA, params.plant.PP[0, level]))
+        A, big = F.copy(), np.abs(F).max(axis=(1, 2))
+        for k in range(nd):
+            assert np.all(np.argmax(np.abs(A[:, k:, k]), axis=1) == 0), (level, k)  # the diagonal: no row swap
+            A[:, k + 1:] -= (A[:, k + 1:, k] / A[:, k, k, None])[:, :, None] * A[:, k, None, :]
+            assert np.all(np.abs(A).max(axis=(1, 2)) <= 2.0 * big), (level, k)
+
+
 @pytest.fixture(scope="module")
 def env():
     params = qc.make_params(n_roads=3, episode_seconds=0.05, scheme="differentiable", damper="bouc_wen")
