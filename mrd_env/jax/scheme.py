@@ -307,14 +307,14 @@ def _stage_fixed(model, P, newton_iterations):
 
 
 # --- the exact scheme -----------------------------------------------------------------------------------------
-def _stage_exact(model, P, atol, rtol, level):
+def _stage_exact(model, P, atol, rtol, level, active):
     """The exact scheme's stage solve (the kernel's ``solve_stage``): Newton until its last correction is below
     ``NEWTON_TOL`` of the tolerance on every state (the plant's change is M_q ΔF), at most ``MAX_ITER`` times, the
     Newton matrix made from the Jacobians kept in the :class:`Work` while convergence is fast, from fresh ones when
     a correction shrinks by less than 4 or every fourth iteration. A stage starts from the kept matrix when it was
-    made at this ``level`` (the second stage always)."""
+    made at this ``level`` (the second stage always). Not ``active`` (a system whose result the enclosing loop
+    drops): no iteration, so that a vmapped batch does not wait for its Newton iterations."""
     atol, rtol = NEWTON_TOL * atol, NEWTON_TOL * rtol
-
     sums = KERNEL_SUMS
 
     def stage(work, lv, Rq, Rs, u, inp, hg, S, Fz, first):
@@ -330,28 +330,29 @@ def _stage_exact(model, P, atol, rtol, level):
             r_s, r_F = _residual(model, P, S, Rs, Fz, xs, vs, As, u, hg)
             dS, dF, okf = _newton_solve(Jd, r_s, r_F, hg, PP[0], PP[1])
             S, Fz = S + dS, Fz + dF
-            err = jnp.maximum(_worst(jnp.abs(dS) / (atol + rtol * jnp.abs(S))), _worst(jnp.abs(sums.mv(Mq, dF)) / scale_q))
+            err = jnp.maximum(_worst(jnp.abs(dS) / (atol + rtol * jnp.abs(S))),
+                              _worst(jnp.abs(sums.mv(Mq, dF)) / scale_q))
             state = jnp.where((~fresh & ~okf) | ~jnp.isfinite(err), 2, jnp.where(err <= 1.0, 1, 0))
             fresh = ~((err > 0.25 * prev) | (it % 4 == 3))
             return it + 1, S, Fz, Jd, fresh, err, state
 
         reuse = (work.level == level) if first else jnp.asarray(True)
-        init = (jnp.asarray(0), S, Fz, work.Jd, reuse, jnp.asarray(jnp.inf), jnp.asarray(0))
+        init = (jnp.where(active, 0, MAX_ITER), S, Fz, work.Jd, reuse, jnp.asarray(jnp.inf), jnp.asarray(0))
         _, S, Fz, Jd, _, _, state = lax.while_loop(lambda c: (c[-1] == 0) & (c[0] < MAX_ITER), body, init)
         return state == 1, sums.mv(Mq, Fz, qbar), S, Fz, Work(Jd, jnp.asarray(level, jnp.int32))
     return stage
 
 
-def _sdirk_step_exact(model, lv, P, lag, cmds, Y, u0, Fz, inputs, tau0, h, H, atol, rtol, level, work):
+def _sdirk_step_exact(model, lv, P, lag, cmds, Y, u0, Fz, inputs, tau0, h, H, atol, rtol, level, work, active):
     """The exact scheme's SDIRK2 step (the kernel's ``sdirk_step``): the two stages, then the filtered local error
     estimate (SDIRK2 minus the embedded solution, through the last Newton matrix). Returns (ok, error estimate, Y,
-    Fz, work)."""
+    Fz, work); not ``active``: no Newton iterations (:func:`_stage_exact`)."""
     C, Ainv, Mq, PP = lv.C, lv.Ainv, lv.Mq, lv.PP
     nq, nd, ns = Ainv.shape[0], Fz.shape[0], model.ns
     hg = h * GAMMA
     sums = KERNEL_SUMS
     ok, Z2, F2, f1, u2, at2, work = _sdirk_step(sums, model, lv, P, lag, cmds, Y, u0, Fz, inputs, tau0, h, H,
-                                                _stage_exact(model, P, atol, rtol, level), work)
+                                                _stage_exact(model, P, atol, rtol, level, active), work)
     est = Z2 - (Y + h * f1)
     eq0 = sums.mv(Ainv, est[:nq])
     ex0, ev0 = sums.mv(C[0], eq0), sums.mv(C[1], eq0)
@@ -360,30 +361,36 @@ def _sdirk_step_exact(model, lv, P, lag, cmds, Y, u0, Fz, inputs, tau0, h, H, at
     r_F = Jd[:, ns, ns] * ex0 + Jd[:, ns, ns + 1] * ev0
     dS, dF, _ = _newton_solve(Jd, r_s, r_F, hg, PP[0], PP[1])
     scale = atol + rtol * jnp.maximum(jnp.abs(Y), jnp.abs(Z2))
-    err = jnp.maximum(_worst(jnp.abs(sums.mv(Mq, dF, eq0)) / scale[:nq]), _worst(jnp.abs(dS.reshape(-1)) / scale[nq:]))
+    err = jnp.maximum(_worst(jnp.abs(sums.mv(Mq, dF, eq0)) / scale[:nq]),
+                      _worst(jnp.abs(dS.reshape(-1)) / scale[nq:]))
     work = Work(work.Jd, jnp.where(ok, jnp.asarray(level, jnp.int32), -1))
     return ok, jnp.where(ok, err, jnp.inf), _project(sums, model, C, lv.D, P, Z2, u2, at2), F2, work
 
 
 def _macro_step_exact(model, plant: Plant, P, lag, cmds, Y, U, Fz, w0, w1, dt, atol, rtol, nsub, work, max_level):
     """The exact scheme's macro step (:func:`macro_step`): sub-steps of dt/2^k, k from the last step's, doubled
-    until every sub-step converges and the largest error estimate is within the tolerance (or k is the largest)."""
+    until every sub-step converges and the largest error estimate is within the tolerance (or k is the largest).
+
+    Under ``vmap`` a loop runs until its last system is done, and the body runs for every system, the results of
+    those already done dropped: a system that is done starts no inner loop and no Newton iteration, so that a
+    batch's cost per step is its slowest system's, not the product of every loop's slowest."""
     level0 = sum((jnp.maximum(nsub, 1) >= 2 ** k).astype(jnp.int32) for k in range(1, max_level + 1))
+    inputs = KERNEL_SUMS.inputs(plant.D, None, w0, w1)
 
     def sub_body(c):
         sidx, level, Yc, Fc, worst, ok, wk = c
         h = dt / (2.0 ** level)
         lv = _level_plant(plant, level)
-        good, err, Yn, Fn, wk = _sdirk_step_exact(model, lv, P, lag, cmds, Yc, U, Fc,
-                                                  KERNEL_SUMS.inputs(plant.D, lv.Bbar, w0, w1), sidx * h, h, dt,
-                                                  atol, rtol,
-                                                  level, wk)
+        active = ok & (sidx < 2 ** level)
+        good, err, Yn, Fn, wk = _sdirk_step_exact(model, lv, P, lag, cmds, Yc, U, Fc, inputs, sidx * h, h, dt,
+                                                  atol, rtol, level, wk, active)
         Yc, Fc = jnp.where(good, Yn, Yc), jnp.where(good, Fn, Fc)
         return sidx + 1, level, Yc, Fc, jnp.where(good & (err > worst), err, worst), ok & good, wk
 
     def try_body(c):
-        level, _, _, _, _, _, wk = c
-        init = (jnp.asarray(0), level, Y, Fz, jnp.asarray(0.0), jnp.asarray(True), wk)
+        level, _, _, _, _, status, wk = c
+        first = jnp.where(status == 0, 0, 2 ** level)  # a system already accepted: no sub-step
+        init = (first, level, Y, Fz, jnp.asarray(0.0), jnp.asarray(True), wk)
         _, _, Yc, Fc, worst, ok, wk = lax.while_loop(lambda s: s[5] & (s[0] < 2 ** s[1]), sub_body, init)
         accept = ok & ((worst <= 1.0) | (level >= max_level))
         fail = ~accept & (level >= max_level)
