@@ -57,15 +57,16 @@ class Plant(NamedTuple):
 
 class Work(NamedTuple):
     """What the exact scheme keeps of its Newton matrix between the stages and steps of a control period: the
-    damper Jacobians it was made from (nd, ns + 1, ns + 2) and the sub-step level it was made for (−1: none). The
+    damper Jacobians it was made from (``J[r][c]`` (nd,), :func:`_jacobian`) and the sub-step level it was made for
+    (−1: none). The
     matrix is a function of them (and of the level's plant), so it is made again from them where the kernel reuses
     its factors: the same matrix, the same Newton steps."""
-    Jd: jnp.ndarray
+    J: tuple
     level: jnp.ndarray
 
 
 def empty_work(nd: int, ns: int) -> Work:
-    return Work(jnp.zeros((nd, ns + 1, ns + 2)), jnp.asarray(-1, jnp.int32))
+    return Work(tuple(tuple(jnp.zeros(nd) for _ in range(ns + 2)) for _ in range(ns + 1)), jnp.asarray(-1, jnp.int32))
 
 
 # --- the command lag (mrd_env.command_lag) -------------------------------------------------------------------
@@ -146,9 +147,10 @@ def _over_dampers(fn):
 
 
 def _jacobian(model, P, S, xs, vs, As, u):
-    """The dampers' Jacobians (nd, ns + 1, ns + 2) of (ṡ, F) with respect to (s, x, ẋ), the kernel's ``Jd``."""
+    """The dampers' Jacobians of (ṡ, F) with respect to (s, x, ẋ), the kernel's ``Jd``, as rows of columns:
+    ``J[r][c]`` (nd,), rows ṡ then F, columns s, then x, then ẋ (kept apart: stacking them would copy them)."""
     J = _over_dampers(model.partials)(P, _columns(S), xs, vs, As, u)
-    return jnp.stack([jnp.stack([jnp.broadcast_to(c, xs.shape) for c in row], axis=-1) for row in J], axis=1)
+    return tuple(tuple(jnp.broadcast_to(c, xs.shape) for c in row) for row in J)
 
 
 def _residual(model, P, S, Rs, Fz, xs, vs, As, u, hg):
@@ -189,20 +191,20 @@ def _solve_in_order(M, b):
     return jnp.stack(x), ok
 
 
-def _state_blocks(Jd, hg):
-    """Each damper's own block A = I − hγ ∂g/∂s of the Newton matrix made from the dampers' Jacobians Jd
-    (nd, ns + 1, ns + 2), factorised (LU with partial pivoting, elementwise over the dampers), and what it leaves of
+def _state_blocks(J, hg):
+    """Each damper's own block A = I − hγ ∂g/∂s of the Newton matrix made from the dampers' Jacobians J
+    (:func:`_jacobian`), factorised (LU with partial pivoting, elementwise over the dampers), and what it leaves of
     the force rows: a_x = A⁻¹ ∂g/∂x, a_v = A⁻¹ ∂g/∂ẋ, α = ∂F/∂x + hγ ∂F/∂s · a_x, β = ∂F/∂ẋ + hγ ∂F/∂s · a_v.
     Returns (LU, pivots, ok, a_x, a_v, α, β)."""
-    ns = Jd.shape[1] - 1
-    A = [[(1.0 if i == k else 0.0) - hg * Jd[:, i, k] for k in range(ns)] for i in range(ns)]
+    ns = len(J) - 1
+    A = [[(1.0 if i == k else 0.0) - hg * J[i][k] for k in range(ns)] for i in range(ns)]
     LU, piv, ok = lu_factor(A)
-    ax = lu_solve(LU, piv, [Jd[:, i, ns] for i in range(ns)])
-    av = lu_solve(LU, piv, [Jd[:, i, ns + 1] for i in range(ns)])
-    alpha, beta = Jd[:, ns, ns], Jd[:, ns, ns + 1]
+    ax = lu_solve(LU, piv, [J[i][ns] for i in range(ns)])
+    av = lu_solve(LU, piv, [J[i][ns + 1] for i in range(ns)])
+    alpha, beta = J[ns][ns], J[ns][ns + 1]
     for i in range(ns):
-        alpha = alpha + hg * Jd[:, ns, i] * ax[i]
-        beta = beta + hg * Jd[:, ns, i] * av[i]
+        alpha = alpha + hg * J[ns][i] * ax[i]
+        beta = beta + hg * J[ns][i] * av[i]
     return LU, piv, jnp.all(ok), ax, av, alpha, beta
 
 
@@ -212,19 +214,19 @@ def force_system(alpha, beta, PP0, PP1):
     return jnp.eye(PP0.shape[0]) - (alpha[:, None] * PP0 + beta[:, None] * PP1)
 
 
-def _newton_solve(Jd, r_s, r_F, hg, PP0, PP1):
+def _newton_solve(J, r_s, r_F, hg, PP0, PP1):
     """(Δs (nd, ns), ΔF (nd,), ok) of the Newton system the kernel factorises whole, made from the dampers'
-    Jacobians Jd (nd, ns + 1, ns + 2), by block elimination. Each damper's state rows
+    Jacobians J (:func:`_jacobian`), by block elimination. Each damper's state rows
     (I − hγ ∂g/∂s) Δs_j − hγ (∂g/∂x e_x,j + ∂g/∂ẋ e_v,j) = r_s,j, with e_x = P_x ΔF and e_v = P_v ΔF the strokes'
     and rates' responses to the forces, give Δs_j = a0_j + hγ (a_x,j e_x,j + a_v,j e_v,j) from that damper's own
     ns × ns block (:func:`_state_blocks`); its force row then leaves ΔF − α ⊙ e_x − β ⊙ e_v = r_F + ∂F/∂s · a0,
     nd × nd (:func:`force_system`, :func:`_solve_in_order`). ``ok``: no block singular."""
     ns = r_s.shape[1]
-    LU, piv, ok, ax, av, alpha, beta = _state_blocks(Jd, hg)
+    LU, piv, ok, ax, av, alpha, beta = _state_blocks(J, hg)
     a0 = lu_solve(LU, piv, [r_s[:, i] for i in range(ns)])
     r = r_F
     for i in range(ns):
-        r = r + Jd[:, ns, i] * a0[i]
+        r = r + J[ns][i] * a0[i]
     dF, okF = _solve_in_order(force_system(alpha, beta, PP0, PP1), r)
     ex, ev = PP0 @ dF, PP1 @ dF
     dS = jnp.stack([a0[i] + hg * (ax[i] * ex + av[i] * ev) for i in range(ns)], axis=1) if ns else r_s
@@ -324,22 +326,23 @@ def _stage_exact(model, P, atol, rtol, level, active):
         scale_q = atol + rtol * jnp.abs(qbar)
 
         def body(c):
-            it, S, Fz, Jd, fresh, prev, state = c
+            it, S, Fz, J, fresh, prev, state = c
             xs, vs = sums.mv(PP[0], Fz, xbar), sums.mv(PP[1], Fz, vbar)
-            Jd = jnp.where(fresh, Jd, _jacobian(model, P, S, xs, vs, As, u))
+            J = jax.tree_util.tree_map(lambda kept, new: jnp.where(fresh, kept, new), J,
+                                       _jacobian(model, P, S, xs, vs, As, u))
             r_s, r_F = _residual(model, P, S, Rs, Fz, xs, vs, As, u, hg)
-            dS, dF, okf = _newton_solve(Jd, r_s, r_F, hg, PP[0], PP[1])
+            dS, dF, okf = _newton_solve(J, r_s, r_F, hg, PP[0], PP[1])
             S, Fz = S + dS, Fz + dF
             err = jnp.maximum(_worst(jnp.abs(dS) / (atol + rtol * jnp.abs(S))),
                               _worst(jnp.abs(sums.mv(Mq, dF)) / scale_q))
             state = jnp.where((~fresh & ~okf) | ~jnp.isfinite(err), 2, jnp.where(err <= 1.0, 1, 0))
             fresh = ~((err > 0.25 * prev) | (it % 4 == 3))
-            return it + 1, S, Fz, Jd, fresh, err, state
+            return it + 1, S, Fz, J, fresh, err, state
 
         reuse = (work.level == level) if first else jnp.asarray(True)
-        init = (jnp.where(active, 0, MAX_ITER), S, Fz, work.Jd, reuse, jnp.asarray(jnp.inf), jnp.asarray(0))
-        _, S, Fz, Jd, _, _, state = lax.while_loop(lambda c: (c[-1] == 0) & (c[0] < MAX_ITER), body, init)
-        return state == 1, sums.mv(Mq, Fz, qbar), S, Fz, Work(Jd, jnp.asarray(level, jnp.int32))
+        init = (jnp.where(active, 0, MAX_ITER), S, Fz, work.J, reuse, jnp.asarray(jnp.inf), jnp.asarray(0))
+        _, S, Fz, J, _, _, state = lax.while_loop(lambda c: (c[-1] == 0) & (c[0] < MAX_ITER), body, init)
+        return state == 1, sums.mv(Mq, Fz, qbar), S, Fz, Work(J, jnp.asarray(level, jnp.int32))
     return stage
 
 
@@ -356,14 +359,15 @@ def _sdirk_step_exact(model, lv, P, lag, cmds, Y, u0, Fz, inputs, tau0, h, H, at
     est = Z2 - (Y + h * f1)
     eq0 = sums.mv(Ainv, est[:nq])
     ex0, ev0 = sums.mv(C[0], eq0), sums.mv(C[1], eq0)
-    Jd = work.Jd
-    r_s = est[nq:].reshape(nd, ns) + hg * (Jd[:, :ns, ns] * ex0[:, None] + Jd[:, :ns, ns + 1] * ev0[:, None])
-    r_F = Jd[:, ns, ns] * ex0 + Jd[:, ns, ns + 1] * ev0
-    dS, dF, _ = _newton_solve(Jd, r_s, r_F, hg, PP[0], PP[1])
+    J, est_s = work.J, est[nq:].reshape(nd, ns)
+    r_s = jnp.stack([est_s[:, i] + hg * (J[i][ns] * ex0 + J[i][ns + 1] * ev0) for i in range(ns)], axis=1) \
+        if ns else est_s
+    r_F = J[ns][ns] * ex0 + J[ns][ns + 1] * ev0
+    dS, dF, _ = _newton_solve(J, r_s, r_F, hg, PP[0], PP[1])
     scale = atol + rtol * jnp.maximum(jnp.abs(Y), jnp.abs(Z2))
     err = jnp.maximum(_worst(jnp.abs(sums.mv(Mq, dF, eq0)) / scale[:nq]),
                       _worst(jnp.abs(dS.reshape(-1)) / scale[nq:]))
-    work = Work(work.Jd, jnp.where(ok, jnp.asarray(level, jnp.int32), -1))
+    work = Work(work.J, jnp.where(ok, jnp.asarray(level, jnp.int32), -1))
     return ok, jnp.where(ok, err, jnp.inf), _project(sums, model, C, lv.D, P, Z2, u2, at2), F2, work
 
 
