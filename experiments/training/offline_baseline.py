@@ -71,7 +71,9 @@ def main(argv=None) -> int:
     from experiments.training.offline import write_training_suite
 
     out = args.out
-    plant = profile("quarter_car")
+    from mrd_env.suites import suite
+
+    plant = profile(suite(SUITE).plant)  # the suite's plant
     suite_file = write_training_suite(out / "car-preview-training.json", plant, like=SUITE, episodes=args.episodes)
     data_root = out / "datasets"
     record = ["dataset", "--suite", str(suite_file), "--controller", EXPERT, "--out", str(data_root), "--overwrite",
@@ -93,7 +95,7 @@ def main(argv=None) -> int:
 
     agents = {}
     for algo, steps in (("bc", args.bc_steps), ("td3bc", args.td3bc_steps)):
-        train = ["train", "--plant", "quarter_car", "--algo", algo, "--preview", "--dataset", str(data_root),
+        train = ["train", "--plant", suite(SUITE).plant, "--algo", algo, "--preview", "--dataset", str(data_root),
                  "--seeds", str(args.seed), "--eval-freq", str(args.eval_freq), "--out", str(out / "agents"),
                  "--no-progress", *(["--timesteps", str(steps)] if steps else [])]
         wall, l0, l1 = _cli(train)

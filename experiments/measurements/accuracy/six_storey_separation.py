@@ -70,8 +70,10 @@ def tune(seeds: int, seconds: float) -> tuple[list[dict], dict]:
     """(rows, tuned): every law and grid value's mean training return with its interval; the tuned options of each
     law and the best law by mean training return."""
     from mrd_env.plants import plant
+    from mrd_env.suites import suite
 
-    training = dict(plant("shear_building").profile.training)
+    name = suite("building-six-storey-v1").plant  # the building's plant, named by its shipped suite
+    training = dict(plant(name).profile.training)
     sc = Scenario("training", ENV_ID, {**training, **BUILDING, "episode_seconds": seconds}, tuple(range(seeds)))
     rows, best = [], {}
     for law in (*FIXED_LAWS, *GRIDS):
@@ -87,8 +89,8 @@ def tune(seeds: int, seconds: float) -> tuple[list[dict], dict]:
                 best[law] = (m, options)
     laws = {k: v for k, v in best.items() if k not in PASSIVE}
     chosen = max(laws, key=lambda k: laws[k][0])
-    tuned = {"building": BUILDING, "training": {"seeds": [0, seeds - 1], "episode_seconds": seconds,
-                                                "distribution": "profile.training of shear_building"},
+    tuned = {"plant_options": BUILDING, "training": {"seeds": [0, seeds - 1], "episode_seconds": seconds,
+                                                "distribution": f"profile.training of {name}"},
              "control_dt": CONTROL_DT, "options": {k: v[1] for k, v in best.items()},
              "training_return": {k: round(v[0], 6) for k, v in best.items()}, "best_law": chosen}
     return rows, tuned
