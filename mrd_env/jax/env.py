@@ -494,11 +494,16 @@ def _stepped_columns(params: EnvParams) -> tuple:
     return tuple(sorted({int(c) for c in cols if c < nsig}))
 
 
+def _sums(params: EnvParams) -> sc.Sums:
+    """The scheme's sums (:mod:`mrd_env.jax.scheme`): the exact scheme forms the row as the native driver does."""
+    return sc.KERNEL_SUMS if params.scheme == "exact" else sc.MATRIX_SUMS
+
+
 def _step_row(params: EnvParams, G, Y, F, w, cmd, zi):
     """The columns of the row h = [G·[Y, F, w], the commands, the filters' outputs] that a physics step reads
     ({column: value}, :func:`_stepped_columns`), the filters' outputs (n_filters,) and their new states."""
     nsig, rows = G.shape[0], _stepped_columns(params)
-    sig = (G[jnp.asarray(rows, jnp.int32)] if rows else G[:0]) @ jnp.concatenate([Y, F, w])
+    sig = _sums(params).mv(G[np.asarray(rows, np.int32)] if rows else G[:0], jnp.concatenate([Y, F, w]))
     h = {c: sig[i] for i, c in enumerate(rows)}
     h.update({nsig + j: cmd[j] for j in range(params.nd)})
     sections, out = [zi[s] for s in range(zi.shape[0])], []
@@ -517,7 +522,7 @@ def _step_row(params: EnvParams, G, Y, F, w, cmd, zi):
 def _row(params: EnvParams, G, Y, F, w, cmd, filtered):
     """The whole row h (width,): the named signals G·[Y, F, w], the commands, the filters' outputs ``filtered``.
     Assembled from its columns (no scatter: under ``vmap`` an indexed update of a batch is a serial loop)."""
-    sig = G @ jnp.concatenate([Y, F, w])
+    sig = _sums(params).mv(G, jnp.concatenate([Y, F, w]))
     cols = [sig[i] for i in range(G.shape[0])] + [cmd[j] for j in range(params.nd)]
     cols += [jnp.zeros_like(sig[0])] * (params.width - len(cols))
     for i, (_, fout, _, _) in enumerate(params.filters):
