@@ -190,6 +190,7 @@ def test_tune_prunes_a_trial_below_the_median_after_the_warm_up(tmp_path, monkey
     assert st.best_value == 0.0
 
 
+@pytest.mark.slow  # 3 PPO trials (12 s); TD3's residual space, tested below in CI, shares its code path
 def test_tune_residual_space_starts_at_the_recipe_and_keeps_gamma_high(tmp_path):
     """--space residual: the first trial is the YAML entry as it is, the others draw γ in [0.995, 0.999] and the
     residual's scale, which lands in the best YAML's residual."""

@@ -15,6 +15,10 @@ from mrd_env.optimal import episode_problem  # noqa: E402
 ENV = "mrd_env/QuarterCarPhysical-v0"
 
 
+# one worker runs the module (--dist loadgroup): its module fixture's certified episodes are computed once, not on each
+pytestmark = pytest.mark.xdist_group("test_certify")
+
+
 @pytest.fixture(scope="module")
 def problem():
     """A short ISO class C road at the suite's 10 ms step: 40 commands."""

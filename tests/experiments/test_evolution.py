@@ -97,6 +97,10 @@ def _short_validation():
     return dataclasses.replace(val, options={**val.options, "episode_seconds": 0.3})
 
 
+# one worker runs the module (--dist loadgroup): its module fixture's CMA-ES agents are computed once, not on each
+pytestmark = pytest.mark.xdist_group("test_evolution")
+
+
 @pytest.fixture(scope="module")
 def es_runs(tmp_path_factory):
     out = tmp_path_factory.mktemp("es")

@@ -53,7 +53,12 @@ def assert_is_a_plot(path: Path) -> None:
     assert len(colours) >= 8, f"{path.name}: only {len(colours)} colours (a plot has lines in several colours)"
 
 
-@pytest.mark.parametrize("lab", sorted(FIGURES))
+#: the labs whose end-to-end run is a long integration run (7-18 s each): the slow tier (docs/testing.md)
+LONG_LABS = {"lab2_identification", "lab3_quarter_car", "lab5_inverse", "lab6_rl", "lab7_benchmark"}
+
+
+@pytest.mark.parametrize("lab", [pytest.param(lab, marks=pytest.mark.slow) if lab in LONG_LABS else lab
+                                 for lab in sorted(FIGURES)])
 def test_lab_runs_end_to_end_and_writes_its_figures(lab, tmp_path):
     env = {**os.environ, "MRD_LAB_OUT": str(tmp_path), "MPLBACKEND": "Agg", "MRD_LAB_FULL": "",
            "MRD_LAB_RECORD": "", "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}

@@ -20,6 +20,10 @@ TINY = ["--timesteps", "256", "--eval-freq", "128", "--eval-episodes", "1", "--n
         "--set", "n_envs=2", "n_steps=64", "batch_size=64", "n_epochs=1"]
 
 
+# one worker runs the module (--dist loadgroup): its module fixture's trained agents are computed once, not on each
+pytestmark = pytest.mark.xdist_group("test_rl")
+
+
 @pytest.fixture(scope="module")
 def trained(tmp_path_factory):
     out = tmp_path_factory.mktemp("agents")

@@ -281,6 +281,7 @@ def _doc_block(lang: str, after: str) -> str:
     return section.split(f"```{lang}\n", 1)[1].split("```", 1)[0]
 
 
+@pytest.mark.slow  # a PPO training and a pool score (14 s); the zip's refusal is tested below in CI
 def test_the_docs_sb3_recipe_trains_saves_and_scores_a_model_zip(tmp_path):
     """The recipe of docs/your-controller.md, run as written but for the training's length (a few hundred steps):
     PPO on QuarterCar-v1, ``model.save("model.zip")``, then ``mrd-env score --controller model.zip --trust-agent``
