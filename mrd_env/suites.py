@@ -70,6 +70,14 @@ class SuiteScenario:
 SENSOR_OPTIONS = ("sensors", "sensor_noise", "sensor_delay", "history", "preview")
 
 
+#: The reference procedures a spec may name (``experiments.benchmark.references``): 1, the clairvoyant at 1 ms by one
+#: solver (the v1 suites); 2, the clairvoyant at the suite's control step, certified by two solvers (the default);
+#: 3, procedure 2 with the gradient solver's first round run for each scenario's episodes together (faster builds).
+PROCEDURES = (1, 2, 3)
+#: A spec's procedure when it names none.
+DEFAULT_PROCEDURE = 2
+
+
 @dataclass(frozen=True)
 class SuiteDefinition:
     """What a plant's profile declares of a suite (:attr:`mrd_env.plants.profile.PlantProfile.suites`): everything
@@ -98,7 +106,7 @@ class SuiteDefinition:
     plant: str = ""
     env_id: str = ""
     #: the reference procedure its references are computed by (:data:`PROCEDURES`)
-    procedure: int = 2
+    procedure: int = DEFAULT_PROCEDURE
 
     @property
     def references_id(self) -> str:
@@ -577,9 +585,6 @@ SPEC_FORMAT_VERSION = 1
 SPEC_FIELDS = ("format", "format_version", "name", "version", "plant", "description", "options", "control_dt",
                "scenarios", "criteria")
 SPEC_OPTIONAL_FIELDS = ("env_id", "references_of", "randomise", "procedure")
-#: The reference procedures a spec may name (``experiments.benchmark.references``): 1, the clairvoyant at 1 ms by one
-#: solver (the v1 suites); 2, the clairvoyant at the suite's control step, certified by two solvers (the default).
-PROCEDURES = (1, 2)
 #: A robustness twin's bands (:func:`draw_episode`): ``seed`` and the bands of these groups.
 BAND_GROUPS = ("damper_params", "command", "plant_params", "sensor_noise")
 
@@ -626,9 +631,9 @@ def spec_definition(data, where: str = "suite spec", folder: str | Path | None =
         fail("references_of", "the name of a shipped suite with the same episodes", references_of)
     randomise = data.get("randomise", {})
     _check_bands(randomise, fail)
-    procedure = data.get("procedure", PROCEDURES[-1])
+    procedure = data.get("procedure", DEFAULT_PROCEDURE)
     if type(procedure) is not int or procedure not in PROCEDURES:
-        fail("procedure", f"one of {list(PROCEDURES)} (the reference procedure; left out: {PROCEDURES[-1]})",
+        fail("procedure", f"one of {list(PROCEDURES)} (the reference procedure; left out: {DEFAULT_PROCEDURE})",
              procedure)
     body = {"format": FORMAT, "format_version": FORMAT_VERSION,
             **{k: data[k] for k in SPEC_FIELDS if k not in ("format", "format_version", "scenarios")},

@@ -94,8 +94,17 @@ PROCEDURE_2 = {
     "bound": PROCEDURE["bound"] + ", at the suite's control step",
     "sensors": PROCEDURE["sensors"],
 }
+#: Procedure 3: procedure 2 with the gradient path's round 1 solved for each scenario's episodes together.
+PROCEDURE_3 = {
+    **PROCEDURE_2,
+    "version": 3,
+    "clairvoyant": PROCEDURE_2["clairvoyant"] + "; the gradient path's first round solved for all of a scenario's "
+                   "episodes together (experiments.benchmark.certify.batched_gradient_paths: one compiled program, "
+                   "a projected L-BFGS on the device; a scenario's batch is its episodes whatever was kept, so that "
+                   "a resumed build computes what a fresh one does)",
+}
 #: The procedures by their number (a spec's ``procedure``, :data:`mrd_env.suites.PROCEDURES`).
-PROCEDURES = {1: PROCEDURE, 2: PROCEDURE_2}
+PROCEDURES = {1: PROCEDURE, 2: PROCEDURE_2, 3: PROCEDURE_3}
 
 
 class UncertifiedEpisode(ValueError):
@@ -122,21 +131,20 @@ def episode_problem(env_id: str, options: dict, seed: int, step: float = STEP):
 
 def episode_references(env_id: str, options: dict, label: str, seed: int, warm_laws, *, cache: bool = False,
                        keep: str | None = None, key: dict | None = None, procedure: int = 1,
-                       control_dt: float = STEP) -> dict:
+                       control_dt: float = STEP, first: dict | None = None) -> dict:
     """The references of one episode by the fixed procedure (see the module docstring): {"reference": {passive,
     passive_command, clairvoyant, bound, f_max}, "source", "solves": [{start, status, success, iterations,
     evaluations, return, seconds}], "wall": {...}, "load_average": [...]}. A plain function of picklable inputs (the
     executor's workers run it). ``cache``: the clairvoyant's solve cache (:mod:`mrd_env.optimal.cache`; a build
     does not use it: its runs are timed); ``keep``, ``key``: the build's folder of kept episodes, where the result is
-    written at once under ``key`` (:func:`keep_episode`)."""
-    from experiments.benchmark.yardstick import force_peak, warm_starts
+    written at once under ``key`` (:func:`keep_episode`); ``first``: procedure 3's batched round 1 of a path
+    ({name: :class:`~experiments.benchmark.certify.PathResult`}, :func:`batched_round_1`)."""
+    from experiments.benchmark.yardstick import force_peak
     from mrd_env.optimal import active_bound, clairvoyant
 
     problem = episode_problem(env_id, options, seed, STEP if procedure == 1 else control_dt)
     t0 = time.perf_counter()
-    rp, vp = best_constant(problem)
-    starts = warm_starts(problem, warm_laws, agents=())
-    starts["best constant"] = np.full((problem.n_steps, problem.nd), vp)
+    rp, vp, starts = episode_starts(problem, warm_laws)
     t1 = time.perf_counter()
     certificate = None
     if procedure == 1:
@@ -146,7 +154,7 @@ def episode_references(env_id: str, options: dict, label: str, seed: int, warm_l
     else:
         from experiments.benchmark.certify import certified_clairvoyant
 
-        cv = certified_clairvoyant(problem, starts, rp, n_starts=N_STARTS, more_starts=FALLBACK_STARTS)
+        cv = certified_clairvoyant(problem, starts, rp, n_starts=N_STARTS, more_starts=FALLBACK_STARTS, first=first)
         if not cv.certified:  # returned, not raised: the build's other episodes go on (and are kept)
             return {"uncertified": f"{label}: the two solution paths disagree by {cv.disagreement:.2%} of its range "
                                    f"(at most 0.5 % certifies): "
@@ -182,6 +190,40 @@ def episode_references(env_id: str, options: dict, label: str, seed: int, warm_l
 
 #: The kept episodes' files (``<out>.partial/episode-<hash>.json``): what a build run again does not solve again.
 KEPT_FORMAT = "mrd-env-suite-episode"
+
+
+def episode_starts(problem, warm_laws) -> tuple[float, float, dict]:
+    """R_p, its constant command and the clairvoyant's warm starts {name: commands} of one episode: the warm laws'
+    commands and the best constant command (never an agent's)."""
+    from experiments.benchmark.yardstick import warm_starts
+
+    rp, vp = best_constant(problem)
+    starts = warm_starts(problem, warm_laws, agents=())
+    starts["best constant"] = np.full((problem.n_steps, problem.nd), vp)
+    return rp, vp, starts
+
+
+def batched_round_1(env_id: str, episodes, warm_laws, control_dt: float, need=None, say=print) -> dict:
+    """Procedure 3's gradient path, round 1, per scenario: {label: PathResult} for the ``episodes`` [(label,
+    options, seed, scenario name)] of every scenario that has a label in ``need`` (default: all). A scenario's batch
+    is all its episodes, kept or not, so that what it computes does not depend on what an interrupted build kept."""
+    from experiments.benchmark.certify import batched_gradient_paths
+
+    by_scenario: dict = {}
+    for label, options, seed, scenario in episodes:
+        by_scenario.setdefault(scenario, []).append((label, options, seed))
+    out = {}
+    for scenario, eps in by_scenario.items():
+        if need is not None and not any(label in need for label, _, _ in eps):
+            continue
+        t0 = time.perf_counter()
+        problems = [episode_problem(env_id, options, seed, control_dt) for _, options, seed in eps]
+        starts = [episode_starts(p, warm_laws)[2] for p in problems]
+        for (label, _, _), r in zip(eps, batched_gradient_paths(problems, starts, N_STARTS)):
+            out[label] = r
+        say(f"  {scenario}: the gradient path's round 1 on its {len(eps)} episode(s) together in "
+            f"{time.perf_counter() - t0:.1f} s")
+    return out
 
 
 def partial_folder(out: str | Path) -> Path:
@@ -408,6 +450,11 @@ def build_suite(definition, plant: str, env_id: str, out: str | Path, *, backend
     used = resolve_backend(backend, len(tasks), jobs) if tasks else "none"
     say(f"{new.id}: {len(chosen)} episodes, {len(results)} kept in {keep}, {len(tasks)} to solve on {used}"
         + (f" ({jobs} jobs)" if jobs and used in ("pool", "ray") else "") + f"; load average {load0}")
+    if definition.procedure == 3 and tasks:  # the gradient path's round 1, each scenario's episodes together
+        batched = batched_round_1(env_id, [(sc.label(seed), new.reference_options(sc, seed), seed, sc.name)
+                                           for sc, seed in chosen], warm, new.control_dt, need=set(slots), say=say)
+        for task in tasks:
+            task.kwargs["first"] = {"gradient": batched[task.label]}
     with _one_thread_per_worker():
         solved = run_tasks(tasks, backend=backend, jobs=jobs, address=address, progress=progress, desc=new.id)
     results.update(zip(slots, solved))

@@ -114,12 +114,17 @@ def clairvoyant(episode_return: Callable, replay: Callable[[np.ndarray], float],
 
 # --- a suite's episodes solved together ------------------------------------------------------------------------
 #: The batched solver's end of an episode's run: converged by the window rule, converged (projected gradient
-#: zero), the iteration or evaluation limit, the line search failed (abnormal, as scipy's ABNORMAL_TERMINATION).
-_RUNNING, _CONVERGED, _STATIONARY, _LIMIT, _ABNORMAL = range(5)
+#: zero), the iteration or evaluation limit, the line search failed (abnormal, as scipy's ABNORMAL_TERMINATION),
+#: the line search failed at a point stationary to the cost's rounding (:data:`FLAT_GTOL`: converged).
+_RUNNING, _CONVERGED, _STATIONARY, _LIMIT, _ABNORMAL, _FLAT = range(6)
 #: Backtracking steps of the line search (scipy's L-BFGS-B: 20).
 MAX_LINESEARCH = 20
 #: The largest projected gradient (inf-norm) that counts as stationary (the CasADi path's ``gtol``).
 GTOL = 1e-12
+#: The largest projected gradient at which a failed line search is convergence, not failure: the differentiable
+#: scheme's cost is rough at about 1e-13, so below it no step decreases it (scipy's L-BFGS-B calls the same end
+#: "relative reduction of F <= factr·epsmch"). A short car episode's coarse level ended so at 2.8e-9.
+FLAT_GTOL = 1e-6
 
 
 @dataclass
@@ -250,7 +255,11 @@ def _projected_lbfgs(fg, V0, lo, hi, blocks, *, max_iter, tol, memory):
     box and halved until it decreases the value by Armijo's rule along the projected path. Each level stops by the
     CasADi path's rules (:func:`mrd_env.optimal.full_knowledge.minimize_lbfgsb`): an improvement < its tolerance
     (relative) over its window of iterations, a stationary point, ``max_iter`` iterations or 3 × ``max_iter``
-    evaluations, or a failed line search (abnormal: the episode's run ends there).
+    evaluations, or a failed line search (abnormal: the episode's run ends there). A line search that fails along
+    the L-BFGS direction drops the stored pairs and tries the steepest descent once (L-BFGS-B's restart) before it
+    counts as failed: the differentiable scheme's cost is rough at the 1e-12 level, and near a level's optimum a
+    stale quasi-Newton direction stopped the coarse level of a short car episode after 14 iterations, 31 % of its
+    range short of scipy's L-BFGS-B, which restarts.
 
     One loop, one evaluation of ``fg`` per pass (a level's start or a trial step), so that the program holds one
     copy of the episode's gradient (its compilation is most of the cost). One episode; the caller vmaps it.
@@ -290,23 +299,25 @@ def _projected_lbfgs(fg, V0, lo, hi, blocks, *, max_iter, tol, memory):
         ev, evs = ev + 1, evs + 1
         # a trial step: accepted by Armijo's rule along the projected path, else halved
         ok = starting | (jnp.isfinite(ft) & (ft <= f + 1e-4 * (g @ (xt - x))) & jnp.any(xt != x))
+        restart = ~ok & (tries + 1 >= MAX_LINESEARCH) & (count > 0)  # the steepest descent before giving up
         s, y = xt - x, gt - g
         store = ok & ~starting & (s @ y > 2.2e-16 * (y @ y))  # curvature: the pair keeps H positive definite
         j = count % memory
         S, Yd = jnp.where(store, S.at[j].set(s), S), jnp.where(store, Yd.at[j].set(y), Yd)
-        count = jnp.where(starting, 0, count + store)
+        count = jnp.where(starting | restart, 0, count + store)
         stepped = ok & ~starting
         it, its = it + stepped, its + stepped
-        tries = jnp.where(ok, 0, tries + 1)
+        tries = jnp.where(ok | restart, 0, tries + 1)
         x, f, g = jnp.where(ok, xt, x), jnp.where(ok, ft, f), jnp.where(ok, gt, g)
         hist = jnp.where(starting, jnp.full(ring, ft), jnp.where(stepped, hist.at[it % ring].set(f), hist))
         window = window_of[level]
         old = hist[(it - window) % ring]
         pg = jnp.max(jnp.abs(jnp.clip(x - g, lo, hi) - x))
+        failed = jnp.where(pg <= FLAT_GTOL, _FLAT, _ABNORMAL)
         status = jnp.select([tries >= MAX_LINESEARCH, (it > window) & (old - f <= rtol_of[level]
                                                                           * jnp.maximum(jnp.abs(f), 1e-12)),
                              pg <= GTOL, (it >= max_iter) | (ev >= 3 * max_iter)],
-                            [_ABNORMAL, _CONVERGED, _STATIONARY, _LIMIT], _RUNNING)
+                            [failed, _CONVERGED, _STATIONARY, _LIMIT], _RUNNING)
         done = status != _RUNNING
         statuses = statuses.at[level].set(status)
         # the level's end: the next level starts from its commands (block means), unless it failed
@@ -317,7 +328,7 @@ def _projected_lbfgs(fg, V0, lo, hi, blocks, *, max_iter, tol, memory):
         starting = done
         it, ev = jnp.where(done, 0, it), jnp.where(done, 0, ev)
         d = direction(x, g, S, Yd, count)
-        a = jnp.where(ok, 1.0, a * 0.5)
+        a = jnp.where(ok | restart, 1.0, a * 0.5)
         return x, f, g, d, a, S, Yd, count, nxt, starting, tries, it, ev, hist, statuses, its, evs
 
     out = lax.while_loop(running, iteration, init)
@@ -328,6 +339,7 @@ def _projected_lbfgs(fg, V0, lo, hi, blocks, *, max_iter, tol, memory):
 def _status_text(code: int, rtol: float, window: int) -> str:
     return {_CONVERGED: f"converged (improvement < {rtol:g} over {window} iterations)",
             _STATIONARY: "converged (projected gradient below 1e-12)", _LIMIT: "iteration limit",
+            _FLAT: f"converged (no decrease found, projected gradient below {FLAT_GTOL:g})",
             _ABNORMAL: "ABNORMAL: the line search found no decrease", _RUNNING: "not run"}[int(code)]
 
 

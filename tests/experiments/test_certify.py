@@ -90,3 +90,39 @@ def test_bad_arguments_are_refused(problem, starts):
         certify.certified_clairvoyant(problem, st, rp, tolerance=0)
     with pytest.raises(ValueError, match="n_starts"):
         certify.certified_clairvoyant(problem, st, rp, n_starts=5, more_starts=4)
+
+
+def test_the_batched_round_1_is_the_gradient_paths_and_certifies(problem, starts, certificate):
+    """Procedure 3: the gradient path's round 1 for two episodes together (the shorter padded) reaches the
+    per-episode path's return within the tolerance of the range; certification handed it as ``first`` certifies
+    without running that path's round 1 again."""
+    rp, st = starts
+    other = episode_problem(ENV, seed=1_000_001, control_dt=0.01, road="iso8608",
+                            road_params={"road_class": "C", "speed": 20.0}, episode_seconds=0.3)
+    rp2, vp2 = best_constant(other)
+    st2 = {"best constant": np.full((other.n_steps, other.nd), vp2),
+           "passive_off": np.full((other.n_steps, other.nd), other.v_min)}
+    mine, theirs = certify.batched_gradient_paths([problem, other], [st, st2], 1)
+    span = certificate.ret - rp
+    assert mine.found and mine.commands.shape == (40, 1) and theirs.commands.shape == (30, 1)
+    assert abs(mine.ret - certificate.paths["gradient"].ret) <= certify.TOLERANCE * span
+    assert problem.replay(mine.commands).ret == pytest.approx(mine.commands_ret, abs=1e-12)  # the environment's
+    assert theirs.ret > rp2 and len(mine.runs) == len(theirs.runs) == 1
+
+    def not_again(*args):
+        raise AssertionError("round 1 of the gradient path ran again")
+
+    paths = {"casadi": certify.PATHS["casadi"], "gradient": (not_again, certify.PATHS["gradient"][1])}
+    c = certify.certified_clairvoyant(problem, st, rp, n_starts=1, more_starts=2, paths=paths,
+                                      first={"gradient": mine})
+    assert c.certified and c.ret >= certificate.ret - certify.TOLERANCE * span
+
+
+def test_the_batched_round_1_refuses_bad_input_by_name(problem, starts):
+    rp, st = starts
+    with pytest.raises(ValueError, match="n_starts must be an int >= 1"):
+        certify.batched_gradient_paths([problem], [st], 0)
+    with pytest.raises(ValueError, match="as long as each other"):
+        certify.batched_gradient_paths([problem], [st, st], 1)
+    with pytest.raises(ValueError, match="first must name paths of"):
+        certify.certified_clairvoyant(problem, st, rp, n_starts=1, more_starts=2, first={"newton": None})

@@ -241,21 +241,27 @@ def test_every_shipped_suite_is_built_from_its_spec():
         assert read_spec(path) == d and sr.spec_command(path).endswith(f"suites/specs/{s.id}.json")
 
 
-def test_procedure_2_certifies_the_clairvoyant_at_the_suites_control_step(tmp_path):
+@pytest.mark.parametrize("procedure", [2, 3])
+def test_procedures_2_and_3_certify_the_clairvoyant_at_the_suites_control_step(procedure, tmp_path):
     """Procedure 2 (the default): the references in the suite's own action space, each episode's clairvoyant found by
     two solution paths that agree within 0.5 % of its range; the certificate is in the suite file, and the stored
-    R_c is paid by the environment at the suite's control step to a command sequence the paths found."""
+    R_c is paid by the environment at the suite's control step to a command sequence the paths found. Procedure 3:
+    the same, the gradient path's round 1 run for the scenario's episodes together."""
     pytest.importorskip("jax")
     data = spec_data()
     del data["procedure"]
+    if procedure != 2:
+        data["procedure"] = procedure
     data["scenarios"] = data["scenarios"][:1]
     spec = write_spec(tmp_path, data)
     plant_name, env_id, d = suite_spec(spec)
-    assert d.procedure == 2
+    assert d.procedure == procedure
+    said = []
     b = sr.build_suite(d, plant_name, env_id, tmp_path / "v2.json", backend="serial", progress=False,
-                       command=sr.spec_command(spec), say=lambda _: None)
+                       command=sr.spec_command(spec), say=said.append)
+    assert any("round 1 on its 1 episode(s) together" in x for x in said) == (procedure == 3)
     s = read_suite(b.path)
-    assert s.procedure["version"] == 2
+    assert s.procedure["version"] == procedure
     (label,) = s.labels()
     cert = s.procedure["episodes"][label]["certificate"]
     assert cert["certified"] and cert["disagreement"] <= 0.005 and cert["round"] in (1, 2)
@@ -275,9 +281,9 @@ def test_procedure_2_certifies_the_clairvoyant_at_the_suites_control_step(tmp_pa
 
 
 def test_a_spec_names_a_known_procedure(tmp_path, capsys):
-    spec = write_spec(tmp_path, spec_data(procedure=3))
+    spec = write_spec(tmp_path, spec_data(procedure=4))
     rc, _, err = _build([spec], capsys)
-    assert rc == 2 and "procedure must be one of [1, 2]" in err and err.count("\n") == 1
+    assert rc == 2 and "procedure must be one of [1, 2, 3]" in err and err.count("\n") == 1
 
 
 def test_an_uncertified_episode_fails_the_build_after_the_others_are_kept(serial, tmp_path, monkeypatch):
