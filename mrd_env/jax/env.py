@@ -183,9 +183,10 @@ def _structure(asm) -> dict:
 # --- memory: estimated before anything is allocated (mrd_env.resources) ------------------------------------
 #: Bytes a batched step takes per byte of one environment's arrays (:func:`env_floats`): the state it reads and
 #: the one it returns, the new episode every step prepares for an autoreset, and the compiled step's temporaries;
-#: and per element of the dampers' Newton matrix (m × m, m = dampers × (damper states + 1): the LU of several
-#: dampers works on arrays). Fitted to XLA's ``memory_analysis`` of the vmapped step and the resident memory of
-#: large batches (``experiments/measurements/memory/jax_bank.py``, docs/jax.md).
+#: and per element of the dampers' Newton blocks (one (k + 1) × (k + 1) block per damper, k its states: the batched
+#: scheme eliminates the plant and solves each damper's block, never the whole m × m matrix of several dampers).
+#: Fitted to XLA's ``memory_analysis`` of the vmapped step and the resident memory of large batches
+#: (``experiments/measurements/memory/jax_bank.py``, docs/jax.md).
 STEP_FACTOR = 3
 NEWTON_FACTOR = 24
 
@@ -270,10 +271,11 @@ def bank_parts(asm, n_episodes: int, n_samples: int, *, drawn: bool = False, gen
 
 def batch_parts(asm, num_envs: int, *, drawn: bool = False) -> dict:
     """The estimate {what: bytes} of ``num_envs`` environments stepped together (:data:`STEP_FACTOR` × their
-    arrays and :data:`NEWTON_FACTOR` × their Newton matrix; ``drawn``: each step also gathers its episode's plant)."""
+    arrays and :data:`NEWTON_FACTOR` × their Newton blocks; ``drawn``: each step also gathers its episode's plant)."""
     s = asm.coupled.system
     m = s.nd + (asm.coupled.n - s.nq)  # the Newton unknowns: each damper's force and internal states
-    each = 8 * (STEP_FACTOR * env_floats(asm) + NEWTON_FACTOR * m * m) + (plant_bytes(asm) if drawn else 0)
+    blocks = s.nd * (m // s.nd) ** 2  # a block per damper
+    each = 8 * (STEP_FACTOR * env_floats(asm) + NEWTON_FACTOR * blocks) + (plant_bytes(asm) if drawn else 0)
     who = f"{num_envs} environments'" if num_envs != 1 else "1 environment's"
     return {f"{who} state and step ({format_bytes(each)} each)": num_envs * each}
 
