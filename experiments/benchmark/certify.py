@@ -66,6 +66,17 @@ class PathResult:
     def to_json(self) -> dict:
         return {"return": float(self.ret), "runs": self.runs}
 
+    def to_kept(self) -> dict:
+        """All of it as plain JSON (a build's kept round 1; :meth:`from_kept` reads it back)."""
+        return {**self.to_json(), "commands": None if self.commands is None else np.asarray(self.commands).tolist(),
+                "commands_return": float(self.commands_ret) if self.found else None}
+
+    @classmethod
+    def from_kept(cls, data: dict) -> PathResult:
+        found = data["commands"] is not None
+        return cls(float(data["return"]), np.asarray(data["commands"], dtype=float) if found else None,
+                   float(data["commands_return"]) if found else -np.inf, list(data["runs"]))
+
 
 @dataclass
 class Certificate:

@@ -203,11 +203,14 @@ def episode_starts(problem, warm_laws) -> tuple[float, float, dict]:
     return rp, vp, starts
 
 
-def batched_round_1(env_id: str, episodes, warm_laws, control_dt: float, need=None, say=print) -> dict:
+def batched_round_1(env_id: str, episodes, warm_laws, control_dt: float, need=None, say=print, keep=None,
+                    keys=None) -> dict:
     """Procedure 3's gradient path, round 1, per scenario: {label: PathResult} for the ``episodes`` [(label,
     options, seed, scenario name)] of every scenario that has a label in ``need`` (default: all). A scenario's batch
-    is all its episodes, kept or not, so that what it computes does not depend on what an interrupted build kept."""
-    from experiments.benchmark.certify import batched_gradient_paths
+    is all its episodes, kept or not, so that what it computes does not depend on what an interrupted build kept.
+    ``keep``, ``keys`` ({label: :func:`episode_key`}): each scenario's result is kept in the build's folder once it
+    is solved, and used again by a build run again (the batch of a 20-episode building scenario took over 20 min)."""
+    from experiments.benchmark.certify import PathResult, batched_gradient_paths
 
     by_scenario: dict = {}
     for label, options, seed, scenario in episodes:
@@ -216,11 +219,19 @@ def batched_round_1(env_id: str, episodes, warm_laws, control_dt: float, need=No
     for scenario, eps in by_scenario.items():
         if need is not None and not any(label in need for label, _, _ in eps):
             continue
+        bkey = {"batched_round_1": [keys[label] for label, _, _ in eps]} if keep is not None and keys else None
+        hit = kept_episode(keep, bkey) if bkey is not None else None
+        if hit is not None:
+            out.update({label: PathResult.from_kept(r) for label, r in hit["paths"].items()})
+            say(f"  {scenario}: the gradient path's round 1 kept from an interrupted build")
+            continue
         t0 = time.perf_counter()
         problems = [episode_problem(env_id, options, seed, control_dt) for _, options, seed in eps]
         starts = [episode_starts(p, warm_laws)[2] for p in problems]
-        for (label, _, _), r in zip(eps, batched_gradient_paths(problems, starts, N_STARTS)):
-            out[label] = r
+        solved = dict(zip((label for label, _, _ in eps), batched_gradient_paths(problems, starts, N_STARTS)))
+        out.update(solved)
+        if bkey is not None:
+            keep_episode(keep, bkey, {"paths": {label: r.to_kept() for label, r in solved.items()}})
         say(f"  {scenario}: the gradient path's round 1 on its {len(eps)} episode(s) together in "
             f"{time.perf_counter() - t0:.1f} s")
     return out
@@ -435,10 +446,10 @@ def build_suite(definition, plant: str, env_id: str, out: str | Path, *, backend
     if not resume and keep.is_dir():
         _remove_kept(keep)
     warm = tuple(profile.warm_laws)
-    results, tasks, slots = {}, [], []
+    results, tasks, slots, keys = {}, [], [], {}
     for sc, seed in chosen:
         label, options = sc.label(seed), new.reference_options(sc, seed)
-        key = episode_key(env_id, options, label, seed, warm, definition.procedure, new.control_dt)
+        key = keys[label] = episode_key(env_id, options, label, seed, warm, definition.procedure, new.control_dt)
         hit = kept_episode(keep, key) if resume else None
         if hit is not None:
             results[label] = {**hit, "kept": True}
@@ -452,7 +463,8 @@ def build_suite(definition, plant: str, env_id: str, out: str | Path, *, backend
         + (f" ({jobs} jobs)" if jobs and used in ("pool", "ray") else "") + f"; load average {load0}")
     if definition.procedure == 3 and tasks:  # the gradient path's round 1, each scenario's episodes together
         batched = batched_round_1(env_id, [(sc.label(seed), new.reference_options(sc, seed), seed, sc.name)
-                                           for sc, seed in chosen], warm, new.control_dt, need=set(slots), say=say)
+                                           for sc, seed in chosen], warm, new.control_dt, need=set(slots), say=say,
+                                  keep=keep, keys=keys)
         for task in tasks:
             task.kwargs["first"] = {"gradient": batched[task.label]}
     with _one_thread_per_worker():

@@ -307,3 +307,36 @@ def test_an_uncertified_episode_fails_the_build_after_the_others_are_kept(serial
     monkeypatch.setattr(sr, "episode_references", lambda *a, **k: solved.append(a[2]) or real(*a, **k))
     sr.build_suite(d, plant_name, env_id, out, progress=False, command=sr.spec_command(spec), say=lambda _: None)
     assert solved == ["ISO-C"] and out.read_bytes() == serial.read_bytes()
+
+
+def test_procedure_3_keeps_each_scenarios_batch_and_a_build_run_again_uses_it(tmp_path, monkeypatch):
+    """The batched round 1 of a scenario is kept in the build's folder as soon as it is solved (plain JSON), and a
+    build run again reads it instead of solving the batch again: the same results, commands included."""
+    from experiments.benchmark import certify
+
+    calls = []
+
+    def fake(problems, starts, n_starts):
+        calls.append(len(problems))
+        return [certify.PathResult(-1.0 - i, np.full((p.n_steps, p.nd), 0.5 + i), -1.0 - i,
+                                   [{"start": "best constant", "status": "s", "success": True, "iterations": 3,
+                                     "evaluations": 4, "return": -1.0 - i}]) if i == 0 else
+                certify.PathResult(-2.0, None, -np.inf, []) for i, p in enumerate(problems)]
+
+    monkeypatch.setattr(certify, "batched_gradient_paths", fake)
+    road = {"road": "iso8608", "road_params": {"road_class": "C", "speed": 20.0}, "episode_seconds": 0.2}
+    eps = [("C s1", road, 1, "C"), ("C s2", road, 2, "C")]
+    keys = {label: sr.episode_key("mrd_env/QuarterCarPhysical-v0", o, label, s, ("skyhook_on_off",), 3, 0.01)
+            for label, o, s, _ in eps}
+    args = ("mrd_env/QuarterCarPhysical-v0", eps, ("skyhook_on_off",), 0.01)
+    said = []
+    first = sr.batched_round_1(*args, say=said.append, keep=tmp_path, keys=keys)
+    again = sr.batched_round_1(*args, say=said.append, keep=tmp_path, keys=keys)
+    assert calls == [2] and "kept from an interrupted build" in said[-1]
+    assert first.keys() == again.keys() == {"C s1", "C s2"}
+    for label in first:
+        a, b = first[label], again[label]
+        assert (a.ret, a.commands_ret, a.runs, a.found) == (b.ret, b.commands_ret, b.runs, b.found)
+        assert (a.commands is None and b.commands is None) or np.array_equal(a.commands, b.commands)
+    kept = [json.loads(f.read_text()) for f in tmp_path.glob("*.json")]  # plain JSON: no NaN or Infinity
+    assert len(kept) == 1 and "Infinity" not in json.dumps(kept, allow_nan=False)
