@@ -261,9 +261,14 @@ def episode_key(env_id: str, options: dict, label: str, seed: int, warm_laws, pr
             "mrd_env": _version()}
 
 
+#: The kept files' name prefixes: a solved episode, and procedure 3's batched round 1 of a scenario.
+KEPT_PREFIXES = ("episode-", "batch-")
+
+
 def _kept_path(folder: str | Path, key: dict) -> Path:
     text = json.dumps(key, sort_keys=True, separators=(",", ":"))
-    return Path(folder) / f"episode-{hashlib.sha256(text.encode()).hexdigest()[:24]}.json"
+    prefix = KEPT_PREFIXES[1] if "batched_round_1" in key else KEPT_PREFIXES[0]
+    return Path(folder) / f"{prefix}{hashlib.sha256(text.encode()).hexdigest()[:24]}.json"
 
 
 def _kept_digest(key: dict, result: dict) -> str:
@@ -577,7 +582,7 @@ def _remove_kept(folder: Path) -> None:
     if not folder.is_dir():
         return
     for f in folder.iterdir():
-        if f.name.startswith("episode-") and f.suffix == ".json" and f.is_file():
+        if f.name.startswith(KEPT_PREFIXES) and f.suffix == ".json" and f.is_file():
             f.unlink(missing_ok=True)
     try:
         folder.rmdir()

@@ -341,3 +341,4 @@ def test_procedure_3_keeps_each_scenarios_batch_and_a_build_run_again_uses_it(tm
         assert (a.commands is None and b.commands is None) or np.array_equal(a.commands, b.commands)
     kept = [json.loads(f.read_text()) for f in tmp_path.glob("*.json")]  # plain JSON: no NaN or Infinity
     assert len(kept) == 1 and "Infinity" not in json.dumps(kept, allow_nan=False)
+    assert [f.name[:6] for f in tmp_path.glob("*.json")] == ["batch-"]  # not counted as a solved episode
