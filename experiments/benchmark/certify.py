@@ -26,8 +26,9 @@ the environment holds it. Certification needs the ``jax`` extra (the gradient pa
 **Procedure 3** is the same certification with the gradient path's round 1 run for a whole build at once
 (:func:`batched_gradient_paths`: every episode's starts in one compiled program,
 :func:`mrd_env.jax.clairvoyant.batched_clairvoyant`, a projected L-BFGS on the device in place of scipy's L-BFGS-B
-driven from the host), handed to :func:`certified_clairvoyant` as ``first``; round 2 is per episode, as in
-procedure 2. On ``car-comfort-v1`` the per-episode gradient path took about ten times the CasADi path's time and
+driven from the host), handed to :func:`certified_clairvoyant` as ``first``; round 2 is per episode, its gradient
+path by the same batched solver (:data:`PATHS_3`: an episode's starts in one program; on ``building-seismic-v2``
+the host-driven path took over 15 min per round-2 episode). On ``car-comfort-v1`` the per-episode gradient path took about ten times the CasADi path's time and
 the batch a fifth of it (docs/jax.md).
 """
 from __future__ import annotations
@@ -151,13 +152,13 @@ def _joined(a: PathResult, b: PathResult) -> PathResult:
     return PathResult(max(a.ret, b.ret), c.commands, c.commands_ret, a.runs + b.runs)
 
 
-def batched_gradient_paths(problems, starts_list, n_starts: int) -> list[PathResult]:
+def batched_gradient_paths(problems, starts_list, n_starts: int, fine_only: bool = False) -> list[PathResult]:
     """Round 1 of the gradient path on many episodes in one compiled program (procedure 3): each episode's
     ``n_starts`` best of its ``starts`` (ranked by their return in the native environment, as
     :func:`gradient_path` ranks them) solved together by :func:`mrd_env.jax.clairvoyant.batched_clairvoyant` with
     the same command blocks, each result re-simulated in the native environment; one :class:`PathResult` per
     problem, as :func:`gradient_path` returns it. The problems share a plant and its command bounds (one batch is
-    one program); their lengths may differ (the shorter are padded)."""
+    one program); their lengths may differ (the shorter are padded); ``fine_only``: as :func:`gradient_path`'s."""
     from mrd_env.jax import env as je
     from mrd_env.jax.clairvoyant import batched_clairvoyant, episode_batch
 
@@ -177,7 +178,7 @@ def batched_gradient_paths(problems, starts_list, n_starts: int) -> list[PathRes
         warm_best.append(rets[ranked[0]])
         rows += [(i, k, np.asarray(starts[k], dtype=float)) for k in ranked[:n_starts]]
     batch = episode_batch([problems[i] for i, _, _ in rows], scheme="differentiable")
-    blk = _blocks(problems[0])
+    blk = 1 if fine_only else _blocks(problems[0])
     res = batched_clairvoyant(je.episode_return, batch.data, batch.pad([V for *_, V in rows]), problems[0].v_min,
                               problems[0].v_max, coarse=(blk,) if blk >= 2 else ())
     found = [[] for _ in problems]
@@ -195,8 +196,16 @@ def batched_gradient_paths(problems, starts_list, n_starts: int) -> list[PathRes
     return out
 
 
+def batched_gradient_path(problem, starts: dict, n_starts: int, fine_only: bool = False) -> PathResult:
+    """:func:`gradient_path` by the batched solver (procedure 3's round 2): the episode's starts in one program."""
+    return batched_gradient_paths([problem], [starts], n_starts, fine_only)[0]
+
+
 #: The two paths: {name: (round 1, round 2)}.
 PATHS = {"casadi": (casadi_path, casadi_ipopt_path), "gradient": (gradient_path, gradient_path)}
+#: Procedure 3's: the gradient path by the batched solver in both rounds (round 1 is usually handed over as
+#: ``first``, solved for a scenario's episodes together).
+PATHS_3 = {"casadi": (casadi_path, casadi_ipopt_path), "gradient": (batched_gradient_path, batched_gradient_path)}
 
 
 def certified_clairvoyant(problem, starts: dict, passive: float, *, n_starts: int = 2, more_starts: int = 4,

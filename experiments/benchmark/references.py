@@ -101,7 +101,8 @@ PROCEDURE_3 = {
     "clairvoyant": PROCEDURE_2["clairvoyant"] + "; the gradient path's first round solved for all of a scenario's "
                    "episodes together (experiments.benchmark.certify.batched_gradient_paths: one compiled program, "
                    "a projected L-BFGS on the device; a scenario's batch is its episodes whatever was kept, so that "
-                   "a resumed build computes what a fresh one does)",
+                   "a resumed build computes what a fresh one does); round 2's gradient path by the same batched "
+                   "solver, one episode's starts in one program (experiments.benchmark.certify.PATHS_3)",
 }
 #: The procedures by their number (a spec's ``procedure``, :data:`mrd_env.suites.PROCEDURES`).
 PROCEDURES = {1: PROCEDURE, 2: PROCEDURE_2, 3: PROCEDURE_3}
@@ -152,9 +153,10 @@ def episode_references(env_id: str, options: dict, label: str, seed: int, warm_l
         if cv.failed:
             cv = clairvoyant(problem, warm_starts=starts, n_starts=FALLBACK_STARTS, cache=cache, progress=False)
     else:
-        from experiments.benchmark.certify import certified_clairvoyant
+        from experiments.benchmark.certify import PATHS_3, certified_clairvoyant
 
-        cv = certified_clairvoyant(problem, starts, rp, n_starts=N_STARTS, more_starts=FALLBACK_STARTS, first=first)
+        cv = certified_clairvoyant(problem, starts, rp, n_starts=N_STARTS, more_starts=FALLBACK_STARTS, first=first,
+                                   paths=PATHS_3 if procedure == 3 else None)
         if not cv.certified:  # returned, not raised: the build's other episodes go on (and are kept)
             return {"uncertified": f"{label}: the two solution paths disagree by {cv.disagreement:.2%} of its range "
                                    f"(at most 0.5 % certifies): "

@@ -118,6 +118,17 @@ def test_the_batched_round_1_is_the_gradient_paths_and_certifies(problem, starts
     assert c.certified and c.ret >= certificate.ret - certify.TOLERANCE * span
 
 
+def test_procedure_3s_round_2_from_the_optimum_cannot_improve_it(problem, starts, certificate):
+    """Procedure 3's round 2 (the batched solver for one episode, at the control step only, from the other path's
+    optimum) leaves the certified optimum within the tolerance: a second method does not improve it."""
+    rp, _ = starts
+    assert certify.PATHS_3["gradient"][1] is certify.batched_gradient_path
+    r = certify.batched_gradient_path(problem, {"optimum": certificate.commands}, 1, fine_only=True)
+    assert len(r.runs) == 1 and r.runs[0]["start"] == "optimum"
+    assert r.ret <= certificate.ret + certify.TOLERANCE * (certificate.ret - rp)
+    assert r.ret >= certificate.ret - 1e-9 or not r.found  # a run that did not beat its start returns no commands
+
+
 def test_the_batched_round_1_refuses_bad_input_by_name(problem, starts):
     rp, st = starts
     with pytest.raises(ValueError, match="n_starts must be an int >= 1"):
