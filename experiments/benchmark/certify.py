@@ -158,9 +158,10 @@ def batched_gradient_paths(problems, starts_list, n_starts: int, fine_only: bool
     :func:`gradient_path` ranks them) solved together by :func:`mrd_env.jax.clairvoyant.batched_clairvoyant` with
     the same command blocks, each result re-simulated in the native environment; one :class:`PathResult` per
     problem, as :func:`gradient_path` returns it. The problems share a plant and its command bounds (one batch is
-    one program); their lengths may differ (the shorter are padded); ``fine_only``: as :func:`gradient_path`'s."""
-    from mrd_env.jax import env as je
-    from mrd_env.jax.clairvoyant import batched_clairvoyant, episode_batch
+    one program); their lengths may differ (the shorter are padded); ``fine_only``: as :func:`gradient_path`'s.
+    Problems whose compiled step differs in structure (a robustness twin's drawn command delays) are solved as one
+    batch per structure (:func:`mrd_env.jax.clairvoyant.structure_groups`)."""
+    from mrd_env.jax.clairvoyant import structure_groups
 
     problems, starts_list = list(problems), list(starts_list)
     if not problems or len(problems) != len(starts_list):
@@ -171,6 +172,19 @@ def batched_gradient_paths(problems, starts_list, n_starts: int, fine_only: bool
     bounds = {(p.v_min, p.v_max, p.control_dt) for p in problems}
     if len(bounds) != 1:
         raise ValueError(f"the problems of one batch share their command bounds and control step, got {sorted(bounds)}")
+    out = [None] * len(problems)
+    for group in structure_groups(problems, scheme="differentiable"):
+        solved = _one_batch([problems[i] for i in group], [starts_list[i] for i in group], n_starts, fine_only)
+        for i, r in zip(group, solved):
+            out[i] = r
+    return out
+
+
+def _one_batch(problems, starts_list, n_starts: int, fine_only: bool) -> list[PathResult]:
+    """:func:`batched_gradient_paths` on problems of one compiled structure: one program."""
+    from mrd_env.jax import env as je
+    from mrd_env.jax.clairvoyant import batched_clairvoyant, episode_batch
+
     rows, warm_best = [], []  # rows: (problem index, start name, its commands)
     for i, (p, starts) in enumerate(zip(problems, starts_list)):
         rets = {k: float(p.replay(v).ret) for k, v in starts.items()}

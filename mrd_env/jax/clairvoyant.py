@@ -183,6 +183,25 @@ def episode_batch(problems, **scheme) -> EpisodeBatch:
     return EpisodeBatch(data, np.array([p.n_steps for p in problems], dtype=int), int(n_steps))
 
 
+def structure_groups(problems, **scheme) -> list[list[int]]:
+    """The indices of ``problems`` grouped by the compiled step's structure (first appearance order): each group
+    can be one :func:`episode_batch`. A robustness twin's episodes differ in it where their drawn command delays
+    differ (the delay queue's length)."""
+    from . import env as je
+
+    groups: list[tuple[object, list[int]]] = []
+    for i, p in enumerate(problems):
+        params = je.params_of_problem(p, **scheme)
+        for first, members in groups:
+            if all(_same(getattr(params, f.name), getattr(first, f.name)) for f in dataclasses.fields(params)
+                   if f.name not in ("W", "n_steps")):
+                members.append(i)
+                break
+        else:
+            groups.append((params, [i]))
+    return [members for _, members in groups]
+
+
 def _same(a, b) -> bool:
     """Whether two fields of EnvParams agree in what a compiled program sees (static values, array shapes)."""
     la, lb = jax.tree_util.tree_leaves(a), jax.tree_util.tree_leaves(b)

@@ -11,7 +11,7 @@ import pytest
 jax = pytest.importorskip("jax")
 
 from mrd_env.jax import env as je  # noqa: E402
-from mrd_env.jax.clairvoyant import batched_clairvoyant, clairvoyant, episode_batch  # noqa: E402
+from mrd_env.jax.clairvoyant import batched_clairvoyant, clairvoyant, episode_batch, structure_groups  # noqa: E402
 from mrd_env.optimal import episode_problem  # noqa: E402
 
 pytestmark = pytest.mark.xdist_group("jax")
@@ -111,3 +111,19 @@ def test_bad_input_names_the_parameter():
         batched_clairvoyant(f, data, np.zeros((3, 4, 1)), 0.0, 1.0)
     with pytest.raises(ValueError, match="problems"):
         episode_batch([])
+
+
+def test_episodes_of_different_structure_are_grouped_not_refused():
+    """A robustness twin's episodes differ in their drawn command delay, hence in the delay queue's length: one
+    batch would refuse them; ``structure_groups`` parts them so that each group is one batch."""
+    def problem(seed, delay):
+        params = {"command": {"delay": delay}} if delay else {}
+        return episode_problem(ENV_ID, seed=seed, control_dt=0.01, episode_seconds=0.1, damper_params=params, **ROAD)
+
+    problems = [problem(3, 0.0), problem(4, 0.0015), problem(5, 0.0), problem(6, 0.0015)]
+    with pytest.raises(ValueError, match="structure"):
+        episode_batch(problems, scheme="differentiable")
+    groups = structure_groups(problems, scheme="differentiable")
+    assert groups == [[0, 2], [1, 3]]
+    for g in groups:
+        assert episode_batch([problems[i] for i in g], scheme="differentiable").steps.tolist() == [10, 10]
