@@ -72,8 +72,9 @@ SENSOR_OPTIONS = ("sensors", "sensor_noise", "sensor_delay", "history", "preview
 
 #: The reference procedures a spec may name (``experiments.benchmark.references``): 1, the clairvoyant at 1 ms by one
 #: solver (the v1 suites); 2, the clairvoyant at the suite's control step, certified by two solvers (the default);
-#: 3, procedure 2 with the gradient solver's first round run for each scenario's episodes together (faster builds).
-PROCEDURES = (1, 2, 3)
+#: 3, procedure 2 with the gradient solver's first round run for each scenario's episodes together (faster builds);
+#: 4, procedure 3 whose round 2 starts each solver from the other's optimum before it runs more starts.
+PROCEDURES = (1, 2, 3, 4)
 #: A spec's procedure when it names none.
 DEFAULT_PROCEDURE = 2
 

@@ -104,8 +104,15 @@ PROCEDURE_3 = {
                    "a resumed build computes what a fresh one does); round 2's gradient path by the same batched "
                    "solver, one episode's starts in one program (experiments.benchmark.certify.PATHS_3)",
 }
+PROCEDURE_4 = {
+    **PROCEDURE_3,
+    "version": 4,
+    "clairvoyant": PROCEDURE_3["clairvoyant"] + "; round 2 first starts each path from the other's optimum by its "
+                   "round-1 solver (experiments.benchmark.certify.certified_clairvoyant, cross_first) and runs the "
+                   "more starts only if that does not certify",
+}
 #: The procedures by their number (a spec's ``procedure``, :data:`mrd_env.suites.PROCEDURES`).
-PROCEDURES = {1: PROCEDURE, 2: PROCEDURE_2, 3: PROCEDURE_3}
+PROCEDURES = {1: PROCEDURE, 2: PROCEDURE_2, 3: PROCEDURE_3, 4: PROCEDURE_4}
 
 
 class UncertifiedEpisode(ValueError):
@@ -156,7 +163,7 @@ def episode_references(env_id: str, options: dict, label: str, seed: int, warm_l
         from experiments.benchmark.certify import PATHS_3, certified_clairvoyant
 
         cv = certified_clairvoyant(problem, starts, rp, n_starts=N_STARTS, more_starts=FALLBACK_STARTS, first=first,
-                                   paths=PATHS_3 if procedure == 3 else None)
+                                   paths=PATHS_3 if procedure >= 3 else None, cross_first=procedure >= 4)
         if not cv.certified:  # returned, not raised: the build's other episodes go on (and are kept)
             return {"uncertified": f"{label}: the two solution paths disagree by {cv.disagreement:.2%} of its range "
                                    f"(at most 0.5 % certifies): "
@@ -468,7 +475,7 @@ def build_suite(definition, plant: str, env_id: str, out: str | Path, *, backend
     used = resolve_backend(backend, len(tasks), jobs) if tasks else "none"
     say(f"{new.id}: {len(chosen)} episodes, {len(results)} kept in {keep}, {len(tasks)} to solve on {used}"
         + (f" ({jobs} jobs)" if jobs and used in ("pool", "ray") else "") + f"; load average {load0}")
-    if definition.procedure == 3 and tasks:  # the gradient path's round 1, each scenario's episodes together
+    if definition.procedure >= 3 and tasks:  # the gradient path's round 1, each scenario's episodes together
         batched = batched_round_1(env_id, [(sc.label(seed), new.reference_options(sc, seed), seed, sc.name)
                                            for sc, seed in chosen], warm, new.control_dt, need=set(slots), say=say,
                                   keep=keep, keys=keys)

@@ -84,6 +84,36 @@ def test_paths_that_disagree_are_not_certified(problem, starts):
     assert c.to_json()["certified"] is False
 
 
+def test_procedure_4_tries_the_cross_starts_before_more_starts(problem, starts, certificate):
+    """Procedure 4: a path stuck at a poor point in round 1 that reaches the other's optimum when started there
+    certifies in round 2 by the cross starts alone, and no more-starts solve runs; a path that cannot is still
+    refused after the more starts."""
+    rp, st = starts
+
+    def stuck(prob, s, n, fine_only=False):  # passive-on, unless started at another path's optimum (kept there)
+        V = s["casadi optimum"] if "casadi optimum" in s else np.full((prob.n_steps, prob.nd), prob.v_max)
+        r = float(prob.replay(V).ret)
+        return certify.PathResult(r, V, r, [{"start": next(iter(s)), "status": "converged", "success": True,
+                                             "iterations": 1, "evaluations": 1, "return": r}])
+
+    def optimum(prob, s, n, fine_only=False):  # a path that reaches the certified optimum from any start
+        V = certificate.commands
+        r = float(prob.replay(V).ret)
+        return certify.PathResult(r, V, r, [{"start": next(iter(s)), "status": "converged", "success": True,
+                                             "iterations": 1, "evaluations": 1, "return": r}])
+
+    def never(*args, **kwargs):
+        raise AssertionError("the more starts ran although the cross starts certified")
+
+    paths = {"casadi": (optimum, never), "stuck": (stuck, never)}
+    plain = certify.certified_clairvoyant(problem, st, rp, n_starts=1, more_starts=2,
+                                          paths={"casadi": (optimum, optimum), "stuck": (stuck, stuck)})
+    assert plain.certified and plain.rounds == 2  # procedure 3 gets there too, after the more starts
+    c = certify.certified_clairvoyant(problem, st, rp, n_starts=1, more_starts=2, paths=paths, cross_first=True)
+    assert c.certified and c.rounds == 2 and c.disagreement <= certify.TOLERANCE
+    assert [r["start"] for r in c.paths["stuck"].runs] == ["best constant", "casadi optimum"]
+
+
 def test_bad_arguments_are_refused(problem, starts):
     rp, st = starts
     with pytest.raises(ValueError, match="tolerance"):
