@@ -283,9 +283,9 @@ def test_procedures_2_to_4_certify_the_clairvoyant_at_the_suites_control_step(pr
 
 
 def test_a_spec_names_a_known_procedure(tmp_path, capsys):
-    spec = write_spec(tmp_path, spec_data(procedure=4))
+    spec = write_spec(tmp_path, spec_data(procedure=5))
     rc, _, err = _build([spec], capsys)
-    assert rc == 2 and "procedure must be one of [1, 2, 3]" in err and err.count("\n") == 1
+    assert rc == 2 and "procedure must be one of [1, 2, 3, 4]" in err and err.count("\n") == 1
 
 
 def test_an_uncertified_episode_fails_the_build_after_the_others_are_kept(serial, tmp_path, monkeypatch):
