@@ -237,8 +237,8 @@ def certified_clairvoyant(problem, starts: dict, passive: float, *, n_starts: in
     {name: PathResult} round 1's result of a path computed beforehand (:func:`batched_gradient_paths`), which is
     then not run again in round 1; ``cross_first`` (procedure 4): round 2 starts each path from the other's
     optimum first, by its round-1 solver, and runs the more starts only if that does not certify (on
-    ``building-seismic-v2``'s first four round-2 episodes the cross-start runs alone put the paths within 0.042 %
-    of the range, where the more starts' IPOPT runs, each stopped at 1 000 iterations, took most of 12–14 min)."""
+    ``building-seismic-v2``'s first five round-2 episodes the cross-start runs alone put the paths within 0.17 %
+    of the range, where the more starts' IPOPT runs, each stopped at 1 000 iterations, took most of 12–22 min)."""
     if not 0 < tolerance < 1:
         raise ValueError(f"tolerance must be in (0, 1) (a share of the episode's range), got {tolerance!r}")
     if not 1 <= n_starts <= more_starts:
