@@ -45,6 +45,27 @@ def test_shipped_suites_load_complete_and_verify(shipped):
                                                           "mrd-env suite build "))
 
 
+def test_every_certified_reference_is_the_best_of_two_paths_that_agree(shipped):
+    """A suite built by procedure 2 or later stores, per episode, both paths' optimiser runs and the certificate:
+    the two paths' best returns agree within 0.5 % of the range, the stored disagreement is theirs, and R_c is the
+    agreed optimum (within the tolerance of the best run: it is the winning path's re-simulated commands)."""
+    certified = {sid: s for sid, s in shipped.items() if s.procedure.get("version", 1) >= 2}
+    assert certified, "no shipped suite is built by a certifying procedure"
+    for sid, s in certified.items():
+        for label in s.labels():
+            ep, ref = s.procedure["episodes"][label], s.reference(label)
+            best = {}
+            for run in ep["solves"]:
+                best[run["path"]] = max(best.get(run["path"], -math.inf), run["return"])
+            assert set(best) == {"casadi", "gradient"}, (sid, label)
+            top, gap = max(best.values()), max(best.values()) - ref.passive
+            dis = abs(best["casadi"] - best["gradient"]) / gap
+            cert = ep["certificate"]
+            assert cert["certified"] and cert["round"] in (1, 2), (sid, label)
+            assert dis <= 0.005 and dis == pytest.approx(cert["disagreement"], abs=1e-6), (sid, label, dis)
+            assert ref.clairvoyant <= top + 1e-12 and top - ref.clairvoyant <= 0.005 * gap, (sid, label)
+
+
 def test_an_edited_copy_is_refused(shipped, tmp_path):
     s = next(iter(shipped.values()))
     data = json.loads(suite_path(s.plant, s).read_text(encoding="utf-8"))
