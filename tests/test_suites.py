@@ -10,6 +10,7 @@ from dataclasses import replace
 import pytest
 
 from experiments.benchmark import references as sr
+from experiments.benchmark.certify import TOLERANCE
 from mrd_env.plants import plants
 from mrd_env.plants import suite_definition, suite_definitions
 from mrd_env.suites import (SENSOR_OPTIONS, Suite, SuiteDefinition, SuiteScenario, content_digest, draws, read_suite,
@@ -62,8 +63,8 @@ def test_every_certified_reference_is_the_best_of_two_paths_that_agree(shipped):
             dis = abs(best["casadi"] - best["gradient"]) / gap
             cert = ep["certificate"]
             assert cert["certified"] and cert["round"] in (1, 2), (sid, label)
-            assert dis <= 0.005 and dis == pytest.approx(cert["disagreement"], abs=1e-6), (sid, label, dis)
-            assert ref.clairvoyant <= top + 1e-12 and top - ref.clairvoyant <= 0.005 * gap, (sid, label)
+            assert dis <= TOLERANCE and dis == pytest.approx(cert["disagreement"], abs=1e-6), (sid, label, dis)
+            assert ref.clairvoyant <= top + 1e-12 and top - ref.clairvoyant <= TOLERANCE * gap, (sid, label)
 
 
 def test_an_edited_copy_is_refused(shipped, tmp_path):
