@@ -36,18 +36,16 @@ def test_every_scenario_of_a_pending_spec_builds_its_environment_and_steps(path)
 
 
 def test_a_twin_mirrors_its_nominal_suites_episodes():
-    """A robustness twin (``<name>-robust-vN``) scores the episodes of ``<name>-vN``: the same scenarios and seeds,
-    options and control step (pending or shipped)."""
+    """A robustness twin (``<name>-robust-vN``, pending or shipped) scores the episodes of ``<name>-vN``: the same
+    scenarios and seeds, options and control step."""
     from mrd_env.plants import suite_definitions
 
-    shipped = {k: d for k, (_, _, d) in suite_definitions().items()}
-    pending = {p.stem: suite_spec(p)[2] for p in SPECS}
-    twins = [k for k in pending if "-robust-v" in k]
-    assert twins
+    every = {k: d for k, (_, _, d) in suite_definitions().items()}
+    every.update({p.stem: suite_spec(p)[2] for p in SPECS})
+    twins = [k for k in every if "-robust-v" in k]
+    assert {"building-seismic-robust-v2", "car-comfort-robust-v2", "car-full-robust-v4"} <= set(twins)
     for twin in twins:
-        nominal_id = twin.replace("-robust-v", "-v")
-        nominal = pending.get(nominal_id) or shipped[nominal_id]
-        t = pending[twin]
+        t, nominal = every[twin], every[twin.replace("-robust-v", "-v")]
         assert t.randomise and not nominal.randomise, twin
         assert t.control_dt == nominal.control_dt and t.options == nominal.options, twin
         assert [(s.name, s.options, tuple(s.seeds)) for s in t.scenarios] == \
