@@ -74,7 +74,8 @@ SENSOR_OPTIONS = ("sensors", "sensor_noise", "sensor_delay", "history", "preview
 #: solver (the v1 suites); 2, the clairvoyant at the suite's control step, certified by two solvers (the default);
 #: 3, procedure 2 with the gradient solver's first round run for each scenario's episodes together (faster builds);
 #: 4, procedure 3 whose round 2 starts each solver from the other's optimum before it runs more starts.
-PROCEDURES = (1, 2, 3, 4)
+#: 5, procedure 4 whose gradient solver keeps off the limits that end an episode by the CasADi solver's penalty.
+PROCEDURES = (1, 2, 3, 4, 5)
 #: A spec's procedure when it names none.
 DEFAULT_PROCEDURE = 2
 

@@ -111,8 +111,15 @@ PROCEDURE_4 = {
                    "round-1 solver (experiments.benchmark.certify.certified_clairvoyant, cross_first) and runs the "
                    "more starts only if that does not certify",
 }
+PROCEDURE_5 = {
+    **PROCEDURE_4,
+    "version": 5,
+    "clairvoyant": PROCEDURE_4["clairvoyant"] + "; the gradient path maximises the twin's return less the CasADi "
+                   "path's exterior penalty on the limits that end an episode (mrd_env.optimal.full_knowledge."
+                   "LIMIT_PENALTY from LIMIT_MARGIN of each limit; experiments.benchmark.certify.PATHS_5)",
+}
 #: The procedures by their number (a spec's ``procedure``, :data:`mrd_env.suites.PROCEDURES`).
-PROCEDURES = {1: PROCEDURE, 2: PROCEDURE_2, 3: PROCEDURE_3, 4: PROCEDURE_4}
+PROCEDURES = {1: PROCEDURE, 2: PROCEDURE_2, 3: PROCEDURE_3, 4: PROCEDURE_4, 5: PROCEDURE_5}
 
 
 class UncertifiedEpisode(ValueError):
@@ -160,10 +167,11 @@ def episode_references(env_id: str, options: dict, label: str, seed: int, warm_l
         if cv.failed:
             cv = clairvoyant(problem, warm_starts=starts, n_starts=FALLBACK_STARTS, cache=cache, progress=False)
     else:
-        from experiments.benchmark.certify import PATHS_3, certified_clairvoyant
+        from experiments.benchmark.certify import PATHS_3, PATHS_5, certified_clairvoyant
 
+        paths = PATHS_5 if procedure >= 5 else PATHS_3 if procedure >= 3 else None
         cv = certified_clairvoyant(problem, starts, rp, n_starts=N_STARTS, more_starts=FALLBACK_STARTS, first=first,
-                                   paths=PATHS_3 if procedure >= 3 else None, cross_first=procedure >= 4)
+                                   paths=paths, cross_first=procedure >= 4)
         if not cv.certified:  # returned, not raised: the build's other episodes go on (and are kept)
             return {"uncertified": f"{label}: the two solution paths disagree by {cv.disagreement:.2%} of its range "
                                    f"(at most 0.5 % certifies): "
@@ -213,12 +221,13 @@ def episode_starts(problem, warm_laws) -> tuple[float, float, dict]:
 
 
 def batched_round_1(env_id: str, episodes, warm_laws, control_dt: float, need=None, say=print, keep=None,
-                    keys=None) -> dict:
+                    keys=None, limit_penalty: bool = False) -> dict:
     """Procedure 3's gradient path, round 1, per scenario: {label: PathResult} for the ``episodes`` [(label,
     options, seed, scenario name)] of every scenario that has a label in ``need`` (default: all). A scenario's batch
     is all its episodes, kept or not, so that what it computes does not depend on what an interrupted build kept.
     ``keep``, ``keys`` ({label: :func:`episode_key`}): each scenario's result is kept in the build's folder once it
-    is solved, and used again by a build run again (the batch of a 20-episode building scenario took over 20 min)."""
+    is solved, and used again by a build run again (the batch of a 20-episode building scenario took over 20 min).
+    ``limit_penalty``: procedure 5's objective (:data:`experiments.benchmark.certify.PATHS_5`)."""
     from experiments.benchmark.certify import PathResult, batched_gradient_paths
 
     by_scenario: dict = {}
@@ -237,7 +246,8 @@ def batched_round_1(env_id: str, episodes, warm_laws, control_dt: float, need=No
         t0 = time.perf_counter()
         problems = [episode_problem(env_id, options, seed, control_dt) for _, options, seed in eps]
         starts = [episode_starts(p, warm_laws)[2] for p in problems]
-        solved = dict(zip((label for label, _, _ in eps), batched_gradient_paths(problems, starts, N_STARTS)))
+        solved = dict(zip((label for label, _, _ in eps), batched_gradient_paths(problems, starts, N_STARTS,
+                                                                                   limit_penalty=limit_penalty)))
         out.update(solved)
         if bkey is not None:
             keep_episode(keep, bkey, {"paths": {label: r.to_kept() for label, r in solved.items()}})
@@ -478,7 +488,7 @@ def build_suite(definition, plant: str, env_id: str, out: str | Path, *, backend
     if definition.procedure >= 3 and tasks:  # the gradient path's round 1, each scenario's episodes together
         batched = batched_round_1(env_id, [(sc.label(seed), new.reference_options(sc, seed), seed, sc.name)
                                            for sc, seed in chosen], warm, new.control_dt, need=set(slots), say=say,
-                                  keep=keep, keys=keys)
+                                  keep=keep, keys=keys, limit_penalty=definition.procedure >= 5)
         for task in tasks:
             task.kwargs["first"] = {"gradient": batched[task.label]}
     with _one_thread_per_worker():

@@ -88,6 +88,11 @@ class EnvParams:
     cost_names: tuple = dataclasses.field(metadata={"static": True}, default=())
     kind: str = dataclasses.field(metadata={"static": True}, default="")  # the plant's name
     drawn: bool = dataclasses.field(metadata={"static": True}, default=False)  # a plant per episode (E = records)
+    #: (ρ, margin): a clairvoyant's objective, not the environment's: each period's reward less ρ Σ relu(|s|/b −
+    #: margin)² over its physics steps and the limits' signals s (bounds b), the CasADi path's exterior penalty
+    #: (:data:`mrd_env.optimal.full_knowledge.LIMIT_PENALTY`), so that an optimum keeps off the limits the
+    #: environment ends an episode at; () (the environment): none
+    limit_penalty: tuple = dataclasses.field(metadata={"static": True}, default=())
 
     @property
     def nd(self) -> int:
@@ -629,9 +634,13 @@ def step(key, state: EnvState, action, params: EnvParams):
         term = jnp.asarray(0.0)
         for i, c in enumerate(params.reward_cols):
             term = term + scale[i] * hn[c] * hn[c]
-        total = total + jnp.where(ok, term, 0.0)
         for i, c in enumerate(params.limit_cols):
             hit = hit | (ok & (jnp.abs(hn[c]) > params.limits[i]))
+            if params.limit_penalty:  # n_sub ×: the period's reward is −total / n_sub
+                rho, margin = params.limit_penalty
+                over = jnp.maximum(jnp.abs(hn[c]) / params.limits[i] - margin, 0.0)
+                term = term + params.n_sub * rho * over * over
+        total = total + jnp.where(ok, term, 0.0)
         cost = cost + jnp.where(ok, _violations(params, ep.cost_limits, hn), 0.0)
         status = jnp.where(running, st, status).astype(jnp.int32)
         return (keep(Yn, Y), keep(Un, U), keep(Fn, F), queue, keep(nsub_n, nsub), keep(zin, zi), keep(w1, w_ok),

@@ -241,14 +241,15 @@ def test_every_shipped_suite_is_built_from_its_spec():
         assert read_spec(path) == d and sr.spec_command(path).endswith(f"suites/specs/{s.id}.json")
 
 
-# procedures 3's and 4's parts run in CI (tests/experiments/test_certify.py, the kept batch below); its whole build is slow
-@pytest.mark.parametrize("procedure", [2, *(pytest.param(p, marks=pytest.mark.slow) for p in (3, 4))])
-def test_procedures_2_to_4_certify_the_clairvoyant_at_the_suites_control_step(procedure, tmp_path):
+# procedures 3's to 5's parts run in CI (tests/experiments/test_certify.py, the kept batch below,
+# tests/jax/test_limit_penalty.py); their whole builds are slow
+@pytest.mark.parametrize("procedure", [2, *(pytest.param(p, marks=pytest.mark.slow) for p in (3, 4, 5))])
+def test_procedures_2_to_5_certify_the_clairvoyant_at_the_suites_control_step(procedure, tmp_path):
     """Procedure 2 (the default): the references in the suite's own action space, each episode's clairvoyant found by
     two solution paths that agree within 0.5 % of its range; the certificate is in the suite file, and the stored
     R_c is paid by the environment at the suite's control step to a command sequence the paths found. Procedure 3:
     the same, the gradient path's round 1 run for the scenario's episodes together; procedure 4: procedure 3 with
-    round 2 from the other path's optimum first."""
+    round 2 from the other path's optimum first; procedure 5: procedure 4, the gradient path kept off the limits."""
     pytest.importorskip("jax")
     data = spec_data()
     del data["procedure"]
@@ -283,9 +284,9 @@ def test_procedures_2_to_4_certify_the_clairvoyant_at_the_suites_control_step(pr
 
 
 def test_a_spec_names_a_known_procedure(tmp_path, capsys):
-    spec = write_spec(tmp_path, spec_data(procedure=5))
+    spec = write_spec(tmp_path, spec_data(procedure=6))
     rc, _, err = _build([spec], capsys)
-    assert rc == 2 and "procedure must be one of [1, 2, 3, 4]" in err and err.count("\n") == 1
+    assert rc == 2 and "procedure must be one of [1, 2, 3, 4, 5]" in err and err.count("\n") == 1
 
 
 def test_an_uncertified_episode_fails_the_build_after_the_others_are_kept(serial, tmp_path, monkeypatch):
@@ -318,7 +319,7 @@ def test_procedure_3_keeps_each_scenarios_batch_and_a_build_run_again_uses_it(tm
 
     calls = []
 
-    def fake(problems, starts, n_starts):
+    def fake(problems, starts, n_starts, limit_penalty=False):
         calls.append(len(problems))
         return [certify.PathResult(-1.0 - i, np.full((p.n_steps, p.nd), 0.5 + i), -1.0 - i,
                                    [{"start": "best constant", "status": "s", "success": True, "iterations": 3,
