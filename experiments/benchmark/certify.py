@@ -44,7 +44,7 @@ commands −3.04 and the environment −30.8, where the CasADi path's, kept 2 % 
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import partial
 
 import numpy as np
@@ -197,8 +197,6 @@ def batched_gradient_paths(problems, starts_list, n_starts: int, fine_only: bool
 
 def _one_batch(problems, starts_list, n_starts: int, fine_only: bool, limit_penalty: bool) -> list[PathResult]:
     """:func:`batched_gradient_paths` on problems of one compiled structure: one program."""
-    import dataclasses
-
     from mrd_env.jax import env as je
     from mrd_env.jax.clairvoyant import batched_clairvoyant, episode_batch
     from mrd_env.optimal.full_knowledge import LIMIT_MARGIN, LIMIT_PENALTY
@@ -212,7 +210,7 @@ def _one_batch(problems, starts_list, n_starts: int, fine_only: bool, limit_pena
     batch = episode_batch([problems[i] for i, _, _ in rows], scheme="differentiable")
     data = batch.data
     if limit_penalty:  # a static field: the arrays and the episodes' first states are the same
-        data = (dataclasses.replace(data[0], limit_penalty=(LIMIT_PENALTY, LIMIT_MARGIN)), data[1])
+        data = (replace(data[0], limit_penalty=(LIMIT_PENALTY, LIMIT_MARGIN)), data[1])
     blk = 1 if fine_only else _blocks(problems[0])
     res = batched_clairvoyant(je.episode_return, data, batch.pad([V for *_, V in rows]), problems[0].v_min,
                               problems[0].v_max, coarse=(blk,) if blk >= 2 else ())
