@@ -19,6 +19,13 @@ the builder's own procedure 2 (``experiments.benchmark.references.episode_refere
 the control step), with its wall time per episode. Paired over the same episodes: best law − passive-on, best law
 − R_p, and (where solved) R_c − best law, each a mean with its 95 % interval and the episodes won. The best law is
 the one ``tune`` chose on training records, never the best on these episodes.
+
+``--gradient SCENARIO``: the gradient path's first round of the spec's own procedure (3 or more: the scenario's
+episodes solved together, :func:`experiments.benchmark.references.batched_round_1`) on every episode of that
+scenario — a lower bound R_g ≤ R_c on each (its command sequence replayed in the environment is a clairvoyant's),
+far cheaper than certifying. It is kept where the suite's build keeps it (``--keep-for``, default
+``results/suites/<suite id>.json``), under the build's own keys, so that the build uses it again. Paired: R_g − best
+law, R_g − R_p; R_g − best law > 0 shows the clairvoyant separated from the best law (R_c can only be higher).
 """
 from __future__ import annotations
 
@@ -96,9 +103,43 @@ def tune(seeds: int, seconds: float) -> tuple[list[dict], dict]:
     return rows, tuned
 
 
-def separate(spec: Path, per_scenario: int, clairvoyant: list[str], tuned: dict, say=print) -> tuple[list, list]:
+def _gradient_bounds(name: str, env_id: str, definition, scenarios: list[str], keep_for: Path | None,
+                     say=print) -> dict:
+    """{label: R_g}: the gradient path's round 1 of ``definition``'s procedure on every episode of ``scenarios``,
+    kept where the suite's build keeps it, under its keys (see the module docstring)."""
+    from mrd_env.plants import plant
+    from mrd_env.suites import draws
+
+    from experiments.benchmark.references import batched_round_1, episode_key, partial_folder
+
+    if definition.procedure < 3:
+        raise ValueError(f"--gradient: the spec's procedure {definition.procedure} has no batched round 1 (3 or more)")
+    suite = definition.suite(name, env_id, draws(definition, env_id))
+    names = [sc.name for sc in suite.scenarios]
+    unknown = [n for n in scenarios if n not in names]
+    if unknown:
+        raise ValueError(f"--gradient: no scenario {unknown[0]!r} in the spec (scenarios: {names})")
+    warm = tuple(plant(name).profile.warm_laws)
+    keep = partial_folder(keep_for or Path("results/suites") / f"{suite.id}.json")
+    keep.mkdir(parents=True, exist_ok=True)
+    episodes, keys = [], {}
+    for sc in suite.scenarios:
+        if sc.name not in scenarios:
+            continue
+        for seed in sc.seeds:
+            label, options = sc.label(seed), suite.reference_options(sc, seed)
+            keys[label] = episode_key(env_id, options, label, seed, warm, definition.procedure, suite.control_dt)
+            episodes.append((label, options, seed, sc.name))
+    paths = batched_round_1(env_id, episodes, warm, suite.control_dt, say=say, keep=keep, keys=keys,
+                            limit_penalty=definition.procedure >= 5)
+    return {label: float(r.ret) for label, r in paths.items()}
+
+
+def separate(spec: Path, per_scenario: int, clairvoyant: list[str], tuned: dict, say=print,
+             gradient: list[str] = (), keep_for: Path | None = None) -> tuple[list, list]:
     """(episode rows, paired rows) on the held-out episodes of ``spec`` (see the module docstring); the clairvoyant
-    on the episodes labelled in ``clairvoyant``, solved after every law has run."""
+    on the episodes labelled in ``clairvoyant``, solved after every law has run; the gradient path's lower bound
+    R_g on every episode of the scenarios named in ``gradient`` (each then held out whole)."""
     from mrd_env.plants import plant, suite_spec
 
     from experiments.benchmark.references import best_constant, episode_problem, episode_references
@@ -108,9 +149,10 @@ def separate(spec: Path, per_scenario: int, clairvoyant: list[str], tuned: dict,
     warm = tuple(plant(name).profile.warm_laws)
     best_law = tuned["best_law"]
     laws = [k for k in tuned["options"] if k not in PASSIVE]
+    bounds = _gradient_bounds(name, env_id, definition, list(gradient), keep_for, say) if gradient else {}
     rows, where = [], {}
     for sc in suite.scenarios:
-        for seed in sc.seeds[:per_scenario]:
+        for seed in (sc.seeds if sc.name in gradient else sc.seeds[:per_scenario]):
             label, options = sc.label(seed), suite.episode_options(sc, seed)
             one = Scenario(label, env_id, options, (seed,))
             row = {"episode": label, "passive_on": float(_returns("passive_on", {}, one)[0]),
@@ -121,6 +163,7 @@ def separate(spec: Path, per_scenario: int, clairvoyant: list[str], tuned: dict,
             row["R_p"], row["R_p_command"] = best_constant(problem)
             row["best_law"] = row[best_law]
             row["R_c"] = row["clairvoyant_s"] = row["clairvoyant_cpu_s"] = math.nan
+            row["R_g"] = bounds.get(label, math.nan)
             rows.append(row)
             where[label] = (sc, seed)
             say(json.dumps({k: (round(v, 5) if isinstance(v, float) else v) for k, v in row.items()}))
@@ -147,7 +190,8 @@ def separate(spec: Path, per_scenario: int, clairvoyant: list[str], tuned: dict,
         row["share_best_law"] = (row["best_law"] - row["R_p"]) / rng if rng > 0 else math.nan
         row["share_passive_on"] = (row["passive_on"] - row["R_p"]) / rng if rng > 0 else math.nan
     paired = []
-    for a, b in ((best_law, "passive_on"), (best_law, "R_p"), ("R_c", best_law), ("R_c", "R_p")):
+    for a, b in ((best_law, "passive_on"), (best_law, "R_p"), ("R_c", best_law), ("R_c", "R_p"), ("R_g", best_law),
+                 ("R_g", "R_p")):
         d = np.array([r[a] - r[b] for r in rows if math.isfinite(r[a]) and math.isfinite(r[b])])
         m, lo, hi = mean_ci(d)
         paired.append({"difference": f"{a} − {b}", "episodes": d.size, "mean": m, "lo95": lo, "hi95": hi,
@@ -170,6 +214,10 @@ def main(argv=None) -> int:
     s.add_argument("--clairvoyant", nargs="*", default=[], metavar="LABEL",
                    help="the episodes whose clairvoyant is solved (labels, e.g. 'Kanai–Tajimi s1000000')")
     s.add_argument("--gains", type=Path, default=None, help="tune's tuned_gains.json (default: in --out)")
+    s.add_argument("--gradient", nargs="*", default=[], metavar="SCENARIO",
+                   help="scenarios whose episodes get the gradient path's round 1 (a lower bound on R_c)")
+    s.add_argument("--keep-for", type=Path, default=None,
+                   help="the suite file whose build keeps that round 1 (default results/suites/<suite id>.json)")
     for q in (t, s):
         q.add_argument("--out", type=Path, default=Path("results/six_storey_separation"))
     args = p.parse_args(argv)
@@ -187,7 +235,8 @@ def main(argv=None) -> int:
         print(json.dumps(tuned, indent=1))
         return 0
     tuned = json.loads((args.gains or args.out / "tuned_gains.json").read_text())
-    rows, paired = separate(args.spec, args.per_scenario, list(args.clairvoyant), tuned)
+    rows, paired = separate(args.spec, args.per_scenario, list(args.clairvoyant), tuned, gradient=args.gradient,
+                            keep_for=args.keep_for)
     end = [round(x, 2) for x in os.getloadavg()]
     write_table([{k: v for k, v in r.items() if k not in ("certificate", "wall", "load")} for r in rows],
                 args.out / "episodes",
