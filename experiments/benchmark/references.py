@@ -280,6 +280,14 @@ def episode_key(env_id: str, options: dict, label: str, seed: int, warm_laws, pr
             "mrd_env": _version()}
 
 
+def suite_keys(suite, env_id: str, warm_laws, procedure: int, episodes=None) -> dict:
+    """{label: :func:`episode_key`} of a suite's ``episodes`` ([(scenario, seed)], default all): the keys its build
+    keeps them under (a measurement that computes part of a build keeps it under these, for the build to use)."""
+    return {sc.label(seed): episode_key(env_id, suite.reference_options(sc, seed), sc.label(seed), seed, warm_laws,
+                                        procedure, suite.control_dt)
+            for sc, seed in (suite.episodes() if episodes is None else episodes)}
+
+
 #: The kept files' name prefixes: a solved episode, and procedure 3's batched round 1 of a scenario.
 KEPT_PREFIXES = ("episode-", "batch-")
 
@@ -470,10 +478,11 @@ def build_suite(definition, plant: str, env_id: str, out: str | Path, *, backend
     if not resume and keep.is_dir():
         _remove_kept(keep)
     warm = tuple(profile.warm_laws)
-    results, tasks, slots, keys = {}, [], [], {}
+    results, tasks, slots = {}, [], []
+    keys = suite_keys(new, env_id, warm, definition.procedure, chosen)
     for sc, seed in chosen:
         label, options = sc.label(seed), new.reference_options(sc, seed)
-        key = keys[label] = episode_key(env_id, options, label, seed, warm, definition.procedure, new.control_dt)
+        key = keys[label]
         hit = kept_episode(keep, key) if resume else None
         if hit is not None:
             results[label] = {**hit, "kept": True}

@@ -110,7 +110,7 @@ def _gradient_bounds(name: str, env_id: str, definition, scenarios: list[str], k
     from mrd_env.plants import plant
     from mrd_env.suites import draws
 
-    from experiments.benchmark.references import batched_round_1, episode_key, partial_folder
+    from experiments.benchmark.references import batched_round_1, partial_folder, suite_keys
 
     if definition.procedure < 3:
         raise ValueError(f"--gradient: the spec's procedure {definition.procedure} has no batched round 1 (3 or more)")
@@ -122,14 +122,9 @@ def _gradient_bounds(name: str, env_id: str, definition, scenarios: list[str], k
     warm = tuple(plant(name).profile.warm_laws)
     keep = partial_folder(keep_for or Path("results/suites") / f"{suite.id}.json")
     keep.mkdir(parents=True, exist_ok=True)
-    episodes, keys = [], {}
-    for sc in suite.scenarios:
-        if sc.name not in scenarios:
-            continue
-        for seed in sc.seeds:
-            label, options = sc.label(seed), suite.reference_options(sc, seed)
-            keys[label] = episode_key(env_id, options, label, seed, warm, definition.procedure, suite.control_dt)
-            episodes.append((label, options, seed, sc.name))
+    chosen = [(sc, seed) for sc, seed in suite.episodes() if sc.name in scenarios]
+    keys = suite_keys(suite, env_id, warm, definition.procedure, chosen)
+    episodes = [(sc.label(seed), suite.reference_options(sc, seed), seed, sc.name) for sc, seed in chosen]
     paths = batched_round_1(env_id, episodes, warm, suite.control_dt, say=say, keep=keep, keys=keys,
                             limit_penalty=definition.procedure >= 5)
     return {label: float(r.ret) for label, r in paths.items()}
