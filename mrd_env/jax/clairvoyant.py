@@ -115,16 +115,12 @@ def clairvoyant(episode_return: Callable, replay: Callable[[np.ndarray], float],
 # --- a suite's episodes solved together ------------------------------------------------------------------------
 #: The batched solver's end of an episode's run: converged by the window rule, converged (projected gradient
 #: zero), the iteration or evaluation limit, the line search failed (abnormal, as scipy's ABNORMAL_TERMINATION),
-#: the line search failed at a point stationary to the cost's rounding (:data:`FLAT_GTOL`: converged).
+#: the line search failed at a point stationary to the cost's rounding (``mrd_env.optimal.full_knowledge.FLAT_GTOL``: converged).
 _RUNNING, _CONVERGED, _STATIONARY, _LIMIT, _ABNORMAL, _FLAT = range(6)
 #: Backtracking steps of the line search (scipy's L-BFGS-B: 20).
 MAX_LINESEARCH = 20
 #: The largest projected gradient (inf-norm) that counts as stationary (the CasADi path's ``gtol``).
 GTOL = 1e-12
-#: The largest projected gradient at which a failed line search is convergence, not failure: the differentiable
-#: scheme's cost is rough at about 1e-13, so below it no step decreases it (scipy's L-BFGS-B calls the same end
-#: "relative reduction of F <= factr·epsmch"). A short car episode's coarse level ended so at 2.8e-9.
-FLAT_GTOL = 1e-6
 
 
 @dataclass
@@ -283,7 +279,7 @@ def _projected_lbfgs(fg, V0, lo, hi, blocks, *, max_iter, tol, memory):
     One loop, one evaluation of ``fg`` per pass (a level's start or a trial step), so that the program holds one
     copy of the episode's gradient (its compilation is most of the cost). One episode; the caller vmaps it.
     Returns (commands (n, nd), value, each level's status, iterations, evaluations)."""
-    from ..optimal.full_knowledge import COARSE_TOL, COARSE_WINDOW, WINDOW
+    from ..optimal.full_knowledge import COARSE_TOL, COARSE_WINDOW, FLAT_GTOL, WINDOW
 
     n, nd = V0.shape
     last = len(blocks) - 1
@@ -356,9 +352,11 @@ def _projected_lbfgs(fg, V0, lo, hi, blocks, *, max_iter, tol, memory):
 
 
 def _status_text(code: int, rtol: float, window: int) -> str:
+    from ..optimal.full_knowledge import flat_status
+
     return {_CONVERGED: f"converged (improvement < {rtol:g} over {window} iterations)",
             _STATIONARY: "converged (projected gradient below 1e-12)", _LIMIT: "iteration limit",
-            _FLAT: f"converged (no decrease found, projected gradient below {FLAT_GTOL:g})",
+            _FLAT: flat_status(),
             _ABNORMAL: "ABNORMAL: the line search found no decrease", _RUNNING: "not run"}[int(code)]
 
 

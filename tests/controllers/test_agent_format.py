@@ -29,13 +29,19 @@ def Stub():
 
 
 @pytest.mark.parametrize("name", [p.name for p in shipped_agents()])
-def test_shipped_agents_act_as_the_models_they_were_exported_from_bit_for_bit(name):
+def test_shipped_agents_act_as_the_models_they_were_exported_from(name):
     """The reference actions were computed from the SB3 models (their model.zip, as trained) and the CMA-ES networks
-    before the export (experiments/scripts/export_agent.py --reference)."""
+    before the export (experiments/scripts/export_agent.py --reference), on an AVX2 machine: bit for bit there. On
+    another instruction set torch's float32 kernels round differently (an AVX-512 machine moved the PPO agents'
+    actions by up to 6e-8, two float32 ulps), so the check is float32 rounding: 16 ulps of the largest action, far
+    below any difference a wrong weight, layer or scaling makes."""
     agent = load_agent(Path(shipped_agents()[0]).parent / name)
     with np.load(REFERENCE) as ref:
         obs, actions = ref[f"{name}__obs"], ref[f"{name}__actions"]
-    np.testing.assert_array_equal(np.asarray(agent.predict(obs)[0]), actions)
+    scale = float(np.abs(actions).max())
+    assert scale > 0
+    np.testing.assert_allclose(np.asarray(agent.predict(obs)[0]), actions, rtol=0,
+                               atol=16 * np.finfo(np.float32).eps * scale)
 
 
 def test_shipped_folders_carry_no_code_and_every_file_is_packaged():
