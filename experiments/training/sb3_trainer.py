@@ -256,6 +256,7 @@ def train_sb3(plant: PlantProfile, algo: str, seed: int, *, out: Path, timesteps
     """Train one agent of an SB3 algorithm on ``plant`` (see the module docstring); return its folder. ``report``:
     see :func:`_callbacks`."""
     import torch
+    from stable_baselines3.common.logger import Logger
     from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
 
     from controllers.agents import ObservationNormalizer, algorithm_class, save_agent
@@ -295,6 +296,10 @@ def train_sb3(plant: PlantProfile, algo: str, seed: int, *, out: Path, timesteps
     cls = with_actor_warmup(algorithm_class(label)) if actor else algorithm_class(label)
     model = cls(hyper.get("policy", "MlpPolicy"), train_env, seed=seed, device="cpu", verbose=0,
                 tensorboard_log=str(Path(out) / "tensorboard") if tensorboard else None, **kwargs)
+    if not tensorboard:
+        # what SB3 would log at verbose 0 (nothing), without the empty SB3-<time> folder it makes in the system's
+        # temporary folder for every run without a log folder
+        model.set_logger(Logger(folder=None, output_formats=[]))
     for k, v in actor.items():
         setattr(model, k, v)
     if residual:  # the untrained agent is its law exactly

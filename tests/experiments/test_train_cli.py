@@ -102,3 +102,18 @@ def test_sigterm_saves_a_loadable_agent_and_exits_143(tmp_path):
     run = next(p.parent for p in tmp_path.glob("*/agent.json"))
     assert json.loads((run / "agent.json").read_text())["interrupted"] is True
     assert load_agent(run).predict([0.0] * load_agent(run).normalizer.shape[0])[0].shape == (1,)
+
+
+def test_a_run_leaves_nothing_in_the_systems_temporary_folder(tmp_path, monkeypatch):
+    """SB3 makes an empty ``SB3-<time>`` folder in the temporary folder for every run without a log folder; the
+    trainer gives it a logger that writes nothing instead (what SB3 logs at verbose 0), so a run leaves none."""
+    import tempfile
+
+    system_tmp = tmp_path / "system_tmp"
+    system_tmp.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(system_tmp))
+    kw = {"episode_seconds": 0.2, "control_dt": 0.01}
+    run = train_one(profile("quarter_car"), "ppo", 0, out=tmp_path / "runs", timesteps=64, env_kwargs=kw,
+                    eval_freq=32, eval_episodes=1, hyper={"n_steps": 32, "batch_size": 32, "n_envs": 1})
+    assert (run / "agent.json").is_file()
+    assert not [p.name for p in system_tmp.iterdir() if p.name.startswith("SB3-")]
