@@ -22,15 +22,12 @@ from __future__ import annotations
 import argparse
 import os
 import resource
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-
-def _load() -> list[float]:
-    return [round(x, 2) for x in os.getloadavg()]
+from experiments.measurements import load_average, refusing
 
 
 def evaluation_cost(problems, batch: int, repeats: int) -> dict:
@@ -56,7 +53,7 @@ def evaluation_cost(problems, batch: int, repeats: int) -> dict:
         times.append(time.perf_counter() - t0)
     s = float(np.median(times))
     return {"rows": batch, "compile_and_first_s": round(first, 2), "evaluation_s": round(s, 4),
-            "per_row_s": round(s / batch, 4), "repeats": times, "load_average": _load(),
+            "per_row_s": round(s / batch, 4), "repeats": times, "load_average": load_average(),
             "max_rss_gb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20, 2)}
 
 
@@ -66,23 +63,19 @@ def casadi_cost(problem, warm_laws) -> dict:
     from experiments.benchmark.references import N_STARTS, episode_starts
 
     _, _, starts = episode_starts(problem, warm_laws)
-    load0, t0 = _load(), time.perf_counter()
+    load0, t0 = load_average(), time.perf_counter()
     r = casadi_path(problem, starts, N_STARTS)
     wall = time.perf_counter() - t0
     runs = r.runs
     return {"wall_s": round(wall, 1), "return": float(r.ret),
             "iterations": int(sum(x.get("iterations", 0) for x in runs)),
             "evaluations": int(sum(x.get("evaluations", 0) for x in runs)),
-            "statuses": [x.get("status") for x in runs], "load_average": [load0, _load()]}
+            "statuses": [x.get("status") for x in runs], "load_average": [load0, load_average()]}
 
 
 def main(argv=None) -> int:
     """The command line: exit 2 with one line on stderr for a refused option, before anything is measured."""
-    try:
-        return _main(argv)
-    except ValueError as e:
-        print(f"build_cost: {e}", file=sys.stderr)
-        return 2
+    return refusing("build_cost", _main, argv)
 
 
 def _main(argv) -> int:
@@ -124,7 +117,7 @@ def _main(argv) -> int:
         raise ValueError(f"--episodes: no episode {unknown[0]!r} in {suite.id}")
     problems = [episode_problem(env_id, suite.reference_options(sc, s), s, suite.control_dt) for sc, s in eps]
     out = {"suite": suite.id, "episodes": len(eps), "control_dt": suite.control_dt, "cpus": os.cpu_count(),
-           "load_start": _load(), "gradient_evaluation": [], "casadi_round_1": {}}
+           "load_start": load_average(), "gradient_evaluation": [], "casadi_round_1": {}}
     path = a.out or Path("results/bench") / f"build_cost_{suite.id}.json"
     if "gradient" in parts:
         for b in batches:
@@ -143,7 +136,7 @@ def _main(argv) -> int:
             print(f"{suite.id}: CasADi round 1 on {label}: {row['wall_s']} s, {row['iterations']} iterations, "
                   f"{row['evaluations']} evaluations (load {row['load_average']})", flush=True)
             write_json(path, out, indent=1)
-    out["load_end"] = _load()
+    out["load_end"] = load_average()
     write_json(path, out, indent=1)
     print(f"written {path}")
     return 0

@@ -32,12 +32,10 @@ from pathlib import Path
 
 import numpy as np
 
+from experiments.measurements import load_average, refusing
+
 #: The kernel's levels, each compiled as its own numba function (callers after callees).
 LEVELS = ("core_reset", "sdirk_step", "macro_step", "_advance_one", "run_systems")
-
-
-def _load() -> list[float]:
-    return [round(x, 2) for x in os.getloadavg()]
 
 
 def compile_child(model: str) -> dict:
@@ -69,7 +67,7 @@ def compile_cost(model: str) -> dict:
     """:func:`compile_child` in a fresh interpreter with an empty cache folder."""
     with tempfile.TemporaryDirectory(prefix="mrd_env_kernel_compile_") as cache:
         env = dict(os.environ, MRD_ENV_CACHE_DIR=cache, MRD_ENV_FIRST_USE="wait")
-        load = _load()
+        load = load_average()
         done = subprocess.run([sys.executable, "-m", __spec__.name, "--child", model], env=env, check=True,
                               capture_output=True, text=True)
     row = json.loads(done.stdout.strip().splitlines()[-1])
@@ -90,7 +88,6 @@ def call_probe(model: str, calls: int, repeats: int) -> dict:
     sig_rhs = types.void(A, A, types.float64, types.float64, types.float64, A)
     sig_force = types.float64(A, A, types.float64, types.float64, types.float64, types.float64)
     rhs_py, force_py = cls.rhs.py_func, cls.force_law.py_func
-    rhs_in, force_in = nb.njit(inline="always")(rhs_py), nb.njit(inline="always")(force_py)
 
     def loop(rhs, force, p, s, g, n):
         acc = 0.0
@@ -101,18 +98,15 @@ def call_probe(model: str, calls: int, repeats: int) -> dict:
             acc += force(p, s, x, v, 0.0, 1.0) + g[0]
         return acc
 
+    # (a) numba functions as arguments: compile-time constants, the loop compiled for this model and its calls
+    # inlined by LLVM; (b) function pointers: one compiled loop for every model, each call through the pointer
+    specialised = nb.njit(loop)
     pointers = nb.njit(types.float64(types.FunctionType(sig_rhs), types.FunctionType(sig_force), A, A, A,
                                      types.int64))(loop)
+    rhs_in, force_in = nb.njit(rhs_py), nb.njit(force_py)
 
-    @nb.njit
     def inlined(p, s, g, n):
-        acc = 0.0
-        for i in range(n):
-            x = 1e-3 * (i % 17)
-            v = 0.01 * (i % 13)
-            rhs_in(p, s, x, v, 1.0, g)
-            acc += force_in(p, s, x, v, 0.0, 1.0) + g[0]
-        return acc
+        return specialised(rhs_in, force_in, p, s, g, n)
 
     rhs_fp, force_fp = nb.njit(sig_rhs)(rhs_py), nb.njit(sig_force)(force_py)
     p = d.params.as_array()
@@ -134,16 +128,12 @@ def call_probe(model: str, calls: int, repeats: int) -> dict:
     ns_in = float(np.median(t_in)) / calls * 1e9
     ns_fp = float(np.median(t_fp)) / calls * 1e9
     return {"model": model, "inlined_ns": round(ns_in, 2), "pointer_ns": round(ns_fp, 2),
-            "per_call_ns": round((ns_fp - ns_in) / 2, 2), "same_bits": True, "load_average": _load()}
+            "per_call_ns": round((ns_fp - ns_in) / 2, 2), "same_bits": True, "load_average": load_average()}
 
 
 def main(argv=None) -> int:
     """The command line: exit 2 with one line on stderr for a refused option, before anything is measured."""
-    try:
-        return _main(argv)
-    except ValueError as e:
-        print(f"kernel_compile: {e}", file=sys.stderr)
-        return 2
+    return refusing("kernel_compile", _main, argv)
 
 
 def _main(argv) -> int:
@@ -168,7 +158,7 @@ def _main(argv) -> int:
         raise ValueError(f"--calls must be in [1000, 100000000], got {a.calls}")
     if not 1 <= a.repeats <= 20:
         raise ValueError(f"--repeats must be in [1, 20], got {a.repeats}")
-    out = {"cpus": os.cpu_count(), "load_start": _load(), "compile": [], "call_probe": []}
+    out = {"cpus": os.cpu_count(), "load_start": load_average(), "compile": [], "call_probe": []}
     for m in models:
         row = compile_cost(m)
         out["compile"].append(row)
