@@ -13,8 +13,9 @@ Run: ``python -m experiments.measurements.speed.kernel_compile [--models bingham
    A model without internal states (Bingham) next to one with two (Spencer–Dyke) shows how much of it is the
    model's own code.
 2. **The call probe**: ns per iteration of a compiled loop that calls a model's ``rhs`` and ``force_law`` once
-   each, (a) inlined as the kernel does and (b) through numba first-class function pointers
-   (``numba.types.FunctionType``: one compiled loop serves every model), same run, median of ``--repeats``;
+   each, (a) compiled for the model, its functions compile-time constants that LLVM inlines (the kernel inlines them
+   at numba's level), and (b) through numba first-class function pointers (``numba.types.FunctionType``: one
+   compiled loop serves every model), same run, median of ``--repeats``;
    both loops must return the same number bit for bit.
 
 Writes the JSON atomically and prints one line per figure, with the load average.
@@ -76,7 +77,7 @@ def compile_cost(model: str) -> dict:
 
 
 def call_probe(model: str, calls: int, repeats: int) -> dict:
-    """ns per iteration of rhs + force, inlined against through function pointers (same run, median)."""
+    """ns per iteration of rhs + force, compiled for the model against through function pointers (same run, median)."""
     import numba as nb
     from numba import types
 
