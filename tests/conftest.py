@@ -1,4 +1,6 @@
 import os
+import shutil
+import tempfile
 
 os.environ.setdefault("MPLBACKEND", "Agg")
 # the suite compiles in its own processes (no background compilers, no interpreted steps where tests time or
@@ -11,6 +13,17 @@ os.environ.setdefault("MRD_ENV_JAX_CACHE", "1")
 # SB3 themselves) would land in whichever test makes the worker's first environment; tests/envs/test_sb3_direct.py
 # checks the warning in subprocesses without this
 os.environ.setdefault("MRD_ENV_TORCH_THREADS_WARNING", "0")
+# SB3 makes an empty SB3-<time> folder in the system's temporary folder for every learn() without a log folder (the
+# docs' recipes and the speed scripts call it so): the suite's, its workers' and their subprocesses' go into one
+# folder, removed at the end
+_SB3_LOGDIR = None
+if "SB3_LOGDIR" not in os.environ:
+    _SB3_LOGDIR = os.environ["SB3_LOGDIR"] = tempfile.mkdtemp(prefix="mrd_env_tests_sb3_")
+
+
+def pytest_unconfigure(config):
+    if _SB3_LOGDIR is not None:
+        shutil.rmtree(_SB3_LOGDIR, ignore_errors=True)
 
 
 def pytest_collection_modifyitems(config, items):
