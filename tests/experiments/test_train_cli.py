@@ -112,6 +112,7 @@ def test_a_run_leaves_nothing_in_the_systems_temporary_folder(tmp_path, monkeypa
     system_tmp = tmp_path / "system_tmp"
     system_tmp.mkdir()
     monkeypatch.setattr(tempfile, "tempdir", str(system_tmp))
+    monkeypatch.delenv("SB3_LOGDIR", raising=False)  # the suite points it elsewhere (tests/conftest.py)
     kw = {"episode_seconds": 0.2, "control_dt": 0.01}
     run = train_one(profile("quarter_car"), "ppo", 0, out=tmp_path / "runs", timesteps=64, env_kwargs=kw,
                     eval_freq=32, eval_episodes=1, hyper={"n_steps": 32, "batch_size": 32, "n_envs": 1})
