@@ -1,6 +1,6 @@
 """The full car (issue 40: a fifth plant, its folder and one registry line): its 1 kHz physics against a
-tight-tolerance Radau reference of the 7-DOF equations written here with four Spencer–Dyke dampers and anti-roll
-bars, its linear limit against python-control's frequency response, the dampers' dissipation, the static
+tight-tolerance reference (LSODA; Radau too in the slow tier) of the 7-DOF equations written here with four
+Spencer–Dyke dampers and anti-roll bars, its linear limit against python-control's frequency response, the dampers' dissipation, the static
 equilibrium at reset, the two-track roads (coherence against the isotropic model, the rear wheels' exact delay,
 the wheelbase preview), the Gymnasium contract of both ids, option errors, the episode metrics against the offline
 ones, and every command reaching it through ``--plant full_car``."""
@@ -27,7 +27,7 @@ from mrd_env.plants.full_car.roads import Geometry, two_track_iso8608
 
 from tests.plants.contract import (check_reset_reproduces_an_episode, check_train_then_score,
                                    check_vector_steps_as_scalar_ones)
-from tests.reference_models import nrmse
+from tests.reference_models import REFERENCE_METHODS, nrmse
 
 V0 = "mrd_env/FullCarPhysical-v0"
 V1 = "mrd_env/FullCar-v1"
@@ -57,7 +57,7 @@ def test_the_registry_line_makes_both_ids_and_the_preset_is_the_documented_one()
                                + [MS * g * A / (A + B) / 2 + MUR * g] * 2)
 
 
-# --- (a) the physics against Radau --------------------------------------------------------------------------------
+# --- (a) the physics against a tight reference -------------------------------------------------------------------
 SPEED = 20.0
 DELAY = (A + B) / SPEED
 #: two tracks of three waves each (m, Hz), faded in from rest: body, pitch and roll modes and wheel hop
@@ -80,10 +80,11 @@ def roads(t: float):
     return [track(0, t), track(1, t), track(0, t - DELAY), track(1, t - DELAY)]
 
 
-def test_full_car_with_four_spencer_dyke_dampers_and_anti_roll_bars_matches_radau():
+@pytest.mark.parametrize("method", REFERENCE_METHODS)
+def test_full_car_with_four_spencer_dyke_dampers_and_anti_roll_bars_matches_the_tight_reference(method):
     """M q̈ written here corner by corner (springs, Spencer–Dyke dampers (review eq. 12), anti-roll bars as the
-    energy ½ k_ar ((x_l − x_r)/t)², tyres with damping), integrated by Radau (rtol 1e-10) with every damper on its own
-    command; the plant steps at 1 kHz on the sampled roads."""
+    energy ½ k_ar ((x_l − x_r)/t)², tyres with damping), integrated by ``method`` (rtol 1e-10) with every damper on
+    its own command; the plant steps at 1 kHz on the sampled roads."""
     T, V, KAR = 0.6, (0.3, 1.2, 1.8, 0.6), (15000.0, 8000.0)
     d = make_damper("spencer_dyke", "automotive")
     p, eta = d.params, d.command.eta
@@ -125,7 +126,7 @@ def test_full_car_with_four_spencer_dyke_dampers_and_anti_roll_bars_matches_rada
         out.append(sum(f))  # not a state: the sum of the suspension forces, read back below
         return out
 
-    sol = solve_ivp(lambda t, s: rhs(t, s.tolist())[:26], (0.0, T), np.zeros(26), method="Radau", rtol=1e-10,
+    sol = solve_ivp(lambda t, s: rhs(t, s.tolist())[:26], (0.0, T), np.zeros(26), method=method, rtol=1e-10,
                     atol=1e-12, t_eval=t_grid[1:])
     assert sol.success
     ref = np.array([rhs(t, s.tolist()) for t, s in zip(sol.t, sol.y.T)])

@@ -1,4 +1,5 @@
-"""Plants coupled to dampers: 1 kHz coupled integration against Radau, and the linear limits against
+"""Plants coupled to dampers: 1 kHz coupled integration against tight-tolerance references (LSODA; Radau too in
+the slow tier), and the linear limits against
 python-control (issue: plants and environments)."""
 import control
 import numpy as np
@@ -11,7 +12,7 @@ from mrd_env.plants import CoupledPlant
 from mrd_env.plants.quarter_car import quarter_car
 from mrd_env.plants.shear_building import shear_building
 
-from tests.reference_models import bouc_wen_zdot, nrmse
+from tests.reference_models import REFERENCE_METHODS, bouc_wen_zdot, nrmse
 
 DT = 1e-3
 
@@ -32,7 +33,8 @@ def sd_terms(p, u, x, xd, y, z):
     return yd, bouc_wen_zdot(z, xd - yd, p.A, p.beta, p.gamma, p.n), c1 * yd + p.k1 * (x - p.x0)
 
 
-def test_quarter_car_with_spencer_dyke_matches_radau_on_class_c_road():
+@pytest.mark.parametrize("method", REFERENCE_METHODS)
+def test_quarter_car_with_spencer_dyke_matches_the_tight_reference_on_class_c_road(method):
     qc = quarter_car("set_a")
     d = make_damper("spencer_dyke", "automotive")
     p, V = d.params, 1.0
@@ -55,7 +57,7 @@ def test_quarter_car_with_spencer_dyke_matches_radau_on_class_c_road():
         au = (qc.k_s * (zs - zu) + (Fd - F_static) - qc.k_t * (zu - zr) - qc.c_t * (vu - vr)) / qc.m_u
         return [vs, vu, as_, au, yd, zd, -eta * (u - V)]
 
-    sol = solve_ivp(full, (0, T), np.zeros(7), method="Radau", rtol=1e-9, atol=1e-12, t_eval=t_grid[1:],
+    sol = solve_ivp(full, (0, T), np.zeros(7), method=method, rtol=1e-9, atol=1e-12, t_eval=t_grid[1:],
                     max_step=DT)
     assert sol.success
     zs, zu, vs, vu, y, z, u = sol.y
@@ -66,7 +68,8 @@ def test_quarter_car_with_spencer_dyke_matches_radau_on_class_c_road():
     assert nrmse(Y[:, 0] - Y[:, 1], zs - zu) <= 0.01
 
 
-def test_three_storey_building_with_spencer_dyke_matches_radau_on_el_centro():
+@pytest.mark.parametrize("method", REFERENCE_METHODS)
+def test_three_storey_building_with_spencer_dyke_matches_the_tight_reference_on_el_centro(method):
     b = shear_building("three_storey")
     d = make_damper("spencer_dyke", "spencer1997")
     p, V = d.params, 1.0
@@ -90,7 +93,7 @@ def test_three_storey_building_with_spencer_dyke_matches_radau_on_el_centro():
         a = Minv @ (-C @ v - K @ x + G * (Fd - F_static)) - ag
         return np.concatenate([v, a, [yd, zd, -eta * (u - V)]])
 
-    sol = solve_ivp(full, (0, T), np.zeros(9), method="Radau", rtol=1e-9, atol=1e-12, t_eval=t_grid[1:],
+    sol = solve_ivp(full, (0, T), np.zeros(9), method=method, rtol=1e-9, atol=1e-12, t_eval=t_grid[1:],
                     max_step=DT)
     assert sol.success
     x = sol.y[:3]

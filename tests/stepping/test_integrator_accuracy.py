@@ -1,11 +1,12 @@
-"""Fixed-step (1 kHz) damper forces against a tight-tolerance Radau reference (issue: foundation)."""
+"""Fixed-step (1 kHz) damper forces against a tight-tolerance reference (LSODA; Radau in the slow tier) (issue:
+foundation)."""
 import numpy as np
 import pytest
 
 from mrd_env.dampers import make_damper
 from mrd_env.stepping import SystemMatrices, run
 
-from tests.reference_models import bouc_wen_reference, nrmse, spencer_dyke_reference
+from tests.reference_models import REFERENCE_METHODS, bouc_wen_reference, nrmse, spencer_dyke_reference
 
 DT = 1e-3
 # (amplitude m, frequency Hz, duration s): nominal, 10x velocity by frequency, 10x velocity by amplitude
@@ -27,10 +28,11 @@ def simulate_sine(damper, X, f, V, T):
 @pytest.mark.parametrize("model,reference", [("spencer_dyke", spencer_dyke_reference),
                                              ("bouc_wen", bouc_wen_reference)])
 @pytest.mark.parametrize("X,f,T", CASES)
-def test_force_nrmse_against_radau(model, reference, X, f, T):
+@pytest.mark.parametrize("method", REFERENCE_METHODS)
+def test_force_nrmse_against_a_tight_reference(model, reference, X, f, T, method):
     d = make_damper(model, "spencer1997")
     for V in VOLTS:
-        t, F_ref = reference(d.params, d.command.eta, X, f, V, T, DT)
+        t, F_ref = reference(d.params, d.command.eta, X, f, V, T, DT, method)
         F = simulate_sine(d, X, f, V, T)
         err = nrmse(F, F_ref)
         assert err <= 0.005, f"{model} X={X} f={f} V={V}: NRMSE {100 * err:.3f} % > 0.5 %"

@@ -141,7 +141,7 @@ def accuracy_vs_radau() -> list[dict]:
                 t = np.arange(n + 1) * dt
                 w = 2 * np.pi * f
                 W = np.stack([X * np.sin(w * t), X * w * np.cos(w * t), -X * w * w * np.sin(w * t)], axis=1)
-                _, F_ref = reference(d.params, d.command.eta, X, f, V, T, dt)
+                _, F_ref = reference(d.params, d.command.eta, X, f, V, T, dt, "Radau")
                 for label, opts in (("exact", {"scheme": "exact"}),
                                     ("differentiable_1_substep", {"scheme": "differentiable", "substeps": 1}),
                                     ("differentiable_2_substeps", {"scheme": "differentiable", "substeps": 2})):
