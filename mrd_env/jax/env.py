@@ -612,6 +612,7 @@ def step(key, state: EnvState, action, params: EnvParams):
     ep = _episode(params, state.record)
     whole, ts = sc.delay_split(ep.lag[:, 2], params.dt)  # each damper's delay: whole steps and the rest
     lag = ep.lag[:, :2]
+    P = sc.param_columns(ep.P)  # split once, outside the physics steps' loop
 
     def physics(carry, k):
         Y, U, F, queue, nsub, zi, w_ok, filtered, work, status, total, hit, cost, used_total = carry
@@ -624,7 +625,7 @@ def step(key, state: EnvState, action, params: EnvParams):
             vb = jnp.where(whole == i, queue[i], vb)
         w0, w1 = params.W[state.record, row], params.W[state.record, row + 1]
         st, Yn, Un, Fn, used, nsub_n, work = sc.macro_step(
-            model, ep.plant, ep.P, lag, (va, vb, ts), Y, U, F, w0, w1, params.dt, params.atol, params.rtol, nsub,
+            model, ep.plant, P, lag, (va, vb, ts), Y, U, F, w0, w1, params.dt, params.atol, params.rtol, nsub,
             work, exact=exact, max_level=params.max_level, substeps=params.substeps,
             newton_iterations=params.newton_iterations)
         running = status == OK

@@ -140,9 +140,17 @@ MATRIX_SUMS = Sums(
     qbar=lambda Ainv, Bbar, Rq, inp: Ainv @ Rq + inp[1])
 
 
+def param_columns(P):
+    """The dampers' parameters P (nd, n_params) as the tuple of its columns (nd,), which the models index
+    (``p[k]``); a tuple is returned as it is. Split once per step rather than indexed at every use: a traced
+    array index is two operations each time, a quarter of a step's program, which tracing and differentiating
+    pay for (the step's results are the same to the bit)."""
+    return P if isinstance(P, tuple) else tuple(P[:, i] for i in range(P.shape[1]))
+
+
 def _over_dampers(fn):
     """A damper model's function of one damper's scalars applied to every damper at once (the leading axis of
-    each argument: P (nd, n_params), the states' columns, strokes, rates, commands)."""
+    each argument: P's columns (:func:`param_columns`), the states' columns, strokes, rates, commands)."""
     return jax.vmap(fn)
 
 
@@ -412,6 +420,7 @@ def _macro_step_exact(model, plant: Plant, P, lag, cmds, Y, U, Fz, w0, w1, dt, a
 def end_forces(model, C, D, P, Y, U, w, *, exact: bool = False):
     """The forces (nd,) at the state Y (n,), effective commands U (nd,) and input w (nw,); and whether everything
     is finite. ``exact``: the models' general exponent by pow, as the kernel (else :func:`~.dampers.fast_power`)."""
+    P = param_columns(P)
     if exact:
         return _forces(KERNEL_SUMS, model, C, D, w, P, Y, U)
     with fast_power():
@@ -422,11 +431,13 @@ def macro_step(model, plant: Plant, P, lag, cmds, Y, U, Fz, w0, w1, dt, atol, rt
                max_level: int, substeps: int = 1, newton_iterations: int = 2):
     """Advance one system by ``dt`` (inputs w0 → w1, delayed commands ``cmds``), the kernel's ``macro_step``.
 
-    Arrays: Y (n,), U (nd,), Fz (nd,), w0 and w1 (nw,), P (nd, n_params), lag (nd, 2) the lag rates (rise, fall),
+    Arrays: Y (n,), U (nd,), Fz (nd,), w0 and w1 (nw,), P (nd, n_params) or its :func:`param_columns` (split once
+    outside a loop of steps), lag (nd, 2) the lag rates (rise, fall),
     ``cmds`` = (va, vb, ts), each (nd,); ``nsub`` the sub-steps to start with and ``work`` the kept Newton matrix
     (exact scheme; ``None`` for the differentiable one). Returns (status, Y, U, Fz, sub-steps used, sub-steps to
     start the next step with, work)."""
     va, vb, ts = cmds
+    P = param_columns(P)
     Unew = lag_value(U, va, vb, ts, lag[:, 0], lag[:, 1], dt)
     if exact:
         failed, Yc, Fc, used, nsub_next, work = _macro_step_exact(model, plant, P, lag, cmds, Y, U, Fz, w0, w1, dt,

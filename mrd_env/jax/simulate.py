@@ -32,6 +32,7 @@ def simulate(plant: sc.Plant, P, lag, Y0, U0, V, W, dt, *, model: str, queue: in
     nd = U0.shape[0]
     exact = scheme == "exact"
     whole, ts = sc.delay_split(lag[:, 2], dt)
+    P = sc.param_columns(P)  # split once, outside the steps' loop
     F0, finite = sc.end_forces(m_, plant.C, plant.D, P, Y0, U0, W[0], exact=exact)
 
     def body(c, r):
