@@ -10,7 +10,7 @@ from scipy.integrate import solve_ivp
 #: (ODEPACK's, compiled) in every run, Radau (scipy's, in Python) in the slow tier as well, at the same
 #: tolerances. On the quarter car's 3 s of class C road they agree to 2e-7 of each state's range (6e-6 for the
 #: Bouc–Wen z) and LSODA takes 3 s where Radau takes 24 (its 66 000 steps each cost a Python Newton iteration).
-#: Every reference caps the step at the sample step (``max_step``): without it LSODA's Adams steps grew past a
+#: Every reference run with them caps the step at the sample step (``max_step``): without it LSODA's Adams steps grew past a
 #: velocity reversal of the Bouc–Wen sine test unnoticed (the force 85 % off mid-record); with it the two methods
 #: agree to 1e-7 of the peak force on every damper case of ``tests/stepping/test_integrator_accuracy.py``.
 REFERENCE_METHODS = ("LSODA", pytest.param("Radau", marks=pytest.mark.slow))

@@ -81,7 +81,8 @@ def test_isolator_with_spencer_dyke_matches_the_tight_reference_on_a_smooth_base
         xd, yd, zd, Fd = terms(x, v, y, z, u, t)
         return [v, (-K * xd - (Fd - F_static)) / M, yd, zd, -eta * (u - V)]
 
-    sol = solve_ivp(rhs, (0.0, T), np.zeros(5), method=method, rtol=1e-10, atol=1e-12, t_eval=t_grid[1:])
+    sol = solve_ivp(rhs, (0.0, T), np.zeros(5), method=method, rtol=1e-10, atol=1e-12, t_eval=t_grid[1:],
+                    max_step=DT)
     assert sol.success
     x, v, y, z, u = sol.y
     xd_ref, _, _, F_ref = terms(x, v, y, z, u, t_grid[1:])
