@@ -42,7 +42,6 @@ from typing import Callable
 
 import numpy as np
 from scipy import fft as sfft
-from scipy import signal
 
 from .constants import GRAVITY as G  # noqa: F401 (standard gravity, m/s²; ``metrics.G`` kept for callers)
 from .validation import check_array, check_scalar
@@ -179,6 +178,8 @@ def weighting_magnitude(kind: str, f) -> np.ndarray:
 
 @lru_cache(maxsize=64)
 def _sos(kind: str, dt: float) -> np.ndarray:
+    from scipy import signal  # scipy.signal: ~1 s of import, needed only where a weighting is built (the car plants)
+
     fs = 1.0 / dt
     low_pass = _weighting_params(kind)["f2"] < fs / 2
 
@@ -232,6 +233,8 @@ def weighted_acceleration(a, dt, kind: str = "Wk", method: str = "iir") -> np.nd
     a = as_signal("a", a)
     step = sample_interval(dt, a.shape[0])
     if method == "iir":
+        from scipy import signal
+
         return signal.sosfilt(weighting_sos(kind, step), a, axis=0)
     _weighting_params(kind)
     return _weighting_fft(a, step, kind)

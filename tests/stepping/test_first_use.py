@@ -176,3 +176,18 @@ def _dead_pid() -> int:
     p = subprocess.Popen([sys.executable, "-c", "pass"])
     p.wait()
     return p.pid
+
+
+def test_a_building_is_made_without_scipy_signal_and_a_car_builds_its_weighting_with_it():
+    """scipy.signal (about 1 s of import) is imported only where a weighting or the Kanai–Tajimi noise is built: a
+    fresh process makes a building without it, and the quarter car's comfort weighting loads it (``make`` compiles
+    nothing: no kernel is needed for this)."""
+    import subprocess
+
+    code = ("import sys, gymnasium as gym, mrd_env\n"
+            "for env_id in sys.argv[1:]:\n"
+            "    gym.make(env_id)\n"
+            "    print('scipy.signal' in sys.modules)\n")
+    out = subprocess.run([sys.executable, "-c", code, "mrd_env/ShearBuilding-v1", "mrd_env/QuarterCar-v1"],
+                         capture_output=True, text=True, check=True).stdout.split()
+    assert out == ["False", "True"]

@@ -19,7 +19,6 @@ import math
 from functools import lru_cache
 
 import numpy as np
-from scipy import signal
 
 from ...metrics import as_series, as_signal, mtvv, rms, sample_interval, vdv, weighted_acceleration
 from ...validation import check_scalar
@@ -51,6 +50,8 @@ def we_magnitude(f) -> np.ndarray:
 
 @lru_cache(maxsize=16)
 def _we_sos(dt: float) -> np.ndarray:
+    from scipy import signal  # imported where used: see mrd_env.metrics._sos
+
     fs = 1.0 / dt
     rows = []
     for b, a in _sections(lambda f: 2.0 * fs * math.tan(math.pi * f / fs)):
@@ -95,6 +96,8 @@ def full_car_metrics(dt, heave_acc, pitch_acc, roll_acc, travel, dynamic_tyre_lo
     step = sample_interval(dt, n)
     a_w = weighted_acceleration(a, step, "Wk")
     sos = we_sos(step)
+    from scipy import signal
+
     p_w, r_w = signal.sosfilt(sos, p), signal.sosfilt(sos, r)
     out = {"acc_weighted_rms": float(rms(a_w)), "pitch_acc_weighted_rms": float(rms(p_w)),
            "roll_acc_weighted_rms": float(rms(r_w)), "acc_rms": float(rms(a)), "pitch_acc_rms": float(rms(p)),
