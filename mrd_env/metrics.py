@@ -178,7 +178,7 @@ def weighting_magnitude(kind: str, f) -> np.ndarray:
 
 @lru_cache(maxsize=64)
 def _sos(kind: str, dt: float) -> np.ndarray:
-    from scipy import signal  # scipy.signal: ~1 s of import, needed only where a weighting is built (the car plants)
+    from scipy import signal  # ~1 s of import: only where a weighting is built (cars, isolator; no building)
 
     fs = 1.0 / dt
     low_pass = _weighting_params(kind)["f2"] < fs / 2
