@@ -33,6 +33,7 @@ import json
 import math
 import re
 import reprlib
+import sys
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
@@ -546,9 +547,12 @@ def _exited(name: str, what: str, exc: BaseException, signals: ControllerSignals
 def built_controller(spec: ControllerSpec, venv, signals: ControllerSignals | None):
     """:func:`_build`, with a ``sys.exit()`` or ``KeyboardInterrupt`` of the controller's construction its error."""
     try:
-        return _build(spec, venv)
+        ctrl = _build(spec, venv)
     except (SystemExit, KeyboardInterrupt) as exc:
         _exited(spec.name, "building it", exc, signals)
+    if _torch_pending and "torch" in sys.modules:  # the user's code imported torch: one thread (one_torch_thread)
+        _one_thread()
+    return ctrl
 
 
 class DrivenController:
@@ -649,13 +653,30 @@ def one_torch_thread(spec: ControllerSpec) -> None:
     installed. torch's default takes every core, and an SB3 policy evaluated every step then contends with the
     environments and the other workers: the PPO residual agent scored 10× slower on all of car-comfort-v1 on 2 loaded
     cores (27 s and 15 s against 2.8 s and 1.8 s, measured). Called only in processes the project owns — the
-    executor's workers and the ``mrd-env`` commands —, never in a caller's Python process (a process-wide setting)."""
+    executor's workers and the ``mrd-env`` commands —, never in a caller's Python process (a process-wide setting).
+    A user's code that has not imported torch yet is not made to (importing torch costs 2–3 s per process, and a
+    pool's every worker paid it for plain NumPy controllers): its build (:func:`built_controller`) sets torch to one
+    thread if the code imported it by then."""
     import importlib.util
 
-    if spec.kind in ("agent", "python") and importlib.util.find_spec("torch") is not None:
-        import torch
+    global _torch_pending
+    if spec.kind == "agent" and importlib.util.find_spec("torch") is not None:
+        _one_thread()
+    elif spec.kind == "python":
+        if "torch" in sys.modules:
+            _one_thread()
+        else:
+            _torch_pending = True
 
-        torch.set_num_threads(1)
+
+#: A user's controller is to get torch on one thread once its code imports torch (:func:`one_torch_thread`).
+_torch_pending = False
+
+
+def _one_thread() -> None:
+    import torch
+
+    torch.set_num_threads(1)
 
 
 def scenario_episodes(suite, index: int, seeds: tuple[int, ...], spec: ControllerSpec,

@@ -387,6 +387,45 @@ def test_torch_runs_on_one_thread_only_in_the_projects_own_processes(suite_file,
     assert calls == [1] and eps[0]["label"] == "ISO-D"
 
 
+def test_a_users_code_in_a_worker_imports_torch_only_if_it_does_and_then_runs_it_on_one_thread(suite_file, tmp_path):
+    """A user's NumPy controller in a worker does not import torch (it cost every pool worker 2-3 s, only to set its
+    threads); one whose module imports torch gets it on one thread once built. In a fresh process: the test's own
+    has torch imported."""
+    import os
+    import subprocess
+    import sys
+
+    (tmp_path / "np_law.py").write_text(textwrap.dedent('''
+        import numpy as np
+
+
+        class Law:
+            def __init__(self, env):
+                self.high = env.single_action_space.high
+
+            def predict(self, observation, state=None, episode_start=None, deterministic=True):
+                return np.broadcast_to(self.high, (len(observation), self.high.size)).copy(), state
+    '''))
+    (tmp_path / "torch_law.py").write_text("import torch\n\nfrom np_law import Law  # noqa: F401\n\n"
+                                           "torch.set_num_threads(3)\n")
+    code = textwrap.dedent(f'''
+        import os, sys
+        from experiments.benchmark.scoring import controller_spec, scenario_episodes
+        from mrd_env.suites import read_suite
+        suite = read_suite({str(suite_file)!r})
+        scenario_episodes(suite, 1, (3,), controller_spec("np_law:Law"), caller=os.getpid() + 1)
+        print("torch" in sys.modules)
+        scenario_episodes(suite, 1, (3,), controller_spec("torch_law:Law"), caller=os.getpid() + 1)
+        print(sys.modules["torch"].get_num_threads())
+    ''')
+    root = Path(__file__).resolve().parents[2]
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path), str(root), os.environ.get("PYTHONPATH", "")])}
+    proc = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, env=env, capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout == "False\n1\n", proc.stdout
+
+
 @pytest.mark.parametrize("argv, message", [
     (["--controller", "mpc", "--law-options", "{horizon: 1}"], "--law-options must be a JSON object"),
     (["--controller", "mpc", "--law-options", "[1]"], "--law-options must be a JSON object"),
