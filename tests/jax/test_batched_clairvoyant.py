@@ -1,8 +1,11 @@
 """The clairvoyant of a batch of episodes (:func:`mrd_env.jax.clairvoyant.batched_clairvoyant`, issue 52, item 3):
 short quarter-car episodes of two lengths at the suites' 10 ms control step, solved together, re-simulated in the
-native environment, reach the per-episode gradient path's optimum (within 0.5 % of each episode's range R_c − R_p,
-the certification's tolerance), from the same start (the best constant command), inside the command bounds; an
-episode solved alone gets what it gets in the batch (the batch couples nothing)."""
+native environment, beat their start (the best constant command) inside the command bounds, and the twin's returns
+of the commands are the native ones'. That a batch reaches the per-episode gradient path's optimum (within 0.5 % of
+each episode's range R_c − R_p, the certification's tolerance) is checked in every run by
+``tests/experiments/test_certify.py::test_the_batched_round_1_is_the_gradient_paths_and_certifies`` (two such
+episodes, one padded); here, on these episodes, in the slow tier, as is an episode solved alone getting what it gets
+in the batch (the batch couples nothing)."""
 from __future__ import annotations
 
 import numpy as np
@@ -32,22 +35,29 @@ def _best_constant(problem) -> tuple[float, np.ndarray]:
 
 @pytest.fixture(scope="module")
 def solved():
-    """The batch's solve and the per-episode gradient path's on each episode of the longer length (one compilation
-    each, ~15 s of CPU: the batch's program, the per-episode path's at 40 steps)."""
+    """The batch's solve (one compilation, ~13 s of CPU)."""
     problems = [episode_problem(ENV_ID, seed=s, control_dt=0.01, episode_seconds=t, **ROAD) for s, t in EPISODES]
     starts = [_best_constant(p) for p in problems]
     batch = episode_batch(problems, scheme="differentiable")
     res = batched_clairvoyant(je.episode_return, batch.data, batch.pad([V for _, V in starts]), problems[0].v_min,
                               problems[0].v_max, coarse=(BLOCK,), max_iter=200)
-    single = {}
+    return problems, starts, batch, res
+
+
+@pytest.fixture(scope="module")
+def single(solved):
+    """The per-episode gradient path's return on each episode of the longer length (one more compilation, at 40
+    steps, and ~6 s of solving per episode)."""
+    problems, starts, batch, _ = solved
+    out = {}
     for b, (p, (_, V0)) in enumerate(zip(problems, starts)):
         if p.n_steps == batch.n_steps:
             params = je.params_of_problem(p, scheme="differentiable")
             _, s0 = je.reset(None, params, record=0)
             cv = clairvoyant(je.episode_return, lambda U, p=p: p.replay(U).ret, {"best constant": V0}, p.v_min,
                              p.v_max, data=(params, s0), coarse=(BLOCK,), max_iter=200)
-            single[b] = cv.solves[0].ret
-    return problems, starts, batch, res, single
+            out[b] = cv.solves[0].ret
+    return out
 
 
 def _span(r_a, r_b, r_p) -> float:
@@ -57,9 +67,9 @@ def _span(r_a, r_b, r_p) -> float:
     return span
 
 
-def test_batch_reaches_the_per_episode_optimum_within_the_bounds(solved):
-    problems, starts, batch, res, single = solved
-    assert batch.n_steps == 40 and list(batch.steps) == [40, 40, 30] and sorted(single) == [0, 1]
+def test_batch_beats_every_start_within_the_bounds_as_the_native_env_pays_it(solved):
+    problems, starts, batch, res = solved
+    assert batch.n_steps == 40 and list(batch.steps) == [40, 40, 30]
     assert np.all((res.commands >= problems[0].v_min) & (res.commands <= problems[0].v_max))
     assert res.success.all(), res.status
     for b, (p, (r_p, _), V) in enumerate(zip(problems, starts, batch.unpad(res.commands))):
@@ -67,13 +77,21 @@ def test_batch_reaches_the_per_episode_optimum_within_the_bounds(solved):
         assert r_batch > r_p  # every episode, the padded one too, beats its start
         # the twin's return of the commands is the native one's up to the twin's approximation
         assert res.model_returns[b] == pytest.approx(r_batch, abs=0.05 * (r_batch - r_p))
+
+
+@pytest.mark.slow  # the per-episode path's compilation and solves (~18 s); in every run on other episodes: test_certify
+def test_batch_reaches_the_per_episode_optimum(solved, single):
+    problems, starts, batch, res = solved
+    assert sorted(single) == [0, 1]
+    for b, (p, (r_p, _), V) in enumerate(zip(problems, starts, batch.unpad(res.commands))):
         if b in single:
+            r_batch = p.replay(V).ret
             assert r_batch >= single[b] - 0.005 * _span(single[b], r_batch, r_p), (b, r_batch, single[b], r_p)
 
 
 @pytest.mark.slow  # a third compilation (the batch of one's program): ~20 s more
-def test_a_batch_of_one_is_the_per_episode_result(solved):
-    problems, starts, batch, res, single = solved
+def test_a_batch_of_one_is_the_per_episode_result(solved, single):
+    problems, starts, batch, res = solved
     p, (r_p, V0) = problems[0], starts[0]
     alone = episode_batch(problems[:1], scheme="differentiable")
     one = batched_clairvoyant(je.episode_return, alone.data, V0[None], p.v_min, p.v_max, coarse=(BLOCK,),
