@@ -90,8 +90,9 @@ def test_sigterm_saves_a_loadable_agent_and_exits_143(tmp_path):
                              "--no-progress", "--out", str(tmp_path)], env=env, cwd=tmp_path,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 240
-    while time.monotonic() < deadline and proc.poll() is None:   # training has begun once SB3's monitor writes
-        if any(p.stat().st_size > 200 for p in tmp_path.glob("*/*monitor.csv")):
+    while time.monotonic() < deadline and proc.poll() is None:
+        # training has begun once SB3's monitor writes an episode's row under its two header lines
+        if any(p.read_text().count("\n") >= 3 for p in tmp_path.glob("*/*monitor.csv")):
             break
         time.sleep(0.5)
     assert proc.poll() is None, proc.communicate()
