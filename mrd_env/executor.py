@@ -13,8 +13,9 @@ workers, spawned processes so that numba's and torch's threads are never forked)
 the pool when there is more than one task and more than one core, else serial.
 
 The pool's workers are spawned: each imports the caller's main script again, so a script that starts a pool must do it
-under ``if __name__ == "__main__":``; a pool asked for from a script's unguarded top level is refused before any
-worker starts (:class:`UnguardedMain`, a ``ValueError``; ``"auto"`` is serial there).
+under ``if __name__ == "__main__":``; a pool asked for from a script's unguarded top level, or from a script read
+from standard input (``python -``), is refused before any worker starts (:class:`UnguardedMain`, a ``ValueError``;
+``"auto"`` is serial there).
 
 Stopping: a task that fails for good drops the queued tasks; the running ones end first. On Ctrl-C or SIGTERM (as
 ``mrd-env`` routes it: a ``KeyboardInterrupt`` in the main process) the workers are stopped, not waited for
@@ -83,7 +84,8 @@ class TaskExited(RuntimeError):
 
 class UnguardedMain(ValueError):
     """The pool asked for from a script whose calls are not under ``if __name__ == "__main__":``: each spawned worker
-    would run the script again (multiprocessing imports it), start its own pool, and die in its bootstrapping."""
+    would run the script again (multiprocessing imports it), start its own pool, and die in its bootstrapping; or from
+    a main script that is no file (``python -`` reads it from standard input), which no worker can import."""
 
 
 def unguarded_main() -> str | None:
@@ -124,15 +126,31 @@ def unguarded_main() -> str | None:
     return f"{path}:{line}"
 
 
-def check_main_guard() -> None:
-    """:class:`UnguardedMain` (one line) where :func:`unguarded_main` finds the call unguarded: refused before any
-    worker starts, rather than ending in a ``BrokenProcessPool`` after every worker re-ran the script."""
+def pool_refusal() -> str | None:
+    """Why a process pool cannot start from this process's main script (one line), or None. Each spawned worker
+    imports the main script first: one whose calls are unguarded (:func:`unguarded_main`) would run again in every
+    worker; one that is no file (``python -`` names it ``<stdin>``) cannot be imported, and every worker died
+    before its first task (the sweep ended in "its worker process ended" and a traceback per worker)."""
+    path = getattr(sys.modules.get("__main__"), "__file__", None)
+    if path and not os.path.isfile(path):
+        return (f"backend 'pool' called from a main script that is no file ({path}): each worker process imports the "
+                "main script first (multiprocessing's spawn) and cannot. Run the script from a file, or use "
+                "backend=\"serial\"")
     where = unguarded_main()
     if where is not None:
-        raise UnguardedMain(
-            f"backend 'pool' called from the top level of the script {where}, outside an `if __name__ == "
-            f"\"__main__\":` block: each worker process would run the script again (multiprocessing's spawn imports "
-            "it). Put the script's calls under `if __name__ == \"__main__\":`, or use backend=\"serial\"")
+        return (f"backend 'pool' called from the top level of the script {where}, outside an `if __name__ == "
+                f"\"__main__\":` block: each worker process would run the script again (multiprocessing's spawn "
+                "imports it). Put the script's calls under `if __name__ == \"__main__\":`, or use backend=\"serial\"")
+    return None
+
+
+def check_main_guard() -> None:
+    """:class:`UnguardedMain` (one line) where :func:`pool_refusal` finds the pool cannot start: refused before any
+    worker starts, rather than ending in a ``BrokenProcessPool`` after every worker re-ran the script or failed to
+    import it."""
+    why = pool_refusal()
+    if why is not None:
+        raise UnguardedMain(why)
 
 
 class WorkerDied(RuntimeError):
@@ -207,8 +225,9 @@ def resolve_backend(backend: str, n_tasks: int, jobs: int | None) -> str:
         raise ValueError(f"jobs must be an integer >= 1, got {jobs!r}")
     if backend == "auto":
         workers = jobs if jobs is not None else default_jobs()
-        # from an unguarded script the pool cannot start (check_main_guard): auto is serial there
-        return "pool" if n_tasks > 1 and workers > 1 and unguarded_main() is None else "serial"
+        # where the pool cannot start (check_main_guard: an unguarded script, a script read from standard input)
+        # auto is serial
+        return "pool" if n_tasks > 1 and workers > 1 and pool_refusal() is None else "serial"
     return backend
 
 

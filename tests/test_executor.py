@@ -58,6 +58,26 @@ def test_a_task_that_fails_twice_is_reported_with_its_inputs(backend):
         run_tasks([Task(draw, (1,)), Task(broken, (7,))], backend=backend, jobs=2, progress=False)
 
 
+def test_a_pool_from_a_script_on_standard_input_is_refused_in_one_line_and_auto_is_serial():
+    """``python -`` names its main script ``<stdin>``, which a spawned worker cannot import: before, every worker died
+    first and the sweep ended in "its worker process ended" after a traceback per worker. Now the pool is refused
+    before any worker starts (one line naming the way out), and ``auto`` runs the tasks in the process."""
+    import subprocess
+    import sys
+
+    script = ("from mrd_env.executor import Task, run_tasks\n"
+              "print('AUTO', run_tasks([Task(abs, (-1,)), Task(abs, (-2,))], backend='auto', jobs=2, progress=False))\n"
+              "run_tasks([Task(abs, (-1,)), Task(abs, (-2,))], backend='pool', jobs=2, progress=False)\n")
+    root = Path(__file__).resolve().parents[1]
+    out = subprocess.run([sys.executable, "-"], input=script, capture_output=True, text=True, timeout=120,
+                         env={**__import__("os").environ, "PYTHONPATH": str(root)})
+    assert out.returncode == 1 and out.stdout == "AUTO [1, 2]\n", (out.stdout, out.stderr)
+    last = out.stderr.strip().splitlines()[-1]
+    assert last.startswith("mrd_env.executor.UnguardedMain: backend 'pool' called from a main script that is no "
+                           "file (<stdin>)") and 'backend="serial"' in last, out.stderr
+    assert out.stderr.count("Traceback") == 1  # the script's own; no worker started
+
+
 def test_backend_and_jobs_are_checked():
     with pytest.raises(ValueError, match="backend must be one of"):
         run_tasks(TASKS, backend="gpu")

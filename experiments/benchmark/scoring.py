@@ -960,7 +960,7 @@ def _auto(tasks: list, episodes: list[int], jobs: int | None, progress: bool, de
     there are at least two workers for them — else in this process too."""
     import time
 
-    from mrd_env.executor import default_jobs, run_tasks, unguarded_main
+    from mrd_env.executor import default_jobs, pool_refusal, run_tasks
 
     t0 = time.perf_counter()
     out = run_tasks(tasks[:1], backend="serial", progress=progress, desc=desc, retry=False)
@@ -969,7 +969,7 @@ def _auto(tasks: list, episodes: list[int], jobs: int | None, progress: bool, de
         return out
     estimate = (time.perf_counter() - t0) / max(episodes[0], 1) * sum(episodes[1:])
     workers = min(jobs or default_jobs(), len(rest))
-    pool = workers > 1 and estimate > POOL_MIN_SECONDS and unguarded_main() is None
+    pool = workers > 1 and estimate > POOL_MIN_SECONDS and pool_refusal() is None
     return out + run_tasks(rest, backend="pool" if pool else "serial", jobs=jobs, progress=progress, desc=desc,
                            retry=False)
 
