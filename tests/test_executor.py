@@ -62,6 +62,7 @@ def test_a_pool_from_a_script_on_standard_input_is_refused_in_one_line_and_auto_
     """``python -`` names its main script ``<stdin>``, which a spawned worker cannot import: before, every worker died
     first and the sweep ended in "its worker process ended" after a traceback per worker. Now the pool is refused
     before any worker starts (one line naming the way out), and ``auto`` runs the tasks in the process."""
+    import os
     import subprocess
     import sys
 
@@ -70,7 +71,7 @@ def test_a_pool_from_a_script_on_standard_input_is_refused_in_one_line_and_auto_
               "run_tasks([Task(abs, (-1,)), Task(abs, (-2,))], backend='pool', jobs=2, progress=False)\n")
     root = Path(__file__).resolve().parents[1]
     out = subprocess.run([sys.executable, "-"], input=script, capture_output=True, text=True, timeout=120,
-                         env={**__import__("os").environ, "PYTHONPATH": str(root)})
+                         env={**os.environ, "PYTHONPATH": str(root)})
     assert out.returncode == 1 and out.stdout == "AUTO [1, 2]\n", (out.stdout, out.stderr)
     last = out.stderr.strip().splitlines()[-1]
     assert last.startswith("mrd_env.executor.UnguardedMain: backend 'pool' called from a main script that is no "
